@@ -1,0 +1,331 @@
+"""Extended state observer (ESO) of the paper, eq. 8, and its discretizations.
+
+Continuous observer (eq. 8), y = θ measured, b0 = 1/I0:
+
+    ż1 = z2 + β1 (y − z1)
+    ż2 = z3 + b0 u + β2 (y − z1)
+    ż3 = β3 (y − z1)
+
+Theorem 1: β1 = 3/ε, β2 = 3/ε², β3 = 1/ε³ put all three error poles at −1/ε.
+
+The sampled-data semantics are SPEC §2 step 5.  Three discretizations, selected
+by name:
+
+``"euler"``
+    The paper's fixed-step implementation: z⁺ = z + Ts·(right side of eq. 8).
+    Error poles at 1 − Ts/ε; unstable once Ts/ε ≥ 2.
+``"zoh"``
+    Exact discrete model of the extended plant under a held u (predictive
+    form): z⁺ = Φ z + Γ u + Lp (y − z1), poles of Φ − Lp C at e^{−Ts/ε}.
+``"current"``
+    Exact model, current-estimator form: the prediction z = Φ ẑ⁻ + Γ u⁻ is
+    corrected with the newest sample before the control is computed,
+    ẑ = z + Lc (y − z1), poles of Φ − Lc C Φ at e^{−Ts/ε}.
+
+The per-sample step is split in two plain functions shared by every engine:
+:func:`eso_estimate` gives the estimate ẑ_k the controller may use at t_k, and
+:func:`eso_advance` gives z_{k+1}.  Their parameters are packed in one float
+vector (:attr:`ESODesign.vector`) so that compiled batch kernels can hold one
+row per run.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from esoarm._jit import jitable
+
+__all__ = [
+    "DISCRETIZATIONS",
+    "ESODesign",
+    "ExtendedStateObserver",
+    "continuous_error_matrix",
+    "continuous_gains",
+    "design_observer",
+    "discrete_error_matrix",
+    "discrete_error_poles",
+    "eso_advance",
+    "eso_estimate",
+    "eso_rhs",
+    "extended_plant",
+]
+
+Discretization = Literal["euler", "zoh", "current"]
+DISCRETIZATIONS: tuple[str, ...] = ("euler", "zoh", "current")
+
+# Layout of the packed observer vector (see ESODesign.vector).
+KIND, TS, B0, BETA1, BETA2, BETA3 = 0, 1, 2, 3, 4, 5
+PHI = 6  # 9 entries, row-major
+GAMMA = 15  # 3 entries
+GAIN = 18  # 3 entries: Lp ("zoh") or Lc ("current"); Ts·β for "euler" (information only)
+VECTOR_SIZE = 21
+EULER, ZOH, CURRENT = 0, 1, 2
+
+
+def continuous_gains(eps: float) -> tuple[float, float, float]:
+    """Observer gains of Theorem 1: (β1, β2, β3) = (3/ε, 3/ε², 1/ε³).
+
+    Parameters
+    ----------
+    eps : float
+        Free parameter ε > 0 [s]; all three error poles at −1/ε [1/s].
+    """
+    if not eps > 0:
+        raise ValueError(f"eps must be > 0, got {eps!r}")
+    return 3.0 / eps, 3.0 / eps**2, 1.0 / eps**3
+
+
+def extended_plant(b0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The extended plant of eq. 7 as (A, B, C): x = (θ, θ̇, f), u [N·m]."""
+    a = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
+    b = np.array([0.0, b0, 0.0])
+    c = np.array([1.0, 0.0, 0.0])
+    return a, b, c
+
+
+def continuous_error_matrix(eps: float) -> np.ndarray:
+    """The estimation-error matrix of eq. 10, A − βC; eigenvalues all −1/ε."""
+    b1, b2, b3 = continuous_gains(eps)
+    return np.array([[-b1, 1.0, 0.0], [-b2, 0.0, 1.0], [-b3, 0.0, 0.0]])
+
+
+def _zoh_matrices(ts: float, b0: float) -> tuple[np.ndarray, np.ndarray]:
+    # Closed form of Φ = e^{A Ts}, Γ = ∫0^Ts e^{A s} ds B for the triple integrator.
+    phi = np.array([[1.0, ts, ts * ts / 2.0], [0.0, 1.0, ts], [0.0, 0.0, 1.0]])
+    gamma = b0 * np.array([ts * ts / 2.0, ts, 0.0])
+    return phi, gamma
+
+
+def _ackermann_observer(phi: np.ndarray, c_row: np.ndarray, pole: float) -> np.ndarray:
+    """Gain L with eig(Φ − L c_row) = {pole, pole, pole} (Ackermann's formula)."""
+    n = phi.shape[0]
+    obs = np.vstack([c_row @ np.linalg.matrix_power(phi, i) for i in range(n)])
+    char = np.linalg.matrix_power(phi - pole * np.eye(n), n)
+    e_last = np.zeros(n)
+    e_last[-1] = 1.0
+    return char @ np.linalg.solve(obs, e_last)
+
+
+@dataclass(frozen=True)
+class ESODesign:
+    """A discretized ESO: everything :func:`eso_advance` needs, for one ε and Ts.
+
+    Attributes
+    ----------
+    discretization : {"euler", "zoh", "current"}
+    eps : float
+        Free parameter ε [s].
+    ts : float
+        Sample period Ts [s].
+    b0 : float
+        Input gain 1/I0 [1/(kg·m²)].
+    beta : ndarray, shape (3,)
+        Continuous gains (3/ε, 3/ε², 1/ε³).
+    phi, gamma : ndarray
+        Discrete extended plant (exact ZOH; for "euler", I + Ts·A and Ts·B).
+    gain : ndarray, shape (3,)
+        Lp ("zoh"), Lc ("current"), or Ts·β ("euler").
+    """
+
+    discretization: Discretization
+    eps: float
+    ts: float
+    b0: float
+    beta: np.ndarray
+    phi: np.ndarray
+    gamma: np.ndarray
+    gain: np.ndarray
+    vector: np.ndarray = field(repr=False)
+
+    @property
+    def error_matrix(self) -> np.ndarray:
+        """Matrix of the discrete estimation-error recursion."""
+        return discrete_error_matrix(self.eps, self.ts, self.discretization)
+
+    @property
+    def poles(self) -> np.ndarray:
+        """Design error poles in the z-plane (triple)."""
+        return discrete_error_poles(self.eps, self.ts, self.discretization)
+
+
+def design_observer(eps: float, ts: float, b0: float, discretization: str = "euler") -> ESODesign:
+    """Discretize the ESO of eq. 8 for sample period ``ts``.
+
+    Parameters
+    ----------
+    eps : float
+        Free parameter ε > 0 [s] (Theorem 1).
+    ts : float
+        Sample period Ts > 0 [s].
+    b0 : float
+        Input gain 1/I0 [1/(kg·m²)].
+    discretization : {"euler", "zoh", "current"}
+        See the module docstring and SPEC §2 step 5.
+    """
+    if discretization not in DISCRETIZATIONS:
+        raise ValueError(
+            f"discretization must be one of {', '.join(DISCRETIZATIONS)}; got {discretization!r}"
+        )
+    if not ts > 0:
+        raise ValueError(f"ts must be > 0, got {ts!r}")
+    beta = np.array(continuous_gains(eps))
+    c_row = np.array([1.0, 0.0, 0.0])
+    if discretization == "euler":
+        a, b, _ = extended_plant(b0)
+        phi = np.eye(3) + ts * a
+        gamma = ts * b
+        gain = ts * beta
+        kind = EULER
+    else:
+        phi, gamma = _zoh_matrices(ts, b0)
+        pole = math.exp(-ts / eps)
+        if discretization == "zoh":
+            gain = _ackermann_observer(phi, c_row, pole)
+            kind = ZOH
+        else:
+            # Φ − Lc C Φ: an observer for the pair (Φ, CΦ)
+            gain = _ackermann_observer(phi, c_row @ phi, pole)
+            kind = CURRENT
+    vec = np.zeros(VECTOR_SIZE)
+    vec[KIND] = kind
+    vec[TS] = ts
+    vec[B0] = b0
+    vec[BETA1 : BETA3 + 1] = beta
+    vec[PHI : PHI + 9] = phi.ravel()
+    vec[GAMMA : GAMMA + 3] = gamma
+    vec[GAIN : GAIN + 3] = gain
+    for arr in (beta, phi, gamma, gain, vec):
+        arr.setflags(write=False)
+    return ESODesign(discretization, eps, ts, b0, beta, phi, gamma, gain, vec)  # type: ignore[arg-type]
+
+
+def discrete_error_matrix(eps: float, ts: float, discretization: str) -> np.ndarray:
+    """Matrix M of the estimation-error recursion z̃⁺ = M z̃ (γ = 0).
+
+    "euler": I + Ts (A − βC); "zoh": Φ − Lp C; "current": Φ − Lc C Φ.
+    """
+    d = design_observer(eps, ts, 1.0, discretization)
+    c_row = np.array([[1.0, 0.0, 0.0]])
+    if discretization == "euler":
+        return np.eye(3) + ts * continuous_error_matrix(eps)
+    if discretization == "zoh":
+        return d.phi - np.outer(d.gain, c_row) @ np.eye(3)
+    return d.phi - np.outer(d.gain, c_row @ d.phi)
+
+
+def discrete_error_poles(eps: float, ts: float, discretization: str) -> np.ndarray:
+    """Design error poles (z-plane, triple) of a discretized ESO.
+
+    "euler": 1 − Ts/ε (stable only while Ts/ε < 2); "zoh" and "current":
+    e^{−Ts/ε}, the exact image of the continuous poles −1/ε.
+    """
+    if discretization == "euler":
+        p = 1.0 - ts / eps
+    elif discretization in ("zoh", "current"):
+        p = math.exp(-ts / eps)
+    else:
+        raise ValueError(f"discretization must be one of {', '.join(DISCRETIZATIONS)}")
+    return np.full(3, p)
+
+
+# ---------------------------------------------------------------------------
+# plain step functions, shared by every engine
+
+
+@jitable
+def eso_rhs(z1, z2, z3, y, u, b0, beta1, beta2, beta3):  # type: ignore[no-untyped-def]
+    """Right side of eq. 8 at (z, y, u): returns (ż1, ż2, ż3)."""
+    e = y - z1
+    return z2 + beta1 * e, z3 + b0 * u + beta2 * e, beta3 * e
+
+
+@jitable
+def eso_estimate(z1, z2, z3, y, obs):  # type: ignore[no-untyped-def]
+    """Estimate ẑ_k available to the controller at t_k (SPEC §2 step 5).
+
+    For "euler" and "zoh" this is the state itself; for "current" it is the
+    prediction corrected with y_k: ẑ = z + Lc (y − z1).
+    """
+    if obs[KIND] == CURRENT:
+        e = y - z1
+        return z1 + obs[GAIN] * e, z2 + obs[GAIN + 1] * e, z3 + obs[GAIN + 2] * e
+    return z1, z2, z3
+
+
+@jitable
+def eso_advance(z1, z2, z3, zh1, zh2, zh3, y, u, obs):  # type: ignore[no-untyped-def]
+    """Observer state z_{k+1} from z_k, the estimate ẑ_k, y_k and u_k.
+
+    Parameters
+    ----------
+    z1, z2, z3 : float
+        Observer state z_k.
+    zh1, zh2, zh3 : float
+        Estimate ẑ_k from :func:`eso_estimate` (used by "current").
+    y : float
+        Measured angle y_k [rad].
+    u : float
+        Control u_k [N·m] (saturated, as commanded).
+    obs : ndarray, shape (21,)
+        :attr:`ESODesign.vector`.
+    """
+    kind = obs[KIND]
+    if kind == EULER:
+        ts = obs[TS]
+        d1, d2, d3 = eso_rhs(z1, z2, z3, y, u, obs[B0], obs[BETA1], obs[BETA2], obs[BETA3])
+        return z1 + ts * d1, z2 + ts * d2, z3 + ts * d3
+    if kind == ZOH:
+        # z⁺ = Φ z + Γ u + Lp (y − z1)
+        e = y - z1
+        n1 = obs[PHI] * z1 + obs[PHI + 1] * z2 + obs[PHI + 2] * z3 + obs[GAMMA] * u
+        n2 = obs[PHI + 3] * z1 + obs[PHI + 4] * z2 + obs[PHI + 5] * z3 + obs[GAMMA + 1] * u
+        n3 = obs[PHI + 6] * z1 + obs[PHI + 7] * z2 + obs[PHI + 8] * z3 + obs[GAMMA + 2] * u
+        return n1 + obs[GAIN] * e, n2 + obs[GAIN + 1] * e, n3 + obs[GAIN + 2] * e
+    # "current": prediction z⁺ = Φ ẑ + Γ u
+    n1 = obs[PHI] * zh1 + obs[PHI + 1] * zh2 + obs[PHI + 2] * zh3 + obs[GAMMA] * u
+    n2 = obs[PHI + 3] * zh1 + obs[PHI + 4] * zh2 + obs[PHI + 5] * zh3 + obs[GAMMA + 1] * u
+    n3 = obs[PHI + 6] * zh1 + obs[PHI + 7] * zh2 + obs[PHI + 8] * zh3 + obs[GAMMA + 2] * u
+    return n1, n2, n3
+
+
+class ExtendedStateObserver:
+    """Stateful ESO stepped one sample at a time (real-time loop, replay, notebooks).
+
+    Per sample: ``zhat = eso.estimate(y)`` gives the estimate for the
+    controller, then ``eso.update(u)`` advances with the applied command.
+    Both call the same plain functions as the simulators.
+
+    Parameters
+    ----------
+    design : ESODesign
+        From :func:`design_observer`.
+    y0 : float
+        First measurement [rad]; initial state z_0 = (y0, 0, 0) (SPEC §2).
+    """
+
+    __slots__ = ("_obs", "_y", "design", "z", "zhat")
+
+    def __init__(self, design: ESODesign, y0: float) -> None:
+        self.design = design
+        self._obs = design.vector
+        self.z: tuple[float, float, float] = (float(y0), 0.0, 0.0)
+        self.zhat: tuple[float, float, float] = self.z
+        self._y = float(y0)
+
+    def estimate(self, y: float) -> tuple[float, float, float]:
+        """Take measurement y_k [rad]; return ẑ_k = (θ̂, θ̇̂, f̂)."""
+        self._y = y
+        z1, z2, z3 = self.z
+        self.zhat = eso_estimate(z1, z2, z3, y, self._obs)
+        return self.zhat
+
+    def update(self, u: float) -> tuple[float, float, float]:
+        """Advance to z_{k+1} with the control u_k [N·m] computed from ẑ_k."""
+        z1, z2, z3 = self.z
+        h1, h2, h3 = self.zhat
+        self.z = eso_advance(z1, z2, z3, h1, h2, h3, self._y, u, self._obs)
+        return self.z

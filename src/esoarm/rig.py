@@ -1,0 +1,149 @@
+"""The true system: the digital twin of the paper's rig (SPEC §2).
+
+    θ̈ = (τ − G(θ) − Fc tanh(θ̇/vs) − b θ̇) / I + d(t),     I = inertia_scale · I0
+    τ̇ = (u_applied − τ) / T      (actuator lag T > 0; τ = u_applied when T = 0)
+    d(t) = amplitude · sin(frequency · t)                  (paper eq. 6)
+
+integrated with classical RK4 at a fixed step h, d evaluated at each stage
+time.  The functions take the rig parameters packed in one float vector
+(:attr:`RigParams.vector`) so compiled batch kernels can hold one row per run.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from esoarm._jit import jitable
+from esoarm.model import gravity_coefficient, gravity_torque
+
+__all__ = ["RigParams", "rig_acceleration", "rig_advance", "rig_derivative", "rig_rk4_step"]
+
+INERTIA, GCOEF, FC, VS, VISC, DAMP, DFREQ, LAG = range(8)
+VECTOR_SIZE = 8
+
+
+@jitable
+def disturbance(t, rig):  # type: ignore[no-untyped-def]
+    """External disturbance d(t) = amplitude · sin(frequency · t) [rad/s²] (eq. 6)."""
+    return rig[DAMP] * math.sin(rig[DFREQ] * t)
+
+
+@jitable
+def rig_acceleration(theta, omega, tau, t, rig):  # type: ignore[no-untyped-def]
+    """True angular acceleration θ̈ [rad/s²] at angle θ, rate θ̇, torque τ, time t."""
+    friction = rig[FC] * math.tanh(omega / rig[VS]) + rig[VISC] * omega
+    return (tau - gravity_torque(theta, rig[GCOEF]) - friction) / rig[INERTIA] + disturbance(t, rig)
+
+
+@jitable
+def rig_derivative(theta, omega, tau, u, t, rig):  # type: ignore[no-untyped-def]
+    """Time derivative of the rig state (θ, θ̇, τ) under the applied input u [N·m]."""
+    lag = rig[LAG]
+    if lag > 0.0:
+        return omega, rig_acceleration(theta, omega, tau, t, rig), (u - tau) / lag
+    return omega, rig_acceleration(theta, omega, u, t, rig), 0.0
+
+
+@jitable
+def rig_rk4_step(theta, omega, tau, u, t, h, rig):  # type: ignore[no-untyped-def]
+    """One classical RK4 step of length h [s] from time t with u held."""
+    half = 0.5 * h
+    a1, b1, c1 = rig_derivative(theta, omega, tau, u, t, rig)
+    a2, b2, c2 = rig_derivative(theta + half * a1, omega + half * b1, tau + half * c1, u,
+                                t + half, rig)
+    a3, b3, c3 = rig_derivative(theta + half * a2, omega + half * b2, tau + half * c2, u,
+                                t + half, rig)
+    a4, b4, c4 = rig_derivative(theta + h * a3, omega + h * b3, tau + h * c3, u, t + h, rig)
+    sixth = h / 6.0
+    return (
+        theta + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+        omega + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
+        tau + sixth * (c1 + 2.0 * c2 + 2.0 * c3 + c4),
+    )
+
+
+@jitable
+def rig_advance(theta, omega, tau, u, t0, h, nsub, rig):  # type: ignore[no-untyped-def]
+    """Integrate the rig over one sample: ``nsub`` RK4 steps of h from t0, u held."""
+    for j in range(nsub):
+        theta, omega, tau = rig_rk4_step(theta, omega, tau, u, t0 + j * h, h, rig)
+    return theta, omega, tau
+
+
+@jitable
+def applied_torque(tau, u, rig):  # type: ignore[no-untyped-def]
+    """Torque acting on the arm: the lag state τ when T > 0, else u itself."""
+    if rig[LAG] > 0.0:
+        return tau
+    return u
+
+
+@dataclass(frozen=True)
+class RigParams:
+    """Parameters of the true rig.
+
+    Attributes
+    ----------
+    inertia : float
+        True inertia I = inertia_scale · I0 [kg·m²].
+    gcoef : float
+        (m1 l1 − m2 l2) g [N·m].
+    coulomb_friction : float
+        Fc [N·m].
+    friction_velocity : float
+        vs [rad/s].
+    viscous_friction : float
+        b [N·m·s/rad].
+    disturbance_amplitude : float
+        [rad/s²].
+    disturbance_frequency : float
+        [rad/s].
+    lag : float
+        Actuator time constant T [s]; 0 for none.
+    """
+
+    inertia: float
+    gcoef: float
+    coulomb_friction: float
+    friction_velocity: float
+    viscous_friction: float
+    disturbance_amplitude: float
+    disturbance_frequency: float
+    lag: float
+
+    @classmethod
+    def from_scenario(cls, scn) -> RigParams:  # type: ignore[no-untyped-def]
+        """Rig parameters of a :class:`~esoarm.scenario.Scenario`."""
+        p, r = scn.plant, scn.rig
+        return cls(
+            inertia=r.inertia_scale * p.inertia,
+            gcoef=gravity_coefficient(p.m1, p.m2, p.l1, p.l2, p.g),
+            coulomb_friction=r.coulomb_friction,
+            friction_velocity=r.friction_velocity,
+            viscous_friction=r.viscous_friction,
+            disturbance_amplitude=r.disturbance.amplitude,
+            disturbance_frequency=r.disturbance.frequency,
+            lag=scn.actuator.lag,
+        )
+
+    @cached_property
+    def vector(self) -> np.ndarray:
+        """Packed float vector for the rig functions (computed once)."""
+        vec = np.array(
+            [
+                self.inertia,
+                self.gcoef,
+                self.coulomb_friction,
+                self.friction_velocity,
+                self.viscous_friction,
+                self.disturbance_amplitude,
+                self.disturbance_frequency,
+                self.lag,
+            ]
+        )
+        vec.setflags(write=False)
+        return vec

@@ -1,0 +1,524 @@
+"""Scenario files: the validated, immutable description of one closed-loop run.
+
+A scenario is a TOML file (SPEC §3).  Every key has a default; a file gives only
+what differs.  Built-in scenarios ship in ``esoarm/scenarios/*.toml`` and are
+addressed by name.  Validation happens here, once, at the edge: the numerics
+trust a :class:`Scenario`.
+
+Errors are raised as :class:`ScenarioError`, whose message is one line naming
+the offending key or file and what is allowed.  Risky but legal settings give
+:class:`ScenarioWarning` (see :func:`scenario_warnings`).
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import math
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+__all__ = [
+    "Scenario",
+    "ScenarioError",
+    "ScenarioWarning",
+    "builtin_names",
+    "load_scenario",
+    "parse_override",
+    "scenario_warnings",
+    "to_toml",
+]
+
+
+class ScenarioError(ValueError):
+    """Bad scenario input: the message is one line naming the key or file."""
+
+
+class ScenarioWarning(UserWarning):
+    """A legal but risky scenario setting (e.g. an observer too fast for Ts)."""
+
+
+def _unit(unit: str) -> dict[str, str]:
+    return {"unit": unit}
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+class Plant(_Section):
+    """Nominal model known to the controller (paper Table I)."""
+
+    m1: float = Field(0.5, gt=0, description="lumped mass 1", json_schema_extra=_unit("kg"))
+    m2: float = Field(0.55, gt=0, description="lumped mass 2", json_schema_extra=_unit("kg"))
+    l1: float = Field(0.15, gt=0, description="length of arm 1", json_schema_extra=_unit("m"))
+    l2: float = Field(0.14, gt=0, description="length of arm 2", json_schema_extra=_unit("m"))
+    inertia: float = Field(
+        0.0225, gt=0, description="moment of inertia I0", json_schema_extra=_unit("kg·m²")
+    )
+    g: float = Field(9.81, ge=0, description="gravity", json_schema_extra=_unit("m/s²"))
+
+
+class Disturbance(_Section):
+    """External disturbance d(t) = amplitude · sin(frequency · t) (paper eq. 6)."""
+
+    kind: Literal["sine"] = Field("sine", description="disturbance shape")
+    amplitude: float = Field(0.2, description="amplitude", json_schema_extra=_unit("rad/s²"))
+    frequency: float = Field(
+        0.5, ge=0, description="angular frequency", json_schema_extra=_unit("rad/s")
+    )
+
+
+class Rig(_Section):
+    """The true system: the digital twin of the paper's rig (SPEC §2)."""
+
+    inertia_scale: float = Field(
+        1.1, gt=0, description="true inertia / nominal inertia", json_schema_extra=_unit("1")
+    )
+    coulomb_friction: float = Field(
+        0.05, ge=0, description="Coulomb friction torque Fc", json_schema_extra=_unit("N·m")
+    )
+    friction_velocity: float = Field(
+        0.01, gt=0, description="tanh smoothing velocity vs of Coulomb friction",
+        json_schema_extra=_unit("rad/s"),
+    )
+    viscous_friction: float = Field(
+        0.01, ge=0, description="viscous friction b", json_schema_extra=_unit("N·m·s/rad")
+    )
+    step: float = Field(0.001, gt=0, description="RK4 step h", json_schema_extra=_unit("s"))
+    theta0: float = Field(0.0, description="initial angle θ(0)", json_schema_extra=_unit("rad"))
+    disturbance: Disturbance = Field(default_factory=Disturbance)
+
+
+class Sensor(_Section):
+    """Encoder model: sampling, Gaussian noise, quantization."""
+
+    rate_hz: float = Field(50.0, gt=0, description="sample rate 1/Ts", json_schema_extra=_unit("Hz"))
+    resolution_deg: float = Field(
+        0.05, ge=0, description="quantization step q (0: none)", json_schema_extra=_unit("deg")
+    )
+    noise_deg: float = Field(
+        0.2, ge=0, description="std dev of Gaussian noise before quantization",
+        json_schema_extra=_unit("deg"),
+    )
+    seed: int = Field(0, ge=0, description="seed of numpy.random.default_rng for the noise")
+
+
+class Actuator(_Section):
+    """Torque saturation, first-order lag and transport delay."""
+
+    torque_limit: float = Field(
+        2.0, gt=0, description="saturation |u| ≤ torque_limit", json_schema_extra=_unit("N·m")
+    )
+    lag: float = Field(
+        0.0, ge=0, description="first-order lag time constant T (0: none)",
+        json_schema_extra=_unit("s"),
+    )
+    delay_samples: int = Field(
+        0, ge=0, description="transport delay in samples", json_schema_extra=_unit("samples")
+    )
+
+
+class Observer(_Section):
+    """Extended state observer (paper eq. 8, Theorem 1)."""
+
+    eps: float = Field(
+        0.09, gt=0, description="free parameter ε; observer poles at −1/ε",
+        json_schema_extra=_unit("s"),
+    )
+    discretization: Literal["euler", "zoh", "current"] = Field(
+        "euler", description='"euler" (paper) | "zoh" | "current" (SPEC §2)'
+    )
+
+
+class Controller(_Section):
+    """Feedback-linearization controller (paper eq. 14-17)."""
+
+    k1: float = Field(10.0, gt=0, description="error-rate gain k1", json_schema_extra=_unit("1/s"))
+    k2: float = Field(25.0, gt=0, description="error gain k2", json_schema_extra=_unit("1/s²"))
+    compensation: Literal["eso", "model"] = Field(
+        "eso", description='"eso": β̂ = z3 (proposed) | "model": β̂ = −G(ẑ1)/I0 (Fig. 7 baseline)'
+    )
+
+
+class QuinticSteps(_Section):
+    """Rest-to-rest quintic moves, the angle held between moves."""
+
+    kind: Literal["quintic-steps"] = "quintic-steps"
+    start: float = Field(0.0, description="angle before the first move", json_schema_extra=_unit("rad"))
+    moves: list[list[float]] = Field(
+        default_factory=lambda: [[1.0, 2.0, 1.0], [10.0, 2.0, 0.0]],
+        description="[start s, duration s, target rad] per move, in time order",
+    )
+
+
+class Multisine(_Section):
+    """θd(t) = offset + Σ amplitudes[i] · sin(frequencies[i] · t + phases[i])."""
+
+    kind: Literal["multisine"] = "multisine"
+    amplitudes: list[float] = Field(
+        default_factory=lambda: [0.5], description="amplitudes", json_schema_extra=_unit("rad")
+    )
+    frequencies: list[float] = Field(
+        default_factory=lambda: [0.5], description="angular frequencies",
+        json_schema_extra=_unit("rad/s"),
+    )
+    phases: list[float] = Field(
+        default_factory=list, description="phases (empty: all zero)", json_schema_extra=_unit("rad")
+    )
+    offset: float = Field(0.0, description="constant offset", json_schema_extra=_unit("rad"))
+
+
+Reference = Annotated[QuinticSteps | Multisine, Field(discriminator="kind")]
+
+
+class Scenario(_Section):
+    """A complete, validated closed-loop experiment (SPEC §3).
+
+    Build one with :func:`load_scenario`; the object is immutable.  Use
+    :meth:`with_overrides` for variations.
+    """
+
+    name: str = Field("test-1", description="scenario name")
+    duration: float = Field(20.0, gt=0, description="run length", json_schema_extra=_unit("s"))
+    plant: Plant = Field(default_factory=Plant)
+    rig: Rig = Field(default_factory=Rig)
+    sensor: Sensor = Field(default_factory=Sensor)
+    actuator: Actuator = Field(default_factory=Actuator)
+    observer: Observer = Field(default_factory=Observer)
+    controller: Controller = Field(default_factory=Controller)
+    reference: Reference = Field(default_factory=QuinticSteps)
+
+    # -- derived quantities -------------------------------------------------
+    @property
+    def sample_time(self) -> float:
+        """Sample period Ts = 1/rate_hz [s]."""
+        return 1.0 / self.sensor.rate_hz
+
+    @property
+    def n_samples(self) -> int:
+        """Number of control samples N = round(duration · rate_hz)."""
+        return int(round(self.duration * self.sensor.rate_hz))
+
+    @property
+    def substeps(self) -> int:
+        """RK4 steps per sample, Ts / rig.step (validated to be an integer)."""
+        return int(round(self.sample_time / self.rig.step))
+
+    def with_overrides(self, overrides: dict[str, Any] | list[str]) -> Scenario:
+        """Return a new scenario with dotted-key overrides applied and validated.
+
+        ``overrides`` is a mapping ``{"observer.eps": 0.05}`` or a list of
+        ``"KEY=VALUE"`` strings as given to ``--set``.
+        """
+        return _build(self.to_dict(), overrides, source=f"scenario '{self.name}'")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fully resolved scenario as plain nested dicts."""
+        return self.model_dump()
+
+    def to_toml(self) -> str:
+        """The fully resolved scenario as TOML text (all keys)."""
+        return to_toml(self.to_dict())
+
+
+# ---------------------------------------------------------------------------
+# loading
+
+
+def builtin_names() -> list[str]:
+    """Names of the scenarios shipped with the package."""
+    root = resources.files("esoarm") / "scenarios"
+    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
+
+
+def _read_toml(text: str, source: str) -> dict[str, Any]:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{source}: TOML syntax error: {exc}") from None
+
+
+def _builtin_text(name: str) -> str:
+    return (resources.files("esoarm") / "scenarios" / f"{name}.toml").read_text(encoding="utf-8")
+
+
+def load_scenario(
+    scenario: str | Path | Scenario = "test-1",
+    overrides: dict[str, Any] | list[str] | None = None,
+) -> Scenario:
+    """Load a scenario by built-in name or TOML path, with optional overrides.
+
+    Parameters
+    ----------
+    scenario : str, Path or Scenario
+        A built-in name (see :func:`builtin_names`), a path to a TOML file, or
+        an existing :class:`Scenario`.
+    overrides : dict or list of str, optional
+        Dotted keys to change, e.g. ``{"observer.eps": 0.05}`` or
+        ``["observer.eps=0.05", "observer.discretization=zoh"]``.
+
+    Raises
+    ------
+    ScenarioError
+        Unknown scenario, missing file, TOML syntax error, unknown key, wrong
+        type, or a value out of range; the message names the key or file.
+    """
+    if isinstance(scenario, Scenario):
+        return scenario.with_overrides(overrides or {})
+    text_name = str(scenario)
+    path = Path(text_name)
+    if text_name in builtin_names() and not path.suffix:
+        source = f"built-in scenario '{text_name}'"
+        data = _read_toml(_builtin_text(text_name), source)
+    elif path.suffix == ".toml" or path.exists() or "/" in text_name or "\\" in text_name:
+        source = f"file '{text_name}'"
+        if not path.is_file():
+            raise ScenarioError(f"{source}: no such file")
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ScenarioError(f"{source}: cannot read: {exc}") from None
+        data = _read_toml(text, source)
+        data.setdefault("name", path.stem)
+    else:
+        names = builtin_names()
+        close = difflib.get_close_matches(text_name, names, n=1)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        raise ScenarioError(
+            f"unknown scenario '{text_name}': not a built-in ({', '.join(names)}) "
+            f"nor a .toml file{hint}"
+        )
+    return _build(data, overrides or {}, source=source)
+
+
+def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    out = copy.deepcopy(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            if key == "reference" and value.get("kind", out[key].get("kind")) != out[key].get("kind"):
+                out[key] = copy.deepcopy(value)  # another kind of reference: its own defaults
+            else:
+                out[key] = _merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def _defaults() -> dict[str, Any]:
+    return Scenario().model_dump()
+
+
+def parse_override(item: str) -> tuple[str, Any]:
+    """Parse one ``KEY=VALUE`` override; VALUE as TOML, else as a string."""
+    if "=" not in item:
+        raise ScenarioError(f"--set '{item}': expected KEY=VALUE, e.g. observer.eps=0.05")
+    key, raw = item.split("=", 1)
+    key = key.strip()
+    raw = raw.strip()
+    if not key:
+        raise ScenarioError(f"--set '{item}': empty key")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key, value
+
+
+def _nest(key: str, value: Any) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    node = out
+    parts = key.split(".")
+    for part in parts[:-1]:
+        node = node.setdefault(part, {})
+    node[parts[-1]] = value
+    return out
+
+
+def _valid_keys() -> list[str]:
+    keys: list[str] = []
+
+    def walk(model: type[BaseModel], prefix: str) -> None:
+        for name, field in model.model_fields.items():
+            ann = field.annotation
+            if isinstance(ann, type) and issubclass(ann, BaseModel):
+                walk(ann, prefix + name + ".")
+            else:
+                keys.append(prefix + name)
+
+    walk(Scenario, "")
+    for ref_model in (QuinticSteps, Multisine):
+        for name in ref_model.model_fields:
+            keys.append("reference." + name)
+    return sorted(set(keys))
+
+
+def _build(data: dict[str, Any], overrides: dict[str, Any] | list[str], source: str) -> Scenario:
+    if isinstance(overrides, list):
+        pairs = [parse_override(item) for item in overrides]
+    else:
+        pairs = list(overrides.items())
+    merged = _merge(_defaults(), data)
+    for key, value in pairs:
+        _check_key(key, source="--set")
+        merged = _merge(merged, _nest(key, value))
+    try:
+        scn = Scenario.model_validate(merged)
+    except ValidationError as exc:
+        raise ScenarioError(_format_validation_error(exc, source)) from None
+    _check_consistency(scn, source)
+    return scn
+
+
+def _check_key(key: str, source: str) -> None:
+    valid = _valid_keys()
+    if key in valid:
+        return
+    # a whole table given to --set is not allowed either; suggest a leaf key
+    close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
+    hint = f"; did you mean '{close[0]}'?" if close else ""
+    raise ScenarioError(f"{source}: unknown key '{key}'{hint}")
+
+
+def _format_validation_error(exc: ValidationError, source: str) -> str:
+    err = exc.errors()[0]
+    loc = [str(p) for p in err["loc"] if not isinstance(p, int)]
+    # drop the discriminator tag pydantic inserts for tagged unions
+    loc = [p for p in loc if p not in ("quintic-steps", "multisine")]
+    idx = [p for p in err["loc"] if isinstance(p, int)]
+    key = ".".join(loc)
+    more = len(exc.errors()) - 1
+    tail = f" (and {more} more error{'s' if more > 1 else ''})" if more else ""
+    kind = err["type"]
+    if kind == "extra_forbidden":
+        valid = _valid_keys()
+        close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        return f"{source}: unknown key '{key}'{hint}{tail}"
+    where = f"{key}[{']['.join(map(str, idx))}]" if idx else key
+    value = err.get("input")
+    msg = err["msg"]
+    if kind in ("finite_number",):
+        msg = "must be a finite number (no NaN or inf)"
+    elif kind.startswith(("float", "int", "string", "list", "bool", "model")):
+        msg = f"{msg.lower()}"
+    if kind == "union_tag_invalid":
+        return f"{source}: key '{key}.kind' must be one of 'quintic-steps', 'multisine'{tail}"
+    shown = repr(value) if not isinstance(value, dict) else "a table"
+    return f"{source}: key '{where}' = {shown}: {msg}{tail}"
+
+
+def _check_consistency(scn: Scenario, source: str) -> None:
+    def fail(key: str, msg: str) -> None:
+        raise ScenarioError(f"{source}: key '{key}': {msg}")
+
+    ts = scn.sample_time
+    ratio = ts / scn.rig.step
+    if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+        fail(
+            "rig.step",
+            f"{scn.rig.step:g} s must divide the sample period Ts = 1/rate_hz = {ts:g} s "
+            "into a whole number of RK4 steps",
+        )
+    if scn.n_samples < 1:
+        fail("duration", f"{scn.duration:g} s is shorter than one sample period ({ts:g} s)")
+    ref = scn.reference
+    if isinstance(ref, QuinticSteps):
+        end = -math.inf
+        for i, move in enumerate(ref.moves):
+            if len(move) != 3:
+                fail(f"reference.moves[{i}]", "each move is [start s, duration s, target rad]")
+            t0, dur, _ = move
+            if not all(math.isfinite(v) for v in move):
+                fail(f"reference.moves[{i}]", "must be finite numbers")
+            if dur <= 0:
+                fail(f"reference.moves[{i}]", f"duration {dur:g} s must be > 0")
+            if t0 < 0:
+                fail(f"reference.moves[{i}]", f"start {t0:g} s must be >= 0")
+            if t0 < end - 1e-12:
+                fail(
+                    f"reference.moves[{i}]",
+                    f"starts at {t0:g} s, before the previous move ends ({end:g} s): "
+                    "moves must be in time order and not overlap",
+                )
+            end = t0 + dur
+    else:
+        n = len(ref.amplitudes)
+        if len(ref.frequencies) != n:
+            fail("reference.frequencies", f"needs one entry per amplitude ({n})")
+        if ref.phases and len(ref.phases) != n:
+            fail("reference.phases", f"needs one entry per amplitude ({n}) or none")
+
+
+def scenario_warnings(scn: Scenario) -> list[str]:
+    """Legal but risky settings of ``scn``, as one-line messages.
+
+    Currently: a discrete observer whose error poles are unstable or poorly
+    damped at this sample rate (see :func:`esoarm.analysis.observer_poles`).
+    """
+    from esoarm.observer import discrete_error_poles
+
+    out: list[str] = []
+    ts = scn.sample_time
+    eps = scn.observer.eps
+    disc = scn.observer.discretization
+    radius = max(abs(p) for p in discrete_error_poles(eps, ts, disc))
+    if radius >= 1.0:
+        out.append(
+            f"observer.eps = {eps:g} s with discretization '{disc}' at Ts = {ts:g} s: "
+            f"the discrete observer is unstable (pole radius {radius:.3g} >= 1); "
+            f"use eps > {ts / 2:g} s or discretization 'zoh'/'current'"
+        )
+    elif disc == "euler" and ts / eps > 1.0:
+        out.append(
+            f"observer.eps = {eps:g} s with Euler at Ts = {ts:g} s: Ts/eps = {ts / eps:.3g} > 1 "
+            "puts the observer poles on the negative real axis (oscillating estimates)"
+        )
+    if eps < 2.0 * ts and disc != "euler":
+        out.append(
+            f"observer.eps = {eps:g} s is below 2·Ts = {2 * ts:g} s: the observer is faster "
+            "than the sample rate supports well; expect noisy estimates"
+        )
+    return out
+
+
+# ---------------------------------------------------------------------------
+# TOML output
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        text = repr(value)
+        return text if any(c in text for c in ".en") else text + ".0"
+    if isinstance(value, str):
+        escaped = value.replace("\\", "\\\\").replace('"', '\\"')
+        return f'"{escaped}"'
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} as TOML")
+
+
+def to_toml(data: dict[str, Any], _prefix: str = "") -> str:
+    """Write nested dicts of scalars and lists as TOML text (tables last)."""
+    lines: list[str] = []
+    tables = []
+    for key, value in data.items():
+        if isinstance(value, dict):
+            tables.append((key, value))
+        else:
+            lines.append(f"{key} = {_toml_value(value)}")
+    for key, value in tables:
+        name = f"{_prefix}{key}"
+        body = to_toml(value, name + ".")
+        lines.append("")
+        lines.append(f"[{name}]")
+        lines.append(body.rstrip("\n"))
+    return "\n".join(line for line in lines).lstrip("\n") + "\n"
