@@ -1,0 +1,75 @@
+"""The ``esoarm`` command line (SPEC §4).
+
+Subcommands live in their own modules and are imported only when invoked, so
+``esoarm --help`` stays fast and optional dependencies stay optional.  Exit
+codes: 0 success, 1 failure at run time, 2 bad input, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import warnings
+
+import click
+
+from esoarm import __version__
+from esoarm.cli._common import BadInput, RunFailure, show_warning
+
+__all__ = ["main"]
+
+# name -> "module:attribute"; add a line here to register a subcommand.
+COMMANDS: dict[str, str] = {
+    "reproduce": "esoarm.cli.reproduce:reproduce",
+    "simulate": "esoarm.cli.simulate:simulate",
+    "scenarios": "esoarm.cli.simulate:scenarios",
+    "show": "esoarm.cli.simulate:show",
+}
+
+
+class LazyGroup(click.Group):
+    """A click group that imports each subcommand's module on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        target = COMMANDS.get(cmd_name)
+        if target is None:
+            return None
+        module, attr = target.split(":")
+        return getattr(importlib.import_module(module), attr)  # type: ignore[no-any-return]
+
+    def resolve_command(self, ctx, args):  # type: ignore[no-untyped-def]
+        name = args[0] if args else ""
+        if name and not name.startswith("-") and name not in COMMANDS:
+            import difflib
+
+            close = difflib.get_close_matches(name, list(COMMANDS), n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise BadInput(f"unknown command '{name}' (one of {', '.join(sorted(COMMANDS))}){hint}")
+        return super().resolve_command(ctx, args)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="esoarm")
+def cli() -> None:
+    """esoarm: ESO-based feedback-linearization control of a robotic lever arm.
+
+    Runs the paper's experiments on a built-in digital twin of the rig
+    (12 V DC motor, encoder at 50 Hz) and drives real rigs. Angles in rad,
+    torques in N·m, times in s unless a name says otherwise.
+    """
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console-script entry point."""
+    warnings.showwarning = show_warning
+    try:
+        cli.main(args=argv, prog_name="esoarm", standalone_mode=True)
+    except KeyboardInterrupt:  # pragma: no cover - click converts most of these
+        click.echo("esoarm: interrupted", err=True)
+        sys.exit(130)
+
+
+__all__ += ["BadInput", "RunFailure", "cli"]

@@ -1,0 +1,102 @@
+"""``esoarm simulate``, ``esoarm scenarios`` and ``esoarm show``."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from esoarm.cli._common import (
+    PLOT_SUFFIXES,
+    RunFailure,
+    bad_input_guard,
+    output_path,
+    resolve_scenario,
+    scenario_argument,
+    set_option,
+)
+
+
+@click.command()
+@scenario_argument
+@set_option
+@click.option("--out", "out", metavar="FILE.csv",
+              help="Write the time series: t [s], theta, theta_ref, error [rad], u [N·m], "
+              "z1 [rad], z2 [rad/s], z3, f_true [rad/s²].")
+@click.option("--plot", "plot", metavar="FILE.png",
+              help="Draw angle, error, control and estimates (.png, .pdf or .svg).")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object with rms_error [rad], rms_u [N·m], max_abs_error [rad].")
+@bad_input_guard
+def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: str | None,
+             as_json: bool) -> None:
+    """Simulate SCENARIO (a built-in name or a TOML file) on the digital twin.
+
+    Follows the sampled-data semantics of SPEC §2 with the reference engine
+    and prints the metrics: RMS tracking error [rad], RMS control [N·m] and
+    max |error| [rad].
+    """
+    from esoarm.simulation import SimulationDiverged, simulate as run
+
+    out_path = output_path(out, "--out", (".csv",))
+    plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
+    scn = resolve_scenario(scenario, overrides)
+    try:
+        result = run(scn, warn=False)
+    except SimulationDiverged as exc:
+        kept = ""
+        if out_path is not None:
+            exc.result.to_csv(out_path)
+            kept = f"; the {len(exc.result.t)} rows logged are in {out_path}"
+        raise RunFailure(f"{exc}{kept}") from None
+    if out_path is not None:
+        result.to_csv(out_path)
+    if plot_path is not None:
+        result.plot(plot_path)
+    if as_json:
+        click.echo(json.dumps(result.summary()))
+        return
+    _print_metrics(result)
+    for label, path in (("time series", out_path), ("figure", plot_path)):
+        if path is not None:
+            click.echo(f"{label}: {path}")
+
+
+def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
+    from rich.console import Console
+    from rich.table import Table
+
+    s = result.summary()
+    table = Table(title=f"{s['scenario']}  (ε = {s['eps']:g} s, {s['discretization']}, "
+                  f"{s['compensation']} compensation)")
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    table.add_column("unit")
+    table.add_row("RMS tracking error", f"{s['rms_error']:.5f}", "rad")
+    table.add_row("RMS control", f"{s['rms_u']:.5f}", "N·m")
+    table.add_row("max |error|", f"{s['max_abs_error']:.5f}", "rad")
+    table.add_row("samples", str(s["samples"]), "")
+    Console().print(table)
+
+
+@click.command()
+def scenarios() -> None:
+    """List the built-in scenarios."""
+    from importlib import resources
+
+    from esoarm.scenario import builtin_names
+
+    for name in builtin_names():
+        text = (resources.files("esoarm") / "scenarios" / f"{name}.toml").read_text("utf-8")
+        first = next((ln[1:].strip() for ln in text.splitlines() if ln.startswith("#")), "")
+        click.echo(f"{name:10s} {first}")
+
+
+@click.command()
+@scenario_argument
+@set_option
+@bad_input_guard
+def show(scenario: str, overrides: tuple[str, ...]) -> None:
+    """Print the fully resolved SCENARIO as TOML (every key, defaults filled in)."""
+    scn = resolve_scenario(scenario, overrides)
+    click.echo(scn.to_toml(), nl=False)
