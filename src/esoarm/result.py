@@ -30,7 +30,9 @@ def compute_metrics(error: np.ndarray, u: np.ndarray) -> dict[str, float]:
     }
 
 
-def write_csv_atomic(path: str | Path, header: list[str] | tuple[str, ...], data: np.ndarray) -> None:
+def write_csv_atomic(
+    path: str | Path, header: list[str] | tuple[str, ...], data: np.ndarray
+) -> None:
     """Write a numeric table as CSV; the file appears only once complete."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
