@@ -277,6 +277,8 @@ def load_scenario(
         data = _read_toml(_builtin_text(text_name), source)
     elif path.suffix == ".toml" or path.exists() or "/" in text_name or "\\" in text_name:
         source = f"file '{text_name}'"
+        if path.is_dir():
+            raise ScenarioError(f"{source}: is a directory, expected a TOML file")
         if not path.is_file():
             raise ScenarioError(f"{source}: no such file")
         try:
@@ -396,6 +398,11 @@ def _format_validation_error(exc: ValidationError, source: str) -> str:
     kind = err["type"]
     if kind == "extra_forbidden":
         valid = _valid_keys()
+        tags = [p for p in err["loc"] if p in ("quintic-steps", "multisine")]
+        if key in valid and tags:  # a key of the other reference kind
+            model = QuinticSteps if tags[0] == "quintic-steps" else Multisine
+            return (f"{source}: key '{key}' does not apply to reference kind '{tags[0]}' "
+                    f"(its keys: {', '.join(model.model_fields)}){tail}")
         close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
         hint = f"; did you mean '{close[0]}'?" if close else ""
         return f"{source}: unknown key '{key}'{hint}{tail}"
