@@ -176,6 +176,40 @@ class Multisine(_Section):
 Reference = Annotated[QuinticSteps | Multisine, Field(discriminator="kind")]
 
 
+class Motor(_Section):
+    """Optional DC motor and driver model: maps the torque command to a PWM duty.
+
+    Without a ``[motor]`` table the actuator is an ideal torque source (SPEC §2).
+    With one, the real-time loop sends a duty computed from the torque and the
+    estimated rate (back-EMF), and the emulator models the same motor (see
+    :mod:`esoarm.hardware.motor`).  Torque and back-EMF constants are equal in
+    SI units.
+    """
+
+    supply_voltage: float = Field(
+        12.0, gt=0, description="driver supply voltage Vs", json_schema_extra=_unit("V")
+    )
+    resistance: float = Field(
+        2.0, gt=0, description="winding resistance R", json_schema_extra=_unit("Ω")
+    )
+    torque_constant: float = Field(
+        0.02, gt=0, description="motor torque constant Kt (= back-EMF constant)",
+        json_schema_extra=_unit("N·m/A"),
+    )
+    gear_ratio: float = Field(
+        50.0, gt=0, description="gear ratio N (arm torque = N · motor torque)",
+        json_schema_extra=_unit("1"),
+    )
+    pwm_max: int = Field(
+        255, ge=1, le=32767, description="PWM resolution: duty ±pwm_max is full ±Vs",
+        json_schema_extra=_unit("counts"),
+    )
+    deadband: float = Field(
+        0.0, ge=0, lt=1, description="driver deadband as a fraction of full duty",
+        json_schema_extra=_unit("1"),
+    )
+
+
 class Scenario(_Section):
     """A complete, validated closed-loop experiment (SPEC §3).
 
@@ -192,6 +226,9 @@ class Scenario(_Section):
     observer: Observer = Field(default_factory=Observer)
     controller: Controller = Field(default_factory=Controller)
     reference: Reference = Field(default_factory=QuinticSteps)
+    motor: Motor | None = Field(
+        None, description="DC motor + driver (torque -> PWM duty); absent: ideal torque source"
+    )
 
     # -- derived quantities -------------------------------------------------
     @property
@@ -347,6 +384,8 @@ def _valid_keys() -> list[str]:
     def walk(model: type[BaseModel], prefix: str) -> None:
         for name, field in model.model_fields.items():
             ann = field.annotation
+            if name == "motor":  # optional section: Motor | None
+                ann = Motor
             if isinstance(ann, type) and issubclass(ann, BaseModel):
                 walk(ann, prefix + name + ".")
             else:
@@ -518,6 +557,8 @@ def to_toml(data: dict[str, Any], _prefix: str = "") -> str:
     lines: list[str] = []
     tables = []
     for key, value in data.items():
+        if value is None:  # an absent optional section (e.g. [motor])
+            continue
         if isinstance(value, dict):
             tables.append((key, value))
         else:

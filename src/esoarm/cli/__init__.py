@@ -24,6 +24,9 @@ COMMANDS: dict[str, str] = {
     "simulate": "esoarm.cli.simulate:simulate",
     "scenarios": "esoarm.cli.simulate:scenarios",
     "show": "esoarm.cli.simulate:show",
+    "emulate": "esoarm.cli.rig:emulate",
+    "run": "esoarm.cli.rig:run",
+    "replay": "esoarm.cli.rig:replay",
 }
 
 

@@ -1,0 +1,242 @@
+"""``esoarm emulate``, ``esoarm run`` and ``esoarm replay``: the rig commands."""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import sys
+from pathlib import Path
+
+import click
+
+from esoarm.cli._common import (
+    PLOT_SUFFIXES,
+    BadInput,
+    RunFailure,
+    bad_input_guard,
+    output_path,
+    resolve_scenario,
+    scenario_argument,
+    set_option,
+    stderr_is_tty,
+)
+
+
+class Interrupted(click.ClickException):
+    """Ctrl-C: one line on stderr, exit status 130."""
+
+    exit_code = 130
+
+    def show(self, file=None) -> None:  # type: ignore[no-untyped-def]
+        click.echo(f"esoarm: interrupted: {self.format_message()}", err=True)
+
+
+def _say(line: str) -> None:
+    print(line, flush=True)
+
+
+@click.command()
+@scenario_argument
+@set_option
+@click.option("--lockstep", is_flag=True,
+              help="Advance the twin exactly one sample (Ts) per command received, so a run "
+              "over the link commands the same u [N·m] sequence as 'esoarm simulate', bit for "
+              "bit. Default: real time, one sample every Ts = 1/sensor.rate_hz seconds.")
+@click.option("--fault", "faults", multiple=True, metavar="KIND@SECONDS",
+              help="Inject a fault at twin time SECONDS [s]: drop (outgoing frames lost), "
+              "corrupt (outgoing frames damaged), stall (the device stops answering), "
+              "disconnect (the port goes away), glitch (encoder jumps half a revolution). "
+              "Repeatable.")
+@click.option("--once", is_flag=True,
+              help="Exit after the first stop command instead of waiting for another run.")
+@bad_input_guard
+def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: tuple[str, ...],
+            once: bool) -> None:
+    """Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.
+
+    The first line printed is 'device: PATH'; pass PATH to 'esoarm run --port'.
+    The twin integrates the rig exactly as the simulator does (RK4 step
+    rig.step [s], actuator lag and delay), draws the encoder noise on the device
+    side, reports angles as encoder counts of sensor.resolution_deg [deg] and,
+    with a [motor] table, turns PWM duties into torque [N·m] through the motor
+    model. On a stop command it prints a line and holds the motor off.
+    """
+    from esoarm.hardware.emulator import Emulator, parse_fault
+
+    specs = [parse_fault(f) for f in faults]
+    scn = resolve_scenario(scenario, overrides)
+    emu = Emulator(scn, lockstep=lockstep, faults=specs, once=once, echo=_say)
+    _say(f"device: {emu.path}")
+    _say(f"scenario '{scn.name}': {emu.twin.counts_per_rev} counts/rev, "
+         f"{1e6 / emu.period_us:g} Hz, {'PWM duty ±' + str(emu.twin.pwm_max) if emu.twin.motor else 'ideal torque'}"
+         f", {'lockstep' if lockstep else 'real time'}")
+    terminated = []
+
+    def on_term(signum, frame) -> None:  # type: ignore[no-untyped-def]
+        terminated.append(signum)
+
+    old = signal.signal(signal.SIGTERM, on_term)
+    try:
+        emu.serve(until=lambda: bool(terminated))
+    except KeyboardInterrupt:
+        raise Interrupted("emulator stopped") from None
+    finally:
+        signal.signal(signal.SIGTERM, old)
+        emu.close()
+    if terminated:
+        _say("terminated: port closed")
+
+
+@click.command()
+@scenario_argument
+@click.option("--port", required=True, metavar="PATH",
+              help="Serial device of the rig (e.g. /dev/ttyACM0) or the path printed by "
+              "'esoarm emulate'.")
+@set_option
+@click.option("--log", "log", metavar="FILE.csv",
+              help="Stream the log here, one flushed row per sample: t [s], theta (measured), "
+              "theta_ref, error [rad], u [N·m], z1 [rad], z2 [rad/s], z3 [rad/s²], then k, "
+              "t_device, t_host, latency [s], late (0/1), duty [counts].")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the metrics as one JSON object: rms_error [rad, measured angle], "
+              "rms_u [N·m], deadline_misses, jitter_p50_us/jitter_p99_us [µs], ...")
+@click.option("--angle-limit", type=float, default=math.pi, show_default=True,
+              metavar="RAD", help="Stop when |measured angle| exceeds this [rad].")
+@click.option("--max-jump", type=float, default=0.5, show_default=True, metavar="RAD",
+              help="Stop when the measured angle changes more than this in one sample [rad].")
+@click.option("--watchdog", type=float, default=0.25, show_default=True, metavar="SECONDS",
+              help="Stop when no sample arrives for this long [s].")
+@bad_input_guard
+def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, as_json: bool,
+        angle_limit: float, max_jump: float, watchdog: float) -> None:
+    """Drive the rig on PORT through SCENARIO at its rate for its duration.
+
+    The ESO + FLC of the scenario runs on this host, one sample at a time; the
+    device sends encoder counts and receives torques [N·m] (ideal torque source)
+    or PWM duties (with a [motor] table). Safety: torque limit, angle limit,
+    encoder-jump check, watchdog on incoming samples, NaN guard. A fault sends
+    stop, keeps the log and exits 1; Ctrl-C does the same and exits 130.
+    """
+    from esoarm.hardware.link import LinkError, SerialLink
+    from esoarm.hardware.loop import RigFault, RigInterrupted, SafetyLimits, run_rig
+
+    log_path = output_path(log, "--log", (".csv",))
+    for name, value in (("--angle-limit", angle_limit), ("--max-jump", max_jump),
+                        ("--watchdog", watchdog)):
+        if not (math.isfinite(value) and value > 0):
+            raise BadInput(f"{name} {value:g}: must be a finite number > 0")
+    scn = resolve_scenario(scenario, overrides)
+    limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog)
+    try:
+        link = SerialLink(port)
+    except LinkError as exc:
+        raise RunFailure(str(exc)) from None
+    live = _status_display() if stderr_is_tty() and not as_json else None
+    try:
+        summary = run_rig(scn, link, log_path, limits, status=live.update if live else None)
+    except RigFault as exc:
+        raise RunFailure(str(exc)) from None
+    except RigInterrupted as exc:
+        raise Interrupted(str(exc)) from None
+    except LinkError as exc:
+        raise RunFailure(str(exc)) from None
+    finally:
+        if live:
+            live.close()
+        link.close()
+    if as_json:
+        click.echo(json.dumps({"scenario": scn.name, **summary.to_dict()}))
+        return
+    _print_summary(scn.name, summary)
+
+
+class _status_display:  # noqa: N801 - used like a function
+    """A live status line on stderr (rich)."""
+
+    def __init__(self) -> None:
+        from rich.console import Console
+        from rich.live import Live
+
+        self._live = Live("", console=Console(stderr=True), auto_refresh=False, transient=False)
+        self._live.start()
+
+    def update(self, s: dict) -> None:
+        self._live.update(
+            f"t = {s['t']:7.2f} s  θ = {s['theta']:+.4f} rad  e = {s['error']:+.4f} rad  "
+            f"u = {s['u']:+.3f} N·m  misses = {s['deadline_misses']}  "
+            f"[{s['k'] + 1}/{s['n']}]", refresh=True)
+
+    def close(self) -> None:
+        self._live.stop()
+
+
+def _print_summary(name: str, s) -> None:  # type: ignore[no-untyped-def]
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"{name} on the rig ({s.mode})")
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    table.add_column("unit")
+
+    def fmt(v: float, spec: str) -> str:
+        return format(v, spec) if math.isfinite(v) else "—"
+
+    table.add_row("RMS tracking error (measured θ)", fmt(s.rms_error, ".5f"), "rad")
+    table.add_row("RMS control", fmt(s.rms_u, ".5f"), "N·m")
+    table.add_row("max |error|", fmt(s.max_abs_error, ".5f"), "rad")
+    table.add_row("samples logged", str(s.samples), "")
+    table.add_row("lost samples", str(s.lost_samples), "")
+    table.add_row("deadline misses", str(s.deadline_misses), "")
+    table.add_row("period jitter p50 / p99",
+                  f"{fmt(s.jitter_p50_us, '.0f')} / {fmt(s.jitter_p99_us, '.0f')}", "µs")
+    table.add_row("host latency p50 / p99",
+                  f"{fmt(s.latency_p50_us, '.0f')} / {fmt(s.latency_p99_us, '.0f')}", "µs")
+    table.add_row("bad frames", str(s.bad_frames), "")
+    Console().print(table)
+    if s.log:
+        click.echo(f"log: {s.log}")
+
+
+@click.command()
+@click.argument("log_file", metavar="LOG.csv")
+@click.option("--scenario", "scenario", default="test-1", show_default=True,
+              metavar="NAME|PATH", help="Scenario whose observer (observer.eps [s], "
+              "observer.discretization, plant.inertia [kg·m²]) is replayed.")
+@set_option
+@click.option("--out", "out", metavar="FILE.csv",
+              help="Write t [s], theta [rad], u [N·m], z1 [rad], z2 [rad/s], z3 [rad/s²] "
+              "(default: CSV on stdout).")
+@click.option("--plot", "plot", metavar="FILE.png",
+              help="Draw the measured angle with the estimates (.png, .pdf or .svg).")
+@bad_input_guard
+def replay(log_file: str, scenario: str, overrides: tuple[str, ...], out: str | None,
+           plot: str | None) -> None:
+    """Run the ESO offline over LOG.csv to recover velocity and perturbation estimates.
+
+    LOG.csv needs columns t [s, uniform], theta [rad, measured] and u [N·m,
+    applied from that row on]; logs from 'esoarm run' replay directly. Row k of
+    the output holds the estimate the controller would use at t_k (SPEC §2); the
+    sample period comes from the log.
+    """
+    from esoarm.hardware.replay import plot_replay, read_log
+    from esoarm.hardware.replay import replay as run_replay
+
+    out_path = output_path(out, "--out", (".csv",))
+    plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
+    scn = resolve_scenario(scenario, overrides)
+    t, theta, u, ts = read_log(log_file)
+    result = run_replay(scn, t, theta, u, ts)
+    if out_path is None:
+        import numpy as np
+
+        sys.stdout.write(",".join(("t", "theta", "u", "z1", "z2", "z3")) + "\n")
+        np.savetxt(sys.stdout, result.table(), delimiter=",", fmt="%.17g")
+    else:
+        result.to_csv(out_path)
+    if plot_path is not None:
+        plot_replay(result, plot_path)
+    for label, path in (("estimates", out_path), ("figure", plot_path)):
+        if path is not None:
+            click.echo(f"{label}: {Path(path)} ({len(t)} rows, Ts = {ts:g} s)")

@@ -1,0 +1,243 @@
+"""Binary serial protocol between the host and the rig (see ``docs/protocol.md``).
+
+Frame layout (all integers little-endian)::
+
+    0xA5 0x5A | type u8 | seq u8 | len u8 | payload (len bytes) | crc u16
+
+``crc`` is CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no
+final xor) over ``type, seq, len, payload``.  Every message type has a fixed
+payload length; a header whose length does not match its type is rejected.
+``seq`` counts the frames each side sends (mod 256) so a receiver can count
+lost frames.
+
+Parsing rule (identical in :class:`Parser` and the C header
+``firmware/esoarm_rig/esoarm_protocol.h``, checked with shared vectors): a
+frame is recognised at position p when the sync bytes, a known type with its
+length, and the CRC all match; scanning then continues after the frame.  If
+anything fails, the byte at p is discarded and scanning resumes at p + 1.  A
+frame still incomplete at the end of the input waits for more bytes, so the
+result does not depend on how the stream is split into reads.
+"""
+
+from __future__ import annotations
+
+import binascii
+import struct
+from dataclasses import dataclass
+from typing import NamedTuple
+
+__all__ = [
+    "FAULT",
+    "HELLO",
+    "INFO",
+    "PROTOCOL_VERSION",
+    "SAMPLE",
+    "START",
+    "STOP",
+    "STOPPED",
+    "DUTY",
+    "TORQUE",
+    "Frame",
+    "Info",
+    "Parser",
+    "crc16",
+    "encode",
+]
+
+PROTOCOL_VERSION = 1
+SYNC = b"\xa5\x5a"
+HEADER_SIZE = 5  # sync (2) + type + seq + len
+CRC_SIZE = 2
+
+# host -> device
+HELLO = 0x01  # payload: version u8
+START = 0x02  # payload: none; the device resets its clock and starts sampling
+DUTY = 0x03  # payload: k u32 (sample answered), duty i16 in [-pwm_max, pwm_max]
+TORQUE = 0x04  # payload: k u32, torque f64 [N·m]; only if INFO flags has FLAG_TORQUE
+STOP = 0x05  # payload: none; motor off, sampling stops
+# device -> host
+INFO = 0x81  # payload: version u8, flags u8, counts_per_rev u32, pwm_max u16, period_us u32
+SAMPLE = 0x82  # payload: k u32, t_us u32 (device clock), count i32 (encoder)
+STOPPED = 0x85  # payload: none; acknowledges STOP, motor is off
+FAULT = 0x86  # payload: code u8, detail u32
+
+#: INFO flags
+FLAG_TORQUE = 0x01  # device accepts TORQUE (ideal torque source: the emulator without [motor])
+FLAG_LOCKSTEP = 0x02  # device advances one sample per command (emulator --lockstep)
+
+#: FAULT codes
+FAULT_WATCHDOG = 1  # no valid command within 100 ms; motor zeroed
+FAULT_OVERRUN = 2  # the device missed its own sample deadline
+FAULT_BAD_COMMAND = 3  # duty out of range or a command type the device does not accept
+
+#: struct format of each payload (fixed length per type)
+FORMATS: dict[int, str] = {
+    HELLO: "<B",
+    START: "<",
+    DUTY: "<Ih",
+    TORQUE: "<Id",
+    STOP: "<",
+    INFO: "<BBIHI",
+    SAMPLE: "<IIi",
+    STOPPED: "<",
+    FAULT: "<BI",
+}
+NAMES: dict[int, str] = {
+    HELLO: "HELLO", START: "START", DUTY: "DUTY", TORQUE: "TORQUE", STOP: "STOP",
+    INFO: "INFO", SAMPLE: "SAMPLE", STOPPED: "STOPPED", FAULT: "FAULT",
+}
+PAYLOAD_SIZES: dict[int, int] = {t: struct.calcsize(f) for t, f in FORMATS.items()}
+MAX_PAYLOAD = max(PAYLOAD_SIZES.values())
+MAX_FRAME = HEADER_SIZE + MAX_PAYLOAD + CRC_SIZE
+
+
+def crc16(data: bytes | bytearray | memoryview) -> int:
+    """CRC-16/CCITT-FALSE of ``data`` (poly 0x1021, init 0xFFFF)."""
+    return binascii.crc_hqx(data, 0xFFFF)
+
+
+def encode(kind: int, seq: int, *fields: int | float) -> bytes:
+    """One complete frame of type ``kind`` with sequence number ``seq``.
+
+    Parameters
+    ----------
+    kind : int
+        Message type (e.g. :data:`SAMPLE`).
+    seq : int
+        Sequence number, taken mod 256.
+    *fields
+        Payload fields in the order of :data:`FORMATS`.
+    """
+    payload = struct.pack(FORMATS[kind], *fields)
+    body = bytes((kind, seq & 0xFF, len(payload))) + payload
+    return SYNC + body + struct.pack("<H", crc16(body))
+
+
+class Frame(NamedTuple):
+    """A received frame: type, sequence number and raw payload."""
+
+    kind: int
+    seq: int
+    payload: bytes
+
+    def fields(self) -> tuple:
+        """The payload decoded with :data:`FORMATS`."""
+        return struct.unpack(FORMATS[self.kind], self.payload)
+
+
+@dataclass(frozen=True)
+class Info:
+    """The device's answer to HELLO (the version handshake).
+
+    Attributes
+    ----------
+    version : int
+        Protocol version of the device.
+    flags : int
+        :data:`FLAG_TORQUE`, :data:`FLAG_LOCKSTEP`.
+    counts_per_rev : int
+        Encoder counts per revolution (after quadrature decoding).
+    pwm_max : int
+        Largest |duty|; duty ±pwm_max is full supply voltage.
+    period_us : int
+        Sample period [µs].
+    """
+
+    version: int
+    flags: int
+    counts_per_rev: int
+    pwm_max: int
+    period_us: int
+
+    @classmethod
+    def from_frame(cls, frame: Frame) -> Info:
+        """Decode an INFO frame."""
+        return cls(*frame.fields())
+
+    @property
+    def accepts_torque(self) -> bool:
+        """The device takes float64 torque commands (ideal torque source)."""
+        return bool(self.flags & FLAG_TORQUE)
+
+    @property
+    def lockstep(self) -> bool:
+        """The device advances one sample per command."""
+        return bool(self.flags & FLAG_LOCKSTEP)
+
+
+class Parser:
+    """Incremental frame parser: feed bytes, get whole valid frames.
+
+    Corrupted, unknown or partial frames never raise: they are counted and
+    skipped (see the module docstring for the exact rule).
+
+    Attributes
+    ----------
+    frames : int
+        Valid frames returned so far.
+    crc_errors : int
+        Candidates with a valid header whose CRC did not match.
+    header_errors : int
+        Candidates (sync found) with an unknown type or a wrong length.
+    skipped : int
+        Bytes discarded while resynchronising.
+    """
+
+    __slots__ = ("_buf", "crc_errors", "frames", "header_errors", "skipped")
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+        self.frames = 0
+        self.crc_errors = 0
+        self.header_errors = 0
+        self.skipped = 0
+
+    @property
+    def pending(self) -> int:
+        """Bytes waiting for the rest of a frame."""
+        return len(self._buf)
+
+    @property
+    def bad_frames(self) -> int:
+        """Rejected frame candidates (CRC plus header errors)."""
+        return self.crc_errors + self.header_errors
+
+    def feed(self, data: bytes | bytearray) -> list[Frame]:
+        """Append ``data`` and return every frame completed by it, in order."""
+        buf = self._buf
+        buf += data
+        out: list[Frame] = []
+        pos = 0
+        n = len(buf)
+        while pos < n:
+            idx = buf.find(SYNC, pos)
+            if idx < 0:
+                # keep a trailing first sync byte: it may start a frame
+                keep = n - 1 if buf[n - 1] == SYNC[0] else n
+                self.skipped += keep - pos
+                pos = keep
+                break
+            self.skipped += idx - pos
+            pos = idx
+            if n - pos < HEADER_SIZE:
+                break
+            kind, length = buf[pos + 2], buf[pos + 4]
+            if PAYLOAD_SIZES.get(kind, -1) != length:
+                self.header_errors += 1
+                self.skipped += 1
+                pos += 1
+                continue
+            end = pos + HEADER_SIZE + length + CRC_SIZE
+            if end > n:
+                break
+            crc = buf[end - 2] | (buf[end - 1] << 8)
+            if crc16(buf[pos + 2 : end - 2]) != crc:
+                self.crc_errors += 1
+                self.skipped += 1
+                pos += 1
+                continue
+            out.append(Frame(kind, buf[pos + 3], bytes(buf[pos + HEADER_SIZE : end - 2])))
+            self.frames += 1
+            pos = end
+        del buf[:pos]
+        return out
