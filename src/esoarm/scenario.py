@@ -504,32 +504,12 @@ def scenario_warnings(scn: Scenario) -> list[str]:
     """Legal but risky settings of ``scn``, as one-line messages.
 
     Currently: a discrete observer whose error poles are unstable or poorly
-    damped at this sample rate (see :func:`esoarm.analysis.observer_poles`).
+    damped at this sample rate, or faster than the samples support (see
+    :func:`esoarm.analysis.observer_warnings`).
     """
-    from esoarm.observer import discrete_error_poles
+    from esoarm.analysis import observer_warnings
 
-    out: list[str] = []
-    ts = scn.sample_time
-    eps = scn.observer.eps
-    disc = scn.observer.discretization
-    radius = max(abs(p) for p in discrete_error_poles(eps, ts, disc))
-    if radius >= 1.0:
-        out.append(
-            f"observer.eps = {eps:g} s with discretization '{disc}' at Ts = {ts:g} s: "
-            f"the discrete observer is unstable (pole radius {radius:.3g} >= 1); "
-            f"use eps > {ts / 2:g} s or discretization 'zoh'/'current'"
-        )
-    elif disc == "euler" and ts / eps > 1.0:
-        out.append(
-            f"observer.eps = {eps:g} s with Euler at Ts = {ts:g} s: Ts/eps = {ts / eps:.3g} > 1 "
-            "puts the observer poles on the negative real axis (oscillating estimates)"
-        )
-    if eps < 2.0 * ts and disc != "euler":
-        out.append(
-            f"observer.eps = {eps:g} s is below 2·Ts = {2 * ts:g} s: the observer is faster "
-            "than the sample rate supports well; expect noisy estimates"
-        )
-    return out
+    return observer_warnings(scn.observer.eps, scn.sample_time, scn.observer.discretization)
 
 
 # ---------------------------------------------------------------------------
