@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm._jit import jitable
 from esoarm.controller import FLCParams, flc_control
 from esoarm.model import input_gain
 from esoarm.observer import design_observer, eso_advance, eso_estimate
@@ -177,6 +178,7 @@ def run_reference(scn: Scenario, inp: RunInputs) -> SimResult:
     return SimResult.from_log(scn, inp.t, log, omega_log)
 
 
+@jitable
 def _finite(theta: float, z1: float, z2: float, z3: float, u: float) -> bool:
     lim = DIVERGENCE_LIMIT
     return (
