@@ -68,9 +68,9 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
     scn = resolve_scenario(scenario, overrides)
     emu = Emulator(scn, lockstep=lockstep, faults=specs, once=once, echo=_say)
     _say(f"device: {emu.path}")
+    actuator = f"PWM duty ±{emu.twin.pwm_max}" if emu.twin.motor else "ideal torque"
     _say(f"scenario '{scn.name}': {emu.twin.counts_per_rev} counts/rev, "
-         f"{1e6 / emu.period_us:g} Hz, {'PWM duty ±' + str(emu.twin.pwm_max) if emu.twin.motor else 'ideal torque'}"
-         f", {'lockstep' if lockstep else 'real time'}")
+         f"{1e6 / emu.period_us:g} Hz, {actuator}, {'lockstep' if lockstep else 'real time'}")
     terminated = []
 
     def on_term(signum, frame) -> None:  # type: ignore[no-untyped-def]

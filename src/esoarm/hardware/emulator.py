@@ -319,6 +319,7 @@ class Emulator:
                       + ("" if was else " (was not running)"))
             self._send(P.STOPPED)
             if self.once:
+                time.sleep(0.2)  # let the host read STOPPED before the port goes away
                 self.close()
 
     def _tick(self) -> None:

@@ -335,12 +335,12 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             k = k_next
             y = q * count
             # -- safety on the measurement
-            if abs(y) > limits.angle_limit:
-                raise _Stop(f"angle limit: measured θ = {y:.4g} rad at sample {k} "
-                            f"(limit ±{limits.angle_limit:g} rad)")
             if abs(y - y_prev) > limits.max_jump:
                 raise _Stop(f"encoder jump: θ changed by {y - y_prev:.4g} rad in one sample "
                             f"at sample {k} (limit {limits.max_jump:g} rad)")
+            if abs(y) > limits.angle_limit:
+                raise _Stop(f"angle limit: measured θ = {y:.4g} rad at sample {k} "
+                            f"(limit ±{limits.angle_limit:g} rad)")
             u = ctl.step(k, y)
             z1, z2, z3 = ctl.zhat
             if not (isfinite(u) and isfinite(z1) and isfinite(z2) and isfinite(z3)):

@@ -241,3 +241,48 @@ class Parser:
             pos = end
         del buf[:pos]
         return out
+
+
+def vector_messages() -> list[tuple[int, int, tuple]]:
+    """Representative messages of every type (the shared test vectors' inputs)."""
+    return [
+        (HELLO, 0, (PROTOCOL_VERSION,)),
+        (START, 1, ()),
+        (DUTY, 2, (7, -255)),
+        (DUTY, 255, (0xFFFFFFFF, 32767)),
+        (DUTY, 17, (123456, -32768)),
+        (TORQUE, 3, (0, 0.0)),
+        (TORQUE, 4, (42, -1.2345678901234567)),
+        (TORQUE, 5, (1000, 2.0)),
+        (TORQUE, 6, (9, 5e-324)),
+        (STOP, 7, ()),
+        (INFO, 0, (PROTOCOL_VERSION, FLAG_TORQUE | FLAG_LOCKSTEP, 7200, 255, 20000)),
+        (INFO, 1, (PROTOCOL_VERSION, 0, 2400, 1023, 1000)),
+        (SAMPLE, 2, (0, 0, 0)),
+        (SAMPLE, 3, (1, 20000, -1)),
+        (SAMPLE, 200, (0xFFFFFFFF, 0xFFFFFFFF, -(2**31))),
+        (SAMPLE, 201, (5000, 100000000, 2**31 - 1)),
+        (STOPPED, 9, ()),
+        (FAULT, 10, (FAULT_WATCHDOG, 57)),
+        (FAULT, 11, (FAULT_BAD_COMMAND, 0xDEADBEEF)),
+    ]
+
+
+def vector_lines() -> list[str]:
+    """The shared test vectors as text: ``TYPE SEQ PAYLOAD FRAME NAME`` (hex; '-' empty).
+
+    ``firmware/test_vectors.txt`` is this output; regenerate it with
+    ``python -m esoarm.hardware.protocol > firmware/test_vectors.txt`` (only
+    when the protocol changes on purpose: the tests compare against the file).
+    """
+    lines = ["# esoarm protocol test vectors: TYPE SEQ PAYLOAD FRAME NAME (hex, '-' = empty)",
+             "# regenerate: python -m esoarm.hardware.protocol > firmware/test_vectors.txt"]
+    for kind, seq, fields in vector_messages():
+        payload = struct.pack(FORMATS[kind], *fields)
+        frame = encode(kind, seq, *fields)
+        lines.append(f"{kind:02x} {seq} {payload.hex() or '-'} {frame.hex()} {NAMES[kind]}")
+    return lines
+
+
+if __name__ == "__main__":  # pragma: no cover
+    print("\n".join(vector_lines()))

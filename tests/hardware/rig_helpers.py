@@ -1,0 +1,68 @@
+"""Helpers for end-to-end tests: the emulator and the host CLI as subprocesses."""
+
+from __future__ import annotations
+
+import os
+import select
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+CLI = [sys.executable, "-c", "from esoarm.cli import main; main()"]
+
+
+@dataclass
+class EmulatorProcess:
+    proc: subprocess.Popen
+    path: str
+    lines: list[str] = field(default_factory=list)
+
+    def output(self, wait: float = 1.0) -> str:
+        """Everything printed so far (waits up to ``wait`` s for more)."""
+        fd = self.proc.stdout.fileno()
+        deadline = time.monotonic() + wait
+        while (left := deadline - time.monotonic()) > 0:
+            ready, _, _ = select.select([fd], [], [], left)
+            if not ready:
+                break
+            chunk = os.read(fd, 65536)
+            if not chunk:
+                break
+            self.lines.extend(chunk.decode().splitlines())
+        return "\n".join(self.lines)
+
+
+@contextmanager
+def emulator(*args: str) -> Iterator[EmulatorProcess]:
+    """Start ``esoarm emulate ARGS``; yield once it has printed ``device: PATH``."""
+    proc = subprocess.Popen([*CLI, "emulate", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT)
+    try:
+        fd = proc.stdout.fileno()
+        ready, _, _ = select.select([fd], [], [], 20.0)
+        assert ready, "emulator printed nothing"
+        first = b""
+        while not first.endswith(b"\n"):
+            byte = os.read(fd, 1)
+            assert byte, f"emulator exited: {first!r}"
+            first += byte
+        line = first.decode().strip()
+        assert line.startswith("device: "), line
+        yield EmulatorProcess(proc, line.split(" ", 1)[1], [line])
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        proc.stdout.close()
+
+
+def esoarm(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
+    """Run the esoarm CLI; capture stdout/stderr as text."""
+    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=timeout)
