@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, settings
 
 # Bounded, deterministic property tests in CI (2 cores, shared budget).
 settings.register_profile(
-    "esoarm", max_examples=60, deadline=None, derandomize=True,
+    "esoarm", max_examples=60, deadline=None, derandomize=True, database=None,
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.load_profile("esoarm")

@@ -526,6 +526,9 @@ def _toml_value(value: Any) -> str:
         return text if any(c in text for c in ".en") else text + ".0"
     if isinstance(value, str):
         escaped = value.replace("\\", "\\\\").replace('"', '\\"')
+        # control characters are not allowed raw in a TOML string: \uXXXX
+        escaped = "".join(f"\\u{ord(c):04x}" if ord(c) < 0x20 or ord(c) == 0x7F else c
+                          for c in escaped)
         return f'"{escaped}"'
     if isinstance(value, list | tuple):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
