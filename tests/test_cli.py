@@ -178,6 +178,12 @@ def test_directory_given_as_scenario(run_cli, tmp_path):
     _assert_bad_input(run_cli("show", str(d)), [f"'{d}'"])
 
 
+def test_out_parent_is_a_file(run_cli, tmp_path):
+    (tmp_path / "afile").write_text("x", encoding="utf-8")
+    _assert_bad_input(run_cli("simulate", "test-1", "--out", str(tmp_path / "afile" / "r.csv")),
+                      ["--out", "not a directory"])
+
+
 def test_directory_given_as_out(run_cli, tmp_path):
     d = tmp_path / "res.csv"
     d.mkdir()
@@ -349,3 +355,13 @@ def test_json_values_are_finite(run_cli):
     res = run_cli("simulate", "test-2", "--set", "duration=1", "--json")
     data = json.loads(res.stdout)
     assert all(math.isfinite(data[k]) for k in ("rms_error", "rms_u", "max_abs_error"))
+
+
+def test_same_command_same_bytes(run_cli, tmp_path):
+    """Determinism end to end: two runs write byte-identical CSV files."""
+    paths = [tmp_path / "a.csv", tmp_path / "b.csv"]
+    for path in paths:
+        res = run_cli("simulate", "test-2", "--set", "duration=3", "--set", "sensor.seed=4",
+                      "--set", "observer.discretization=current", "--out", str(path))
+        assert res.exit_code == 0
+    assert paths[0].read_bytes() == paths[1].read_bytes()

@@ -52,9 +52,11 @@ from esoarm.observer import (
 )
 
 __all__ = [
+    "CONTINUOUS",
     "ObserverAnalysis",
     "analyze_observer",
     "characteristic_polynomial",
+    "error_matrix",
     "estimation_error",
     "observer_gains",
     "observer_poles",
