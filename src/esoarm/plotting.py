@@ -292,6 +292,7 @@ def figure_discretizations(sweep: Mapping[str, Mapping[float, Mapping[str, float
         err = np.array([by_eps[e]["rms_error"] for e in eps])
         rough = np.array([by_eps[e]["du_rms"] for e in eps])
         ax_e.plot(eps, err, markersize=5, **style)  # type: ignore[arg-type]
+        style["label"] = f"_{style['label']}"  # one legend (upper panel) for both panels
         ax_d.plot(eps, rough, markersize=5, **style)  # type: ignore[arg-type]
     for ax in (ax_e, ax_d):
         ax.set_xscale("log")
