@@ -365,3 +365,22 @@ def test_same_command_same_bytes(run_cli, tmp_path):
                       "--set", "observer.discretization=current", "--out", str(path))
         assert res.exit_code == 0
     assert paths[0].read_bytes() == paths[1].read_bytes()
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [(["simulate"], "Missing argument 'SCENARIO'"),
+     (["simulate", "test-1", "--sett", "x=1"], "Did you mean '--set'"),
+     (["simulate", "test-1", "--out"], "requires an argument")],
+    ids=["missing-argument", "unknown-option", "option-without-value"],
+)
+def test_command_line_syntax_errors(run_cli, args, fragment):
+    """click's usage errors: exit 2, no traceback, the error line names the problem.
+
+    (click prints its usage line and a help hint above the one error line.)
+    """
+    res = run_cli(*args)
+    assert res.exit_code == 2 and res.exception is None
+    assert "Traceback" not in res.stderr
+    errors = [ln for ln in res.stderr.splitlines() if "rror" in ln]
+    assert len(errors) == 1 and fragment in errors[0], res.stderr
