@@ -111,11 +111,15 @@ def _install_cache_locator() -> None:
     except ImportError:  # pragma: no cover
         return
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
-    bases = [getattr(caching, n, None) for n in ("InTreeCacheLocator", "_InTreeCacheLocator",
-                                                   "UserWideCacheLocator",
-                                                   "_UserWideCacheLocator")]
-    bases = [b for b in bases if b is not None]
-    if impl is None or len(bases) < 2 or not hasattr(impl, "_locator_classes"):
+    def first(*names: str) -> type | None:
+        return next((getattr(caching, n) for n in names if hasattr(caching, n)), None)
+
+    # numba's own order: NUMBA_CACHE_DIR if set, else __pycache__ beside the
+    # source, else the user-wide cache directory
+    bases = [first("UserProvidedCacheLocator", "_UserProvidedCacheLocator"),
+             first("InTreeCacheLocator", "_InTreeCacheLocator"),
+             first("UserWideCacheLocator", "_UserWideCacheLocator")]
+    if impl is None or None in bases or not hasattr(impl, "_locator_classes"):
         return  # pragma: no cover
     this_file = os.path.realpath(__file__)
     stamp = _physics_stamp()
@@ -134,7 +138,7 @@ def _install_cache_locator() -> None:
         Locator.__name__ = Locator.__qualname__ = f"EsoarmPhysics{base.__name__.lstrip('_')}"
         return Locator
 
-    ours = [make(bases[0]), make(bases[-1])]
+    ours = [make(b) for b in bases if b is not None]
     classes = [c for c in impl._locator_classes if not c.__name__.startswith("EsoarmPhysics")]
     impl._locator_classes = ours + classes
 
@@ -473,6 +477,7 @@ def run_metrics(
     workers: int | None = None,
     chunk: int = DEFAULT_CHUNK,
     progress: Callable[[int], None] | None = None,
+    _noise_cache: _NoiseCache | None = None,
 ) -> MetricsTable:
     """Run every point (× every seed) and keep only the metrics of each run.
 
@@ -501,7 +506,7 @@ def run_metrics(
     else:
         runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
     out = np.empty((len(runs), _NMETRIC))
-    noise_cache = _NoiseCache()
+    noise_cache = _noise_cache or _NoiseCache()
     with _threads(workers):
         for start in range(0, len(runs), chunk):
             part = runs[start : start + chunk]

@@ -24,6 +24,7 @@ COMMANDS: dict[str, str] = {
     "simulate": "esoarm.cli.simulate:simulate",
     "scenarios": "esoarm.cli.simulate:scenarios",
     "show": "esoarm.cli.simulate:show",
+    "sweep": "esoarm.cli.sweep:sweep", "tune": "esoarm.cli.sweep:tune",
     "emulate": "esoarm.cli.rig:emulate",
     "run": "esoarm.cli.rig:run",
     "replay": "esoarm.cli.rig:replay",

@@ -1,0 +1,369 @@
+"""``esoarm sweep`` and ``esoarm tune``: many runs on the compiled batch engine."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import click
+
+from esoarm.cli._common import (
+    PLOT_SUFFIXES,
+    BadInput,
+    RunFailure,
+    bad_input_guard,
+    output_path,
+    scenario_argument,
+    set_option,
+    stderr_is_tty,
+)
+
+INTERRUPTED = 130
+
+
+def _positive(value: int | None, option: str) -> None:
+    if value is not None and value < 1:
+        raise BadInput(f"{option} {value}: must be a whole number >= 1")
+
+
+def _warn_grid(messages: list[str]) -> None:
+    if not messages:
+        return
+    more = len(messages) - 1
+    tail = f" (and {more} more grid point{'s' if more > 1 else ''} with risky settings)" \
+        if more else ""
+    click.echo(f"esoarm: warning: {messages[0]}{tail}", err=True)
+
+
+@contextmanager
+def _progress(total: int, label: str, unit: str) -> Iterator[Callable[[int], None]]:
+    """A rich progress bar on stderr when it is a terminal; silent otherwise."""
+    if not stderr_is_tty():
+        yield lambda n: None
+        return
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    with Progress(TextColumn(f"{label}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn(unit), TimeElapsedColumn(), TimeRemainingColumn(),
+                  console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task(label, total=total)
+        yield lambda n: bar.advance(task, n)
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.5g}"
+    return str(value)
+
+
+# ---------------------------------------------------------------------------
+# sweep
+
+
+@click.command()
+@scenario_argument
+@click.option("--vary", "vary", multiple=True, metavar="KEY=SPEC",
+              help="Vary a dotted scenario key (in its own unit, e.g. observer.eps in s). "
+              "SPEC: a comma list 0.05,0.09,0.2 (strings allowed: euler,zoh,current), "
+              "lin:START:STOP:NUM or geom:START:STOP:NUM. Repeatable: the grid is the cross "
+              "product, first --vary slowest.")
+@set_option
+@click.option("--seeds", "seeds", type=int, default=1, show_default=True, metavar="K",
+              help="Run every grid point with sensor.seed = 0 … K−1 (noise seeds).")
+@click.option("--out", "out", metavar="FILE.csv",
+              help="Write one row per run: the varied keys, seed, rms_error [rad], rms_u [N·m], "
+              "max_abs_error [rad], max_abs_u [N·m], rms_f_error [rad/s²], samples, diverged.")
+@click.option("--plot", "plot", metavar="FILE.png",
+              help="Draw RMS error [rad] and RMS control [N·m] against the varied key with the "
+              "spread over seeds, or heat maps for two varied keys (.png, .pdf or .svg).")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print a JSON summary: runs, seconds, best grid points (seed means).")
+@click.option("--workers", "workers", type=int, default=None, metavar="N",
+              help="Threads (cores) in this process [default: all]; with --scheduler, numba "
+              "threads per Dask task [default: 1].")
+@click.option("--scheduler", "scheduler", metavar="ADDRESS",
+              help="Run the chunks on an existing Dask distributed cluster, e.g. "
+              "tcp://127.0.0.1:8786 (needs the 'cluster' extra). Same results as in-process.")
+@click.option("--chunk", "chunk", type=int, default=None, metavar="RUNS",
+              help="Runs per chunk (whole grid points) [default: 1024 in-process, 256 on Dask]. "
+              "Does not change the results.")
+@bad_input_guard
+def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seeds: int,
+          out: str | None, plot: str | None, as_json: bool, workers: int | None,
+          scheduler: str | None, chunk: int | None) -> None:
+    """Sweep SCENARIO over a grid of parameters × noise seeds (compiled engine).
+
+    Every run follows the SPEC §2 closed loop exactly (same numbers as
+    `esoarm simulate`); only metrics are kept. Ctrl-C stops the sweep and keeps
+    the finished rows in --out. Example:
+
+      esoarm sweep test-1 --vary observer.eps=geom:0.03:0.3:100 --seeds 20 --out eps.csv
+    """
+    from esoarm.scenario import load_scenario
+    from esoarm.sweep import ClusterError, SweepResult, build_grid, run_sweep
+
+    out_path = output_path(out, "--out", (".csv",))
+    plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
+    _positive(workers, "--workers")
+    _positive(chunk, "--chunk")
+    if seeds < 1:
+        raise BadInput(f"--seeds {seeds}: must be a whole number >= 1")
+    base = load_scenario(scenario, list(overrides))
+    grid = build_grid(base, list(vary), seeds)
+    if plot_path is not None and len(grid.vary) > 2:
+        raise BadInput(f"--plot draws one or two varied keys; this sweep varies {len(grid.vary)}")
+    _warn_grid(grid.warnings())
+
+    result = SweepResult.empty(grid)
+    try:
+        with _progress(grid.n_runs, "sweep", "runs") as advance:
+            run_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk, progress=advance,
+                      result=result)
+    except KeyboardInterrupt:
+        kept = _keep_partial(result, out_path)
+        click.echo(f"esoarm: interrupted: {result.n_done} of {grid.n_runs} runs finished{kept}",
+                   err=True)
+        raise click.exceptions.Exit(INTERRUPTED) from None
+    except ClusterError as exc:
+        kept = _keep_partial(result, out_path)
+        raise RunFailure(f"{exc}{kept}") from None
+
+    if out_path is not None:
+        result.write_csv(out_path)
+    if plot_path is not None:
+        from esoarm.sweep_plots import figure_sweep
+
+        figure_sweep(result, plot_path)
+    diverged = int(result.values[:, -1].sum())
+    if diverged:
+        click.echo(f"esoarm: warning: {diverged} of {grid.n_runs} runs diverged "
+                   "(diverged = 1 in the CSV; their metrics cover the samples up to divergence)",
+                   err=True)
+    if as_json:
+        click.echo(json.dumps(_summary(result, out_path, plot_path, diverged)))
+        return
+    _print_sweep(result, diverged)
+    for label, path in (("table", out_path), ("figure", plot_path)):
+        if path is not None:
+            click.echo(f"{label}: {path}")
+
+
+def _keep_partial(result: Any, out_path: Path | None) -> str:
+    if out_path is None:
+        return " (no --out given, nothing kept)"
+    rows = result.write_csv(out_path)
+    return f"; the {rows} finished rows are in {out_path}"
+
+
+def _summary(result: Any, out_path: Path | None, plot_path: Path | None,
+             diverged: int) -> dict[str, Any]:
+    grid = result.grid
+    return {
+        "scenario": grid.base.name,
+        "vary": {v.key: list(v.values) for v in grid.vary},
+        "seeds": len(grid.seeds) or 1,
+        "points": len(grid.points),
+        "runs": grid.n_runs,
+        "finished": result.n_done,
+        "diverged": diverged,
+        "seconds": round(result.seconds, 4),
+        "runs_per_second": round(grid.n_runs / result.seconds, 1) if result.seconds else None,
+        "best": [_json_safe(row) for row in result.best(5)],
+        "out": str(out_path) if out_path else None,
+        "plot": str(plot_path) if plot_path else None,
+    }
+
+
+def _json_safe(row: dict[str, Any]) -> dict[str, Any]:
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+            for k, v in row.items()}
+
+
+def _print_sweep(result: Any, diverged: int) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    grid = result.grid
+    rate = grid.n_runs / result.seconds if result.seconds else float("inf")
+    n_seeds = len(grid.seeds) or 1
+    table = Table(title=f"{grid.base.name}: {grid.n_runs} runs in {result.seconds:.2f} s "
+                  f"({rate:.0f} runs/s); best grid points, mean over {n_seeds} "
+                  f"seed{'s' if n_seeds > 1 else ''}")
+    for key in grid.keys:
+        table.add_column(key)
+    for label in ("RMS error [rad]", "RMS u [N·m]", "max |error| [rad]"):
+        table.add_column(label, justify="right")
+    for row in result.best(5):
+        table.add_row(*(_fmt(row[k]) for k in grid.keys),
+                      *(f"{row[m]:.5f}" for m in ("rms_error", "rms_u", "max_abs_error")))
+    Console().print(table)
+
+
+# ---------------------------------------------------------------------------
+# tune
+
+
+@click.command()
+@scenario_argument
+@click.option("--vary", "vary", multiple=True, metavar="KEY=LOW:HIGH",
+              help="A key to tune within bounds, in its own unit (observer.eps [s], "
+              "controller.k1 [1/s], controller.k2 [1/s²], ...). Repeatable. Bounds both > 0 "
+              "and a decade apart are searched on a log scale.")
+@set_option
+@click.option("--objective", "objective", default=None, metavar="EXPR",
+              help="Expression to minimize over rms_error [rad], rms_u [N·m], max_abs_error "
+              "[rad], max_abs_u [N·m], rms_f_error [rad/s²] and w, evaluated on the means over "
+              "seeds and robust samples [default: rms_error + w*rms_u].")
+@click.option("--weight", "weight", type=float, default=None, metavar="W",
+              help="w in the objective [rad/(N·m)]: the price of 1 N·m of RMS control in "
+              "radians of RMS error [default: 1.0].")
+@click.option("--seeds", "seeds", type=int, default=3, show_default=True, metavar="K",
+              help="Noise seeds 0 … K−1 every candidate is run with.")
+@click.option("--robust", "robust", multiple=True, metavar="KEY=LOW:HIGH",
+              help="Average over rig uncertainty: sample KEY uniformly in [LOW, HIGH] "
+              "(Latin hypercube, --samples values, seeded), e.g. rig.inertia_scale=0.8:1.2, "
+              "rig.coulomb_friction=0:0.1 [N·m]. Repeatable.")
+@click.option("--samples", "samples", type=int, default=8, show_default=True, metavar="M",
+              help="Robust samples (rig variants) per candidate.")
+@click.option("--seed", "seed", type=int, default=0, show_default=True,
+              help="Seed of the optimizer and of the robust sampling.")
+@click.option("--maxiter", "maxiter", type=int, default=30, show_default=True,
+              help="Differential-evolution generations at most.")
+@click.option("--popsize", "popsize", type=int, default=10, show_default=True,
+              help="Population per tuned key.")
+@click.option("--workers", "workers", type=int, default=None, metavar="N",
+              help="Threads (cores) [default: all].")
+@click.option("--out", "out", metavar="FILE.csv",
+              help="Write every candidate scored: its values, mean metrics, objective.")
+@click.option("--plot", "plot", default="tune-pareto.png", show_default=True, metavar="FILE.png",
+              help="The trade-off figure: RMS error [rad] against RMS control [N·m] of every "
+              "candidate, the Pareto front, the optimum (.png, .pdf or .svg).")
+@click.option("--no-plot", "no_plot", is_flag=True, help="Do not write the figure.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print a JSON object: best values, their metrics, the baseline, runs, seconds.")
+@bad_input_guard
+def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
+         objective: str | None, weight: float | None, seeds: int, robust: tuple[str, ...],
+         samples: int, seed: int, maxiter: int, popsize: int, workers: int | None,
+         out: str | None, plot: str, no_plot: bool, as_json: bool) -> None:
+    """Tune keys of SCENARIO to minimize an objective (SciPy differential evolution).
+
+    Each candidate is scored on K noise seeds (and M sampled rig variants with
+    --robust) on the compiled engine; prints the best values with their
+    metrics next to the scenario's own values, and draws the Pareto front of
+    tracking error against control effort. Example:
+
+      esoarm tune test-1 --vary observer.eps=0.02:0.3 --robust rig.inertia_scale=0.8:1.2
+    """
+    from esoarm.scenario import load_scenario
+    from esoarm.tune import DEFAULT_OBJECTIVE, DEFAULT_WEIGHT, Objective, parse_bound
+    from esoarm.tune import tune as run_tune
+
+    out_path = output_path(out, "--out", (".csv",))
+    plot_path = None if no_plot else output_path(plot, "--plot", PLOT_SUFFIXES)
+    for value, option in ((seeds, "--seeds"), (samples, "--samples"), (maxiter, "--maxiter"),
+                          (popsize, "--popsize")):
+        _positive(value, option)
+    _positive(workers, "--workers")
+    if seed < 0:
+        raise BadInput(f"--seed {seed}: must be >= 0")
+    w = DEFAULT_WEIGHT if weight is None else weight
+    if not math.isfinite(w):
+        raise BadInput(f"--weight {weight}: must be a finite number")
+    obj = Objective(objective or DEFAULT_OBJECTIVE, w)
+    base = load_scenario(scenario, list(overrides))
+    bounds = [parse_bound(item, base, "--vary") for item in vary]
+    rob = [parse_bound(item, base, "--robust") for item in robust]
+    if not bounds:
+        raise BadInput("--vary: give at least one KEY=LOW:HIGH to tune, "
+                       "e.g. --vary observer.eps=0.02:0.3")
+    try:
+        with _progress(maxiter, "tune", "generations") as advance:
+            res = run_tune(base, bounds, objective=obj, seeds=seeds, robust=rob,
+                           samples=samples, seed=seed, maxiter=maxiter, popsize=popsize,
+                           workers=workers, progress=advance)
+    except KeyboardInterrupt:
+        click.echo("esoarm: interrupted: tuning stopped, nothing written", err=True)
+        raise click.exceptions.Exit(INTERRUPTED) from None
+
+    if out_path is not None:
+        from esoarm.sweep import write_rows_atomic
+
+        header = list(res.evaluations[0]) if res.evaluations else list(res.keys)
+        write_rows_atomic(out_path, header, iter([list(r.values()) for r in res.evaluations]))
+    if plot_path is not None:
+        _plot_tune(res, base.name, obj.text, w, plot_path)
+    if as_json:
+        click.echo(json.dumps(_json_safe({
+            "scenario": base.name,
+            "objective": obj.text,
+            "w": w,
+            "best": res.best,
+            "metrics": res.best_metrics,
+            "baseline": res.baseline,
+            "seeds": seeds,
+            "robust_samples": len(res.robust_samples),
+            "generations": res.generations,
+            "runs": res.runs,
+            "seconds": round(res.seconds, 3),
+            "optimizer": res.message,
+            "out": str(out_path) if out_path else None,
+            "plot": str(plot_path) if plot_path else None,
+        })))
+        return
+    _print_tune(res, base.name, obj.text, w)
+    for label, path in (("candidates", out_path), ("figure", plot_path)):
+        if path is not None:
+            click.echo(f"{label}: {path}")
+
+
+def _plot_tune(res: Any, name: str, objective: str, w: float, path: Path) -> None:
+    from esoarm.sweep_plots import figure_pareto
+
+    ev = [r for r in res.evaluations if r["diverged_runs"] == 0]
+    first = res.keys[0]
+    own = ", ".join(f"{k} = {_fmt(res.baseline[k])}" for k in res.keys)
+    figure_pareto(
+        [r["rms_u"] for r in ev], [r["rms_error"] for r in ev],
+        best=(res.best_metrics["rms_u"], res.best_metrics["rms_error"]),
+        marks={f"scenario as given ({own})": (res.baseline["rms_u"],
+                                               res.baseline["rms_error"])},
+        color=[r[first] for r in ev], color_label=first,
+        title=f"{name}: minimize {objective} (w = {w:g} rad/(N·m))",
+        path=path,
+    )
+
+
+def _print_tune(res: Any, name: str, objective: str, w: float) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"{name}: minimize {objective} (w = {w:g} rad/(N·m)); {res.runs} runs, "
+                  f"{res.generations} generations, {res.seconds:.1f} s")
+    table.add_column("")
+    table.add_column("best found", justify="right")
+    table.add_column("scenario as given", justify="right")
+    for key in res.keys:
+        table.add_row(key, _fmt(res.best[key]), _fmt(res.baseline[key]))
+    for metric, label in (("rms_error", "RMS error [rad]"), ("rms_u", "RMS control [N·m]"),
+                          ("max_abs_error", "max |error| [rad]"), ("objective", "objective")):
+        table.add_row(label, f"{res.best_metrics[metric]:.5f}", f"{res.baseline[metric]:.5f}")
+    Console().print(table)
+    if res.robust_samples:
+        click.echo(f"averaged over {len(res.robust_samples)} rig variants × seeds")
+    if res.best_metrics.get("diverged_runs"):
+        click.echo("esoarm: warning: some runs at the best point diverged", err=True)
+    sys.stdout.flush()

@@ -1,0 +1,466 @@
+"""Parameter sweeps: grids of scenarios × noise seeds on the compiled batch engine.
+
+A sweep varies dotted scenario keys over value lists (``--vary KEY=SPEC``) and
+runs the cross product of all of them, in the order given (first key slowest),
+each grid point with ``sensor.seed`` = 0 … K−1 (seed fastest).  SPEC is
+
+* a comma list ``0.05,0.09,0.2`` (each item a TOML value, else a string:
+  ``euler,zoh,current``),
+* ``lin:START:STOP:NUM`` -- ``numpy.linspace(START, STOP, NUM)``,
+* ``geom:START:STOP:NUM`` -- ``numpy.geomspace(START, STOP, NUM)``.
+
+Only metrics are kept (:data:`esoarm.batch.METRICS`), so memory does not grow
+with runs × samples.  The work is cut into chunks of whole grid points; chunks
+run in this process on all cores (numba threads) or, given a scheduler
+address, as tasks on a Dask distributed cluster.  Every run is independent and
+deterministic, so the results are identical whatever the backend, the
+chunking and the number of workers.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import math
+import os
+import tempfile
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from esoarm.batch import METRICS, _NoiseCache, run_metrics
+from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
+
+__all__ = [
+    "SweepGrid",
+    "SweepResult",
+    "VarySpec",
+    "build_grid",
+    "iter_sweep",
+    "parse_vary",
+    "run_sweep",
+]
+
+#: Default runs per chunk in this process (about 1-2 s of work on 2 cores).
+LOCAL_CHUNK = 1024
+#: Default runs per Dask task.
+DASK_CHUNK = 256
+
+
+@dataclass(frozen=True)
+class VarySpec:
+    """One varied key and its values, in order."""
+
+    key: str
+    values: tuple[Any, ...]
+    spacing: str = "list"  # "list" | "lin" | "geom"
+
+    @property
+    def numeric(self) -> bool:
+        """All values are numbers (not strings or booleans)."""
+        return all(isinstance(v, int | float) and not isinstance(v, bool) for v in self.values)
+
+
+def _lookup(data: dict[str, Any], key: str) -> Any:
+    node: Any = data
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+def parse_vary(item: str, base: Scenario | None = None) -> VarySpec:
+    """Parse one ``KEY=SPEC`` (see the module docstring).
+
+    With ``base``, values of integer keys given as ``lin``/``geom`` are made
+    integers when they are whole numbers.
+
+    Raises
+    ------
+    ScenarioError
+        One line naming the key and what is allowed.
+    """
+    if "=" not in item:
+        raise ScenarioError(
+            f"--vary '{item}': expected KEY=SPEC, e.g. observer.eps=geom:0.03:0.3:10"
+        )
+    key, spec = (s.strip() for s in item.split("=", 1))
+    if not key:
+        raise ScenarioError(f"--vary '{item}': empty key")
+    if not spec:
+        raise ScenarioError(f"--vary {key}: empty value list")
+    head = spec.split(":", 1)[0]
+    if head in ("lin", "geom") and ":" in spec:
+        parts = spec.split(":")
+        if len(parts) != 4:
+            raise ScenarioError(f"--vary {key}: '{spec}' must be {head}:START:STOP:NUM")
+        try:
+            start, stop = float(parts[1]), float(parts[2])
+            num = int(parts[3])
+        except ValueError:
+            raise ScenarioError(
+                f"--vary {key}: '{spec}': START and STOP must be numbers and NUM a whole number"
+            ) from None
+        if not (math.isfinite(start) and math.isfinite(stop)):
+            raise ScenarioError(f"--vary {key}: '{spec}': START and STOP must be finite")
+        if num < 1:
+            raise ScenarioError(f"--vary {key}: '{spec}': NUM must be >= 1")
+        if head == "geom":
+            if start == 0 or stop == 0 or (start < 0) != (stop < 0):
+                raise ScenarioError(
+                    f"--vary {key}: '{spec}': geom needs START and STOP non-zero and of one sign"
+                )
+            arr = np.geomspace(start, stop, num)
+        else:
+            arr = np.linspace(start, stop, num)
+        values: list[Any] = [float(v) for v in arr]
+        if base is not None and isinstance(_lookup(base.to_dict(), key), int) and not isinstance(
+            _lookup(base.to_dict(), key), bool
+        ):
+            if all(v == round(v) for v in values):
+                values = [int(round(v)) for v in values]
+        return VarySpec(key, tuple(values), head)
+    items = [s.strip() for s in spec.split(",")]
+    if any(not s for s in items):
+        raise ScenarioError(f"--vary {key}: '{spec}' has an empty item")
+    values = [parse_override(f"{key}={s}")[1] for s in items]
+    return VarySpec(key, tuple(values), "list")
+
+
+@dataclass(frozen=True)
+class SweepGrid:
+    """A validated sweep: base scenario, varied keys, seeds.
+
+    Attributes
+    ----------
+    base : Scenario
+        The scenario with ``--set`` overrides applied.
+    vary : tuple of VarySpec
+        Varied keys, first slowest.
+    seeds : tuple of int
+        Noise seeds run at every grid point (fastest).
+    points : tuple of Scenario
+        One validated scenario per grid point, in grid order.
+    """
+
+    base: Scenario
+    vary: tuple[VarySpec, ...]
+    seeds: tuple[int, ...]
+    points: tuple[Scenario, ...] = field(repr=False)
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        """The varied keys, as given."""
+        return tuple(v.key for v in self.vary)
+
+    @property
+    def n_runs(self) -> int:
+        """Grid points × seeds."""
+        return len(self.points) * len(self.seeds)
+
+    def point_values(self) -> Iterator[tuple[Any, ...]]:
+        """Values of the varied keys at each grid point, in grid order."""
+        return itertools.product(*(v.values for v in self.vary))
+
+    def warnings(self) -> list[str]:
+        """Distinct risky-setting warnings over the grid (one per message)."""
+        seen: dict[str, None] = {}
+        for scn in self.points:
+            for msg in scenario_warnings(scn):
+                seen.setdefault(msg, None)
+        return list(seen)
+
+
+def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid:
+    """Parse ``--vary`` items and validate every grid point before any run.
+
+    Parameters
+    ----------
+    base : Scenario
+        Scenario with ``--set`` overrides already applied.
+    vary : sequence of str
+        ``KEY=SPEC`` items; at least one.
+    seeds : int
+        K ≥ 1: every point runs with ``sensor.seed`` = 0 … K−1.
+
+    Raises
+    ------
+    ScenarioError
+        Bad SPEC, unknown key, a value out of range (the message names the key).
+    """
+    if not vary:
+        raise ScenarioError("--vary: give at least one KEY=SPEC")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ScenarioError(f"--seeds {seeds!r}: must be a whole number >= 1")
+    specs = [parse_vary(item, base) for item in vary]
+    keys = [s.key for s in specs]
+    for key in keys:
+        if keys.count(key) > 1:
+            raise ScenarioError(f"--vary {key}: given more than once")
+        if key == "sensor.seed" and seeds > 1:
+            raise ScenarioError("--vary sensor.seed: use --seeds K instead (or --seeds 1)")
+    # each value alone first: the message then names the key and value
+    for spec in specs:
+        for value in spec.values:
+            _apply(base, {spec.key: value}, spec.key)
+    points = tuple(
+        _apply(base, dict(zip(keys, combo, strict=True)), ", ".join(keys))
+        for combo in itertools.product(*(s.values for s in specs))
+    )
+    # with sensor.seed as a grid key each point keeps its own seed (seeds = ())
+    seed_list = () if "sensor.seed" in keys else tuple(range(seeds))
+    return SweepGrid(base, tuple(specs), seed_list, points)
+
+
+def _apply(base: Scenario, over: dict[str, Any], keys: str) -> Scenario:
+    try:
+        return base.with_overrides(over)
+    except ScenarioError as exc:
+        msg = str(exc)
+        for prefix in ("--set: ", f"scenario '{base.name}': "):
+            if msg.startswith(prefix):
+                msg = msg[len(prefix):]
+        shown = ", ".join(f"{k}={v!r}" for k, v in over.items())
+        raise ScenarioError(f"--vary {shown}: {msg}") from None
+
+
+# ---------------------------------------------------------------------------
+# running
+
+
+def _chunks(grid: SweepGrid, chunk_runs: int) -> list[tuple[int, int]]:
+    """Point ranges [start, stop) holding about ``chunk_runs`` runs each."""
+    per_point = max(len(grid.seeds), 1)
+    size = max(1, chunk_runs // per_point)
+    n = len(grid.points)
+    return [(i, min(i + size, n)) for i in range(0, n, size)]
+
+
+def _run_chunk(points: Sequence[Scenario], seeds: Sequence[int] | None,
+               threads: int | None) -> np.ndarray:
+    """One chunk's metrics (the Dask task; also used in-process)."""
+    return run_metrics(points, seeds if seeds else None, workers=threads).values
+
+
+def iter_sweep(
+    grid: SweepGrid,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    chunk: int | None = None,
+) -> Iterator[tuple[int, np.ndarray]]:
+    """Run the sweep chunk by chunk; yield (first run index, metrics rows).
+
+    In this process chunks come in grid order; from a Dask cluster in the
+    order they finish.  Stopping the iteration (or Ctrl-C while waiting)
+    cancels the chunks not yet finished.
+
+    Parameters
+    ----------
+    grid : SweepGrid
+        From :func:`build_grid`.
+    workers : int, optional
+        In this process: threads (cores), default all.  On Dask: numba
+        threads per task (default 1; Dask's own worker threads give the
+        parallelism).
+    scheduler : str, optional
+        Address of a Dask distributed scheduler, e.g. ``tcp://10.0.0.5:8786``.
+    chunk : int, optional
+        Runs per chunk (rounded to whole grid points); default
+        :data:`LOCAL_CHUNK` or :data:`DASK_CHUNK`.
+    """
+    per_point = max(len(grid.seeds), 1)
+    seeds = list(grid.seeds) or None
+    if scheduler is None:
+        ranges = _chunks(grid, chunk or LOCAL_CHUNK)
+        noise_cache = _NoiseCache()  # each seed's noise drawn once for the whole sweep
+        for lo, hi in ranges:
+            table = run_metrics(grid.points[lo:hi], seeds, workers=workers,
+                                _noise_cache=noise_cache)
+            yield lo * per_point, table.values
+        return
+    yield from _iter_dask(grid, scheduler, workers or 1, chunk or DASK_CHUNK)
+
+
+class ClusterError(RuntimeError):
+    """The Dask cluster could not be used (unreachable, lost, or not installed)."""
+
+
+def _iter_dask(grid: SweepGrid, address: str, threads: int,
+               chunk: int) -> Iterator[tuple[int, np.ndarray]]:
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise ClusterError(
+            "--scheduler needs Dask distributed: pip install 'esoarm[cluster]'"
+        ) from None
+    per_point = max(len(grid.seeds), 1)
+    seeds = list(grid.seeds)
+    try:
+        client = Client(address, timeout="10s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+    futures = {}
+    try:
+        for lo, hi in _chunks(grid, chunk):
+            fut = client.submit(_run_chunk, list(grid.points[lo:hi]), seeds, threads, pure=False)
+            futures[fut] = lo
+        for fut in as_completed(list(futures)):
+            try:
+                values = fut.result()
+            except Exception as exc:  # a worker died or the task failed
+                raise ClusterError(f"a sweep chunk failed on the cluster: {exc}") from None
+            yield futures[fut] * per_point, values
+    finally:
+        for fut in futures:
+            if not fut.done():
+                fut.cancel()
+        client.close()
+
+
+@dataclass
+class SweepResult:
+    """Metrics of a (possibly partial) sweep, one row per run in grid order.
+
+    Attributes
+    ----------
+    grid : SweepGrid
+    values : ndarray, shape (runs, len(METRICS))
+        Metric rows; rows of unfinished runs are NaN.
+    done : ndarray of bool, shape (runs,)
+        Which runs finished.
+    seconds : float
+        Wall time of the runs [s].
+    """
+
+    grid: SweepGrid
+    values: np.ndarray
+    done: np.ndarray
+    seconds: float = 0.0
+
+    @classmethod
+    def empty(cls, grid: SweepGrid) -> SweepResult:
+        """A result with no run finished yet."""
+        return cls(grid, np.full((grid.n_runs, len(METRICS)), np.nan),
+                   np.zeros(grid.n_runs, dtype=bool))
+
+    def add(self, start: int, values: np.ndarray) -> None:
+        """Store the rows of one finished chunk."""
+        self.values[start : start + len(values)] = values
+        self.done[start : start + len(values)] = True
+
+    @property
+    def complete(self) -> bool:
+        """Every run finished."""
+        return bool(self.done.all())
+
+    @property
+    def n_done(self) -> int:
+        """Runs finished."""
+        return int(self.done.sum())
+
+    def header(self) -> list[str]:
+        """CSV columns: varied keys, ``seed``, then :data:`METRICS`."""
+        return [*self.grid.keys, "seed", *METRICS]
+
+    def rows(self, finished_only: bool = True) -> Iterator[list[Any]]:
+        """Rows in grid order: varied values, seed, metrics (counts as int)."""
+        seeds = self.grid.seeds
+        n_float = len(METRICS) - 2  # samples, diverged are counts
+        i = 0
+        for values, scn in zip(self.grid.point_values(), self.grid.points, strict=True):
+            for seed in (seeds or (scn.sensor.seed,)):
+                if self.done[i] or not finished_only:
+                    m = self.values[i]
+                    counts = [int(v) if np.isfinite(v) else v for v in m[n_float:]]
+                    yield [*values, seed, *m[:n_float], *counts]
+                i += 1
+
+    def point_metric(self, name: str) -> np.ndarray:
+        """Metric ``name`` as an array (points, seeds) (NaN where unfinished)."""
+        per_point = max(len(self.grid.seeds), 1)
+        return self.values[:, METRICS.index(name)].reshape(len(self.grid.points), per_point)
+
+    def best(self, n: int = 5, by: str = "rms_error") -> list[dict[str, Any]]:
+        """The ``n`` grid points with the lowest seed-mean ``by``, with their mean metrics."""
+        means = {m: _nanmean_rows(self.point_metric(m)) for m in METRICS}
+        order = [i for i in np.argsort(means[by], kind="stable") if np.isfinite(means[by][i])]
+        out = []
+        values = list(self.grid.point_values())
+        for i in order[:n]:
+            row: dict[str, Any] = dict(zip(self.grid.keys, values[i], strict=True))
+            row.update({m: float(means[m][i]) for m in METRICS if m not in ("samples",)})
+            out.append(row)
+        return out
+
+    def write_csv(self, path: str | Path) -> int:
+        """Write the finished rows (atomic: the file appears only complete); returns rows."""
+        return write_rows_atomic(path, self.header(), self.rows())
+
+
+def _nanmean_rows(a: np.ndarray) -> np.ndarray:
+    out = np.full(a.shape[0], np.nan)
+    ok = np.isfinite(a).any(axis=1)
+    out[ok] = np.array([np.mean(r[np.isfinite(r)]) for r in a[ok]])
+    return out
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float | np.floating):
+        return repr(float(value))
+    if isinstance(value, list | tuple):
+        return repr(list(value))
+    return str(value)
+
+
+def write_rows_atomic(path: str | Path, header: Sequence[str], rows: Iterator[list[Any]]) -> int:
+    """Write a CSV table; the file appears only once complete.  Returns rows written."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    count = 0
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            writer = csv.writer(fh, lineterminator="\n")
+            writer.writerow(header)
+            for row in rows:
+                writer.writerow([_cell(v) for v in row])
+                count += 1
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return count
+
+
+def run_sweep(
+    grid: SweepGrid,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    chunk: int | None = None,
+    progress: Callable[[int], None] | None = None,
+    result: SweepResult | None = None,
+) -> SweepResult:
+    """Run a whole sweep and collect it (see :func:`iter_sweep` for the options).
+
+    Pass your own ``result`` (from :meth:`SweepResult.empty`) to keep the
+    finished rows if the run is interrupted (``KeyboardInterrupt``) or fails.
+    """
+    result = result if result is not None else SweepResult.empty(grid)
+    start = time.perf_counter()
+    try:
+        for first, values in iter_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk):
+            result.add(first, values)
+            if progress is not None:
+                progress(len(values))
+    finally:
+        result.seconds = time.perf_counter() - start
+    return result

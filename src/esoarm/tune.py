@@ -1,0 +1,386 @@
+"""Gain and observer tuning: a SciPy optimizer on top of the batch engine.
+
+``esoarm tune`` looks for the values of some scenario keys (typically
+``observer.eps``, ``controller.k1``, ``controller.k2``) inside given bounds
+that minimize an objective over the run metrics.
+
+Objective
+    An arithmetic expression over the metric names of
+    :data:`esoarm.batch.METRICS` -- ``rms_error`` [rad], ``rms_u`` [N·m],
+    ``max_abs_error`` [rad], ``max_abs_u`` [N·m], ``rms_f_error`` [rad/s²] --
+    the weight ``w`` (``--weight``, default :data:`DEFAULT_WEIGHT` rad/(N·m)),
+    numbers, ``+ - * / **``, parentheses and ``abs, sqrt, log, exp, min, max``.
+    The default is :data:`DEFAULT_OBJECTIVE`, ``rms_error + w*rms_u``: RMS
+    tracking error plus the RMS control torque priced at w rad per N·m.  The
+    metrics are first averaged over the noise seeds (``--seeds K``: seeds
+    0 … K−1) and, with ``--robust``, over the sampled rig uncertainty; the
+    expression is evaluated on those means.  A candidate any of whose runs
+    diverged scores :data:`DIVERGED_PENALTY`.
+
+Robustness
+    ``--robust KEY=LOW:HIGH`` (repeatable) draws ``--samples M`` values of each
+    such key by Latin hypercube sampling (seeded with ``--seed``), once: every
+    candidate is scored on the same M rig variants and the same K seeds
+    (common random numbers), so the objective is a deterministic function.
+
+Optimizer
+    :func:`scipy.optimize.differential_evolution`, seeded, with the whole
+    population scored in one batch (``vectorized=True``) so each generation
+    runs on all cores.  Keys whose bounds are both positive and a decade or
+    more apart (ε, the gains) are searched on a log scale.  Whole-number keys
+    (``actuator.delay_samples``) are searched as integers.
+
+Every candidate scored is kept (:attr:`TuneResult.evaluations`): its values,
+mean metrics and objective; the Pareto front of RMS error against RMS control
+over them is the trade-off figure.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+import operator
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from esoarm.batch import METRICS, run_metrics
+from esoarm.scenario import Scenario, ScenarioError
+from esoarm.sweep import _apply, _lookup
+
+__all__ = [
+    "DEFAULT_OBJECTIVE",
+    "DEFAULT_WEIGHT",
+    "Bound",
+    "Objective",
+    "TuneResult",
+    "parse_bound",
+    "tune",
+]
+
+#: Default objective (see the module docstring).
+DEFAULT_OBJECTIVE = "rms_error + w*rms_u"
+#: Default price w of RMS control in the default objective [rad/(N·m)].
+DEFAULT_WEIGHT = 1.0
+#: Score of a candidate with a diverged run.
+DIVERGED_PENALTY = 1e6
+
+_OBJ_METRICS = tuple(m for m in METRICS if m not in ("samples", "diverged"))
+
+
+@dataclass(frozen=True)
+class Bound:
+    """A key searched (or sampled) between ``low`` and ``high``."""
+
+    key: str
+    low: float
+    high: float
+    integer: bool = False
+
+    @property
+    def log(self) -> bool:
+        """Searched on a log scale: both bounds > 0 and a decade or more apart."""
+        return not self.integer and self.low > 0 and self.high / self.low >= 10.0
+
+    def to_unit(self, value: float) -> float:
+        """Map a value to the search coordinate."""
+        return math.log10(value) if self.log else value
+
+    def from_unit(self, coord: float) -> float | int:
+        """Map a search coordinate back to a key value."""
+        if self.integer:
+            return int(round(coord))
+        value = 10.0**coord if self.log else float(coord)
+        return min(max(value, self.low), self.high)
+
+    @property
+    def search_bounds(self) -> tuple[float, float]:
+        """Bounds in the search coordinate."""
+        return self.to_unit(self.low), self.to_unit(self.high)
+
+
+def parse_bound(item: str, base: Scenario, option: str = "--vary") -> Bound:
+    """Parse ``KEY=LOW:HIGH`` and check both ends on ``base``.
+
+    Raises
+    ------
+    ScenarioError
+        One line naming the key and what is allowed.
+    """
+    if "=" not in item:
+        raise ScenarioError(f"{option} '{item}': expected KEY=LOW:HIGH, e.g. observer.eps=0.03:0.3")
+    key, spec = (s.strip() for s in item.split("=", 1))
+    parts = spec.split(":")
+    if len(parts) != 2:
+        raise ScenarioError(f"{option} {key}: '{spec}' must be LOW:HIGH, e.g. 0.03:0.3")
+    try:
+        low, high = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise ScenarioError(f"{option} {key}: '{spec}': LOW and HIGH must be numbers") from None
+    if not (math.isfinite(low) and math.isfinite(high)) or not low < high:
+        raise ScenarioError(f"{option} {key}: '{spec}': need finite LOW < HIGH")
+    current = _lookup(base.to_dict(), key)
+    integer = isinstance(current, int) and not isinstance(current, bool)
+    if current is not None and not isinstance(current, int | float):
+        raise ScenarioError(f"{option} {key}: not a numeric key (it is {current!r})")
+    bound = Bound(key, low, high, integer)
+    for value in (low, high):
+        v: float | int = int(round(value)) if integer else value
+        try:
+            base.with_overrides({key: v})
+        except ScenarioError as exc:
+            msg = str(exc)
+            for prefix in ("--set: ", f"scenario '{base.name}': "):
+                msg = msg.removeprefix(prefix)
+            raise ScenarioError(f"{option} {key}={value:g}: {msg}") from None
+    return bound
+
+
+class Objective:
+    """A safe arithmetic expression over metric names (see the module docstring)."""
+
+    _BINOPS: dict[type, Callable[[Any, Any], Any]] = {
+        ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
+        ast.Div: operator.truediv, ast.Pow: operator.pow,
+    }
+    _FUNCS: dict[str, Callable[..., Any]] = {
+        "abs": np.abs, "sqrt": np.sqrt, "log": np.log, "exp": np.exp,
+        "min": np.minimum, "max": np.maximum,
+    }
+
+    def __init__(self, text: str, weight: float = DEFAULT_WEIGHT) -> None:
+        self.text = text
+        self.weight = weight
+        try:
+            self._tree = ast.parse(text, mode="eval").body
+        except SyntaxError:
+            raise ScenarioError(f"--objective '{text}': not a valid expression") from None
+        self._check(self._tree)
+
+    def _check(self, node: ast.AST) -> None:
+        allowed = ", ".join(_OBJ_METRICS)
+        if isinstance(node, ast.BinOp) and type(node.op) in self._BINOPS:
+            self._check(node.left)
+            self._check(node.right)
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd):
+            self._check(node.operand)
+        elif isinstance(node, ast.Constant) and isinstance(node.value, int | float) \
+                and not isinstance(node.value, bool):
+            pass
+        elif isinstance(node, ast.Name):
+            if node.id not in (*_OBJ_METRICS, "w"):
+                raise ScenarioError(
+                    f"--objective '{self.text}': unknown name '{node.id}' "
+                    f"(allowed: {allowed}, w)"
+                )
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+                and node.func.id in self._FUNCS and not node.keywords:
+            for arg in node.args:
+                self._check(arg)
+        else:
+            raise ScenarioError(
+                f"--objective '{self.text}': only numbers, + - * / **, parentheses, "
+                f"{', '.join(self._FUNCS)} and the names {allowed}, w are allowed"
+            )
+
+    def __call__(self, metrics: dict[str, np.ndarray]) -> np.ndarray:
+        """Evaluate on arrays of (mean) metrics; returns an array."""
+        env = {**metrics, "w": self.weight}
+
+        def ev(node: ast.AST) -> Any:
+            if isinstance(node, ast.BinOp):
+                return self._BINOPS[type(node.op)](ev(node.left), ev(node.right))
+            if isinstance(node, ast.UnaryOp):
+                v = ev(node.operand)
+                return -v if isinstance(node.op, ast.USub) else v
+            if isinstance(node, ast.Constant):
+                return node.value
+            if isinstance(node, ast.Name):
+                return env[node.id]
+            assert isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+            return self._FUNCS[node.func.id](*(ev(a) for a in node.args))
+
+        with np.errstate(all="ignore"):
+            return np.asarray(ev(self._tree), dtype=float)
+
+
+@dataclass
+class TuneResult:
+    """Outcome of :func:`tune`.
+
+    Attributes
+    ----------
+    best : dict
+        Best values found, key -> value.
+    best_metrics : dict
+        Mean metrics and ``objective`` at ``best``.
+    baseline : dict
+        The base scenario's own values of the tuned keys, and its metrics
+        (same seeds and robust samples), for comparison.
+    evaluations : list of dict
+        Every candidate scored: key values, mean metrics, ``objective``.
+    robust_samples : list of dict
+        The rig variants each candidate was scored on (empty without --robust).
+    """
+
+    keys: tuple[str, ...]
+    best: dict[str, Any]
+    best_metrics: dict[str, float]
+    baseline: dict[str, Any]
+    evaluations: list[dict[str, Any]] = field(default_factory=list)
+    robust_samples: list[dict[str, Any]] = field(default_factory=list)
+    generations: int = 0
+    runs: int = 0
+    seconds: float = 0.0
+    message: str = ""
+
+
+def _robust_samples(robust: Sequence[Bound], samples: int, seed: int) -> list[dict[str, Any]]:
+    if not robust:
+        return [{}]
+    from scipy.stats import qmc
+
+    unit = qmc.LatinHypercube(d=len(robust), seed=seed).random(samples)
+    out = []
+    for row in unit:
+        sample: dict[str, Any] = {}
+        for b, x in zip(robust, row, strict=True):
+            v = b.low + x * (b.high - b.low)
+            sample[b.key] = int(round(v)) if b.integer else float(v)
+        out.append(sample)
+    return out
+
+
+def tune(
+    base: Scenario,
+    bounds: Sequence[Bound],
+    *,
+    objective: Objective | None = None,
+    seeds: int = 1,
+    robust: Sequence[Bound] = (),
+    samples: int = 8,
+    seed: int = 0,
+    maxiter: int = 30,
+    popsize: int = 10,
+    workers: int | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> TuneResult:
+    """Minimize the objective over ``bounds`` with differential evolution.
+
+    Parameters
+    ----------
+    base : Scenario
+        Scenario with ``--set`` overrides applied.
+    bounds : sequence of Bound
+        Keys to tune and their ranges.
+    objective : Objective, optional
+        Default ``rms_error + w*rms_u`` with w = :data:`DEFAULT_WEIGHT`.
+    seeds : int
+        Noise seeds 0 … K−1 each candidate is run with.
+    robust : sequence of Bound
+        Uncertain rig keys to sample (see the module docstring).
+    samples : int
+        Robust samples M (ignored without ``robust``).
+    seed : int
+        Seed of the optimizer and of the robust sampling.
+    maxiter, popsize : int
+        Differential-evolution generations and population size per key.
+    workers : int, optional
+        Threads (cores); default all.
+    progress : callable, optional
+        Called with 1 after each generation.
+    """
+    from scipy.optimize import differential_evolution
+
+    if not bounds:
+        raise ScenarioError("--vary: give at least one KEY=LOW:HIGH to tune")
+    keys = tuple(b.key for b in bounds)
+    for key in keys:
+        if keys.count(key) > 1:
+            raise ScenarioError(f"--vary {key}: given more than once")
+    for b in robust:
+        if b.key in keys:
+            raise ScenarioError(f"--robust {b.key}: also tuned with --vary")
+    if seeds < 1:
+        raise ScenarioError(f"--seeds {seeds}: must be >= 1")
+    if samples < 1:
+        raise ScenarioError(f"--samples {samples}: must be >= 1")
+    objective = objective or Objective(DEFAULT_OBJECTIVE)
+    variants = _robust_samples(robust, samples, seed)
+    seed_list = list(range(seeds))
+    evaluations: list[dict[str, Any]] = []
+    runs = 0
+
+    def score(candidates: list[dict[str, Any]]) -> tuple[np.ndarray, list[dict[str, float]]]:
+        nonlocal runs
+        points = [_apply(base, {**cand, **var}, ", ".join([*cand, *var]))
+                  for cand in candidates for var in variants]
+        table = run_metrics(points, seed_list, workers=workers)
+        runs += len(table)
+        vals = table.values.reshape(len(candidates), len(variants) * len(seed_list), len(METRICS))
+        with np.errstate(all="ignore"):
+            means = {m: vals[:, :, i].mean(axis=1) for i, m in enumerate(METRICS)}
+        diverged = vals[:, :, METRICS.index("diverged")].max(axis=1) > 0
+        obj = objective(means)
+        obj = np.where(diverged | ~np.isfinite(obj), DIVERGED_PENALTY, obj)
+        rows = []
+        for j, cand in enumerate(candidates):
+            row = {**cand, **{m: float(means[m][j]) for m in _OBJ_METRICS},
+                   "diverged_runs": int(vals[j, :, METRICS.index("diverged")].sum()),
+                   "objective": float(obj[j])}
+            rows.append(row)
+        return obj, rows
+
+    def func(x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        if x.ndim == 1:  # one candidate, shape (D,)
+            x = x[:, None]
+        cands = [{b.key: b.from_unit(float(c)) for b, c in zip(bounds, col, strict=True)}
+                 for col in x.T]
+        obj, rows = score(cands)
+        evaluations.extend(rows)
+        return obj
+
+    start = time.perf_counter()
+    gens = 0
+
+    def callback(*_args: Any, **_kw: Any) -> None:
+        nonlocal gens
+        gens += 1
+        if progress is not None:
+            progress(1)
+
+    res = differential_evolution(
+        func,
+        [b.search_bounds for b in bounds],
+        seed=seed,
+        maxiter=maxiter,
+        popsize=popsize,
+        tol=1e-4,
+        polish=False,
+        vectorized=True,
+        updating="deferred",
+        init="latinhypercube",
+        integrality=[b.integer for b in bounds],
+        callback=callback,
+    )
+    best = {b.key: b.from_unit(float(c)) for b, c in zip(bounds, np.atleast_1d(res.x),
+                                                          strict=True)}
+    _, (best_row,) = score([best])
+    own = {b.key: _lookup(base.to_dict(), b.key) for b in bounds}
+    _, (base_row,) = score([own])
+    return TuneResult(
+        keys=keys,
+        best=best,
+        best_metrics={k: v for k, v in best_row.items() if k not in keys},
+        baseline=base_row,
+        evaluations=evaluations,
+        robust_samples=[v for v in variants if v],
+        generations=gens,
+        runs=runs,
+        seconds=time.perf_counter() - start,
+        message=str(res.message),
+    )
