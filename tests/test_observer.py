@@ -208,3 +208,48 @@ def test_design_vector_is_read_only():
         d.vector[0] = 1.0
     with pytest.raises(ValueError):
         d.gain[0] = 1.0
+
+
+def _continuous_eso(eps, y, u, t_end):
+    """Eq. 8 integrated by scipy from z(0) = (y(0), 0, 0)."""
+    from scipy.integrate import solve_ivp
+
+    b1, b2, b3 = continuous_gains(eps)
+
+    def rhs(t, z):
+        e = y(t) - z[0]
+        return [z[1] + b1 * e, z[2] + B0 * u(t) + b2 * e, b3 * e]
+
+    sol = solve_ivp(rhs, (0.0, t_end), [y(0.0), 0.0, 0.0], method="DOP853", rtol=1e-12,
+                    atol=1e-12)
+    return sol.y[:, -1]
+
+
+@pytest.mark.parametrize("disc", DISCRETIZATIONS)
+def test_discretizations_converge_to_eq8_first_order(disc):
+    """As Ts → 0 every discretization tends to the continuous ESO, with error O(Ts).
+
+    Smooth y(t) and u(t); the discrete observers see y_k = y(t_k) and hold
+    u_k = u(t_k), the continuous one sees both continuously, so all three
+    carry an O(Ts) difference that halves with Ts.
+    """
+    eps, t_end = 0.09, 1.0
+
+    def y(t):
+        return 0.3 * math.sin(2.0 * t) + 0.1 * t
+
+    def u(t):
+        return 0.02 * math.cos(3.0 * t)
+
+    exact = _continuous_eso(eps, y, u, t_end)
+    errors = []
+    for ts in (2e-3, 1e-3, 5e-4):
+        n = int(round(t_end / ts))
+        eso = ExtendedStateObserver(design_observer(eps, ts, B0, disc), y(0.0))
+        for k in range(n):
+            eso.estimate(y(k * ts))
+            eso.update(u(k * ts))
+        errors.append(np.max(np.abs(np.asarray(eso.z) - exact) / (1.0 + np.abs(exact))))
+    assert errors[-1] < 0.02
+    for coarse, fine in zip(errors, errors[1:], strict=False):
+        assert 1.7 < coarse / fine < 2.3, errors
