@@ -107,9 +107,12 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
               help="Stop when the measured angle changes more than this in one sample [rad].")
 @click.option("--watchdog", type=float, default=0.25, show_default=True, metavar="SECONDS",
               help="Stop when no sample arrives for this long [s].")
+@click.option("--baud", type=int, default=115200, show_default=True, metavar="BITS/S",
+              help="Serial line rate [bit/s]; must match the firmware (ignored by USB CDC "
+              "boards and pseudo-terminals). 1 kHz sampling needs about 500000 or more.")
 @bad_input_guard
 def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, as_json: bool,
-        angle_limit: float, max_jump: float, watchdog: float) -> None:
+        angle_limit: float, max_jump: float, watchdog: float, baud: int) -> None:
     """Drive the rig on PORT through SCENARIO at its rate for its duration.
 
     The ESO + FLC of the scenario runs on this host, one sample at a time; the
@@ -126,10 +129,12 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
                         ("--watchdog", watchdog)):
         if not (math.isfinite(value) and value > 0):
             raise BadInput(f"{name} {value:g}: must be a finite number > 0")
+    if baud <= 0:
+        raise BadInput(f"--baud {baud}: must be > 0")
     scn = resolve_scenario(scenario, overrides)
     limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog)
     try:
-        link = SerialLink(port)
+        link = SerialLink(port, baudrate=baud)
     except LinkError as exc:
         raise RunFailure(str(exc)) from None
     live = _status_display() if stderr_is_tty() and not as_json else None

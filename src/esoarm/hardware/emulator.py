@@ -296,6 +296,7 @@ class Emulator:
                 return
             if kind == P.DUTY and abs(value) > self.twin.pwm_max:
                 self.bad_commands += 1
+                self._u = 0.0  # as the firmware: motor off
                 self._send(P.FAULT, P.FAULT_BAD_COMMAND, k)
                 return
             if not self.running or self._watchdog_tripped:
