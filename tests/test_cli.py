@@ -9,6 +9,8 @@ from __future__ import annotations
 import csv
 import json
 import math
+import subprocess
+import sys
 
 import pytest
 
@@ -40,6 +42,9 @@ SET_CASES = [
     ("duration-zero", "test-1", ["duration=0"], ["duration", "greater than 0"]),
     ("duration-negative", "test-1", ["duration=-20"], ["duration", "greater than 0"]),
     ("duration-below-Ts", "test-1", ["duration=0.001"], ["duration", "sample period"]),
+    ("duration-too-long", "test-1", ["duration=1e9"], ["duration", "at most"]),
+    ("samples-overflow", "test-1", ["rig.step=1e-10", "sensor.rate_hz=1e10", "duration=1e308"],
+     ["duration", "inf samples"]),
     ("step-not-dividing", "test-1", ["rig.step=0.003"], ["rig.step", "divide the sample period"]),
     ("step-above-Ts", "test-1", ["rig.step=0.03"], ["rig.step", "divide the sample period"]),
     ("rate-not-divisible", "test-1", ["sensor.rate_hz=3"], ["rig.step", "divide"]),
@@ -384,3 +389,24 @@ def test_command_line_syntax_errors(run_cli, args, fragment):
     assert "Traceback" not in res.stderr
     errors = [ln for ln in res.stderr.splitlines() if "rror" in ln]
     assert len(errors) == 1 and fragment in errors[0], res.stderr
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS semantics")
+def test_out_of_memory_is_one_line_exit_1(tmp_path):
+    """A run too large for the machine fails in one line, not with a traceback."""
+    import resource
+
+    def limit():  # 1.2 GB of address space: the 1e8-sample arrays cannot fit
+        resource.setrlimit(resource.RLIMIT_AS, (1_200_000_000, 1_200_000_000))
+
+    out = tmp_path / "big.csv"
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; from esoarm.cli import main; main(sys.argv[1:])",
+         "simulate", "test-1", "--set", "duration=1e6", "--set", "sensor.rate_hz=100",
+         "--out", str(out)],
+        capture_output=True, text=True, timeout=120, preexec_fn=limit,
+    )
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
+    assert proc.stderr.startswith("esoarm: failed: out of memory")
+    assert not out.exists()

@@ -34,6 +34,10 @@ __all__ = [
 ]
 
 
+#: Longest run a scenario may ask for, in samples (duration · rate_hz).
+MAX_SAMPLES = 100_000_000
+
+
 class ScenarioError(ValueError):
     """Bad scenario input: the message is one line naming the key or file."""
 
@@ -470,6 +474,10 @@ def _check_consistency(scn: Scenario, source: str) -> None:
             f"{scn.rig.step:g} s must divide the sample period Ts = 1/rate_hz = {ts:g} s "
             "into a whole number of RK4 steps",
         )
+    samples = scn.duration * scn.sensor.rate_hz
+    if not samples <= MAX_SAMPLES:  # also catches an overflow to inf
+        fail("duration", f"{scn.duration:g} s at {scn.sensor.rate_hz:g} Hz is {samples:.3g} "
+             f"samples; at most {MAX_SAMPLES:.0e} are allowed")
     if scn.n_samples < 1:
         fail("duration", f"{scn.duration:g} s is shorter than one sample period ({ts:g} s)")
     ref = scn.reference

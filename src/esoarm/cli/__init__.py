@@ -74,6 +74,10 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:  # pragma: no cover - click converts most of these
         click.echo("esoarm: interrupted", err=True)
         sys.exit(130)
+    except MemoryError:
+        click.echo("esoarm: failed: out of memory; shorten the run (duration, rate_hz) or "
+                   "split the work", err=True)
+        sys.exit(1)
 
 
 __all__ += ["BadInput", "RunFailure", "cli"]
