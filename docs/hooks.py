@@ -237,8 +237,15 @@ def _nav_files(nav: list) -> list[str]:
 
 
 def on_files(files, config, **kwargs):  # type: ignore[no-untyped-def]
-    """Add the reproduction's figures as generated files ``generated/<stem>.png``."""
+    """Add the reproduction's figures as generated files ``generated/<stem>.png``.
+
+    Only when a page refers to ``generated/`` (the reproduction takes seconds).
+    """
     from mkdocs.structure.files import File
+
+    docs_dir = Path(config["docs_dir"])
+    if not any("generated/" in p.read_text(encoding="utf-8") for p in docs_dir.rglob("*.md")):
+        return files
 
     for stem, png in generated_figures().items():
         files.append(File.generated(config, f"generated/{stem}.png", content=png))
