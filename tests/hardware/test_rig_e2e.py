@@ -185,11 +185,15 @@ def test_scenario_that_does_not_match_the_device_is_bad_input(tmp_path):
         assert "sensor.resolution_deg" in res.stderr and len(res.stderr.splitlines()) == 1
         res = esoarm("run", "test-1", "--port", emu.path, "--set", "sensor.rate_hz=100")
         assert res.returncode == 2 and "sensor.rate_hz" in res.stderr
-        # a torque-source device cannot take duties of a [motor] scenario? it can: the
-        # emulator without [motor] reports FLAG_TORQUE, a [motor] host must match pwm_max
-        res = esoarm("run", "test-1", "--port", emu.path, "--set", "motor.pwm_max=1023")
+        # a [motor] scenario against an ideal-torque emulator
+        res = esoarm("run", "test-1", "--port", emu.path, "--set", "motor.pwm_max=255")
+        assert res.returncode == 2 and "[motor]" in res.stderr
+    with emulator("test-1", "--lockstep", "--set", "motor.pwm_max=1023") as emu:
+        res = esoarm("run", "test-1", "--port", emu.path, "--set", "motor.pwm_max=255")
         assert res.returncode == 2 and "motor.pwm_max" in res.stderr
-    assert not log.exists() or log.read_text() == ""
+        res = esoarm("run", "test-1", "--port", emu.path)
+        assert res.returncode == 2 and "add a [motor] table" in res.stderr
+    assert not log.exists()
 
 
 def test_missing_port_fails_in_one_line():

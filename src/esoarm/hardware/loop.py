@@ -224,6 +224,10 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
         raise ScenarioError(
             "the device takes PWM duties, not torques: add a [motor] table to the scenario "
             "(supply_voltage, resistance, torque_constant, gear_ratio, pwm_max, deadband)")
+    if motor is not None and info.accepts_torque:
+        raise ScenarioError(
+            "the scenario has a [motor] table but the device is an ideal torque source "
+            "(an emulator started without [motor]): give both the same scenario")
     if motor is not None and motor.pwm_max != info.pwm_max:
         raise ScenarioError(
             f"motor.pwm_max = {motor.pwm_max} does not match the device's PWM range "
