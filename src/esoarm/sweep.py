@@ -49,6 +49,8 @@ __all__ = [
 LOCAL_CHUNK = 1024
 #: Default runs per Dask task.
 DASK_CHUNK = 256
+#: How long to try reaching a Dask scheduler.
+CONNECT_TIMEOUT = "10s"
 
 
 @dataclass(frozen=True)
@@ -302,7 +304,7 @@ def _iter_dask(grid: SweepGrid, address: str, threads: int,
     per_point = max(len(grid.seeds), 1)
     seeds = list(grid.seeds)
     try:
-        client = Client(address, timeout="10s", set_as_default=False)
+        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
     futures = {}
@@ -310,7 +312,7 @@ def _iter_dask(grid: SweepGrid, address: str, threads: int,
         for lo, hi in _chunks(grid, chunk):
             fut = client.submit(_run_chunk, list(grid.points[lo:hi]), seeds, threads, pure=False)
             futures[fut] = lo
-        for fut in as_completed(list(futures)):
+        for fut in as_completed(list(futures), loop=client.loop):
             try:
                 values = fut.result()
             except Exception as exc:  # a worker died or the task failed
