@@ -86,7 +86,9 @@ NAMES: dict[int, str] = {
     HELLO: "HELLO", START: "START", DUTY: "DUTY", TORQUE: "TORQUE", STOP: "STOP",
     INFO: "INFO", SAMPLE: "SAMPLE", STOPPED: "STOPPED", FAULT: "FAULT",
 }
-PAYLOAD_SIZES: dict[int, int] = {t: struct.calcsize(f) for t, f in FORMATS.items()}
+STRUCTS: dict[int, struct.Struct] = {t: struct.Struct(f) for t, f in FORMATS.items()}
+PAYLOAD_SIZES: dict[int, int] = {t: s.size for t, s in STRUCTS.items()}
+_CRC = struct.Struct("<H")
 MAX_PAYLOAD = max(PAYLOAD_SIZES.values())
 MAX_FRAME = HEADER_SIZE + MAX_PAYLOAD + CRC_SIZE
 
@@ -108,9 +110,9 @@ def encode(kind: int, seq: int, *fields: int | float) -> bytes:
     *fields
         Payload fields in the order of :data:`FORMATS`.
     """
-    payload = struct.pack(FORMATS[kind], *fields)
+    payload = STRUCTS[kind].pack(*fields)
     body = bytes((kind, seq & 0xFF, len(payload))) + payload
-    return SYNC + body + struct.pack("<H", crc16(body))
+    return SYNC + body + _CRC.pack(binascii.crc_hqx(body, 0xFFFF))
 
 
 class Frame(NamedTuple):
@@ -122,7 +124,7 @@ class Frame(NamedTuple):
 
     def fields(self) -> tuple:
         """The payload decoded with :data:`FORMATS`."""
-        return struct.unpack(FORMATS[self.kind], self.payload)
+        return STRUCTS[self.kind].unpack(self.payload)
 
 
 @dataclass(frozen=True)
