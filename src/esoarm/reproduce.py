@@ -651,9 +651,13 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
     pngs: dict[str, bytes] = {}
     for stem, _caption, draw in figure_specs(rep):
         fig = draw()
-        pngs[stem] = plotting.figure_bytes(fig, "png", dpi=110)
         path = out / f"{stem}.{fmt}"
-        plotting.save_figure(fig, path)
+        if fmt == "png":  # render once: the same PNG goes into the file and the report
+            pngs[stem] = plotting.figure_bytes(fig, "png")
+            _write_bytes(path, pngs[stem])
+        else:
+            pngs[stem] = plotting.figure_bytes(fig, "png", dpi=110)
+            plotting.save_figure(fig, path)
         written.append(path)
         if progress:
             progress(path.name)
@@ -669,9 +673,18 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
 
 
 def _write_text(path: Path, text: str) -> None:
+    _write_bytes(path, text.encode("utf-8"))
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
+    """Write a file that appears only once complete."""
     tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(path)
+    try:
+        tmp.write_bytes(data)
+        tmp.replace(path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def _write_table_csv(path: Path, rows: list[dict[str, Any]],
