@@ -19,8 +19,8 @@ Every ``esoarm.<module>.<name>`` written in backticks in any page is
 imported; a name that does not exist fails the build (so the theory page's
 equation-to-function map stays true).  Pages of other engineers listed in the
 navigation (hardware guide, protocol, benchmarks) are dropped from the
-navigation while their file does not exist, and extra ``benchmarks*.md``
-files are added.
+navigation while their file does not exist; pages not listed are added
+(``benchmarks*.md`` to the Benchmarks section, others under "More").
 
 Run ``mkdocs build --strict`` (CI does); ``python docs/hooks.py cli`` prints
 the generated CLI reference.
@@ -203,26 +203,47 @@ def _filter_nav(nav: list, docs_dir: Path) -> list:
 # -- MkDocs hook entry points -----------------------------------------------------
 
 def on_config(config, **kwargs):  # type: ignore[no-untyped-def]
-    """Drop missing optional pages from the nav; add extra benchmarks*.md pages."""
+    """Complete the nav from the files that exist.
+
+    Optional pages that do not exist yet are dropped; ``benchmarks*.md`` files
+    not listed are added to the Benchmarks section, and any other page not
+    listed goes under "More" (titled by its first heading), so that a page
+    added by someone else is never orphaned (orphans fail ``--strict``).
+    """
     docs_dir = Path(config["docs_dir"])
     nav = config.get("nav")
     if nav:
         listed = set(_nav_files(nav))
-        extras = [p.name for p in sorted(docs_dir.glob("benchmarks*.md"))
-                  if p.name not in listed]
+        unlisted = [p.relative_to(docs_dir).as_posix() for p in sorted(docs_dir.rglob("*.md"))
+                    if p.relative_to(docs_dir).as_posix() not in listed]
         nav = _filter_nav(nav, docs_dir)
-        if extras:
-            section = next((item["Benchmarks"] for item in nav
-                            if isinstance(item, dict) and isinstance(item.get("Benchmarks"),
-                                                                     list)), None)
-            if section is None:
-                section = []
-                nav.append({"Benchmarks": section})
-            for name in extras:
-                title = Path(name).stem.replace("benchmarks", "").strip("-_ ").replace("-", " ")
-                section.append({f"Benchmarks: {title}" if title else "Benchmarks": name})
+        for name in unlisted:
+            if Path(name).name.startswith("benchmarks"):
+                section_name = "Benchmarks"
+                rest = Path(name).stem.replace("benchmarks", "").strip("-_ ").replace("-", " ")
+                title = f"Benchmarks: {rest}" if rest else "Benchmarks"
+            else:
+                section_name = "More"
+                title = _first_heading(docs_dir / name)
+            _section(nav, section_name).append({title: name})
         config["nav"] = nav
     return config
+
+
+def _first_heading(path: Path) -> str:
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if line.startswith("# "):
+            return line[2:].strip()
+    return path.stem.replace("-", " ").replace("_", " ").capitalize()
+
+
+def _section(nav: list, name: str) -> list:
+    for item in nav:
+        if isinstance(item, dict) and isinstance(item.get(name), list):
+            return item[name]
+    section: list = []
+    nav.append({name: section})
+    return section
 
 
 def _nav_files(nav: list) -> list[str]:

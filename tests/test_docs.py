@@ -142,3 +142,17 @@ def test_strict_build_fails_on_broken_docs(tmp_path, body, expected):
     assert res.returncode != 0
     assert expected in res.stdout + res.stderr
     shutil.rmtree(tmp_path / "site", ignore_errors=True)
+
+
+def test_nav_drops_missing_pages_and_adopts_unlisted_ones(tmp_path):
+    hooks = _hooks()
+    for name, text in {"index.md": "# Home\n", "benchmarks-batch.md": "# Batch\n",
+                       "rig-setup.md": "# Setting up a rig\n"}.items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+    config = {"docs_dir": str(tmp_path),
+              "nav": [{"Home": "index.md"}, {"Real rigs": [{"Hardware guide": "hardware.md"}]},
+                      {"Benchmarks": [{"Benchmarks": "benchmarks.md"}]}]}
+    nav = hooks.on_config(config)["nav"]
+    assert nav == [{"Home": "index.md"}, {"Benchmarks": [{"Benchmarks: batch":
+                                                          "benchmarks-batch.md"}]},
+                   {"More": [{"Setting up a rig": "rig-setup.md"}]}]
