@@ -108,6 +108,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="short runs (smoke test)")
     parser.add_argument("--out", default=str(ROOT / "docs" / "benchmarks-rig.md"))
     opts = parser.parse_args()
+    load_before = os.getloadavg()[0]
     n = 2000 if opts.quick else 50000
     lat = [step_latency(d, n) for d in DISCRETIZATIONS]
     runs = [jitter(50.0, 3.0 if opts.quick else 20.0), jitter(1000.0, 2.0 if opts.quick else 10.0)]
@@ -118,6 +119,8 @@ def main() -> None:
         f"{time.strftime('%Y-%m-%d', time.gmtime())}.",
         "",
         f"Machine: {machine()}.",
+        f"Load average (1 min) before / after: {load_before:.2f} / {os.getloadavg()[0]:.2f} "
+        "(other work on the machine inflates the p99 values).",
         "",
         "## Controller step latency",
         "",
