@@ -208,3 +208,18 @@ def test_cli_reproduce_bad_out_is_exit_2(run_cli, tmp_path):
 def test_run_ids():
     assert run_id("test-1", 0.09) == "test-1_eps0.09"
     assert run_id("test-2", 0.09, "model") == "test-2_eps0.09_model"
+
+
+def test_cli_reproduce_diverged_run_is_exit_1_and_writes_nothing(run_cli, tmp_path, monkeypatch):
+    from esoarm import reproduce
+    from esoarm.simulation import SimulationDiverged
+
+    def diverge(scenarios, progress):
+        raise SimulationDiverged("simulation of 'test-1' diverged at t = 0.1 s", None)
+
+    monkeypatch.setattr(reproduce, "_run_all", diverge)
+    out = tmp_path / "res"
+    res = run_cli("reproduce", "--out", str(out))
+    assert res.exit_code == 1
+    assert "diverged" in res.stderr and "Traceback" not in res.stderr
+    assert not out.exists() or not any(out.iterdir())

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from esoarm.cli._common import BadInput, bad_input_guard
+from esoarm.cli._common import BadInput, RunFailure, bad_input_guard
 
 
 @click.command()
@@ -32,6 +32,7 @@ def reproduce(out_dir: str, fmt: str) -> None:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from esoarm.reproduce import figure_specs, plan_runs, run_reproduction, write_outputs
+    from esoarm.simulation import SimulationDiverged
 
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
@@ -42,8 +43,11 @@ def reproduce(out_dir: str, fmt: str) -> None:
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as bar:
         task = bar.add_task("simulating", total=n_runs)
-        rep = run_reproduction(progress=lambda key: bar.update(
-            task, advance=1, description=f"simulated {key}"))
+        try:
+            rep = run_reproduction(progress=lambda key: bar.update(
+                task, advance=1, description=f"simulated {key}"))
+        except SimulationDiverged as exc:  # nothing written yet: no half-complete results
+            raise RunFailure(str(exc)) from None
         bar.update(task, total=n_runs + len(figure_specs(rep)) + 2)
         write_outputs(rep, out, fmt=fmt, progress=lambda what: bar.update(
             task, advance=1, description=f"wrote {what}"))
