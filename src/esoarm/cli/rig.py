@@ -146,6 +146,9 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
         raise Interrupted(str(exc)) from None
     except LinkError as exc:
         raise RunFailure(str(exc)) from None
+    except KeyboardInterrupt:  # before the run loop took over Ctrl-C (handshake)
+        link.stop()
+        raise Interrupted("before the run started: stop sent, nothing logged") from None
     finally:
         if live:
             live.close()
