@@ -11,7 +11,23 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
+import pytest
+
 CLI = [sys.executable, "-c", "from esoarm.cli import main; main()"]
+
+
+def _have_pty() -> bool:
+    try:
+        master, slave = os.openpty()
+    except OSError:
+        return False
+    os.close(master)
+    os.close(slave)
+    return True
+
+
+#: skip marker for tests that need a pseudo-terminal (the emulator's port)
+needs_pty = pytest.mark.skipif(not _have_pty(), reason="no pseudo-terminals (os.openpty failed)")
 
 
 @dataclass

@@ -13,6 +13,10 @@ from esoarm.hardware.emulator import Emulator, encoder_counts_per_rev, parse_fau
 from esoarm.hardware.link import LinkError, SerialLink
 from esoarm.scenario import ScenarioError, load_scenario
 
+from .rig_helpers import needs_pty
+
+pytestmark = needs_pty
+
 
 @pytest.fixture
 def device(request):

@@ -19,7 +19,9 @@ import pytest
 from esoarm.hardware.loop import LOG_COLUMNS
 from esoarm.simulation import simulate
 
-from .rig_helpers import CLI, emulator, esoarm
+from .rig_helpers import CLI, emulator, esoarm, needs_pty
+
+pytestmark = needs_pty
 
 
 def _sets(items):
