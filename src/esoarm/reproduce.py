@@ -222,14 +222,24 @@ class Reproduction:
 
 def _run_all(scenarios: dict[str, Scenario],
              progress: Callable[[str], None] | None) -> dict[str, SimResult]:
-    """Simulate every scenario (the single place a reproduction runs simulations)."""
-    from esoarm.simulation import simulate
+    """Simulate every scenario (the single place a reproduction runs simulations).
 
+    Runs go through the compiled batch engine (:func:`esoarm.batch.simulate_many`,
+    the same numbers as the reference engine) a few at a time, so progress is
+    reported as they finish; a diverged run raises
+    :class:`~esoarm.simulation.SimulationDiverged` as before.
+    """
+    from esoarm.batch import simulate_many
+
+    keys = list(scenarios)
     runs: dict[str, SimResult] = {}
-    for key, scn in scenarios.items():
-        runs[key] = simulate(scn, warn=False)
-        if progress is not None:
-            progress(key)
+    step = 8
+    for start in range(0, len(keys), step):
+        part = keys[start : start + step]
+        for key, result in zip(part, simulate_many([scenarios[k] for k in part]), strict=True):
+            runs[key] = result
+            if progress is not None:
+                progress(key)
     return runs
 
 
