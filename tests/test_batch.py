@@ -180,3 +180,11 @@ def test_pairwise_sum_is_numpy_order(values: list[float]) -> None:
     x = np.square(np.array(values))
     assert batch._pairwise_sum(x, len(x)) == np.add.reduce(x)
     assert math.isclose(batch._pairwise_sum(x, len(x)), math.fsum(x), rel_tol=1e-12)
+
+
+def test_disk_cache_is_keyed_on_the_physics_sources() -> None:
+    """Editing rig.py (or any physics module) must not reuse a stale compiled kernel."""
+    for kernel in (batch._metrics_kernel, batch._series_kernel, batch._closed_loop):
+        locator = kernel._cache._impl.locator
+        assert type(locator).__name__.startswith("EsoarmPhysics")
+        assert locator.get_source_stamp().endswith(batch._physics_stamp())

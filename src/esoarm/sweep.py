@@ -24,6 +24,7 @@ import itertools
 import math
 import os
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -243,10 +244,20 @@ def _chunks(grid: SweepGrid, chunk_runs: int) -> list[tuple[int, int]]:
     return [(i, min(i + size, n)) for i in range(0, n, size)]
 
 
+_CHUNK_LOCK = threading.Lock()
+
+
 def _run_chunk(points: Sequence[Scenario], seeds: Sequence[int] | None,
                threads: int | None) -> np.ndarray:
-    """One chunk's metrics (the Dask task; also used in-process)."""
-    return run_metrics(points, seeds if seeds else None, workers=threads).values
+    """One chunk's metrics: the Dask task.
+
+    A worker process runs one chunk at a time (on ``threads`` numba threads):
+    numba's parallel kernels must not be launched from several threads at
+    once with every threading layer.  Give Dask workers ``--nthreads 1`` and
+    one process per core, or fewer processes and ``--workers N``.
+    """
+    with _CHUNK_LOCK:
+        return run_metrics(points, seeds if seeds else None, workers=threads).values
 
 
 def iter_sweep(
