@@ -140,20 +140,9 @@ def _results_markdown(name: str) -> str:
                 "|f − z3| [rad/s²]; Theorem 2: max |e| [rad] against μ/k2.\n\n"
                 + _md_table(["theorem", "run", "measured", "bound", "verdict"], rows))
     if name == "summary":
-        ratios = [PAPER_TABLES[t][e][1] / rep.metric(t, e, "rms_u")
-                  for t in TABLE_NAMES for e in EPS_SET]
-        best = {t: min(EPS_SET, key=lambda e, t=t: rep.metric(t, e, "rms_error"))
-                for t in TABLE_NAMES}
-        ok = [f"{c.statement} ({c.source})" for c in rep.claims if c.reproduced]
-        not_ok = [f"{c.statement} ({c.source})" for c in rep.claims if not c.reproduced]
-        return (
-            "A twin is not the paper's hardware. The twin's RMS control is "
-            f"{min(ratios):.1f} to {max(ratios):.1f} times smaller than the paper's (its "
-            "friction and the rest of its unmodelled dynamics are assumptions, not measured "
-            "values). On the twin the lowest RMS tracking error is at "
-            + " and ".join(f"ε = {e:g} s in {t}" for t, e in best.items())
-            + " (paper: ε = 0.09 s in both). Reproduced: " + "; ".join(ok)
-            + ". Not reproduced: " + ("; ".join(not_ok) or "none") + ".\n")
+        from esoarm.report import summary_text
+
+        return summary_text(rep) + "\n"
     if name == "findings":
         from esoarm.reproduce import discretization_findings
 

@@ -229,3 +229,17 @@ def test_checker_catches_a_broken_image(tmp_path: Path) -> None:
     assert any("boom" in e for e in check["errors"])
     assert any("missing.png" in e for e in check["errors"])
     assert console_lines(dom.stderr)
+
+
+def test_summary_is_computed_from_the_runs(outputs):
+    from esoarm.report import summary_text
+    from esoarm.reproduce import TABLE_NAMES
+
+    rep = outputs[0]
+    text = summary_text(rep)
+    for test in TABLE_NAMES:
+        best = min(EPS_SET, key=lambda e, t=test: rep.metric(t, e, "rms_error"))
+        assert f"ε = {best:g} s in {test}" in text
+    for claim in rep.claims:
+        part = text.split("Not reproduced:")[1 if not claim.reproduced else 0]
+        assert claim.statement in part

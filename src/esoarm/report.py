@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from esoarm.reproduce import Reproduction
     from esoarm.scenario import Scenario
 
-__all__ = ["ASSUMPTIONS", "assumption_rows", "render_report"]
+__all__ = ["ASSUMPTIONS", "assumption_rows", "render_report", "summary_text"]
 
 #: Scenario keys the paper does not give, with why the twin needs them.  The
 #: values shown in the report are read from the resolved scenarios.
@@ -173,6 +173,30 @@ def assumption_rows(scenarios: Mapping[str, Scenario]) -> list[tuple[str, str, s
     return rows
 
 
+def summary_text(rep: Reproduction) -> str:
+    """What the twin reproduces, in a few sentences built from the runs.
+
+    The ratio of the paper's RMS control to the twin's, the ε with the lowest
+    RMS tracking error per test, and the claims reproduced and not.
+    """
+    from esoarm.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
+
+    ratios = [PAPER_TABLES[t][e][1] / rep.metric(t, e, "rms_u")
+              for t in TABLE_NAMES for e in EPS_SET]
+    best = {t: min(EPS_SET, key=lambda e, t=t: rep.metric(t, e, "rms_error"))
+            for t in TABLE_NAMES}
+    ok = [f"{c.statement} ({c.source})" for c in rep.claims if c.reproduced]
+    not_ok = [f"{c.statement} ({c.source})" for c in rep.claims if not c.reproduced]
+    return (
+        "A twin is not the paper's hardware. The twin's RMS control is "
+        f"{min(ratios):.1f} to {max(ratios):.1f} times smaller than the paper's (its friction "
+        "and the rest of its unmodelled dynamics are assumptions, not measured values). On the "
+        "twin the lowest RMS tracking error is at "
+        + " and ".join(f"ε = {e:g} s in {t}" for t, e in best.items())
+        + " (paper: ε = 0.09 s in both). Reproduced: " + ("; ".join(ok) or "none")
+        + ". Not reproduced: " + ("; ".join(not_ok) or "none") + ".")
+
+
 def _img(pngs: Mapping[str, bytes], stem: str, caption: str) -> str:
     if stem not in pngs:
         return ""
@@ -207,7 +231,8 @@ def _claims_section(rep: Reproduction) -> str:
             for c in rep.claims]
     n_ok = sum(c.reproduced for c in rep.claims)
     return (f"<p>{n_ok} of {len(rep.claims)} claims reproduced on the twin.</p>"
-            + _table(["on the twin", "paper", "claim", "numbers behind it"], rows, left=4))
+            + _table(["on the twin", "paper", "claim", "numbers behind it"], rows, left=4)
+            + f"<p>{_e(summary_text(rep))}</p>")
 
 
 def _theorem_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
@@ -284,11 +309,9 @@ def _discretization_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str
         "is identical, including the noise sequence.</p>"]
     rows = []
     for key in rep.comparison[discs[0]]:
-        scn = rep.comparison[discs[0]][key].scenario
         cells = [_e(key)]
         for metric in ("rms_error", "rms_u", "du_rms"):
             cells += [f"{run_metrics(rep.comparison[d][key])[metric]:.4f}" for d in discs]
-        del scn
         rows.append(cells)
     head = ["run"]
     for label in ("RMS error [rad]", "RMS u [N·m]", "RMS(Δu) [N·m]"):
