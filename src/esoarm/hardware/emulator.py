@@ -227,7 +227,6 @@ class Emulator:
         self.frames_lost = 0  # output buffer full (nobody reading)
         self.bad_commands = 0
         self._u = 0.0
-        self._cmd_k = -1
         self._last_cmd = 0.0
         self._t0 = 0.0
         self._watchdog_tripped = False
@@ -283,7 +282,6 @@ class Emulator:
             self._watchdog_tripped = False
             self._t0 = self._last_cmd = time.perf_counter()
             self._next_tick = self._t0 + self.twin.ts
-            self._cmd_k = -1
             self._u = 0.0
             self.echo(f"start: {'lockstep' if self.lockstep else 'real time'}, "
                       f"Ts = {self.twin.ts:g} s")
@@ -310,7 +308,7 @@ class Emulator:
                 self.twin.advance(u)
                 self._send_sample()
             else:
-                self._u, self._cmd_k = u, k
+                self._u = u
         elif kind == P.STOP:
             self.twin.motor_on = False
             was = self.running
