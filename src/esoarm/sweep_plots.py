@@ -217,8 +217,10 @@ def figure_pareto(
         ax.plot(mu, me, marker=mk, markersize=8, color="#009E73", markeredgecolor="black",
                 linestyle="none", label=label)
     finite = np.isfinite(u) & np.isfinite(e)
-    if finite.any() and e[finite].min() > 0 and e[finite].max() / e[finite].min() > 30:
-        ax.set_yscale("log")
+    for values, setter in ((u, ax.set_xscale), (e, ax.set_yscale)):
+        v = values[finite]
+        if v.size and v.min() > 0 and v.max() / v.min() > 10:
+            setter("log")  # the knee of the front stays readable
     ax.set_xlabel("RMS control [N·m]")
     ax.set_ylabel("RMS tracking error [rad]")
     ax.grid(True, alpha=0.3)
