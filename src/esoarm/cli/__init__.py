@@ -67,17 +67,39 @@ def cli() -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console-script entry point."""
+    """Console-script entry point.
+
+    Click runs in non-standalone mode so that esoarm decides the exit codes:
+    a usage or input error is 2, a run-time failure 1, Ctrl-C 130 (click's own
+    standalone mode would turn Ctrl-C into "Aborted!" with status 1).
+    """
     warnings.showwarning = show_warning
     try:
-        cli.main(args=argv, prog_name="esoarm", standalone_mode=True)
-    except KeyboardInterrupt:  # pragma: no cover - click converts most of these
+        rv = cli.main(args=argv, prog_name="esoarm", standalone_mode=False)
+    except click.exceptions.Abort:
         click.echo("esoarm: interrupted", err=True)
         sys.exit(130)
+    except KeyboardInterrupt:
+        click.echo("esoarm: interrupted", err=True)
+        sys.exit(130)
+    except click.UsageError as exc:
+        # one line, like every other input error, with where to look for help
+        where = exc.ctx.command_path if exc.ctx is not None else "esoarm"
+        click.echo(f"esoarm: error: {exc.format_message()} (see '{where} --help')", err=True)
+        sys.exit(2)
+    except click.ClickException as exc:
+        exc.show()
+        sys.exit(exc.exit_code)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
     except MemoryError:
         click.echo("esoarm: failed: out of memory; shorten the run (duration, rate_hz) or "
                    "split the work", err=True)
         sys.exit(1)
+    except BrokenPipeError:  # e.g. `esoarm show test-1 | head`
+        sys.stderr.close()
+        sys.exit(0)
+    sys.exit(rv if isinstance(rv, int) else 0)
 
 
 __all__ += ["BadInput", "RunFailure", "cli"]
