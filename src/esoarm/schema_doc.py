@@ -34,6 +34,13 @@ def scenario_keys() -> list[tuple[str, str, str, str]]:
                 continue
             if isinstance(value, QuinticSteps | Multisine):
                 continue
+            if value is None and name == "motor":  # optional table, absent by default
+                from esoarm.scenario import Motor
+
+                rows.append(("motor", "absent", "", (field.description or "")
+                             + "; give a `[motor]` table to enable it, with these defaults:"))
+                walk(Motor, Motor(), "motor.")
+                continue
             extra = field.json_schema_extra if isinstance(field.json_schema_extra, dict) else {}
             rows.append((prefix + name, _fmt(value), str(extra.get("unit", "")),
                          field.description or ""))
