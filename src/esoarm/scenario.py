@@ -101,7 +101,9 @@ class Rig(_Section):
 class Sensor(_Section):
     """Encoder model: sampling, Gaussian noise, quantization."""
 
-    rate_hz: float = Field(50.0, gt=0, description="sample rate 1/Ts", json_schema_extra=_unit("Hz"))
+    rate_hz: float = Field(
+        50.0, gt=0, description="sample rate 1/Ts", json_schema_extra=_unit("Hz")
+    )
     resolution_deg: float = Field(
         0.05, ge=0, description="quantization step q (0: none)", json_schema_extra=_unit("deg")
     )
@@ -153,7 +155,9 @@ class QuinticSteps(_Section):
     """Rest-to-rest quintic moves, the angle held between moves."""
 
     kind: Literal["quintic-steps"] = "quintic-steps"
-    start: float = Field(0.0, description="angle before the first move", json_schema_extra=_unit("rad"))
+    start: float = Field(
+        0.0, description="angle before the first move", json_schema_extra=_unit("rad")
+    )
     moves: list[list[float]] = Field(
         default_factory=lambda: [[1.0, 2.0, 1.0], [10.0, 2.0, 0.0]],
         description="[start s, duration s, target rad] per move, in time order",
@@ -343,7 +347,8 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     out = copy.deepcopy(base)
     for key, value in over.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
-            if key == "reference" and value.get("kind", out[key].get("kind")) != out[key].get("kind"):
+            old_kind = out[key].get("kind")
+            if key == "reference" and value.get("kind", old_kind) != old_kind:
                 out[key] = copy.deepcopy(value)  # another kind of reference: its own defaults
             else:
                 out[key] = _merge(out[key], value)
