@@ -20,7 +20,9 @@ from esoarm.scenario import Multisine, QuinticSteps
 __all__ = ["evaluate_reference"]
 
 
-def _quintic_steps(ref: QuinticSteps, t: np.ndarray) -> tuple[np.ndarray, ...]:
+def _quintic_steps(
+    ref: QuinticSteps, t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     pos = np.full_like(t, ref.start)
     vel = np.zeros_like(t)
     acc = np.zeros_like(t)
@@ -41,7 +43,7 @@ def _quintic_steps(ref: QuinticSteps, t: np.ndarray) -> tuple[np.ndarray, ...]:
     return pos, vel, acc
 
 
-def _multisine(ref: Multisine, t: np.ndarray) -> tuple[np.ndarray, ...]:
+def _multisine(ref: Multisine, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     pos = np.full_like(t, ref.offset)
     vel = np.zeros_like(t)
     acc = np.zeros_like(t)

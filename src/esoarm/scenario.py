@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic.json_schema import JsonDict
 
 __all__ = [
     "Scenario",
@@ -46,7 +47,7 @@ class ScenarioWarning(UserWarning):
     """A legal but risky scenario setting (e.g. an observer too fast for Ts)."""
 
 
-def _unit(unit: str) -> dict[str, str]:
+def _unit(unit: str) -> JsonDict:
     return {"unit": unit}
 
 
