@@ -43,6 +43,9 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from esoarm import controller as _controller
+from esoarm import observer as _observer
+from esoarm import rig as _rig
 from esoarm.controller import flc_control
 from esoarm.observer import eso_advance, eso_estimate
 from esoarm.result import SimResult
@@ -78,6 +81,13 @@ _TH, _REF, _ERR, _U, _Z1, _Z2, _Z3, _F, _OM = range(9)
 # point-parameter columns
 _THETA0, _SIGMA, _Q, _H, _TS, _B0 = range(6)
 _N, _NSUB, _DELAY, _REFIDX = range(4)
+
+# _closed_loop unpacks the parameter vectors into tuples of these lengths
+if (_rig.VECTOR_SIZE, _observer.VECTOR_SIZE, _controller.VECTOR_SIZE) != (8, 21, 6):
+    raise ImportError(  # pragma: no cover - guards a core change
+        "esoarm.batch: the packed rig/observer/controller vectors changed size; "
+        "update the tuple unpacking in esoarm.batch._closed_loop"
+    )
 
 #: Runs per chunk in metrics mode (bounds memory; one progress tick per chunk).
 DEFAULT_CHUNK = 2048
@@ -389,9 +399,9 @@ def _pack(points: Sequence[Scenario], runs: Sequence[tuple[int, int]],
     p = len(points)
     fpar = np.empty((p, 6))
     ipar = np.empty((p, 4), dtype=np.int64)
-    rig = np.empty((p, 8))
-    obs = np.empty((p, 21))
-    ctl = np.empty((p, 6))
+    rig = np.empty((p, _rig.VECTOR_SIZE))
+    obs = np.empty((p, _observer.VECTOR_SIZE))
+    ctl = np.empty((p, _controller.VECTOR_SIZE))
     ref_keys: dict[str, int] = {}
     ref_list: list[np.ndarray] = []
     for i, scn in enumerate(points):

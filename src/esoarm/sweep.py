@@ -208,9 +208,11 @@ def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid
         if key == "sensor.seed" and seeds > 1:
             raise ScenarioError("--vary sensor.seed: use --seeds K instead (or --seeds 1)")
     # each value alone first: the message then names the key and value
-    for spec in specs:
-        for value in spec.values:
-            _apply(base, {spec.key: value}, spec.key)
+    # (with one key the grid points are exactly these)
+    if len(specs) > 1:
+        for spec in specs:
+            for value in spec.values:
+                _apply(base, {spec.key: value}, spec.key)
     points = tuple(
         _apply(base, dict(zip(keys, combo, strict=True)), ", ".join(keys))
         for combo in itertools.product(*(s.values for s in specs))
