@@ -144,7 +144,7 @@ def _heatmaps(result: SweepResult) -> Figure:
     return fig
 
 
-def _tick_index(n: int, most: int = 8) -> list[int]:
+def _tick_index(n: int, most: int = 10) -> list[int]:
     if n <= most:
         return list(range(n))
     return sorted({int(round(i)) for i in np.linspace(0, n - 1, most)})

@@ -110,6 +110,7 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
     `esoarm simulate`); only metrics are kept. Ctrl-C stops the sweep and keeps
     the finished rows in --out. Example:
 
+    \b
       esoarm sweep test-1 --vary observer.eps=geom:0.03:0.3:100 --seeds 20 --out eps.csv
     """
     from esoarm.scenario import load_scenario
@@ -266,6 +267,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     metrics next to the scenario's own values, and draws the Pareto front of
     tracking error against control effort. Example:
 
+    \b
       esoarm tune test-1 --vary observer.eps=0.02:0.3 --robust rig.inertia_scale=0.8:1.2
     """
     from esoarm.scenario import load_scenario
