@@ -101,6 +101,17 @@ def test_grid_order_first_key_slowest_seed_fastest(base) -> None:  # type: ignor
                         ref.metrics["max_abs_error"]]
 
 
+def test_sensor_seed_as_a_grid_key(base, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    grid = sweep.build_grid(base, ["sensor.seed=3,5"])
+    result = sweep.run_sweep(grid)
+    assert result.complete and grid.n_runs == 2
+    assert [r[:2] for r in result.rows()] == [[3, 3], [5, 5]]
+    one = base.with_overrides({"sensor.seed": 5})
+    assert result.values[1, 0] == run_reference(one, prepare(one)).metrics["rms_error"]
+    with pytest.raises(ScenarioError, match="use --seeds"):
+        sweep.build_grid(base, ["sensor.seed=3,5"], seeds=2)
+
+
 def test_identical_whatever_chunking_and_workers(base) -> None:  # type: ignore[no-untyped-def]
     grid = sweep.build_grid(base, ["observer.eps=geom:0.03:0.3:7"], seeds=3)
     a = sweep.run_sweep(grid, chunk=1, workers=1)

@@ -163,8 +163,8 @@ class SweepGrid:
 
     @property
     def n_runs(self) -> int:
-        """Grid points × seeds."""
-        return len(self.points) * len(self.seeds)
+        """Grid points × seeds (× 1 when ``sensor.seed`` itself is varied)."""
+        return len(self.points) * max(len(self.seeds), 1)
 
     def point_values(self) -> Iterator[tuple[Any, ...]]:
         """Values of the varied keys at each grid point, in grid order."""
