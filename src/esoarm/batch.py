@@ -407,11 +407,11 @@ def _pack(points: Sequence[Scenario], runs: Sequence[tuple[int, int]],
     for i, scn in enumerate(points):
         f, ip, rg, ob, ct, ref = _point_arrays(scn)
         fpar[i], ipar[i, :3], rig[i], obs[i], ctl[i] = f, ip, rg, ob, ct
-        key = f"{scn.sample_time!r}/{scn.n_samples}/{scn.reference.model_dump_json()}"
-        if key not in ref_keys:
-            ref_keys[key] = len(ref_list)
+        ref_key = f"{scn.sample_time!r}/{scn.n_samples}/{scn.reference.model_dump_json()}"
+        if ref_key not in ref_keys:
+            ref_keys[ref_key] = len(ref_list)
             ref_list.append(ref)
-        ipar[i, _REFIDX] = ref_keys[key]
+        ipar[i, _REFIDX] = ref_keys[ref_key]
     nmax = int(ipar[:, _N].max()) if p else 1
     refs = np.zeros((len(ref_list), 3, nmax))
     for i, ref in enumerate(ref_list):
@@ -446,7 +446,7 @@ class _threads:
         if self.workers is not None:
             if self.workers < 1:
                 raise ValueError(f"workers must be >= 1, got {self.workers}")
-            numba.set_num_threads(min(self.workers, numba.config.NUMBA_NUM_THREADS))
+            numba.set_num_threads(min(self.workers, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
 
     def __exit__(self, *exc: object) -> None:
         numba.set_num_threads(self.saved)
@@ -525,7 +525,7 @@ def run_metrics(
             pack = _pack([points[pi] for pi in used], [(local[pi], s) for pi, s in part],
                          noise_cache)
             res = np.empty((len(part), _NMETRIC))
-            _metrics_kernel(*pack.args(), res)
+            _metrics_kernel(*pack.args(), res)  # type: ignore[call-arg]
             out[start : start + len(part)] = res
             if progress is not None:
                 progress(len(part))
@@ -573,7 +573,7 @@ def simulate_many(
             nmax = pack.refs.shape[2]
             logs = np.empty((len(part), 9, nmax))
             rows = np.empty(len(part), dtype=np.int64)  # rows logged, < 0: diverged
-            _series_kernel(*pack.args(), logs, rows)
+            _series_kernel(*pack.args(), logs, rows)  # type: ignore[call-arg]
             for i, scn in enumerate(part):
                 n = scn.n_samples
                 k = abs(int(rows[i]))
