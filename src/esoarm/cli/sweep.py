@@ -96,7 +96,9 @@ def _fmt(value: Any) -> str:
               "threads per Dask task [default: 1].")
 @click.option("--scheduler", "scheduler", metavar="ADDRESS",
               help="Run the chunks on an existing Dask distributed cluster, e.g. "
-              "tcp://127.0.0.1:8786 (needs the 'cluster' extra). Same results as in-process.")
+              "tcp://127.0.0.1:8786 (needs the 'cluster' extra here and esoarm installed on the "
+              "workers; start workers with --nthreads 1, one process per core). Same results "
+              "as in-process.")
 @click.option("--chunk", "chunk", type=int, default=None, metavar="RUNS",
               help="Runs per chunk (whole grid points) [default: 1024 in-process, 256 on Dask]. "
               "Does not change the results.")
