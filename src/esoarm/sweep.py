@@ -135,6 +135,42 @@ def parse_vary(item: str, base: Scenario | None = None) -> VarySpec:
     return VarySpec(key, tuple(values), "list")
 
 
+class GridPoints(Sequence[Scenario]):
+    """The scenarios of a grid, built on demand (index or slice), never all kept.
+
+    A grid of many points would otherwise hold thousands of validated
+    scenario objects (several kB each); a chunk builds only its own.
+    """
+
+    def __init__(self, base: Scenario, vary: tuple[VarySpec, ...]) -> None:
+        self._base = base
+        self._keys = [v.key for v in vary]
+        self._values = [v.values for v in vary]
+        self._sizes = [len(v) for v in self._values]
+        self._n = int(np.prod(self._sizes)) if self._sizes else 0
+
+    def __len__(self) -> int:
+        return self._n
+
+    def combo(self, index: int) -> tuple[Any, ...]:
+        """Values of the varied keys at grid point ``index`` (first key slowest)."""
+        out = []
+        for size, values in zip(reversed(self._sizes), reversed(self._values), strict=True):
+            index, j = divmod(index, size)
+            out.append(values[j])
+        return tuple(reversed(out))
+
+    def __getitem__(self, index):  # type: ignore[no-untyped-def, override]
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(self._n))]
+        if index < 0:
+            index += self._n
+        if not 0 <= index < self._n:
+            raise IndexError(index)
+        over = dict(zip(self._keys, self.combo(index), strict=True))
+        return _apply(self._base, over, ", ".join(self._keys))
+
+
 @dataclass(frozen=True)
 class SweepGrid:
     """A validated sweep: base scenario, varied keys, seeds.
@@ -146,15 +182,19 @@ class SweepGrid:
     vary : tuple of VarySpec
         Varied keys, first slowest.
     seeds : tuple of int
-        Noise seeds run at every grid point (fastest).
-    points : tuple of Scenario
-        One validated scenario per grid point, in grid order.
+        Noise seeds run at every grid point (fastest); empty when
+        ``sensor.seed`` is itself a varied key (each point keeps its own).
+    points : GridPoints
+        The scenario of each grid point, in grid order (built on demand).
+    risky : tuple of str
+        Distinct risky-setting warnings over the grid (one per message).
     """
 
     base: Scenario
     vary: tuple[VarySpec, ...]
     seeds: tuple[int, ...]
-    points: tuple[Scenario, ...] = field(repr=False)
+    points: GridPoints = field(repr=False)
+    risky: tuple[str, ...] = ()
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -170,13 +210,16 @@ class SweepGrid:
         """Values of the varied keys at each grid point, in grid order."""
         return itertools.product(*(v.values for v in self.vary))
 
+    def point_seeds(self) -> Iterator[tuple[int, ...]]:
+        """The seeds each grid point runs with, in grid order."""
+        if self.seeds:
+            return itertools.repeat(self.seeds, len(self.points))
+        i = self.keys.index("sensor.seed")
+        return ((int(values[i]),) for values in self.point_values())
+
     def warnings(self) -> list[str]:
         """Distinct risky-setting warnings over the grid (one per message)."""
-        seen: dict[str, None] = {}
-        for scn in self.points:
-            for msg in scenario_warnings(scn):
-                seen.setdefault(msg, None)
-        return list(seen)
+        return list(self.risky)
 
 
 def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid:
@@ -213,13 +256,14 @@ def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid
         for spec in specs:
             for value in spec.values:
                 _apply(base, {spec.key: value}, spec.key)
-    points = tuple(
-        _apply(base, dict(zip(keys, combo, strict=True)), ", ".join(keys))
-        for combo in itertools.product(*(s.values for s in specs))
-    )
+    points = GridPoints(base, tuple(specs))
+    risky: dict[str, None] = {}
+    for scn in points:  # every point validated (and its warnings noted), none kept
+        for msg in scenario_warnings(scn):
+            risky.setdefault(msg, None)
     # with sensor.seed as a grid key each point keeps its own seed (seeds = ())
     seed_list = () if "sensor.seed" in keys else tuple(range(seeds))
-    return SweepGrid(base, tuple(specs), seed_list, points)
+    return SweepGrid(base, tuple(specs), seed_list, points, tuple(risky))
 
 
 def _apply(base: Scenario, over: dict[str, Any], keys: str) -> Scenario:
@@ -323,7 +367,7 @@ def _iter_dask(grid: SweepGrid, address: str, threads: int,
     futures = {}
     try:
         for lo, hi in _chunks(grid, chunk):
-            fut = client.submit(_run_chunk, list(grid.points[lo:hi]), seeds, threads, pure=False)
+            fut = client.submit(_run_chunk, grid.points[lo:hi], seeds, threads, pure=False)
             futures[fut] = lo
         for fut in as_completed(list(futures), loop=client.loop):
             try:
@@ -385,11 +429,10 @@ class SweepResult:
 
     def rows(self, finished_only: bool = True) -> Iterator[list[Any]]:
         """Rows in grid order: varied values, seed, metrics (counts as int)."""
-        seeds = self.grid.seeds
         n_float = len(METRICS) - 2  # samples, diverged are counts
         i = 0
-        for values, scn in zip(self.grid.point_values(), self.grid.points, strict=True):
-            for seed in (seeds or (scn.sensor.seed,)):
+        for values, seeds in zip(self.grid.point_values(), self.grid.point_seeds(), strict=True):
+            for seed in seeds:
                 if self.done[i] or not finished_only:
                     m = self.values[i]
                     counts = [int(v) if np.isfinite(v) else v for v in m[n_float:]]
