@@ -9,10 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from esoarm import batch
 from esoarm.cli import cli
 from esoarm.scenario import ScenarioError, load_scenario
+from esoarm.sweep_plots import pareto_mask
 from esoarm.tune import DIVERGED_PENALTY, Bound, Objective, parse_bound, tune
 
 FAST = {"maxiter": 8, "popsize": 6}
@@ -140,3 +143,19 @@ def test_cli_tune_bad_input(tmp_path: Path, args: list[str], needle: str) -> Non
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], res.stderr
     assert not fig.exists()
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.tuples(st.floats(0, 10), st.floats(0, 10)), min_size=1, max_size=40))
+def test_pareto_mask_is_the_non_dominated_set(points: list[tuple[float, float]]) -> None:
+    a = np.array([p[0] for p in points])
+    b = np.array([p[1] for p in points])
+    mask = pareto_mask(a, b)
+    for i in range(len(a)):
+        dominated = any((a[j] <= a[i] and b[j] <= b[i]) and (a[j] < a[i] or b[j] < b[i])
+                        for j in range(len(a)))
+        if dominated:
+            assert not mask[i]
+        else:  # non-dominated: kept unless an identical point is kept instead
+            assert mask[i] or any(mask[j] and a[j] == a[i] and b[j] == b[i]
+                                  for j in range(len(a)))
