@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from esoarm.plotting import save_figure
 
@@ -217,10 +218,14 @@ def figure_pareto(
         ax.plot(mu, me, marker=mk, markersize=8, color="#009E73", markeredgecolor="black",
                 linestyle="none", label=label)
     finite = np.isfinite(u) & np.isfinite(e)
-    for values, setter in ((u, ax.set_xscale), (e, ax.set_yscale)):
+    for values, setter, axis in ((u, ax.set_xscale, ax.xaxis), (e, ax.set_yscale, ax.yaxis)):
         v = values[finite]
         if v.size and v.min() > 0 and v.max() / v.min() > 10:
             setter("log")  # the knee of the front stays readable
+            # ticks at 1, 2, 5 × 10^n in plain numbers: default minor labels collide
+            axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+            axis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("RMS control [N·m]")
     ax.set_ylabel("RMS tracking error [rad]")
     ax.grid(True, alpha=0.3)

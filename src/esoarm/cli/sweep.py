@@ -197,6 +197,7 @@ def _json_safe(row: dict[str, Any]) -> dict[str, Any]:
 
 def _print_sweep(result: Any, diverged: int) -> None:
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     grid = result.grid
@@ -208,7 +209,7 @@ def _print_sweep(result: Any, diverged: int) -> None:
     for key in grid.keys:
         table.add_column(key)
     for label in ("RMS error [rad]", "RMS u [N·m]", "max |error| [rad]"):
-        table.add_column(label, justify="right")
+        table.add_column(escape(label), justify="right")  # "[rad]" is not rich markup
     for row in result.best(5):
         table.add_row(*(_fmt(row[k]) for k in grid.keys),
                       *(f"{row[m]:.5f}" for m in ("rms_error", "rms_u", "max_abs_error")))
@@ -353,6 +354,7 @@ def _plot_tune(res: Any, name: str, objective: str, w: float, path: Path) -> Non
 
 def _print_tune(res: Any, name: str, objective: str, w: float) -> None:
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     table = Table(title=f"{name}: minimize {objective} (w = {w:g} rad/(N·m)); {res.runs} runs, "
@@ -364,7 +366,8 @@ def _print_tune(res: Any, name: str, objective: str, w: float) -> None:
         table.add_row(key, _fmt(res.best[key]), _fmt(res.baseline[key]))
     for metric, label in (("rms_error", "RMS error [rad]"), ("rms_u", "RMS control [N·m]"),
                           ("max_abs_error", "max |error| [rad]"), ("objective", "objective")):
-        table.add_row(label, f"{res.best_metrics[metric]:.5f}", f"{res.baseline[metric]:.5f}")
+        table.add_row(escape(label), f"{res.best_metrics[metric]:.5f}",
+                      f"{res.baseline[metric]:.5f}")
     Console().print(table)
     if res.robust_samples:
         click.echo(f"averaged over {len(res.robust_samples)} rig variants × seeds")
