@@ -52,7 +52,7 @@ from esoarm.result import SimResult
 from esoarm.rig import applied_torque, rig_acceleration, rig_advance
 from esoarm.scenario import Scenario
 from esoarm.sensor import measure, noise_sequence
-from esoarm.simulation import DIVERGENCE_LIMIT, SimulationDiverged, _finite, prepare
+from esoarm.simulation import DIVERGENCE_LIMIT, SimulationDiverged, prepare, within_limits
 
 __all__ = [
     "METRICS",
@@ -201,7 +201,7 @@ def _closed_loop(log, n, theta0, noise, sigma, q, tref, dref, ddref, rig, obs, c
         log[_Z3, k] = h3
         log[_F, k] = acc - b0 * u
         log[_OM, k] = omega
-        if not _finite(theta, h1, h2, h3, u):
+        if not within_limits(theta, h1, h2, h3, u):
             return -(k + 1)
         z1, z2, z3 = eso_advance(z1, z2, z3, h1, h2, h3, y, u, obs)
         theta, omega, tau = rig_advance(theta, omega, tau, u_applied, tk, h, nsub, rig)

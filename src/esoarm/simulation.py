@@ -30,7 +30,15 @@ from esoarm.rig import RigParams, applied_torque, rig_acceleration, rig_advance
 from esoarm.scenario import Scenario, ScenarioWarning, load_scenario, scenario_warnings
 from esoarm.sensor import measure, noise_sequence
 
-__all__ = ["DIVERGENCE_LIMIT", "RunInputs", "SimulationDiverged", "prepare", "simulate"]
+__all__ = [
+    "DIVERGENCE_LIMIT",
+    "RunInputs",
+    "SimulationDiverged",
+    "prepare",
+    "run_reference",
+    "simulate",
+    "within_limits",
+]
 
 #: |θ| or |z1| beyond this [rad] (or any non-finite value) ends a run as diverged.
 DIVERGENCE_LIMIT = 1e6
@@ -171,7 +179,7 @@ def run_reference(scn: Scenario, inp: RunInputs) -> SimResult:
         acc = rig_acceleration(theta, omega, applied_torque(tau, u_applied, rig), tk, rig)
         log[k] = (theta, ref, theta - ref, u, h1, h2, h3, acc - inp.b0 * u)
         omega_log[k] = omega
-        if not _finite(theta, h1, h2, h3, u):
+        if not within_limits(theta, h1, h2, h3, u):
             return _diverged(scn, inp, log, omega_log, k)
         z1, z2, z3 = eso_advance(z1, z2, z3, h1, h2, h3, y, u, obs)
         theta, omega, tau = rig_advance(theta, omega, tau, u_applied, tk, inp.h, inp.nsub, rig)
@@ -179,7 +187,11 @@ def run_reference(scn: Scenario, inp: RunInputs) -> SimResult:
 
 
 @jitable
-def _finite(theta: float, z1: float, z2: float, z3: float, u: float) -> bool:
+def within_limits(theta: float, z1: float, z2: float, z3: float, u: float) -> bool:
+    """The divergence rule shared by every engine: all finite, |θ| and |z1| below the limit.
+
+    A NaN anywhere fails (NaN compares false), so does ±inf.
+    """
     lim = DIVERGENCE_LIMIT
     return (
         math.isfinite(theta + z2 + z3 + u) and abs(theta) < lim and abs(z1) < lim
