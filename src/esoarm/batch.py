@@ -52,7 +52,12 @@ from esoarm.result import SimResult
 from esoarm.rig import applied_torque, rig_acceleration, rig_advance
 from esoarm.scenario import Scenario
 from esoarm.sensor import measure, noise_sequence
-from esoarm.simulation import DIVERGENCE_LIMIT, SimulationDiverged, prepare, within_limits
+from esoarm.simulation import (
+    SimulationDiverged,
+    diverged_message,
+    prepare,
+    within_limits,
+)
 
 __all__ = [
     "METRICS",
@@ -385,7 +390,7 @@ class _NoiseCache:
 
 def _point_arrays(scn: Scenario) -> tuple[np.ndarray, ...]:
     """(fpar, ipar-without-ref, rig, obs, ctl, ref arrays) of one scenario via prepare()."""
-    inp = prepare(scn)  # its noise is not used: noise is drawn once per seed (_NoiseCache)
+    inp = prepare(scn, draw_noise=False)  # noise is drawn once per seed (_NoiseCache)
     fpar = np.array([inp.theta0, inp.sigma, inp.q, inp.h, scn.sample_time, inp.b0])
     ipar = np.array([len(inp.t), inp.nsub, inp.delay], dtype=np.int64)
     return fpar, ipar, inp.rig, inp.obs, inp.ctl, np.stack(
@@ -581,19 +586,10 @@ def simulate_many(
                 log = logs[i, :8, :k].T.copy()
                 result = SimResult.from_log(scn, t[:k], log, logs[i, _OM, :k].copy())
                 if rows[i] < 0:
-                    raise SimulationDiverged(_diverged_message(scn, float(t[k - 1]), k - 1),
+                    raise SimulationDiverged(diverged_message(scn.name, float(t[k - 1]), k - 1),
                                              result)
                 results.append(result)
     return results
-
-
-def _diverged_message(scn: Scenario, tk: float, k: int) -> str:
-    # the reference engine's message (esoarm.simulation._diverged), word for word
-    return (
-        f"simulation of '{scn.name}' diverged at t = {tk:.4g} s (sample {k}): "
-        f"the state left the finite range (|θ| or |z| > {DIVERGENCE_LIMIT:g} or not finite); "
-        f"check observer.eps against the sample rate"
-    )
 
 
 def compile_kernels(series: bool = True, metrics: bool = True) -> None:

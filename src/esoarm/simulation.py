@@ -34,6 +34,7 @@ __all__ = [
     "DIVERGENCE_LIMIT",
     "RunInputs",
     "SimulationDiverged",
+    "diverged_message",
     "prepare",
     "run_reference",
     "simulate",
@@ -97,8 +98,12 @@ class RunInputs:
     b0: float
 
 
-def prepare(scn: Scenario) -> RunInputs:
-    """Resolve a scenario into the arrays and vectors every engine consumes."""
+def prepare(scn: Scenario, *, draw_noise: bool = True) -> RunInputs:
+    """Resolve a scenario into the arrays and vectors every engine consumes.
+
+    ``draw_noise=False`` leaves ``noise`` empty, for engines that draw the
+    noise of each seed once for many runs (:mod:`esoarm.batch`).
+    """
     n = scn.n_samples
     ts = scn.sample_time
     t = np.arange(n) * ts
@@ -109,7 +114,8 @@ def prepare(scn: Scenario) -> RunInputs:
         theta_ref=theta_ref,
         omega_ref=omega_ref,
         accel_ref=accel_ref,
-        noise=noise_sequence(scn.sensor.seed, n, scn.sensor.noise_deg),
+        noise=(noise_sequence(scn.sensor.seed, n, scn.sensor.noise_deg) if draw_noise
+               else np.empty(0)),
         sigma=math.radians(scn.sensor.noise_deg),
         q=math.radians(scn.sensor.resolution_deg),
         rig=RigParams.from_scenario(scn).vector,
@@ -202,9 +208,13 @@ def _diverged(scn: Scenario, inp: RunInputs, log: np.ndarray, omega: np.ndarray,
               k: int) -> SimResult:
     rows = k + 1
     result = SimResult.from_log(scn, inp.t[:rows], log[:rows], omega[:rows])
-    raise SimulationDiverged(
-        f"simulation of '{scn.name}' diverged at t = {inp.t[k]:.4g} s (sample {k}): "
+    raise SimulationDiverged(diverged_message(scn.name, float(inp.t[k]), k), result)
+
+
+def diverged_message(name: str, tk: float, k: int) -> str:
+    """The one-line message of a run that left the finite range at sample k (t_k [s])."""
+    return (
+        f"simulation of '{name}' diverged at t = {tk:.4g} s (sample {k}): "
         f"the state left the finite range (|θ| or |z| > {DIVERGENCE_LIMIT:g} or not finite); "
-        f"check observer.eps against the sample rate",
-        result,
+        f"check observer.eps against the sample rate"
     )
