@@ -24,7 +24,7 @@ from __future__ import annotations
 import io
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -36,6 +36,7 @@ __all__ = [
     "DISCRETIZATION_STYLE",
     "FIGURE_FORMATS",
     "eps_color",
+    "figure_replay",
     "figure_ablation",
     "figure_discretizations",
     "figure_estimates",
@@ -344,4 +345,28 @@ def figure_theorem2(runs: Mapping[float, SimResult], bounds: Mapping[float, floa
     ax.grid(alpha=0.3)
     fig.legend(loc="outside lower center", ncols=4, fontsize=8)
     fig.suptitle(title, fontsize=11)
+    return _finish(fig, path)
+
+
+def figure_replay(result: Any, path: str | Path | None = None) -> Figure:
+    """An offline ESO replay: measured angle with ẑ1, rate ẑ2, perturbation ẑ3 and u.
+
+    ``result`` is an :class:`esoarm.hardware.replay.ReplayResult` (arrays
+    ``t``, ``theta``, ``u``, ``z``).
+    """
+    fig = Figure(figsize=(8, 8), layout="constrained")
+    axes = fig.subplots(4, 1, sharex=True)
+    axes[0].plot(result.t, result.theta, ".", ms=2, color="0.4", label="θ measured")
+    axes[0].plot(result.t, result.z[:, 0], color="#0072B2", label="ẑ1")
+    axes[0].set_ylabel("angle [rad]")
+    axes[0].legend(loc="best")
+    axes[1].plot(result.t, result.z[:, 1], color="#0072B2")
+    axes[1].set_ylabel("ẑ2 rate [rad/s]")
+    axes[2].plot(result.t, result.z[:, 2], color="#0072B2")
+    axes[2].set_ylabel("ẑ3 perturbation [rad/s²]")
+    axes[3].step(result.t, result.u, where="post", color="#D55E00")
+    axes[3].set_ylabel("u [N·m]")
+    axes[3].set_xlabel("time t [s]")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
     return _finish(fig, path)

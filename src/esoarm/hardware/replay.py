@@ -123,24 +123,7 @@ def replay(scn: Scenario, t: np.ndarray, theta: np.ndarray, u: np.ndarray,
 
 
 def plot_replay(result: ReplayResult, path: str | Path) -> None:
-    """Figure of the measured angle with ẑ1, ẑ2 and ẑ3 (matplotlib, imported here)."""
-    import matplotlib
+    """Draw the replay; see :func:`esoarm.plotting.figure_replay`."""
+    from esoarm.plotting import figure_replay
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 8))
-    axes[0].plot(result.t, result.theta, ".", ms=2, label="θ measured")
-    axes[0].plot(result.t, result.z[:, 0], label="ẑ1")
-    axes[0].set_ylabel("angle [rad]")
-    axes[0].legend(loc="best")
-    axes[1].plot(result.t, result.z[:, 1])
-    axes[1].set_ylabel("ẑ2 [rad/s]")
-    axes[2].plot(result.t, result.z[:, 2])
-    axes[2].set_ylabel("ẑ3 [rad/s²]")
-    axes[3].step(result.t, result.u, where="post")
-    axes[3].set_ylabel("u [N·m]")
-    axes[3].set_xlabel("t [s]")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    figure_replay(result, path)
