@@ -29,6 +29,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from esoarm._io import atomic_path
+
 if TYPE_CHECKING:
     from esoarm.result import SimResult
 
@@ -44,6 +46,7 @@ __all__ = [
     "figure_tracking",
     "figure_bytes",
     "plot_run",
+    "finish_figure",
     "save_figure",
 ]
 
@@ -104,15 +107,9 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
     """
     path = Path(path)
     fmt = _check_suffix(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
+    with atomic_path(path) as tmp:
         fig.savefig(tmp, format=fmt, dpi=_DPI, bbox_inches="tight",
                     metadata={"Software": "esoarm"} if fmt == "png" else None)
-        tmp.replace(path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
     return path
 
 
@@ -125,7 +122,8 @@ def figure_bytes(fig: Figure, fmt: str = "png", dpi: int = _DPI) -> bytes:
     return buf.getvalue()
 
 
-def _finish(fig: Figure, path: str | Path | None) -> Figure:
+def finish_figure(fig: Figure, path: str | Path | None) -> Figure:
+    """Save ``fig`` to ``path`` when one is given (see :func:`save_figure`); return it."""
     if path is not None:
         save_figure(fig, path)
     return fig
@@ -164,7 +162,7 @@ def plot_run(result: SimResult, path: str | Path | None = None) -> Figure:
         f"RMS u {result.rms_u:.4f} N·m",
         fontsize=10,
     )
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def figure_tracking(runs: Mapping[float, SimResult], title: str,
@@ -199,7 +197,7 @@ def figure_tracking(runs: Mapping[float, SimResult], title: str,
     for ax in (ax_a, ax_b, ax_c):
         ax.grid(alpha=0.3)
     fig.suptitle(title, fontsize=11)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def figure_estimates(runs: Mapping[float, SimResult], title: str,
@@ -234,7 +232,7 @@ def figure_estimates(runs: Mapping[float, SimResult], title: str,
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.suptitle(title, fontsize=11)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def figure_ablation(with_eso: SimResult, without: SimResult, title: str,
@@ -265,7 +263,7 @@ def figure_ablation(with_eso: SimResult, without: SimResult, title: str,
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.suptitle(title, fontsize=11)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def figure_discretizations(sweep: Mapping[str, Mapping[float, Mapping[str, float]]],
@@ -313,7 +311,7 @@ def figure_discretizations(sweep: Mapping[str, Mapping[float, Mapping[str, float
     ax_d.tick_params(axis="x", labelrotation=0, labelsize=8)
     ax_e.legend(loc="best", fontsize=9)
     fig.suptitle(title, fontsize=11)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def figure_theorem2(runs: Mapping[float, SimResult], bounds: Mapping[float, float],
@@ -345,7 +343,7 @@ def figure_theorem2(runs: Mapping[float, SimResult], bounds: Mapping[float, floa
     ax.grid(alpha=0.3)
     fig.legend(loc="outside lower center", ncols=4, fontsize=8)
     fig.suptitle(title, fontsize=11)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def figure_replay(result: Any, path: str | Path | None = None) -> Figure:
@@ -369,4 +367,4 @@ def figure_replay(result: Any, path: str | Path | None = None) -> Figure:
     axes[3].set_xlabel("time t [s]")
     for ax in axes:
         ax.grid(True, alpha=0.3)
-    return _finish(fig, path)
+    return finish_figure(fig, path)

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from esoarm import __version__
+from esoarm._io import atomic_path
 from esoarm.observer import DISCRETIZATIONS
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario, load_scenario
@@ -688,13 +689,8 @@ def _write_text(path: Path, text: str) -> None:
 
 def _write_bytes(path: Path, data: bytes) -> None:
     """Write a file that appears only once complete."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
+    with atomic_path(path) as tmp:
         tmp.write_bytes(data)
-        tmp.replace(path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def _write_table_csv(path: Path, rows: list[dict[str, Any]],

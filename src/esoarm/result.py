@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from esoarm._io import atomic_path
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
@@ -34,17 +34,9 @@ def write_csv_atomic(
     path: str | Path, header: list[str] | tuple[str, ...], data: np.ndarray
 ) -> None:
     """Write a numeric table as CSV; the file appears only once complete."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(",".join(header) + "\n")
-            np.savetxt(fh, data, delimiter=",", fmt="%.17g")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, tmp.open("w", encoding="utf-8", newline="") as fh:
+        fh.write(",".join(header) + "\n")
+        np.savetxt(fh, data, delimiter=",", fmt="%.17g")
 
 
 @dataclass(frozen=True)

@@ -22,8 +22,6 @@ from __future__ import annotations
 import csv
 import itertools
 import math
-import os
-import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -33,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from esoarm._io import atomic_path
 from esoarm.batch import METRICS, _NoiseCache, run_metrics
 from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
 
@@ -480,21 +479,13 @@ def _cell(value: Any) -> str:
 
 def write_rows_atomic(path: str | Path, header: Sequence[str], rows: Iterator[list[Any]]) -> int:
     """Write a CSV table; the file appears only once complete.  Returns rows written."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     count = 0
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            writer = csv.writer(fh, lineterminator="\n")
-            writer.writerow(header)
-            for row in rows:
-                writer.writerow([_cell(v) for v in row])
-                count += 1
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, tmp.open("w", encoding="utf-8", newline="") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(header)
+        for row in rows:
+            writer.writerow([_cell(v) for v in row])
+            count += 1
     return count
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
-from esoarm.plotting import save_figure
+from esoarm.plotting import finish_figure
 
 if TYPE_CHECKING:
     from esoarm.sweep import SweepResult
@@ -46,12 +46,6 @@ def _label(key: str) -> str:
     return f"{key} [{unit}]" if unit else key
 
 
-def _finish(fig: Figure, path: str | Path | None) -> Figure:
-    if path is not None:
-        save_figure(fig, path)
-    return fig
-
-
 def figure_sweep(result: SweepResult, path: str | Path | None = None) -> Figure:
     """Draw a sweep of one or two varied keys (see the module docstring).
 
@@ -71,7 +65,7 @@ def figure_sweep(result: SweepResult, path: str | Path | None = None) -> Figure:
     else:
         fig = _heatmaps(result)
     fig.suptitle(title)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def _stats(result: SweepResult, metric: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -232,4 +226,4 @@ def figure_pareto(
     ax.legend(loc="best", fontsize="small")
     if title:
         ax.set_title(title)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
