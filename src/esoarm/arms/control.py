@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esoarm.arms.urdf import ArmModel
 from esoarm import controller as _flc
+from esoarm.arms.urdf import ArmModel
 from esoarm.controller import flc_control, saturate
 from esoarm.observer import design_observer, eso_advance, eso_estimate
 

@@ -15,18 +15,109 @@ rig exactly: (τ − F)/s − G/s over I0 is (τ − G − F)/I with I = s·I0.
 
 The disturbance enters as an acceleration, as in the paper (eq. 5); it is the
 torque M(q)·d.  Each RK4 stage costs one Pinocchio ABA call (Featherstone's
-articulated-body algorithm, O(n)) -- M and n are never formed for the twin.
+articulated-body algorithm, O(n)) -- M and n are never formed for the twin --
+and one call of a compiled helper (:func:`rk4_stage`) that does the rest of
+the stage's arithmetic (friction, disturbance, lag, the RK4 combination):
+Pinocchio cannot be called from numba, and NumPy's per-call overhead on
+vectors of a few joints costs more than the ABA itself.
+
+Parameters are packed in one float vector (:func:`pack_params`): friction
+Fc, vs, b, disturbance amplitude and frequency per joint, then 1/s and T.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from esoarm.arms.urdf import ArmModel, import_pinocchio
 
 __all__ = ["ArmTwin", "TwinParams"]
+
+
+# packed-parameter layout: five blocks of n, then 1/s and the lag T
+_FC, _VS, _B, _DA, _DW = range(5)
+
+
+def pack_params(params: TwinParams, inertia_scale: float) -> np.ndarray:
+    """One float vector of the twin's per-joint parameters, 1/s and the lag T."""
+    blocks = [np.asarray(getattr(params, name), dtype=float) for name in (
+        "coulomb_friction", "friction_velocity", "viscous_friction",
+        "disturbance_amplitude", "disturbance_frequency")]
+    return np.concatenate([*blocks, [1.0 / inertia_scale, float(params.lag)]])
+
+
+@njit(cache=True)
+def joint_drive(v, tau, p, out):  # type: ignore[no-untyped-def]
+    """ABA input (τ − F(q̇))/s into ``out``: torque less friction, over the scale s."""
+    n = v.shape[0]
+    inv_s = p[5 * n]
+    for i in range(n):
+        friction = p[_FC * n + i] * math.tanh(v[i] / p[_VS * n + i]) + p[_B * n + i] * v[i]
+        out[i] = (tau[i] - friction) * inv_s
+
+
+@njit(cache=True)
+def add_disturbance(acc, t, p):  # type: ignore[no-untyped-def]
+    """q̈ = ABA output + d(t), d_i = amplitude_i sin(frequency_i t) [rad/s²] (eq. 6)."""
+    n = acc.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = acc[i] + p[_DA * n + i] * math.sin(p[_DW * n + i] * t)
+    return out
+
+
+@njit(cache=True)
+def rk4_begin(q, v, tau, u, p, w):  # type: ignore[no-untyped-def]
+    """Load the state (q, q̇, τ) as RK4 stage 0 into the workspace ``w`` (8, n)."""
+    lag = p[p.shape[0] - 1]
+    w[0, :] = q
+    w[1, :] = v
+    w[2, :] = tau
+    w[4:7, :] = 0.0
+    joint_drive(v, tau if lag > 0.0 else u, p, w[3])
+
+
+@njit(cache=True)
+def rk4_stage(stage, q, v, tau, u, t, h, acc, p, w):  # type: ignore[no-untyped-def]
+    """Finish RK4 stage ``stage`` (0-3) from the ABA output ``acc`` at stage time t.
+
+    Workspace rows of ``w``: 0-2 the stage state (q, q̇, τ), 3 the ABA input
+    for it, 4-6 the weighted sums of the stage derivatives.  After stage 3
+    rows 0-2 hold the state at t + h (and row 3 its ABA input: the next
+    step's stage 0).
+    """
+    n = q.shape[0]
+    lag = p[p.shape[0] - 1]
+    weight = 1.0 if stage == 0 or stage == 3 else 2.0
+    coef = h if stage == 2 else 0.5 * h
+    for i in range(n):
+        dq = w[1, i]
+        dv = acc[i] + p[_DA * n + i] * math.sin(p[_DW * n + i] * t)
+        dtau = (u[i] - w[2, i]) / lag if lag > 0.0 else 0.0
+        w[4, i] += weight * dq
+        w[5, i] += weight * dv
+        w[6, i] += weight * dtau
+        if stage < 3:
+            w[0, i] = q[i] + coef * dq
+            w[1, i] = v[i] + coef * dv
+            w[2, i] = tau[i] + coef * dtau
+    if stage == 3:
+        sixth = h / 6.0
+        for i in range(n):
+            w[0, i] = q[i] + sixth * w[4, i]
+            w[1, i] = v[i] + sixth * w[5, i]
+            w[2, i] = tau[i] + sixth * w[6, i]
+            w[4, i] = 0.0
+            w[5, i] = 0.0
+            w[6, i] = 0.0
+    joint_drive(w[1], w[2] if lag > 0.0 else u, p, w[3])
+
+
+_STAGE_TIME = (0.0, 0.5, 0.5, 1.0)
 
 
 @dataclass(frozen=True)
@@ -77,62 +168,45 @@ class ArmTwin:
         self._data = arm.true.createData()
         self._config = arm.configuration
         self._s = arm.inertia_scale
-        self._fc = np.asarray(params.coulomb_friction, dtype=float)
-        self._vs = np.asarray(params.friction_velocity, dtype=float)
-        self._b = np.asarray(params.viscous_friction, dtype=float)
-        self._da = np.asarray(params.disturbance_amplitude, dtype=float)
-        self._dw = np.asarray(params.disturbance_frequency, dtype=float)
         self._lag = float(params.lag)
-        self._frictionless = not (self._fc.any() or self._b.any())
-        self._undisturbed = not self._da.any()
+        self._p = pack_params(params, arm.inertia_scale)
+        self._work = np.zeros((8, arm.n_joints))
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                      t: float) -> np.ndarray:
         """True joint acceleration q̈ [rad/s²] at (q, q̇), torque τ [N·m], time t [s]."""
-        drive = tau if self._frictionless else (
-            tau - (self._fc * np.tanh(v / self._vs) + self._b * v))
+        drive = np.empty(len(q))
+        joint_drive(v, tau, self._p, drive)
         # M q̈ + C q̇ + g/s = (τ − F)/s  (ABA on the true model, gravity already g/s)
-        acc = np.array(self._aba(self._model, self._data, self._config(q), v, drive / self._s))
-        if self._undisturbed:
-            return acc
-        return acc + self._da * np.sin(self._dw * t)
+        acc = self._aba(self._model, self._data, self._config(q), v, drive)
+        return add_disturbance(acc, t, self._p)  # type: ignore[no-any-return]
 
     def applied(self, tau: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Torque acting on the arm: the lag state τ when T > 0, else u itself."""
         return tau if self._lag > 0.0 else u
 
-    def derivative(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, u: np.ndarray,
-                   t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Time derivative of the state (q, q̇, τ) under the applied input u [N·m]."""
-        if self._lag > 0.0:
-            return v, self.acceleration(q, v, tau, t), (u - tau) / self._lag
-        return v, self.acceleration(q, v, u, t), None
-
-    def rk4_step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, u: np.ndarray,
-                 t: float, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One classical RK4 step of length h [s] from time t with u held."""
-        half = 0.5 * h
-        a1, b1, c1 = self.derivative(q, v, tau, u, t)
-        if c1 is None:  # no lag: τ is not a state
-            a2, b2, _ = self.derivative(q + half * a1, v + half * b1, tau, u, t + half)
-            a3, b3, _ = self.derivative(q + half * a2, v + half * b2, tau, u, t + half)
-            a4, b4, _ = self.derivative(q + h * a3, v + h * b3, tau, u, t + h)
-            sixth = h / 6.0
-            return (q + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
-                    v + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4), tau)
-        a2, b2, c2 = self.derivative(q + half * a1, v + half * b1, tau + half * c1, u, t + half)
-        a3, b3, c3 = self.derivative(q + half * a2, v + half * b2, tau + half * c2, u, t + half)
-        a4, b4, c4 = self.derivative(q + h * a3, v + h * b3, tau + h * c3, u, t + h)
-        sixth = h / 6.0
-        return (q + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
-                v + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
-                tau + sixth * (c1 + 2.0 * c2 + 2.0 * c3 + c4))  # type: ignore[operator]
-
     def advance(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, u: np.ndarray,
                 t0: float, h: float, nsub: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Integrate over one sample: ``nsub`` RK4 steps of h [s] from t0, u held."""
+        """Integrate over one sample: ``nsub`` classical RK4 steps of h [s] from t0, u held.
+
+        Returns the state (q, q̇, τ) at t0 + nsub·h; τ is the lag state (zeros
+        without lag).
+        """
+        aba, model, data, config, p, w = (self._aba, self._model, self._data, self._config,
+                                          self._p, self._work)
+        q = np.array(q, dtype=float)
+        v = np.array(v, dtype=float)
+        tau = np.array(tau, dtype=float)
+        u = np.asarray(u, dtype=float)
+        rk4_begin(q, v, tau, u, p, w)
         for j in range(nsub):
-            q, v, tau = self.rk4_step(q, v, tau, u, t0 + j * h, h)
+            t = t0 + j * h
+            for stage in range(4):
+                acc = aba(model, data, config(w[0]), w[1], w[3])
+                rk4_stage(stage, q, v, tau, u, t + _STAGE_TIME[stage] * h, h, acc, p, w)
+            q[:] = w[0]
+            v[:] = w[1]
+            tau[:] = w[2]
         return q, v, tau
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> float:

@@ -139,6 +139,7 @@ class ArmModel:
     true: Any
     inertia_scale: float
     g: float
+    has_continuous: bool = False
     _data: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -154,7 +155,7 @@ class ArmModel:
 
     def configuration(self, q: np.ndarray) -> np.ndarray:
         """Pinocchio configuration vector of the joint angles q (cos/sin for continuous)."""
-        if not self.continuous.any():
+        if not self.has_continuous:
             return q
         parts: list[float] = []
         for qi, cont in zip(q, self.continuous, strict=True):
@@ -279,4 +280,5 @@ def load_arm(
         arr.setflags(write=False)
     return ArmModel(path=path, joint_names=tuple(names), lower=lower, upper=upper,
                     continuous=continuous, nominal=nominal, true=true,
-                    inertia_scale=float(inertia_scale), g=float(g))
+                    inertia_scale=float(inertia_scale), g=float(g),
+                    has_continuous=bool(continuous.any()))
