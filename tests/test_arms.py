@@ -259,13 +259,18 @@ def test_lever_urdf_closed_loop_reproduces_test_1(overrides):
     np.testing.assert_allclose(log.f_true[:, 0], ref.f_true, rtol=0, atol=1e-9)
 
 
+def _two_link_reference(n, rate):
+    t = np.arange(n) / rate
+    refs = [evaluate_reference(QuinticSteps(start=0.0, moves=m), t) for m in (
+        [[0.5, 2.0, 1.2], [4.0, 2.0, -0.5]], [[1.0, 2.0, -2.0], [4.5, 2.0, 1.0]])]
+    return tuple(np.column_stack([r[i] for r in refs]) for i in range(3))
+
+
 def _two_link_run(compensation, eps=0.02, feedforward=False, seed=0, duration=8.0):
     rate, n_joints = 200.0, 2
     n = int(duration * rate)
     t = np.arange(n) / rate
-    refs = [evaluate_reference(QuinticSteps(start=0.0, moves=m), t) for m in (
-        [[0.5, 2.0, 1.2], [4.0, 2.0, -0.5]], [[1.0, 2.0, -2.0], [4.5, 2.0, 1.0]])]
-    q_ref, v_ref, a_ref = (np.column_stack([r[i] for r in refs]) for i in range(3))
+    q_ref, v_ref, a_ref = _two_link_reference(n, rate)
     arm = load_arm(builtin_robot("two-link"), payload_mass=0.3, payload_offset=(0.25, 0, 0))
     twin = ArmTwin(arm, TwinParams(np.full(2, 0.1), np.full(2, 0.01), np.full(2, 0.05),
                                    np.full(2, 0.2), np.full(2, 0.5)))
@@ -289,6 +294,28 @@ def test_two_link_eso_beats_the_computed_torque_baseline():
     baseline = rms["model", False]
     assert np.all(rms["eso", False] < 0.5 * baseline), rms
     assert np.all(rms["eso", True] < 0.5 * baseline), rms
+
+
+@pytest.mark.parametrize("compensation", ["eso", "model"])
+def test_two_link_against_a_plain_pinocchio_loop(compensation):
+    """A second engine, written with CRBA/RNEA and NumPy only, gives the same run."""
+    from reference_arm import run_plain
+
+    duration, rate = 3.0, 200.0
+    log = _two_link_run(compensation, duration=duration)
+    n = int(duration * rate)
+    out = run_plain({
+        "urdf": str(builtin_robot("two-link")), "g": 9.81, "payload_mass": 0.3,
+        "payload_offset": (0.25, 0.0, 0.0), "inertia_scale": 1.0, "coulomb": 0.1, "vs": 0.01,
+        "viscous": 0.05, "d_amp": 0.2, "d_freq": 0.5, "rate_hz": rate, "step": 0.001,
+        "duration": duration, "noise_deg": 0.2, "resolution_deg": 0.05, "seed": 0,
+        "eps": 0.02, "k1": 20.0, "k2": 100.0, "torque_limit": 10.0,
+        "compensation": compensation,
+        "reference": (log.theta_ref[:n], *_two_link_reference(n, rate)[1:]),
+    })
+    np.testing.assert_allclose(out["theta"], log.theta, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(out["u"], log.u, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(out["z3"], log.z[:, :, 2], rtol=0, atol=1e-6)
 
 
 def test_arm_runs_are_deterministic():
