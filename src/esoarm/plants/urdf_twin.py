@@ -1,6 +1,6 @@
 """The digital twin of a URDF arm: the lever arm's rig, joint by joint.
 
-Per joint i, with the true rigid-body model of :class:`~esoarm.arms.urdf.ArmModel`
+Per joint i, with the true rigid-body model of :class:`~esoarm.plants.urdf.ArmModel`
 (payload included, kinetic energy scaled by s = ``inertia_scale``):
 
     s (M(q) q̈ + C(q, q̇) q̇) + g(q) = τ − F(q̇),    then  q̈ ← q̈ + d(t)
@@ -9,7 +9,7 @@ Per joint i, with the true rigid-body model of :class:`~esoarm.arms.urdf.ArmMode
     τ̇ = (u_applied − τ) / T      (actuator lag T > 0; τ = u_applied when T = 0)
 
 integrated with classical RK4 at a fixed step h, d evaluated at each stage
-time -- the lever arm's rig (``esoarm.rig``) with I0 θ̈ + G(θ) replaced by the
+time -- the lever arm's rig (:mod:`esoarm.plants.lever_arm`) with I0 θ̈ + G(θ) replaced by the
 arm's rigid-body dynamics.  On the one-joint lever URDF it is the lever arm's
 rig exactly: (τ − F)/s − G/s over I0 is (τ − G − F)/I with I = s·I0.
 
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from esoarm.arms.urdf import ArmModel, import_pinocchio
+from esoarm.plants.urdf import ArmModel, import_pinocchio
 
 __all__ = ["ArmTwin", "TwinParams"]
 
@@ -154,7 +154,7 @@ class ArmTwin:
     Parameters
     ----------
     arm : ArmModel
-        From :func:`~esoarm.arms.urdf.load_arm`; its ``true`` model is used.
+        From :func:`~esoarm.plants.urdf.load_arm`; its ``true`` model is used.
     params : TwinParams
         Friction, disturbance and lag.
     """

@@ -1,8 +1,8 @@
 """One ESO per joint and computed torque on the nominal model (the paper's FLC, n joints).
 
 Each joint i has its own extended state observer -- the paper's eq. 8 with the
-lever arm's step functions (:func:`esoarm.observer.eso_estimate`,
-:func:`esoarm.observer.eso_advance`) and design (:func:`esoarm.observer.design_observer`,
+lever arm's step functions (:func:`esoarm.observers.linear.eso_estimate`,
+:func:`esoarm.observers.linear.eso_advance`) and design (:func:`esoarm.observers.linear.design_observer`,
 gains of Theorem 1 from that joint's ε_i) -- on the extended plant
 
     q̈_i = f_i + v_i,    v = M̂(q̂)⁻¹ (τ − c · n̂(q̂, q̂̇))        (b0 = 1)
@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esoarm import controller as _flc
-from esoarm.arms.urdf import ArmModel
-from esoarm.controller import flc_control, saturate
-from esoarm.observer import design_observer, eso_advance, eso_estimate
+from esoarm.controllers import flc as _flc
+from esoarm.plants.urdf import ArmModel
+from esoarm.controllers.flc import flc_control, saturate
+from esoarm.observers.linear import design_observer, eso_advance, eso_estimate
 
 __all__ = ["ArmController", "JointObservers", "tracking_acceleration"]
 
@@ -54,7 +54,7 @@ def tracking_acceleration(z1: float, z2: float, q_ref: float, v_ref: float, a_re
     """α = q̈d − k1 (ẑ2 − q̇d) − k2 (ẑ1 − qd) [rad/s²] (eq. 16), by the lever arm's law.
 
     ``unit_ctl`` is the controller vector of a unit-inertia joint (see
-    :class:`ArmController`); :func:`esoarm.controller.flc_control` then
+    :class:`ArmController`); :func:`esoarm.controllers.flc.flc_control` then
     returns α exactly.
     """
     return float(flc_control(z1, z2, 0.0, q_ref, v_ref, a_ref, unit_ctl))

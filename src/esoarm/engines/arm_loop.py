@@ -1,12 +1,12 @@
 """The sampled-data closed loop of the lever arm, run on a URDF arm joint by joint.
 
-The same sample loop as :func:`esoarm.simulation.run_reference`, with vectors
+The same sample loop as :func:`esoarm.engines.simulation.run_reference`, with vectors
 where the lever arm has scalars.  For k = 0 … N−1, t_k = k·Ts:
 
 1. y_k = Q(q(t_k) + σ n_k) per joint, n_k row k of
    ``default_rng(seed).standard_normal((N, n))`` (one joint: the lever arm's draws);
 2. reference (qd, q̇d, q̈d) at t_k per joint;
-3. ẑ_k from each joint's ESO, u_k by computed torque (:mod:`esoarm.arms.control`),
+3. ẑ_k from each joint's ESO, u_k by computed torque (:mod:`esoarm.controllers.computed_torque`),
    saturated per joint;
 4. log t_k, q(t_k), qd, e_k = q(t_k) − qd, u_k, ẑ_k and the true perturbation
    f_k = q̈(t_k) − v_k (v_k the observers' input, so f_k is what ẑ3 estimates);
@@ -23,17 +23,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esoarm.arms.control import ArmController, JointObservers
-from esoarm.arms.twin import ArmTwin
-from esoarm.sensor import measure
-from esoarm.simulation import within_limits
+from esoarm.controllers.computed_torque import ArmController, JointObservers
+from esoarm.plants.urdf_twin import ArmTwin
+from esoarm.plants.sensor import measure
+from esoarm.engines.simulation import within_limits
 
 __all__ = ["ArmLog", "ArmRun", "run_arm"]
 
 
 @dataclass(frozen=True)
 class ArmRun:
-    """Everything one arm run needs (the arm analogue of :class:`~esoarm.simulation.RunInputs`).
+    """Everything one arm run needs (the arm analogue of :class:`~esoarm.engines.simulation.RunInputs`).
 
     Attributes
     ----------

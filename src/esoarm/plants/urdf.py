@@ -14,7 +14,7 @@ The scale is the lever arm's ``inertia_scale`` written for many joints; on
 the one-joint lever URDF it is exactly I = s·I0 with G unchanged.  It is
 realised without a second dynamics code path: s·(M q̈ + C q̇) + g = τ is
 M q̈ + C q̇ + g/s = τ/s, one articulated-body (ABA) call on the true model
-with its gravity divided by s (see :func:`esoarm.arms.twin.arm_acceleration`).
+with its gravity divided by s (see :func:`esoarm.plants.urdf_twin.arm_acceleration`).
 
 Joint angles are the generalized coordinates q [rad, or m for prismatic
 joints], one per joint in URDF (Pinocchio) order.  A ``continuous`` joint is
@@ -73,7 +73,7 @@ def import_pinocchio() -> Any:
 
 def builtin_robot(name: str) -> Path:
     """Path of a URDF shipped with esoarm (``two-link``, ``lever-arm``)."""
-    path = resources.files("esoarm") / "robots" / f"{name}.urdf"
+    path = resources.files("esoarm") / "scenarios" / "robots" / f"{name}.urdf"
     return Path(str(path))
 
 
