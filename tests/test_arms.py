@@ -16,13 +16,13 @@ pin = pytest.importorskip("pinocchio")
 
 from esoarm.controllers.computed_torque import ArmController, JointObservers  # noqa: E402
 from esoarm.engines.arm_loop import ArmRun, run_arm  # noqa: E402
-from esoarm.plants.urdf_twin import ArmTwin, TwinParams  # noqa: E402
-from esoarm.plants.urdf import UrdfError, builtin_robot, load_arm  # noqa: E402
-from esoarm.observers.linear import ExtendedStateObserver, design_observer  # noqa: E402
-from esoarm.reference import evaluate_reference  # noqa: E402
-from esoarm.plants.lever_arm import RigParams, rig_acceleration, rig_advance  # noqa: E402
-from esoarm.scenario import QuinticSteps, load_scenario  # noqa: E402
 from esoarm.engines.simulation import prepare, simulate  # noqa: E402
+from esoarm.observers.linear import ExtendedStateObserver, design_observer  # noqa: E402
+from esoarm.plants.lever_arm import RigParams, rig_acceleration, rig_advance  # noqa: E402
+from esoarm.plants.urdf import UrdfError, builtin_robot, load_arm  # noqa: E402
+from esoarm.plants.urdf_twin import ArmTwin, TwinParams  # noqa: E402
+from esoarm.reference import evaluate_reference  # noqa: E402
+from esoarm.scenario import QuinticSteps, load_scenario  # noqa: E402
 
 CONTINUOUS_URDF = """<?xml version="1.0"?>
 <robot name="wheel-arm">

@@ -1,9 +1,9 @@
 """One ESO per joint and computed torque on the nominal model (the paper's FLC, n joints).
 
 Each joint i has its own extended state observer -- the paper's eq. 8 with the
-lever arm's step functions (:func:`esoarm.observers.linear.eso_estimate`,
-:func:`esoarm.observers.linear.eso_advance`) and design (:func:`esoarm.observers.linear.design_observer`,
-gains of Theorem 1 from that joint's ε_i) -- on the extended plant
+lever arm's step functions and design (:mod:`esoarm.observers.linear`:
+``eso_estimate``, ``eso_advance``, ``design_observer`` with the gains of
+Theorem 1 from that joint's ε_i) -- on the extended plant
 
     q̈_i = f_i + v_i,    v = M̂(q̂)⁻¹ (τ − c · n̂(q̂, q̂̇))        (b0 = 1)
 
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from esoarm.controllers import flc as _flc
-from esoarm.plants.urdf import ArmModel
 from esoarm.controllers.flc import flc_control, saturate
 from esoarm.observers.linear import design_observer, eso_advance, eso_estimate
+from esoarm.plants.urdf import ArmModel
 
 __all__ = ["ArmController", "JointObservers", "tracking_acceleration"]
 

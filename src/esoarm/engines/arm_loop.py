@@ -24,16 +24,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from esoarm.controllers.computed_torque import ArmController, JointObservers
-from esoarm.plants.urdf_twin import ArmTwin
-from esoarm.plants.sensor import measure
 from esoarm.engines.simulation import within_limits
+from esoarm.plants.sensor import measure
+from esoarm.plants.urdf_twin import ArmTwin
 
 __all__ = ["ArmLog", "ArmRun", "run_arm"]
 
 
 @dataclass(frozen=True)
 class ArmRun:
-    """Everything one arm run needs (the arm analogue of :class:`~esoarm.engines.simulation.RunInputs`).
+    """Everything one arm run needs (the arm's :class:`~esoarm.engines.simulation.RunInputs`).
 
     Attributes
     ----------
