@@ -19,7 +19,7 @@ from esoarm.engines.arm_loop import ArmRun, run_arm  # noqa: E402
 from esoarm.engines.simulation import prepare, simulate  # noqa: E402
 from esoarm.observers.linear import ExtendedStateObserver, design_observer  # noqa: E402
 from esoarm.plants.lever_arm import RigParams, rig_acceleration, rig_advance  # noqa: E402
-from esoarm.plants.urdf import UrdfError, builtin_robot, load_arm  # noqa: E402
+from esoarm.plants.urdf_model import UrdfError, builtin_robot, load_arm  # noqa: E402
 from esoarm.plants.urdf_twin import ArmTwin, TwinParams  # noqa: E402
 from esoarm.reference import evaluate_reference  # noqa: E402
 from esoarm.scenario import QuinticSteps, load_scenario  # noqa: E402

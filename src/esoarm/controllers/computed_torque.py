@@ -35,7 +35,7 @@ import numpy as np
 from esoarm.controllers import flc as _flc
 from esoarm.controllers.flc import flc_control, saturate
 from esoarm.observers.linear import design_observer, eso_advance, eso_estimate
-from esoarm.plants.urdf import ArmModel
+from esoarm.plants.urdf_model import ArmModel
 
 __all__ = ["ArmController", "JointObservers", "tracking_acceleration"]
 

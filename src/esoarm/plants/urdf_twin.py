@@ -1,6 +1,6 @@
 """The digital twin of a URDF arm: the lever arm's rig, joint by joint.
 
-Per joint i, with the true rigid-body model of :class:`~esoarm.plants.urdf.ArmModel`
+Per joint i, with the true rigid-body model of :class:`~esoarm.plants.urdf_model.ArmModel`
 (payload included, kinetic energy scaled by s = ``inertia_scale``):
 
     s (M(q) q̈ + C(q, q̇) q̇) + g(q) = τ − F(q̇),    then  q̈ ← q̈ + d(t)
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from esoarm.plants.urdf import ArmModel, import_pinocchio
+from esoarm.plants.urdf_model import ArmModel, import_pinocchio
 
-__all__ = ["ArmTwin", "TwinParams"]
+__all__ = ["ArmTwin", "TwinParams", "pack_params", "twin_acceleration", "twin_advance"]
 
 
 # packed-parameter layout: five blocks of n, then 1/s and the lag T
@@ -148,38 +148,68 @@ class TwinParams:
     lag: float = 0.0
 
 
+def twin_acceleration(arm: ArmModel, x: np.ndarray, u: np.ndarray, t: float, tp: np.ndarray,
+                      out: np.ndarray) -> None:
+    """True q̈ [rad/s²] at the state x = (q, q̇, τ), time t, input u applied from t, into out.
+
+    ``tp`` is :func:`pack_params`; with a lag the torque acting is the state τ.
+    """
+    n = arm.n_joints
+    v = x[n:2 * n]
+    applied = x[2 * n:3 * n] if tp[-1] > 0.0 else u
+    drive = np.empty(n)
+    joint_drive(v, applied, tp, drive)
+    # M q̈ + C q̇ + g/s = (τ − F)/s  (ABA on the true model, gravity already g/s)
+    acc = arm.aba(arm.true, arm.data("true"), arm.configuration(x[:n]), v, drive)
+    out[:] = add_disturbance(acc, t, tp)
+
+
+def twin_advance(arm: ArmModel, x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
+                 tp: np.ndarray) -> None:
+    """Integrate x = (q, q̇, τ) in place over ``nsub`` classical RK4 steps of h [s], u held.
+
+    One Pinocchio ABA call and one compiled :func:`rk4_stage` call per stage.
+    """
+    n = arm.n_joints
+    q, v, tau = x[:n], x[n:2 * n], x[2 * n:3 * n]
+    aba, model, data, config = arm.aba, arm.true, arm.data("true"), arm.configuration
+    w = arm.workspace()
+    rk4_begin(q, v, tau, u, tp, w)
+    for j in range(nsub):
+        t = t0 + j * h
+        for stage in range(4):
+            acc = aba(model, data, config(w[0]), w[1], w[3])
+            rk4_stage(stage, q, v, tau, u, t + _STAGE_TIME[stage] * h, h, acc, tp, w)
+        x[:3 * n] = w[:3].ravel()
+
+
 class ArmTwin:
-    """The true arm: its acceleration and its RK4 integration (one ABA per stage).
+    """The true arm stepped on separate (q, q̇, τ) arrays: a thin object over
+    :func:`twin_acceleration` and :func:`twin_advance` (tests, notebooks).
 
     Parameters
     ----------
     arm : ArmModel
-        From :func:`~esoarm.plants.urdf.load_arm`; its ``true`` model is used.
+        From :func:`~esoarm.plants.urdf_model.load_arm`; its ``true`` model is used.
     params : TwinParams
         Friction, disturbance and lag.
     """
 
     def __init__(self, arm: ArmModel, params: TwinParams) -> None:
-        pin = import_pinocchio()
         self.arm = arm
         self.params = params
-        self._aba = pin.aba
-        self._model = arm.true
-        self._data = arm.true.createData()
-        self._config = arm.configuration
-        self._s = arm.inertia_scale
-        self._lag = float(params.lag)
         self._p = pack_params(params, arm.inertia_scale)
-        self._work = np.zeros((8, arm.n_joints))
+        self._lag = float(params.lag)
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                      t: float) -> np.ndarray:
-        """True joint acceleration q̈ [rad/s²] at (q, q̇), torque τ [N·m], time t [s]."""
-        drive = np.empty(len(q))
-        joint_drive(v, tau, self._p, drive)
-        # M q̈ + C q̇ + g/s = (τ − F)/s  (ABA on the true model, gravity already g/s)
-        acc = self._aba(self._model, self._data, self._config(q), v, drive)
-        return add_disturbance(acc, t, self._p)  # type: ignore[no-any-return]
+        """True joint acceleration q̈ [rad/s²] at (q, q̇), torque τ [N·m] acting, time t [s]."""
+        out = np.empty(len(q))
+        x = np.concatenate([q, v, tau])
+        tp = self._p.copy()
+        tp[-1] = 0.0  # τ given is the torque acting
+        twin_acceleration(self.arm, x, np.asarray(tau, dtype=float), t, tp, out)
+        return out
 
     def applied(self, tau: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Torque acting on the arm: the lag state τ when T > 0, else u itself."""
@@ -192,27 +222,16 @@ class ArmTwin:
         Returns the state (q, q̇, τ) at t0 + nsub·h; τ is the lag state (zeros
         without lag).
         """
-        aba, model, data, config, p, w = (self._aba, self._model, self._data, self._config,
-                                          self._p, self._work)
-        q = np.array(q, dtype=float)
-        v = np.array(v, dtype=float)
-        tau = np.array(tau, dtype=float)
-        u = np.asarray(u, dtype=float)
-        rk4_begin(q, v, tau, u, p, w)
-        for j in range(nsub):
-            t = t0 + j * h
-            for stage in range(4):
-                acc = aba(model, data, config(w[0]), w[1], w[3])
-                rk4_stage(stage, q, v, tau, u, t + _STAGE_TIME[stage] * h, h, acc, p, w)
-            q[:] = w[0]
-            v[:] = w[1]
-            tau[:] = w[2]
-        return q, v, tau
+        n = len(q)
+        x = np.concatenate([q, v, tau]).astype(float)
+        twin_advance(self.arm, x, np.asarray(u, dtype=float), t0, h, nsub, self._p)
+        return x[:n], x[n:2 * n], x[2 * n:]
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> float:
         """Mechanical energy s·T(q, q̇) + V(q) of the true arm [J] (no friction, no d)."""
         pin = import_pinocchio()
-        cfg = self._config(q)
-        kinetic = pin.computeKineticEnergy(self._model, self._data, cfg, v)
-        potential = pin.computePotentialEnergy(self._model, self._data, cfg)  # with g/s
-        return float(self._s * (kinetic + potential))
+        cfg = self.arm.configuration(q)
+        model, data = self.arm.true, self.arm.data("true")
+        kinetic = pin.computeKineticEnergy(model, data, cfg, v)
+        potential = pin.computePotentialEnergy(model, data, cfg)  # with g/s
+        return float(self.arm.inertia_scale * (kinetic + potential))

@@ -153,6 +153,17 @@ class ArmModel:
             self._data[which] = getattr(self, which).createData()
         return self._data[which]
 
+    def workspace(self) -> np.ndarray:
+        """Scratch (8, n) array of the twin's RK4 stages (reused)."""
+        if "rk4" not in self._data:
+            self._data["rk4"] = np.zeros((8, self.n_joints))
+        return self._data["rk4"]  # type: ignore[no-any-return]
+
+    @property
+    def aba(self) -> Any:
+        """``pinocchio.aba`` (Featherstone's articulated-body algorithm)."""
+        return import_pinocchio().aba
+
     def configuration(self, q: np.ndarray) -> np.ndarray:
         """Pinocchio configuration vector of the joint angles q (cos/sin for continuous)."""
         if not self.has_continuous:
