@@ -4,10 +4,11 @@ The computed-torque loop a Pinocchio user would write by hand, with one ESO
 per joint: it imports nothing from ``esoarm``.  Differences from the package
 on purpose:
 
-* the twin's derivative is Pinocchio's ``forwardDynamics``-free form
-  q̈ = M⁻¹(τ − F − n) with M from CRBA and n from RNEA (the package uses one
-  ABA call per stage, on a model whose gravity is divided by the inertia
-  scale);
+* the twin's derivative is q̈ = M⁻¹(τ − F − n) with M from CRBA and n from
+  RNEA (the package uses one ABA call per stage, on a model whose gravity is
+  divided by the inertia scale); ``dynamics = "aba"`` (inertia scale 1 only)
+  uses ``pinocchio.aba`` instead, as a Pinocchio user would (the benchmark's
+  baseline);
 * the observers are NumPy state-space matrices (Euler: z⁺ = z + Ts (A z + B v + L (y − z1)));
 * RK4, friction, disturbance, noise and quantization are typed again, all in NumPy.
 
@@ -45,7 +46,12 @@ def run_plain(p: dict) -> dict[str, np.ndarray]:
                  for k in ("coulomb", "vs", "viscous"))
     da, dw = (np.broadcast_to(np.asarray(p[k], dtype=float), (n,)) for k in ("d_amp", "d_freq"))
 
+    use_aba = p.get("dynamics", "crba") == "aba" and s == 1.0
+
     def accel(q, v, tau, t):
+        if use_aba:  # what a Pinocchio user writes: forward dynamics by ABA
+            friction = fc * np.tanh(v / vs) + b * v
+            return pin.aba(true, dt, q, v, tau - friction) + da * np.sin(dw * t)
         m = pin.crba(true, dt, q)
         m = np.triu(m) + np.triu(m, 1).T
         nle = pin.rnea(true, dt, q, v, np.zeros(n))

@@ -14,15 +14,13 @@ import pytest
 
 pin = pytest.importorskip("pinocchio")
 
-from esoarm.controllers.computed_torque import ArmController, JointObservers  # noqa: E402
-from esoarm.engines.arm_loop import ArmRun, run_arm  # noqa: E402
+from esoarm.controllers.computed_torque import control, design  # noqa: E402
 from esoarm.engines.simulation import prepare, simulate  # noqa: E402
-from esoarm.observers.linear import ExtendedStateObserver, design_observer  # noqa: E402
+from esoarm.plants import urdf  # noqa: E402
 from esoarm.plants.lever_arm import RigParams, rig_acceleration, rig_advance  # noqa: E402
 from esoarm.plants.urdf_model import UrdfError, builtin_robot, load_arm  # noqa: E402
 from esoarm.plants.urdf_twin import ArmTwin, TwinParams  # noqa: E402
-from esoarm.reference import evaluate_reference  # noqa: E402
-from esoarm.scenario import QuinticSteps, load_scenario  # noqa: E402
+from esoarm.scenario import load_scenario  # noqa: E402
 
 CONTINUOUS_URDF = """<?xml version="1.0"?>
 <robot name="wheel-arm">
@@ -173,127 +171,41 @@ def test_unforced_frictionless_twin_conserves_energy_to_rk4_order():
 
 
 # ---------------------------------------------------------------------------
-# observers and controller
-
-
-def test_joint_observers_are_the_lever_observer_per_joint():
-    eps = np.array([0.05, 0.09])
-    bank = JointObservers(eps, 0.02, "current", np.array([0.1, -0.2]))
-    single = [ExtendedStateObserver(design_observer(e, 0.02, 1.0, "current"), y0)
-              for e, y0 in zip(eps, (0.1, -0.2), strict=True)]
-    rng = np.random.default_rng(1)
-    for _ in range(30):
-        y, v = rng.normal(size=2), rng.normal(size=2)
-        zhat = bank.estimate(y)
-        for i in range(2):
-            assert tuple(zhat[i]) == single[i].estimate(y[i])
-        bank.update(v)
-        for i in range(2):
-            single[i].update(v[i])
-            assert tuple(bank.z[i]) == single[i].z
+# controller and observer input
 
 
 @pytest.mark.parametrize(("compensation", "feedforward"),
                          [("eso", False), ("eso", True), ("model", False)])
 def test_computed_torque_law(compensation, feedforward):
-    arm = load_arm(builtin_robot("two-link"))
+    scn = load_scenario("two-link", {"controller.k1": [10.0, 20.0], "controller.k2": [25.0, 100.0],
+                                     "controller.compensation": compensation,
+                                     "controller.feedforward": feedforward})
+    plant = urdf.design(scn)
+    ctl = design(scn, plant, scn.sample_time)
+    arm = urdf.arm_of(plant.vector)
+    zhat = np.array([0.1, 0.5, -3.0, -0.4, 1.0, 2.0])
+    refs = np.array([[0.2], [0.4], [1.0], [-0.3], [0.9], [-2.0]])
+    u = np.empty(2)
+    control(np.zeros(1), zhat, np.zeros(2), refs, 0, ctl.vector, u)
     k1, k2 = np.array([10.0, 20.0]), np.array([25.0, 100.0])
-    ctl = ArmController(arm, k1, k2, compensation, feedforward, np.full(2, 1e9))
-    zhat = np.array([[0.1, 0.5, -3.0], [-0.4, 1.0, 2.0]])
-    qr, vr, ar = np.array([0.2, -0.3]), np.array([0.4, 0.9]), np.array([1.0, -2.0])
-    u, v = ctl(zhat, qr, vr, ar)
-    alpha = ar - k1 * (zhat[:, 1] - vr) - k2 * (zhat[:, 0] - qr)  # eq. 16
-    m = arm.mass_matrix(zhat[:, 0])
-    n = arm.bias(zhat[:, 0], zhat[:, 1])
+    q_hat, v_hat, f_hat = zhat[0::3], zhat[1::3], zhat[2::3]
+    alpha = refs[2::3, 0] - k1 * (v_hat - refs[1::3, 0]) - k2 * (q_hat - refs[0::3, 0])  # eq. 16
+    m, n = arm.mass_matrix(q_hat), arm.bias(q_hat, v_hat)
     if compensation == "model":
         np.testing.assert_allclose(u, m @ alpha + n, rtol=1e-14)
-        np.testing.assert_allclose(v, np.linalg.solve(m, u), rtol=1e-12)
     else:
-        np.testing.assert_allclose(u, m @ (alpha - zhat[:, 2]) + (n if feedforward else 0),
-                                   rtol=1e-14)
-        # unsaturated: the observers are told exactly the commanded acceleration
-        np.testing.assert_allclose(v, alpha - zhat[:, 2], rtol=1e-12)
-
-
-def test_saturation_per_joint():
-    arm = load_arm(builtin_robot("two-link"))
-    ctl = ArmController(arm, np.full(2, 10.0), np.full(2, 25.0), "model", False,
-                        np.array([1.0, 0.2]))
-    u, _ = ctl(np.zeros((2, 3)), np.array([1.0, 1.0]), np.zeros(2), np.zeros(2))
-    assert u.tolist() == [1.0, 0.2]
+        np.testing.assert_allclose(u, m @ (alpha - f_hat) + (n if feedforward else 0), rtol=1e-14)
+    # the observers' input: with perfect bookkeeping the commanded acceleration α − ẑ3
+    v = np.empty(2)
+    urdf.observer_input(zhat, u, plant.vector, v)
+    if compensation == "eso":
+        np.testing.assert_allclose(v, alpha - f_hat, rtol=1e-12)
+    else:
+        np.testing.assert_allclose(v, np.linalg.solve(m, u), rtol=1e-14)
 
 
 # ---------------------------------------------------------------------------
-# closed loop
-
-
-def _lever_run(scn):
-    inp = prepare(scn)
-    arm, twin = _lever_twin(scn)
-    ctl = ArmController(arm, np.array([scn.controller.k1]), np.array([scn.controller.k2]),
-                        scn.controller.compensation, False,
-                        np.array([scn.actuator.torque_limit]))
-    return ArmRun(t=inp.t, ts=scn.sample_time, q_ref=inp.theta_ref[:, None],
-                  v_ref=inp.omega_ref[:, None], a_ref=inp.accel_ref[:, None],
-                  noise=inp.noise[:, None], sigma=inp.sigma, quant=inp.q, twin=twin,
-                  controller=ctl, eps=np.array([scn.observer.eps]),
-                  discretization=scn.observer.discretization, h=inp.h, nsub=inp.nsub,
-                  delay=inp.delay, q0=np.array([inp.theta0]))
-
-
-@pytest.mark.parametrize("overrides", [
-    {},
-    {"controller.compensation": "model"},
-    {"observer.discretization": "zoh", "observer.eps": 0.05},
-    {"observer.discretization": "current", "actuator.lag": 0.02, "actuator.delay_samples": 2},
-], ids=["test-1", "model", "zoh", "current-lag-delay"])
-def test_lever_urdf_closed_loop_reproduces_test_1(overrides):
-    scn = load_scenario("test-1", overrides)
-    ref = simulate(scn, warn=False)
-    log = run_arm(_lever_run(scn))
-    e, u = log.error[:, 0], log.u[:, 0]
-    assert math.sqrt(np.mean(e**2)) == pytest.approx(ref.rms_error, rel=1e-9)
-    assert math.sqrt(np.mean(u**2)) == pytest.approx(ref.rms_u, rel=1e-9)
-    assert np.max(np.abs(e)) == pytest.approx(ref.max_abs_error, rel=1e-9)
-    np.testing.assert_allclose(log.z[:, 0, :], ref.z, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(log.f_true[:, 0], ref.f_true, rtol=0, atol=1e-9)
-
-
-def _two_link_reference(n, rate):
-    t = np.arange(n) / rate
-    refs = [evaluate_reference(QuinticSteps(start=0.0, moves=m), t) for m in (
-        [[0.5, 2.0, 1.2], [4.0, 2.0, -0.5]], [[1.0, 2.0, -2.0], [4.5, 2.0, 1.0]])]
-    return tuple(np.column_stack([r[i] for r in refs]) for i in range(3))
-
-
-def _two_link_run(compensation, eps=0.02, feedforward=False, seed=0, duration=8.0):
-    rate, n_joints = 200.0, 2
-    n = int(duration * rate)
-    t = np.arange(n) / rate
-    q_ref, v_ref, a_ref = _two_link_reference(n, rate)
-    arm = load_arm(builtin_robot("two-link"), payload_mass=0.3, payload_offset=(0.25, 0, 0))
-    twin = ArmTwin(arm, TwinParams(np.full(2, 0.1), np.full(2, 0.01), np.full(2, 0.05),
-                                   np.full(2, 0.2), np.full(2, 0.5)))
-    ctl = ArmController(arm, np.full(2, 20.0), np.full(2, 100.0), compensation, feedforward,
-                        np.full(2, 10.0))
-    noise = np.random.default_rng(seed).standard_normal((n, n_joints))
-    return run_arm(ArmRun(t=t, ts=1 / rate, q_ref=q_ref, v_ref=v_ref, a_ref=a_ref,
-                          noise=noise, sigma=math.radians(0.2), quant=math.radians(0.05),
-                          twin=twin, controller=ctl, eps=np.full(2, eps),
-                          discretization="euler", h=0.001, nsub=5, delay=0,
-                          q0=np.zeros(2)))
-
-
-def test_two_link_eso_beats_the_computed_torque_baseline():
-    """Payload error and friction: the ESO lowers every joint's RMS error (Fig. 7 analogue)."""
-    rms = {}
-    for comp, ff in (("model", False), ("eso", False), ("eso", True)):
-        log = _two_link_run(comp, feedforward=ff)
-        assert log.diverged_at is None
-        rms[comp, ff] = np.sqrt(np.mean(log.error**2, axis=0))
-    baseline = rms["model", False]
-    assert np.all(rms["eso", False] < 0.5 * baseline), rms
-    assert np.all(rms["eso", True] < 0.5 * baseline), rms
+# closed loop against a second engine
 
 
 @pytest.mark.parametrize("compensation", ["eso", "model"])
@@ -301,27 +213,29 @@ def test_two_link_against_a_plain_pinocchio_loop(compensation):
     """A second engine, written with CRBA/RNEA and NumPy only, gives the same run."""
     from reference_arm import run_plain
 
-    duration, rate = 3.0, 200.0
-    log = _two_link_run(compensation, duration=duration)
-    n = int(duration * rate)
+    scn = load_scenario("two-link", {"duration": 3.0, "controller.compensation": compensation})
+    res = simulate(scn, warn=False)
+    refs = prepare(scn, draw_noise=False).refs
+    p, r = scn.plant, scn.rig
     out = run_plain({
-        "urdf": str(builtin_robot("two-link")), "g": 9.81, "payload_mass": 0.3,
-        "payload_offset": (0.25, 0.0, 0.0), "inertia_scale": 1.0, "coulomb": 0.1, "vs": 0.01,
-        "viscous": 0.05, "d_amp": 0.2, "d_freq": 0.5, "rate_hz": rate, "step": 0.001,
-        "duration": duration, "noise_deg": 0.2, "resolution_deg": 0.05, "seed": 0,
-        "eps": 0.02, "k1": 20.0, "k2": 100.0, "torque_limit": 10.0,
+        "urdf": p.file, "g": p.g, "payload_mass": p.payload_mass,
+        "payload_offset": tuple(p.payload_offset), "inertia_scale": r.inertia_scale,
+        "coulomb": r.coulomb_friction, "vs": r.friction_velocity, "viscous": r.viscous_friction,
+        "d_amp": r.disturbance.amplitude, "d_freq": r.disturbance.frequency,
+        "rate_hz": scn.sensor.rate_hz, "step": r.step, "duration": scn.duration,
+        "noise_deg": scn.sensor.noise_deg, "resolution_deg": scn.sensor.resolution_deg,
+        "seed": scn.sensor.seed, "eps": scn.observer.eps, "k1": scn.controller.k1,
+        "k2": scn.controller.k2, "torque_limit": scn.actuator.torque_limit,
         "compensation": compensation,
-        "reference": (log.theta_ref[:n], *_two_link_reference(n, rate)[1:]),
+        "reference": tuple(np.column_stack([refs[3 * j + i] for j in range(2)])
+                           for i in range(3)),
     })
-    np.testing.assert_allclose(out["theta"], log.theta, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(out["u"], log.u, rtol=0, atol=1e-7)
-    np.testing.assert_allclose(out["z3"], log.z[:, :, 2], rtol=0, atol=1e-6)
-
-
-def test_arm_runs_are_deterministic():
-    a, b = _two_link_run("eso", duration=1.0), _two_link_run("eso", duration=1.0)
-    for name in ("theta", "u", "z", "f_true", "omega"):
-        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    theta = np.column_stack([j.theta for j in res.per_joint])
+    u = np.column_stack([j.u for j in res.per_joint])
+    z3 = np.column_stack([j.z[:, 2] for j in res.per_joint])
+    np.testing.assert_allclose(out["theta"], theta, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(out["u"], u, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(out["z3"], z3, rtol=0, atol=1e-6)
 
 
 # ---------------------------------------------------------------------------

@@ -1,48 +1,82 @@
-"""One ESO per joint and computed torque on the nominal model (the paper's FLC, n joints).
+"""Controller kind ``"computed-torque"``: the paper's FLC on n joints of a URDF arm.
 
-Each joint i has its own extended state observer -- the paper's eq. 8 with the
-lever arm's step functions and design (:mod:`esoarm.observers.linear`:
-``eso_estimate``, ``eso_advance``, ``design_observer`` with the gains of
-Theorem 1 from that joint's ε_i) -- on the extended plant
-
-    q̈_i = f_i + v_i,    v = M̂(q̂)⁻¹ (τ − c · n̂(q̂, q̂̇))        (b0 = 1)
-
-where q̂ = ẑ1, q̂̇ = ẑ2 are the observers' estimates, c = 1 when the nominal
-n̂ is fed forward and 0 otherwise.  ẑ3_i estimates the joint's lumped
-perturbation f_i: coupling from the other joints, gravity and Coriolis terms
-(unless fed forward), friction, payload and inertia error, disturbance -- as
-the paper's z3 absorbs −G/I0 + d.  On one joint, v = τ/I0 = b0·u: the lever arm.
-
-Tracking law per joint, eq. 16 with the observers' rates:
+With the observers' estimates q̂ = ẑ1, q̂̇ = ẑ2 of every joint, the tracking
+law of eq. 16 per joint,
 
     α_i = q̈d_i − k1_i (ẑ2_i − q̇d_i) − k2_i (ẑ1_i − qd_i)
 
-and the torque, saturated per joint to ±torque_limit_i:
+and the torque (saturated per joint by the actuator):
 
 ``compensation = "eso"`` (the paper's eq. 14 on n joints)
-    τ = M̂(q̂) (α − ẑ3)          or, with ``feedforward``, τ = M̂(q̂) (α − ẑ3) + n̂(q̂, q̂̇)
+    τ = M̂(q̂) (α − ẑ3), or with ``feedforward`` τ = M̂(q̂) (α − ẑ3) + n̂(q̂, q̂̇)
 ``compensation = "model"`` (computed torque on the nominal model, Fig. 7's baseline)
     τ = M̂(q̂) α + n̂(q̂, q̂̇)       (the observers still run and supply q̂, q̂̇)
+
+M̂ and n̂ are the nominal model's (the URDF as written, :mod:`esoarm.plants.urdf_model`).
+Each joint's ẑ3 estimates q̈ − v with v = M̂⁻¹(τ − c n̂) the observers' input
+(:func:`esoarm.plants.urdf.observer_input`), so with perfect estimates
+M̂(q̈ − ẑ3) = τ − c n̂ gives q̈ = α: the paper's error dynamics (eq. 17) on
+every joint.  On one joint τ = I0 (α − z3): the FLC exactly.
+
+As a kind (see :mod:`esoarm.contract`): Pinocchio is called, so ``JIT = False``.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
+from pydantic import Field
 
+from esoarm._schema import Section, unit
+from esoarm.contract import ComponentDesign, PlantDesign, read_only
 from esoarm.controllers import flc as _flc
-from esoarm.controllers.flc import flc_control, saturate
-from esoarm.observers.linear import design_observer, eso_advance, eso_estimate
-from esoarm.plants.urdf_model import ArmModel
 
-__all__ = ["ArmController", "JointObservers", "tracking_acceleration"]
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
+
+__all__ = ["CODE", "JIT", "KIND", "Params", "control", "design", "initialize", "per_joint",
+           "tracking_acceleration"]
+
+KIND = "computed-torque"
+CODE = 1
+JIT = False
+
+_PositiveGain = Annotated[float, Field(gt=0)]
+_HANDLE, _COMP, _FF, _UNIT = 1, 2, 3, 4
 
 
-def _alpha_vector(k1: float, k2: float) -> np.ndarray:
-    # The FLC law of a unit-inertia joint without perturbation estimate and
-    # without saturation is α itself: I0 (α − β̂) with I0 = 1, β̂ = z3 = 0.
+class Params(Section):
+    """``[controller]`` of kind "computed-torque": the FLC on n joints (a URDF arm)."""
+
+    kind: Literal["computed-torque"] = Field(
+        "computed-torque",
+        description='controller kind: "computed-torque" (the FLC on a URDF arm)')
+    k1: _PositiveGain | list[_PositiveGain] = Field(
+        10.0, description="error-rate gain k1: one number for every joint, or one per joint",
+        json_schema_extra=unit("1/s"))
+    k2: _PositiveGain | list[_PositiveGain] = Field(
+        25.0, description="error gain k2: one number for every joint, or one per joint",
+        json_schema_extra=unit("1/s²"))
+    compensation: Literal["eso", "model"] = Field(
+        "eso", description='"eso": τ = M̂(α − ẑ3) (proposed) | "model": τ = M̂α + n̂ '
+        "(computed torque on the nominal model, the Fig. 7 baseline)")
+    feedforward: bool = Field(
+        False, description='with "eso": add the nominal n̂(q̂, q̂̇) to τ (the observers then '
+        "estimate only what the nominal model misses)")
+
+
+def per_joint(value: float | list[float], n: int) -> np.ndarray:
+    """A per-joint key as n values (one number applies to every joint)."""
+    if isinstance(value, list):
+        return np.array(value, dtype=float)
+    return np.full(n, float(value))
+
+
+def _unit_vector(k1: float, k2: float) -> np.ndarray:
+    # The FLC law of a unit-inertia joint without perturbation estimate is α
+    # itself: I0 (α − β̂) with I0 = 1, β̂ = z3 = 0.
     vec = np.zeros(_flc.VECTOR_SIZE)
     vec[_flc.K1], vec[_flc.K2], vec[_flc.I0] = k1, k2, 1.0
     vec[_flc.COMP], vec[_flc.LIMIT] = _flc.COMP_ESO, math.inf
@@ -53,110 +87,51 @@ def tracking_acceleration(z1: float, z2: float, q_ref: float, v_ref: float, a_re
                           unit_ctl: np.ndarray) -> float:
     """α = q̈d − k1 (ẑ2 − q̇d) − k2 (ẑ1 − qd) [rad/s²] (eq. 16), by the lever arm's law.
 
-    ``unit_ctl`` is the controller vector of a unit-inertia joint (see
-    :class:`ArmController`); :func:`esoarm.controllers.flc.flc_control` then
-    returns α exactly.
+    ``unit_ctl`` is the FLC vector of a unit-inertia joint without perturbation
+    estimate; :func:`esoarm.controllers.flc.flc_command` then returns α exactly.
     """
-    return float(flc_control(z1, z2, 0.0, q_ref, v_ref, a_ref, unit_ctl))
+    return float(_flc.flc_command(z1, z2, 0.0, q_ref, v_ref, a_ref, unit_ctl))
 
 
-class JointObservers:
-    """n independent ESOs (eq. 8), one per joint, stepped one sample at a time.
+def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
+    """(CODE, handle, model flag, feed-forward flag, one unit FLC vector per joint)."""
+    from esoarm.plants import urdf
 
-    Parameters
-    ----------
-    eps : ndarray (n,)
-        ε_i [s] per joint.
-    ts : float
-        Sample period [s].
-    discretization : {"euler", "zoh", "current"}
-    y0 : ndarray (n,)
-        First measurement [rad]; initial state z_i = (y0_i, 0, 0).
-    """
-
-    def __init__(self, eps: np.ndarray, ts: float, discretization: str,
-                 y0: np.ndarray) -> None:
-        self.designs = [design_observer(float(e), ts, 1.0, discretization) for e in eps]
-        self._obs = [d.vector for d in self.designs]
-        n = len(self._obs)
-        self.z = np.zeros((n, 3))
-        self.z[:, 0] = y0
-        self.zhat = self.z.copy()
-        self._y = np.array(y0, dtype=float)
-
-    def estimate(self, y: np.ndarray) -> np.ndarray:
-        """Take the measurements y_k [rad]; return ẑ_k, shape (n, 3)."""
-        self._y = y
-        z = self.z
-        for i, obs in enumerate(self._obs):
-            self.zhat[i] = eso_estimate(z[i, 0], z[i, 1], z[i, 2], y[i], obs)
-        return self.zhat
-
-    def update(self, v: np.ndarray) -> None:
-        """Advance to z_{k+1} with the observer inputs v_k = M̂⁻¹(τ − c n̂) [rad/s²]."""
-        z, zh, y = self.z, self.zhat, self._y
-        for i, obs in enumerate(self._obs):
-            z[i] = eso_advance(z[i, 0], z[i, 1], z[i, 2], zh[i, 0], zh[i, 1], zh[i, 2],
-                               y[i], v[i], obs)
+    if int(plant.vector[0]) != urdf.CODE:
+        raise ValueError("the computed-torque controller needs plant.kind = 'urdf'")
+    n = plant.n_joints
+    ctl = scn.controller
+    k1, k2 = per_joint(ctl.k1, n), per_joint(ctl.k2, n)
+    head = [float(CODE), float(plant.vector[urdf.HANDLE]), float(ctl.compensation == "model"),
+            float(urdf.feeds_forward(scn))]
+    units = [_unit_vector(float(a), float(b)) for a, b in zip(k1, k2, strict=True)]
+    return ComponentDesign(read_only(np.concatenate([head, *units])), 1)
 
 
-@dataclass(frozen=True)
-class ArmController:
-    """Computed torque on the nominal model with the observers' estimates.
+def initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
+    """Computed torque has no state of its own."""
 
-    Attributes
-    ----------
-    arm : ArmModel
-        Supplies the nominal M̂(q) and n̂(q, q̇).
-    k1, k2 : ndarray (n,)
-        Per-joint gains [1/s], [1/s²].
-    compensation : {"eso", "model"}
-    feedforward : bool
-        With "eso": add the nominal n̂(q̂, q̂̇) to the torque (and remove it from
-        what the observers must estimate).
-    torque_limit : ndarray (n,)
-        Per-joint saturation [N·m].
-    """
 
-    arm: ArmModel
-    k1: np.ndarray
-    k2: np.ndarray
-    compensation: str
-    feedforward: bool
-    torque_limit: np.ndarray
+def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
+            p: np.ndarray, u: np.ndarray) -> None:
+    """Raw torque u_k [N·m] per joint from ẑ_k and the reference at sample k (module docstring)."""
+    from esoarm.plants.urdf import arm_of
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "_unit", [_alpha_vector(float(a), float(b))
-                                           for a, b in zip(self.k1, self.k2, strict=True)])
-
-    def __call__(self, zhat: np.ndarray, q_ref: np.ndarray, v_ref: np.ndarray,
-                 a_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Torque command u_k [N·m] and the observer input v_k [rad/s²].
-
-        Parameters
-        ----------
-        zhat : ndarray (n, 3)
-            Estimates (q̂ [rad], q̂̇ [rad/s], f̂ [rad/s²]) per joint.
-        q_ref, v_ref, a_ref : ndarray (n,)
-            Reference position, rate and acceleration at t_k.
-        """
-        unit = self._unit  # type: ignore[attr-defined]
-        alpha = np.array([tracking_acceleration(zhat[i, 0], zhat[i, 1], q_ref[i], v_ref[i],
-                                                a_ref[i], unit[i]) for i in range(len(unit))])
-        q_hat = zhat[:, 0]
-        m_hat = self.arm.mass_matrix(q_hat)
-        model = self.compensation != "eso"
-        ff = model or self.feedforward
-        n_hat = self.arm.bias(q_hat, zhat[:, 1]) if ff else None
-        if model:
-            tau = m_hat @ alpha + n_hat
-        else:
-            tau = m_hat @ (alpha - zhat[:, 2])
-            if n_hat is not None:
-                tau = tau + n_hat
-        u = np.array([saturate(tau[i], self.torque_limit[i]) for i in range(len(tau))])
-        # the observers' input: what the torque does through the nominal model,
-        # less the fed-forward n̂ (which the observers then need not estimate)
-        drive = u - n_hat if (self.feedforward and not model) else u
-        v = np.linalg.solve(m_hat, drive)
-        return u, v
+    arm = arm_of(p)
+    n = len(u)
+    size = _flc.VECTOR_SIZE
+    alpha = np.empty(n)
+    for j in range(n):
+        i = 3 * j
+        unit_ctl = p[_UNIT + size * j:_UNIT + size * (j + 1)]
+        alpha[j] = tracking_acceleration(zhat[i], zhat[i + 1], refs[i, k], refs[i + 1, k],
+                                         refs[i + 2, k], unit_ctl)
+    q_hat = zhat[0:3 * n:3]
+    m_hat = arm.mass_matrix(q_hat)
+    if p[_COMP] != 0.0:  # "model": computed torque on the nominal model alone
+        u[:] = m_hat @ alpha + arm.bias(q_hat, zhat[1:3 * n:3])
+        return
+    tau = m_hat @ (alpha - zhat[2:3 * n:3])
+    if p[_FF] != 0.0:
+        tau = tau + arm.bias(q_hat, zhat[1:3 * n:3])
+    u[:] = tau

@@ -1,0 +1,232 @@
+"""Plant kind ``"urdf"``: any serial arm from a URDF file, its dynamics from Pinocchio.
+
+``[plant]`` names the URDF file (relative to the scenario file) and what the
+twin carries beyond it; the nominal model known to the controller is the URDF
+as written (:mod:`esoarm.plants.urdf_model`).  The twin is the lever arm's rig
+joint by joint (:mod:`esoarm.plants.urdf_twin`): the ``[rig]`` friction,
+disturbance, inertia scale and RK4 step, the ``[actuator]`` lag, applied to
+every joint.
+
+As a kind (see :mod:`esoarm.contract`): :func:`design` gives the state
+x = (q, q̇, τ) of n joints and b0 = 1 per joint, because the observers'
+input is already an acceleration: :func:`observer_input` maps the command to
+v = M̂(q̂)⁻¹ (u − c·n̂(q̂, q̂̇)) -- the joint's component of M̂⁻¹τ, c = 1 when
+the controller feeds the nominal n̂ forward.  :func:`advance` and
+:func:`acceleration` call Pinocchio, which numba cannot compile
+(``JIT = False``): the batch engine runs these points in worker processes.
+
+The parameter vector holds (CODE, handle, c, twin parameters); the handle
+names the loaded models in this process (:func:`arm_of`), so a design is
+valid in the process that made it -- the engines design each run where they
+run it.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import OrderedDict
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from esoarm._schema import Section, unit
+from esoarm.contract import PlantDesign, read_only
+from esoarm.plants.urdf_model import ArmModel, UrdfError, load_arm
+from esoarm.plants.urdf_twin import TwinParams, pack_params, twin_acceleration, twin_advance
+
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
+
+__all__ = ["CODE", "JIT", "KIND", "Params", "acceleration", "advance", "arm_of", "check",
+           "design", "joint_limits", "joint_names", "observer_input", "scenario_arm"]
+
+KIND = "urdf"
+CODE = 1
+JIT = False
+
+HANDLE, _FEEDFORWARD, _TWIN = 1, 2, 3
+
+#: Keys of ``[observer]`` and ``[controller]`` that take one value per joint.
+PER_JOINT_KEYS = ("eps", "k1", "k2")
+
+
+class Params(Section):
+    """``[plant]`` of kind "urdf": a serial arm from a URDF file (Pinocchio)."""
+
+    kind: Literal["urdf"] = Field(
+        "urdf", description='plant kind: "urdf" (a serial arm from a URDF file)')
+    file: str = Field(
+        ..., min_length=1,
+        description="URDF file, relative to the scenario file (built-ins: robots/…)")
+    g: float = Field(9.81, ge=0, description="gravity along −z of the URDF base frame",
+                     json_schema_extra=unit("m/s²"))
+    payload_mass: float = Field(
+        0.0, ge=0, description="point mass the twin carries on the last link, unknown to the "
+        "controller", json_schema_extra=unit("kg"))
+    payload_offset: list[float] = Field(
+        default_factory=lambda: [0.0, 0.0, 0.0], min_length=3, max_length=3,
+        description="its position in the last joint's frame", json_schema_extra=unit("m"))
+    q0: list[float] | None = Field(
+        None, description="initial angle of each joint (absent: rig.theta0 for every joint)",
+        json_schema_extra=unit("rad"))
+
+
+# ---------------------------------------------------------------------------
+# loaded models, by handle (process-local)
+
+_LOADED: OrderedDict[tuple[Any, ...], int] = OrderedDict()
+_ARMS: dict[int, ArmModel] = {}
+_MAX_LOADED = 64
+
+
+def scenario_arm(scn: Scenario) -> ArmModel:
+    """The nominal and true models of a urdf scenario (loaded once per process, cached)."""
+    return _ARMS[_handle(scn)]
+
+
+def _handle(scn: Scenario) -> int:
+    plant = scn.plant
+    path = Path(plant.file)
+    try:
+        stamp = os.stat(path).st_mtime_ns
+    except OSError:
+        stamp = None
+    key = (str(path), stamp, plant.g, scn.rig.inertia_scale, plant.payload_mass,
+           tuple(plant.payload_offset))
+    if key in _LOADED:
+        _LOADED.move_to_end(key)
+        return _LOADED[key]
+    arm = load_arm(path, g=plant.g, inertia_scale=scn.rig.inertia_scale,
+                   payload_mass=plant.payload_mass, payload_offset=plant.payload_offset,
+                   source=f"key 'plant.file': URDF '{plant.file}'")
+    handle = max(_ARMS, default=0) + 1
+    _ARMS[handle] = arm
+    _LOADED[key] = handle
+    while len(_LOADED) > _MAX_LOADED:
+        _, old = _LOADED.popitem(last=False)
+        _ARMS.pop(old, None)
+    return handle
+
+
+def arm_of(p: np.ndarray) -> ArmModel:
+    """The models named by a design vector's handle."""
+    return _ARMS[int(p[HANDLE])]
+
+
+def feeds_forward(scn: Scenario) -> bool:
+    """Whether the controller adds the nominal n̂ (so the observers must not estimate it)."""
+    ctl = scn.controller
+    return bool(getattr(ctl, "feedforward", False)) and getattr(ctl, "compensation", "") == "eso"
+
+
+# ---------------------------------------------------------------------------
+# validation at load time
+
+
+def _joint_list(arm: ArmModel) -> str:
+    names = ", ".join(arm.joint_names)
+    return f"{arm.n_joints} joint{'s' if arm.n_joints > 1 else ''} ({names})"
+
+
+def check(scn: Scenario) -> str | None:
+    """One line naming the key if ``scn`` does not fit its URDF arm, else None.
+
+    Loads the URDF (Pinocchio must be installed), checks the per-joint keys
+    against the number of joints and the reference against the joint limits.
+    """
+    try:
+        arm = scenario_arm(scn)
+    except UrdfError as exc:
+        return str(exc)
+    n = arm.n_joints
+    if scn.controller.kind != "computed-torque":
+        return (f"key 'controller.kind': '{scn.controller.kind}' is the lever arm's; a URDF arm "
+                "uses 'computed-torque'")
+    for section in ("observer", "controller"):
+        values = getattr(scn, section).model_dump()
+        for key in PER_JOINT_KEYS:
+            value = values.get(key)
+            if isinstance(value, list) and len(value) != n:
+                return (f"key '{section}.{key}': {len(value)} entries, but "
+                        f"'{Path(scn.plant.file).name}' has {_joint_list(arm)}")
+    q0 = scn.plant.q0
+    if q0 is not None and len(q0) != n:
+        return (f"key 'plant.q0': {len(q0)} entries, but '{Path(scn.plant.file).name}' has "
+                f"{_joint_list(arm)}")
+    from esoarm.reference import joint_count, needs_limits
+
+    count = joint_count(scn.reference)
+    if count is not None and count != n:
+        return (f"key 'reference.joints': {count} entries, but "
+                f"'{Path(scn.plant.file).name}' has {_joint_list(arm)}")
+    for i in needs_limits(scn.reference, n):
+        if arm.continuous[i]:
+            return (f"key 'reference': joint '{arm.joint_names[i]}' is continuous (no limits) "
+                    f"but reference kind '{scn.reference.kind}' moves through the limits")
+    return None
+
+
+# ---------------------------------------------------------------------------
+# design and step functions
+
+
+def design(scn: Scenario) -> PlantDesign:
+    """Initial state x0 = (q0, 0, 0) per joint, b0 = 1, vector (CODE, handle, c, twin)."""
+    handle = _handle(scn)
+    arm = _ARMS[handle]
+    n = arm.n_joints
+    rig = scn.rig
+    lag = scn.actuator.lag
+
+    def each(value: float) -> np.ndarray:
+        return np.full(n, float(value))
+
+    twin = TwinParams(each(rig.coulomb_friction), each(rig.friction_velocity),
+                      each(rig.viscous_friction), each(rig.disturbance.amplitude),
+                      each(rig.disturbance.frequency), lag)
+    vector = np.concatenate([[float(CODE), float(handle), float(feeds_forward(scn))],
+                             pack_params(twin, arm.inertia_scale)])
+    q0 = np.array(scn.plant.q0, dtype=float) if scn.plant.q0 is not None else each(rig.theta0)
+    x0 = np.concatenate([q0, np.zeros(2 * n)])
+    return PlantDesign(vector=read_only(vector), x0=read_only(x0), n_joints=n,
+                       b0=read_only(np.ones(n)))
+
+
+def joint_names(scn: Scenario) -> tuple[str, ...]:
+    """The arm's actuated joints, in URDF (Pinocchio) order."""
+    return scenario_arm(scn).joint_names
+
+
+def joint_limits(scn: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper position limits of every joint [rad or m] (±inf: continuous)."""
+    arm = scenario_arm(scn)
+    return arm.lower, arm.upper
+
+
+def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
+            p: np.ndarray) -> None:
+    """Integrate x = (q, q̇, τ) in place over one sample: ``nsub`` RK4 steps of h [s], u held."""
+    twin_advance(arm_of(p), x, u, t0, h, nsub, p[_TWIN:])
+
+
+def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
+                 out: np.ndarray) -> None:
+    """True q̈ [rad/s²] at state x, time t, input u applied from t on, into ``out``."""
+    twin_acceleration(arm_of(p), x, u, t, p[_TWIN:], out)
+
+
+def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
+    """The observers' input v = M̂(q̂)⁻¹ (u − c·n̂(q̂, q̂̇)) [rad/s²] into ``v``.
+
+    q̂, q̂̇ are the estimates ẑ1, ẑ2 of every joint; c = 1 when the controller
+    feeds n̂ forward.  Then ẑ3 of joint i estimates q̈_i − v_i: gravity,
+    Coriolis (unless fed forward), coupling, friction, model error, disturbance.
+    """
+    arm = arm_of(p)
+    q_hat = zhat[0::3]
+    drive = u
+    if p[_FEEDFORWARD] != 0.0:
+        drive = u - arm.bias(q_hat, zhat[1::3])
+    v[:] = np.linalg.solve(arm.mass_matrix(q_hat), drive)
