@@ -36,7 +36,7 @@ from esoarm.controllers import flc as _flc
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "Params", "control", "design", "initialize", "per_joint",
+__all__ = ["CODE", "JIT", "KIND", "Params", "check", "control", "design", "initialize", "per_joint",
            "tracking_acceleration"]
 
 KIND = "computed-torque"
@@ -135,3 +135,11 @@ def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k:
     if p[_FF] != 0.0:
         tau = tau + arm.bias(q_hat, zhat[1:3 * n:3])
     u[:] = tau
+
+
+def check(scn: Scenario) -> str | None:
+    """One line if the plant is not a URDF arm (computed torque needs M̂ and n̂), else None."""
+    if scn.plant.kind != "urdf":
+        return ("key 'controller.kind': 'computed-torque' needs plant.kind = 'urdf' "
+                "(the lever arm uses 'flc')")
+    return None
