@@ -17,7 +17,7 @@ from matplotlib.figure import Figure
 from esoarm.plotting import REF_STYLE, TRUE_STYLE, finish_figure
 from esoarm.result import SimResult
 
-__all__ = ["figure_arm_ablation", "figure_arm_eps_sweep", "plot_arm_run"]
+__all__ = ["figure_arm_ablation", "figure_arm_eps_sweep", "figure_arm_replay", "plot_arm_run"]
 
 _COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e")
 
@@ -122,4 +122,30 @@ def figure_arm_eps_sweep(eps: Sequence[float], rms_error: np.ndarray, rms_u: np.
     ax_u.set_ylabel("RMS torque [N·m]")
     ax_u.set_xlabel("ε [s]")
     fig.suptitle(title, fontsize=10)
+    return finish_figure(fig, path)
+
+
+def figure_arm_replay(result: object, names: Sequence[str],
+                      path: str | Path | None = None) -> Figure:
+    """Measured angle with the estimates ẑ1, ẑ2, ẑ3 of each joint (``esoarm replay`` on an arm).
+
+    ``result`` is an :class:`esoarm.hardware.replay_arm.ArmReplay`.
+    """
+    t, theta, z = result.t, result.theta, result.z  # type: ignore[attr-defined]
+    n = theta.shape[1]
+    fig = Figure(figsize=(_width(n), 7), layout="constrained")
+    axes = fig.subplots(3, n, sharex=True, squeeze=False)
+    for j in range(n):
+        axes[0, j].plot(t, theta[:, j], ".", color="0.4", markersize=2, label="measured")
+        axes[0, j].plot(t, z[:, j, 0], color=_COLORS[0], label="ẑ1")
+        axes[0, j].set_title(names[j] if j < len(names) else f"joint {j + 1}", fontsize=10)
+        axes[1, j].plot(t, z[:, j, 1], color=_COLORS[0])
+        axes[2, j].plot(t, z[:, j, 2], color=_COLORS[0])
+        axes[2, j].set_xlabel("time t [s]")
+        for ax in axes[:, j]:
+            ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("angle [rad]")
+    axes[1, 0].set_ylabel("rate ẑ2 [rad/s]")
+    axes[2, 0].set_ylabel("perturbation ẑ3 [rad/s²]")
+    axes[0, 0].legend(loc="best", fontsize=8)
     return finish_figure(fig, path)

@@ -178,10 +178,24 @@ class ArmModel:
 
     # -- nominal rigid-body terms (what the controller knows) ---------------
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
-        """Nominal joint-space inertia M̂(q) [kg·m²], symmetric (CRBA)."""
+        """Nominal joint-space inertia M̂(q) [kg·m²], symmetric (CRBA).
+
+        The last evaluation is kept: the controller and the observers' input
+        ask for M̂ at the same estimate q̂ in every sample.
+        """
+        key = np.asarray(q, dtype=float).tobytes()
+        cached = self._data.get("mass")
+        if cached is not None and cached[0] == key:
+            return cached[1]  # type: ignore[no-any-return]
         pin = import_pinocchio()
-        m = pin.crba(self.nominal, self.data(), self.configuration(q))
-        return np.triu(m) + np.triu(m, 1).T
+        m = np.array(pin.crba(self.nominal, self.data(), self.configuration(q)))
+        lower = self._data.get("lower")
+        if lower is None:
+            lower = self._data["lower"] = np.tril_indices(self.n_joints, -1)
+        m[lower] = m.T[lower]  # CRBA fills the upper triangle
+        m.setflags(write=False)
+        self._data["mass"] = (key, m)
+        return m
 
     def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Nominal n̂(q, q̇) = Ĉ(q, q̇) q̇ + ĝ(q) [N·m] (RNEA with q̈ = 0)."""
