@@ -32,10 +32,11 @@ from typing import Any
 import numpy as np
 
 from esoarm._io import atomic_path
-from esoarm.batch import METRICS, _NoiseCache, run_metrics
+from esoarm.batch import METRICS, MetricsTable, _NoiseCache
 from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
 
 __all__ = [
+    "ENGINES",
     "SweepGrid",
     "SweepResult",
     "VarySpec",
@@ -291,9 +292,27 @@ def _chunks(grid: SweepGrid, chunk_runs: int) -> list[tuple[int, int]]:
 
 _CHUNK_LOCK = threading.Lock()
 
+#: Engines a sweep (or a tuning run) can use: "exact" (the default, bit-identical
+#: to the reference engine) and "fast" (vectorized, agrees to round-off; see
+#: :mod:`esoarm.fast`).
+ENGINES: tuple[str, ...] = ("exact", "fast")
+
+
+def metrics_runner(engine: str = "exact") -> Callable[..., MetricsTable]:
+    """The ``run_metrics`` function of an engine (``"exact"`` or ``"fast"``)."""
+    if engine == "exact":
+        from esoarm.batch import run_metrics
+
+        return run_metrics
+    if engine == "fast":
+        from esoarm.fast import run_metrics as run_fast
+
+        return run_fast
+    raise ValueError(f"engine must be one of {', '.join(ENGINES)}; got {engine!r}")
+
 
 def _run_chunk(points: Sequence[Scenario], seeds: Sequence[int] | None,
-               threads: int | None) -> np.ndarray:
+               threads: int | None, engine: str = "exact") -> np.ndarray:
     """One chunk's metrics: the Dask task.
 
     A worker process runs one chunk at a time (on ``threads`` numba threads):
@@ -302,7 +321,7 @@ def _run_chunk(points: Sequence[Scenario], seeds: Sequence[int] | None,
     one process per core, or fewer processes and ``--workers N``.
     """
     with _CHUNK_LOCK:
-        return run_metrics(points, seeds if seeds else None, workers=threads).values
+        return metrics_runner(engine)(points, seeds if seeds else None, workers=threads).values
 
 
 def iter_sweep(
@@ -311,6 +330,7 @@ def iter_sweep(
     workers: int | None = None,
     scheduler: str | None = None,
     chunk: int | None = None,
+    engine: str = "exact",
 ) -> Iterator[tuple[int, np.ndarray]]:
     """Run the sweep chunk by chunk; yield (first run index, metrics rows).
 
@@ -331,7 +351,10 @@ def iter_sweep(
     chunk : int, optional
         Runs per chunk (rounded to whole grid points); default
         :data:`LOCAL_CHUNK` or :data:`DASK_CHUNK`.
+    engine : {"exact", "fast"}
+        :data:`ENGINES`; "fast" agrees with "exact" to round-off (:mod:`esoarm.fast`).
     """
+    run_metrics = metrics_runner(engine)
     per_point = max(len(grid.seeds), 1)
     seeds = list(grid.seeds) or None
     if scheduler is None:
@@ -342,7 +365,7 @@ def iter_sweep(
                                 _noise_cache=noise_cache)
             yield lo * per_point, table.values
         return
-    yield from _iter_dask(grid, scheduler, workers or 1, chunk or DASK_CHUNK)
+    yield from _iter_dask(grid, scheduler, workers or 1, chunk or DASK_CHUNK, engine)
 
 
 class ClusterError(RuntimeError):
@@ -350,7 +373,7 @@ class ClusterError(RuntimeError):
 
 
 def _iter_dask(grid: SweepGrid, address: str, threads: int,
-               chunk: int) -> Iterator[tuple[int, np.ndarray]]:
+               chunk: int, engine: str = "exact") -> Iterator[tuple[int, np.ndarray]]:
     try:
         from distributed import Client, as_completed
     except ImportError:
@@ -366,7 +389,8 @@ def _iter_dask(grid: SweepGrid, address: str, threads: int,
     futures = {}
     try:
         for lo, hi in _chunks(grid, chunk):
-            fut = client.submit(_run_chunk, grid.points[lo:hi], seeds, threads, pure=False)
+            fut = client.submit(_run_chunk, grid.points[lo:hi], seeds, threads, engine,
+                                pure=False)
             futures[fut] = lo
         for fut in as_completed(list(futures), loop=client.loop):
             try:
@@ -497,6 +521,7 @@ def run_sweep(
     chunk: int | None = None,
     progress: Callable[[int], None] | None = None,
     result: SweepResult | None = None,
+    engine: str = "exact",
 ) -> SweepResult:
     """Run a whole sweep and collect it (see :func:`iter_sweep` for the options).
 
@@ -506,7 +531,8 @@ def run_sweep(
     result = result if result is not None else SweepResult.empty(grid)
     start = time.perf_counter()
     try:
-        for first, values in iter_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk):
+        for first, values in iter_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk,
+                                        engine=engine):
             result.add(first, values)
             if progress is not None:
                 progress(len(values))
