@@ -12,11 +12,11 @@ def continuous_loop(scn):  # type: ignore[no-untyped-def]
     """
     import control as ct
 
-    from esoarm.controller import FLCParams, flc_control
-    from esoarm.model import input_gain
-    from esoarm.observer import continuous_gains, eso_rhs
+    from esoarm.controllers.flc import FLCParams, flc_control
+    from esoarm.observers.linear import continuous_gains, eso_rhs
+    from esoarm.plants.lever_arm import RigParams, rig_acceleration
+    from esoarm.plants.model import input_gain
     from esoarm.reference import evaluate_reference
-    from esoarm.rig import RigParams, rig_acceleration
 
     rig = RigParams.from_scenario(scn).vector
     ctl = FLCParams.from_scenario(scn).vector

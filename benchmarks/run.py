@@ -101,7 +101,7 @@ class CLoop:
     """benchmarks/loop.c built here, fed the canonical inputs (runs cycled for other sizes)."""
 
     def __init__(self, grid, work: Path) -> None:  # type: ignore[no-untyped-def]
-        from esoarm import batch
+        from esoarm.engines import batch
 
         self.work = work
         self.exe = work / "loop"
@@ -137,7 +137,7 @@ class CLoop:
 
 def canonical_grid(extra: tuple[str, ...] = ()):  # type: ignore[no-untyped-def]
     from esoarm.scenario import load_scenario
-    from esoarm.sweep import build_grid
+    from esoarm.studies.sweep import build_grid
 
     return build_grid(load_scenario("test-1", list(extra)), [VARY], seeds=20)
 
@@ -167,7 +167,7 @@ def bench_canonical(c: CLoop, work: Path, rounds: int) -> dict:  # type: ignore[
 
 def bench_inprocess(grid, c: CLoop, quick: bool) -> dict:  # type: ignore[type-arg, no-untyped-def]
     """Engines in this process (no start-up): all threads and one thread, CPU time per run."""
-    from esoarm import batch, fast
+    from esoarm.engines import batch, fast
 
     pts, seeds = list(grid.points), grid.seeds
     batch.run_metrics(pts[:1], seeds=[0])
@@ -204,8 +204,8 @@ def bench_inprocess(grid, c: CLoop, quick: bool) -> dict:  # type: ignore[type-a
 
 def bench_python(grid, n: int) -> dict:  # type: ignore[type-arg, no-untyped-def]
     """(a) the plain-Python reference loop on n runs, extrapolated; bit identity of exact."""
-    from esoarm import batch
-    from esoarm.simulation import prepare, run_reference
+    from esoarm.engines import batch
+    from esoarm.engines.simulation import prepare, run_reference
 
     idx = np.linspace(0, len(grid.points) - 1, n).astype(int)
     scns = [grid.points[i].with_overrides({"sensor.seed": int(k % len(grid.seeds))})
@@ -295,7 +295,7 @@ def bench_million(work: Path, runs: int) -> dict:  # type: ignore[type-arg]
 def bench_tune() -> list[dict]:  # type: ignore[type-arg]
     """What ``esoarm tune`` finds for ε on the twin, for several prices w of control."""
     from esoarm.scenario import load_scenario
-    from esoarm.tune import DEFAULT_OBJECTIVE, Objective, parse_bound, tune
+    from esoarm.studies.tune import DEFAULT_OBJECTIVE, Objective, parse_bound, tune
 
     out = []
     cases = [("test-1", 0.1, ()), ("test-1", 1.0, ()), ("test-1", 10.0, ()), ("test-2", 1.0, ()),

@@ -1,6 +1,6 @@
 """The opt-in fast engine against the exact engine.
 
-Contract (docs/benchmarks.md, ``esoarm.fast``): relative difference ≤ 1e-9 on
+Contract (docs/benchmarks.md, ``esoarm.engines.fast``): relative difference ≤ 1e-9 on
 every metric wherever no quantization boundary is crossed (checked with
 ``sensor.resolution_deg = 0`` over every discretization and setting); with a
 quantizing encoder, a run may differ when a measurement lands on the other
@@ -15,7 +15,7 @@ import ctypes
 import numpy as np
 import pytest
 
-from esoarm import batch, fast
+from esoarm.engines import batch, fast
 from esoarm.scenario import builtin_names, load_scenario
 
 pytestmark = pytest.mark.skipif(not fast.available(),

@@ -1,6 +1,6 @@
 """Opt-in fast engine: blocks of runs on a vectorized C kernel (``--engine fast``).
 
-The exact engine (:mod:`esoarm.batch`) is bit-identical to the reference
+The exact engine (:mod:`esoarm.engines.batch`) is bit-identical to the reference
 engine and stays the default.  This engine trades the last bits for speed: it
 advances a block of 64 runs together, runs as the innermost loop, and lets the
 C compiler turn that loop into SIMD code that calls glibc's vector ``tanh``
@@ -44,12 +44,12 @@ from pathlib import Path
 
 import numpy as np
 
-from esoarm import batch as _batch
-from esoarm import controller as _ctl
-from esoarm import observer as _obs
-from esoarm import rig as _rig
+from esoarm.controllers import flc as _ctl
+from esoarm.engines import batch as _batch
+from esoarm.engines.simulation import DIVERGENCE_LIMIT
+from esoarm.observers import linear as _obs
+from esoarm.plants import lever_arm as _rig
 from esoarm.scenario import Scenario
-from esoarm.simulation import DIVERGENCE_LIMIT
 
 __all__ = [
     "FastEngineUnavailable",
@@ -305,7 +305,7 @@ def run_metrics(
     progress: Callable[[int], None] | None = None,
     _noise_cache: _batch._NoiseCache | None = None,
 ) -> _batch.MetricsTable:
-    """The fast counterpart of :func:`esoarm.batch.run_metrics` (same arguments, same table).
+    """Fast counterpart of :func:`esoarm.engines.batch.run_metrics`: same arguments and table.
 
     Parameters
     ----------
@@ -367,5 +367,5 @@ def run_metrics(
     return _batch.MetricsTable(out)
 
 
-if __name__ == "__main__":  # pragma: no cover - manual check: python -m esoarm.fast
+if __name__ == "__main__":  # pragma: no cover - manual check: python -m esoarm.engines.fast
     print(load_kernel(), file=sys.stderr)

@@ -9,7 +9,7 @@ each grid point with ``sensor.seed`` = 0 … K−1 (seed fastest).  SPEC is
 * ``lin:START:STOP:NUM`` -- ``numpy.linspace(START, STOP, NUM)``,
 * ``geom:START:STOP:NUM`` -- ``numpy.geomspace(START, STOP, NUM)``.
 
-Only metrics are kept (:data:`esoarm.batch.METRICS`), so memory does not grow
+Only metrics are kept (:data:`esoarm.engines.batch.METRICS`), so memory does not grow
 with runs × samples.  The work is cut into chunks of whole grid points; chunks
 run in this process on all cores (numba threads) or, given a scheduler
 address, as tasks on a Dask distributed cluster.  Every run is independent and
@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from esoarm._io import atomic_path
-from esoarm.batch import METRICS, MetricsTable, _NoiseCache
+from esoarm.engines.batch import METRICS, MetricsTable, _NoiseCache
 from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
 
 __all__ = [
@@ -294,18 +294,18 @@ _CHUNK_LOCK = threading.Lock()
 
 #: Engines a sweep (or a tuning run) can use: "exact" (the default, bit-identical
 #: to the reference engine) and "fast" (vectorized, agrees to round-off; see
-#: :mod:`esoarm.fast`).
+#: :mod:`esoarm.engines.fast`).
 ENGINES: tuple[str, ...] = ("exact", "fast")
 
 
 def metrics_runner(engine: str = "exact") -> Callable[..., MetricsTable]:
     """The ``run_metrics`` function of an engine (``"exact"`` or ``"fast"``)."""
     if engine == "exact":
-        from esoarm.batch import run_metrics
+        from esoarm.engines.batch import run_metrics
 
         return run_metrics
     if engine == "fast":
-        from esoarm.fast import run_metrics as run_fast
+        from esoarm.engines.fast import run_metrics as run_fast
 
         return run_fast
     raise ValueError(f"engine must be one of {', '.join(ENGINES)}; got {engine!r}")
@@ -352,7 +352,7 @@ def iter_sweep(
         Runs per chunk (rounded to whole grid points); default
         :data:`LOCAL_CHUNK` or :data:`DASK_CHUNK`.
     engine : {"exact", "fast"}
-        :data:`ENGINES`; "fast" agrees with "exact" to round-off (:mod:`esoarm.fast`).
+        :data:`ENGINES`; "fast" agrees with "exact" to round-off (:mod:`esoarm.engines.fast`).
     """
     run_metrics = metrics_runner(engine)
     per_point = max(len(grid.seeds), 1)

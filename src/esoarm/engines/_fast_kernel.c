@@ -1,8 +1,8 @@
 /*
- * esoarm fast engine: the sampled-data closed loop of esoarm.simulation for a
+ * esoarm fast engine: the sampled-data closed loop of esoarm.engines.simulation for a
  * block of LANES runs advanced together, runs as the innermost loop.
  *
- * Built at run time by esoarm.fast with the system C compiler:
+ * Built at run time by esoarm.engines.fast with the system C compiler:
  *     cc -O3 -march=native -ffast-math -fopenmp-simd -fPIC -c   (then linked without
  *     -ffast-math, so the library does not switch the process to flush-to-zero)
  * Under -ffast-math glibc declares tanh, cos and sin as SIMD functions and the
@@ -11,7 +11,7 @@
  * documented and tested tolerance), not bit for bit: vector transcendentals
  * and re-associated arithmetic differ from libm in the last bits.
  *
- * Semantics per sample k and run (see esoarm.simulation.run_reference):
+ * Semantics per sample k and run (see esoarm.engines.simulation.run_reference):
  *   y = Q(theta + sigma n_k); zhat from the ESO; u = sat(FLC(zhat, ref_k));
  *   metrics of e = theta - ref, u, zhat3 - f; ESO update; rig RK4 over Ts with
  *   u_{k-delay} held, d(t) = damp sin(dfreq t) at each stage time.
@@ -21,7 +21,7 @@
  *
  * Divergence (a value not finite, |theta| or |z1| >= limit) is detected with
  * bit tests, which -ffinite-math-only cannot optimise away.  The metrics of a
- * diverged lane are not trusted: esoarm.fast re-runs such runs on the exact
+ * diverged lane are not trusted: esoarm.engines.fast re-runs such runs on the exact
  * engine.
  */
 #include <math.h>

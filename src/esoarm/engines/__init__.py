@@ -1,0 +1,6 @@
+"""Engines: run the sampled-data closed loop.
+
+``simulation``   the readable reference engine (plain Python, one run)
+``batch``        the compiled engine (numba, many runs in parallel), bit-identical to it
+``fast``         the opt-in fast engine (a vectorized C kernel), agrees to round-off
+"""
