@@ -303,7 +303,7 @@ def run_metrics(
     workers: int | None = None,
     chunk: int = DEFAULT_CHUNK,
     progress: Callable[[int], None] | None = None,
-    _noise_cache: _batch._NoiseCache | None = None,
+    _noise_cache: _batch.NoiseCache | None = None,
 ) -> _batch.MetricsTable:
     """Fast counterpart of :func:`esoarm.engines.batch.run_metrics`: same arguments and table.
 
@@ -349,7 +349,7 @@ def run_metrics(
     else:
         runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
     out = np.empty((len(runs), len(_batch.METRICS)))
-    noise_cache = _noise_cache or _batch._NoiseCache()
+    noise_cache = _noise_cache or _batch.NoiseCache()
     for start in range(0, len(runs), chunk):
         part = runs[start : start + chunk]
         used = sorted({pi for pi, _ in part})

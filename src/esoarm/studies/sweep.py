@@ -9,7 +9,7 @@ each grid point with ``sensor.seed`` = 0 … K−1 (seed fastest).  SPEC is
 * ``lin:START:STOP:NUM`` -- ``numpy.linspace(START, STOP, NUM)``,
 * ``geom:START:STOP:NUM`` -- ``numpy.geomspace(START, STOP, NUM)``.
 
-Only metrics are kept (:data:`esoarm.engines.batch.METRICS`), so memory does not grow
+Only metrics are kept (:data:`esoarm.engines.metrics.METRICS`), so memory does not grow
 with runs × samples.  The work is cut into chunks of whole grid points; chunks
 run in this process on all cores (numba threads) or, given a scheduler
 address, as tasks on a Dask distributed cluster.  Every run is independent and
@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from esoarm._io import atomic_path
-from esoarm.engines.batch import METRICS, MetricsTable, _NoiseCache
+from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache, reference_metrics
 from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
 
 __all__ = [
@@ -298,12 +298,30 @@ _CHUNK_LOCK = threading.Lock()
 ENGINES: tuple[str, ...] = ("exact", "fast")
 
 
-def metrics_runner(engine: str = "exact") -> Callable[..., MetricsTable]:
-    """The ``run_metrics`` function of an engine (``"exact"`` or ``"fast"``)."""
-    if engine == "exact":
-        from esoarm.engines.batch import run_metrics
+#: Up to this many runs the exact engine runs on the reference loop (same
+#: numbers): loading numba and the compiled kernels costs more than the runs.
+REFERENCE_RUNS = 3
 
-        return run_metrics
+
+def _run_exact(points: Sequence[Scenario], seeds: Sequence[int] | None = None,
+               **kwargs: Any) -> MetricsTable:
+    runs = len(points) * (len(seeds) if seeds is not None else 1)
+    if runs <= REFERENCE_RUNS:
+        return reference_metrics(points, seeds, progress=kwargs.get("progress"))
+    from esoarm.engines.batch import run_metrics
+
+    return run_metrics(points, seeds, **kwargs)
+
+
+def metrics_runner(engine: str = "exact") -> Callable[..., MetricsTable]:
+    """The ``run_metrics`` function of an engine (``"exact"`` or ``"fast"``).
+
+    "exact" is :func:`esoarm.engines.batch.run_metrics`, except that a call of
+    at most :data:`REFERENCE_RUNS` runs uses the reference engine (identical
+    numbers, no compiled kernel to load).
+    """
+    if engine == "exact":
+        return _run_exact
     if engine == "fast":
         from esoarm.engines.fast import run_metrics as run_fast
 
@@ -359,7 +377,7 @@ def iter_sweep(
     seeds = list(grid.seeds) or None
     if scheduler is None:
         ranges = _chunks(grid, chunk or LOCAL_CHUNK)
-        noise_cache = _NoiseCache()  # each seed's noise drawn once for the whole sweep
+        noise_cache = NoiseCache()  # each seed's noise drawn once for the whole sweep
         for lo, hi in ranges:
             table = run_metrics(grid.points[lo:hi], seeds, workers=workers,
                                 _noise_cache=noise_cache)
