@@ -1,0 +1,1 @@
+"""Studies built on the twin and the rig: identification experiments and fits."""
