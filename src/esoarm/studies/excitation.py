@@ -37,9 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esoarm.controller import saturate
-from esoarm.model import input_gain
-from esoarm.observer import ExtendedStateObserver, design_observer
+from esoarm.controllers.flc import saturate
+from esoarm.plants.model import input_gain
+from esoarm.observers.linear import ExtendedStateObserver, design_observer
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["ExcitationController", "ExcitationPlan", "excitation_signal", "plan_text",

@@ -44,8 +44,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from esoarm.model import gravity_coefficient
-from esoarm.rig import DAMP, DFREQ, FC, GCOEF, INERTIA, LAG, VECTOR_SIZE, VISC, VS
+from esoarm.plants.model import gravity_coefficient
+from esoarm.plants.lever_arm import DAMP, DFREQ, FC, GCOEF, INERTIA, LAG, VECTOR_SIZE, VISC, VS
 from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.identify_data import IdentLog, segments, simulate_segments
 
@@ -170,7 +170,7 @@ class _Problem:
         offset = 0
         for log in logs:
             if self.motor is not None:
-                from esoarm.hardware.motor import MotorParams
+                from esoarm.plants.motor import MotorParams
 
                 mp = MotorParams.from_scenario(scn)
                 raw = np.array([mp.effective_fraction(int(d)) for d in log.duty])  # type: ignore

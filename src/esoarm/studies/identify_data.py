@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from esoarm.rig import rig_advance
+from esoarm.plants.lever_arm import rig_advance
 from esoarm.scenario import ScenarioError
 
 __all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "read_ident_log", "simulate_segments"]
