@@ -38,8 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from esoarm.controllers.flc import saturate
-from esoarm.plants.model import input_gain
 from esoarm.observers.linear import ExtendedStateObserver, design_observer
+from esoarm.plants.model import input_gain
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["ExcitationController", "ExcitationPlan", "excitation_signal", "plan_text",
@@ -77,10 +77,10 @@ class ExcitationPlan:
     f_min: float = 0.1
     f_max: float = 5.0
     n_tones: int = 24
-    sweep: float = 0.8
+    sweep: float = 0.6
     sweep_period: float = 20.0
-    kp: float = 0.5
-    kd: float = 0.04
+    kp: float = 1.0
+    kd: float = 0.05
     seed: int = 0
 
     def check(self, ts: float) -> None:
@@ -159,7 +159,8 @@ class ExcitationController:
         design = design_observer(scn.observer.eps, self.ts, input_gain(scn.plant.inertia),
                                  scn.observer.discretization)
         # the same numbers as Python floats (plain floats in the log, no NumPy boxing)
-        self._design = dataclasses.replace(design, vector=tuple(design.vector.tolist()))
+        self._design = dataclasses.replace(
+            design, vector=tuple(design.vector.tolist()))  # type: ignore[arg-type]
         self.eso: ExtendedStateObserver | None = None
         self.zhat: tuple[float, float, float] = (math.nan, math.nan, math.nan)
 

@@ -1,6 +1,6 @@
 """Grey-box identification of the rig from logs (``esoarm identify``).
 
-The model is the twin's rig (:mod:`esoarm.rig`), its parameters read as
+The model is the twin's rig (:mod:`esoarm.plants.lever_arm`), its parameters read as
 scenario keys:
 
 =========================  =======================================  ============
@@ -45,30 +45,20 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from esoarm.plants.model import gravity_coefficient
-from esoarm.plants.lever_arm import DAMP, DFREQ, FC, GCOEF, INERTIA, LAG, VECTOR_SIZE, VISC, VS
 from esoarm.scenario import Scenario, ScenarioError
-from esoarm.studies.identify_data import IdentLog, segments, simulate_segments
+from esoarm.studies.identify_data import IdentLog
+from esoarm.studies.identify_fit import PARAMS, Problem
 
 __all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
 
-#: Parameters that can be fitted, in order: scenario key -> (label, unit, scale, bounds, advice).
-PARAMS: dict[str, tuple[str, str, float, tuple[float, float], str]] = {
-    "rig.inertia_scale": ("true inertia / plant.inertia", "1", 1.0, (0.02, 50.0),
-                          "more high-frequency torque (raise --f-max or --amplitude)"),
-    "plant.m2": ("lumped mass 2 (gravity coefficient)", "kg", 0.05, (0.0, 50.0),
-                 "a larger, slower angle sweep so that cos θ varies (raise --sweep)"),
-    "rig.coulomb_friction": ("Coulomb friction Fc", "N·m", 0.05, (0.0, 10.0),
-                             "more slow reversals of the rate (lower --f-min, more tones)"),
-    "rig.viscous_friction": ("viscous friction b", "N·m·s/rad", 0.01, (0.0, 10.0),
-                             "a wider range of speeds (raise --amplitude at low frequencies)"),
-    "actuator.lag": ("actuator lag T", "s", 0.01, (0.0, 1.0),
-                     "tones near and above 1/(2πT) (raise --f-max)"),
-    "motor.torque_constant": ("motor torque constant Kt", "N·m/A", 0.02, (1e-6, 10.0),
-                              "more torque amplitude (raise --amplitude)"),
-}
 DELAY_KEY = "actuator.delay_samples"
 NOISE_KEY = "sensor.noise_deg"
 FREE_KEYS = (*PARAMS, DELAY_KEY)
+#: Why the inertia is held by default with a ``[motor]`` table.
+MOTOR_SCALE_NOTE = (
+    "held: with a [motor] table the angle determines only ratios to the inertia (stall torque, "
+    "friction and gravity scale with it; the known disturbance alone anchors the scale); give "
+    "the inertia, or --fix motor.torque_constant to fit the inertia instead")
 #: χ²₁ 95 % quantile (likelihood-ratio tests of the delay and the lag).
 CHI2_95 = 3.841458820694124
 #: A parameter is flagged poorly identifiable beyond this relative 95 % half-width.
@@ -155,203 +145,6 @@ class IdentResult:
         return scn.with_overrides(over)
 
 
-class _Problem:
-    """Residuals and Jacobian of the segment output-error problem for one structure."""
-
-    def __init__(self, scn: Scenario, logs: list[IdentLog], seg_samples: int, delay: int,
-                 start: int, free: list[str], fixed: dict[str, float]) -> None:
-        self.scn, self.free, self.fixed = scn, free, fixed
-        self.motor = scn.motor
-        ts = logs[0].ts
-        self.h = scn.rig.step
-        self.nsub = max(1, int(round(ts / self.h)))
-        self.h = ts / self.nsub
-        base, ts_all, ys, starts, lens = [], [], [], [], []
-        offset = 0
-        for log in logs:
-            if self.motor is not None:
-                from esoarm.plants.motor import MotorParams
-
-                mp = MotorParams.from_scenario(scn)
-                raw = np.array([mp.effective_fraction(int(d)) for d in log.duty])  # type: ignore
-            else:
-                raw = log.u
-            shifted = np.zeros(log.n)
-            shifted[delay:] = raw[: log.n - delay] if delay else raw
-            base.append(shifted)
-            ts_all.append(log.t)
-            ys.append(log.y)
-            s, ln = segments(log.n, seg_samples, start)
-            starts.append(s + offset)
-            lens.append(ln)
-            offset += log.n
-        self.base = np.concatenate(base)
-        self.t = np.concatenate(ts_all)
-        self.y = np.concatenate(ys)
-        self.seg_start = np.concatenate(starts)
-        self.seg_len = np.concatenate(lens)
-        rows = np.zeros(len(self.y), dtype=bool)
-        for s, ln in zip(self.seg_start, self.seg_len, strict=True):
-            rows[s:s + ln] = True
-        self.mask = rows & np.isfinite(self.y)
-        self.n_phys = len(free)
-        self.n_seg = len(self.seg_start)
-        self._out = np.empty(len(self.y))
-
-    # -- parameters ----------------------------------------------------------
-    def phys(self, x: np.ndarray) -> dict[str, float]:
-        values = dict(self.fixed)
-        values.update(zip(self.free, x[: self.n_phys].tolist(), strict=True))
-        return values
-
-    def rig_and_source(self, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
-        scn = self.scn
-        p, r = scn.plant, scn.rig
-        rig = np.empty(VECTOR_SIZE)
-        rig[INERTIA] = values["rig.inertia_scale"] * p.inertia
-        rig[GCOEF] = gravity_coefficient(p.m1, values["plant.m2"], p.l1, p.l2, p.g)
-        rig[FC] = values["rig.coulomb_friction"]
-        rig[VS] = r.friction_velocity
-        rig[VISC] = values["rig.viscous_friction"]
-        rig[DAMP] = r.disturbance.amplitude
-        rig[DFREQ] = r.disturbance.frequency
-        rig[LAG] = values["actuator.lag"]
-        src = self.base
-        if self.motor is not None:
-            m = self.motor
-            nkt = m.gear_ratio * values["motor.torque_constant"]
-            src = self.base * (nkt * m.supply_voltage / m.resistance)
-            rig[VISC] += nkt * nkt / m.resistance
-        return rig, src
-
-    def initial_states(self) -> np.ndarray:
-        x0 = np.empty(2 * self.n_seg)
-        y, ts = self.y, self.t[1] - self.t[0]
-        for s, k0 in enumerate(self.seg_start):
-            window = y[k0:k0 + 5]
-            good = np.isfinite(window)
-            x0[2 * s] = window[good][0] if good.any() else 0.0
-            x0[2 * s + 1] = (np.polyfit(np.arange(5)[good] * ts, window[good], 1)[0]
-                             if good.sum() >= 2 else 0.0)
-        return x0
-
-    # -- model ---------------------------------------------------------------
-    def predict(self, x: np.ndarray) -> np.ndarray:
-        rig, src = self.rig_and_source(self.phys(x))
-        out = self._out
-        simulate_segments(out, rig, src, self.t, self.seg_start, self.seg_len,
-                          np.ascontiguousarray(x[self.n_phys:]), self.h, self.nsub)
-        return out.copy()
-
-    def residual(self, x: np.ndarray) -> np.ndarray:
-        r = (self.predict(x) - self.y)[self.mask]
-        return np.where(np.isfinite(r), r, 1e3)
-
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        base = self.predict(x)
-        cols = np.zeros((len(self.y), len(x)))
-        scales = self.scales()
-        for i in range(self.n_phys):
-            step = 1e-6 * max(abs(x[i]), scales[i])
-            if x[i] + step > PARAMS[self.free[i]][3][1]:
-                step = -step
-            xp = x.copy()
-            xp[i] += step
-            cols[:, i] = (self.predict(xp) - base) / step
-        seg_of = np.repeat(np.arange(self.n_seg), self.seg_len)
-        rows = np.concatenate([np.arange(s, s + n) for s, n in zip(self.seg_start, self.seg_len,
-                                                                   strict=True)])
-        for j, step in ((0, 1e-6), (1, 1e-5)):
-            xp = x.copy()
-            xp[self.n_phys + j::2] += step
-            diff = (self.predict(xp) - base) / step
-            cols[rows, self.n_phys + 2 * seg_of + j] = diff[rows]
-        jac = cols[self.mask]
-        return np.where(np.isfinite(jac), jac, 0.0)
-
-    def scales(self) -> np.ndarray:
-        phys = [PARAMS[k][2] for k in self.free]
-        return np.array(phys + [0.1, 1.0] * self.n_seg)
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        lo = [PARAMS[k][3][0] for k in self.free] + [-np.inf] * (2 * self.n_seg)
-        hi = [PARAMS[k][3][1] for k in self.free] + [np.inf] * (2 * self.n_seg)
-        if "actuator.lag" in self.free:
-            lo[self.free.index("actuator.lag")] = 2.0 * self.h  # RK4 needs T ≳ 2h
-        return np.array(lo), np.array(hi)
-
-    def solve(self, x_start: np.ndarray, max_iter: int = 60) -> _Solution:
-        """Projected Levenberg-Marquardt from ``x_start`` (see :func:`_levenberg_marquardt`)."""
-        lo, hi = self.bounds()
-        return _levenberg_marquardt(self.residual, self.jacobian, np.clip(x_start, lo, hi), lo,
-                                    hi, max_iter)
-
-
-@dataclass
-class _Solution:
-    x: np.ndarray
-    fun: np.ndarray
-    jac: np.ndarray
-    cost: float  # ½‖r‖²
-    converged: bool
-    iterations: int
-    message: str
-
-
-def _levenberg_marquardt(fun, jac, x, lo, hi, max_iter):  # type: ignore[no-untyped-def]
-    """Levenberg-Marquardt with Marquardt's diagonal scaling, steps projected on the bounds.
-
-    Written out (instead of scipy's trust-region solvers) because the problem is
-    small in columns and long in rows: the normal equations are formed once per
-    iteration in O(M P²), with no SVD of the M × P Jacobian.  Stops when an
-    iteration moves every parameter by less than 1 % of its standard error
-    (or lowers the cost by less than 1e-12 relative), or when no damping gives
-    a decrease.
-    """
-    r = fun(x)
-    cost = float(r @ r)
-    lam = 1e-3
-    it = 0
-    message = "iteration limit reached"
-    converged = False
-    for it in range(1, max_iter + 1):  # noqa: B007
-        J = jac(x)
-        A = J.T @ J
-        g = J.T @ r
-        d = np.maximum(np.diag(A), 1e-12 * max(float(np.max(np.diag(A))), 1e-300))
-        while True:
-            try:
-                step = np.linalg.solve(A + lam * np.diag(d), -g)
-            except np.linalg.LinAlgError:
-                step = np.full_like(x, np.nan)
-            xn = np.clip(x + step, lo, hi)
-            rn = fun(xn) if np.all(np.isfinite(xn)) else np.full_like(r, np.inf)
-            cn = float(rn @ rn)
-            if np.isfinite(cn) and cn <= cost:
-                break
-            lam *= 4.0
-            if lam > 1e12:
-                break
-        if not (np.isfinite(cn) and cn <= cost):
-            converged = True  # no damping lowers the cost: a (local) minimum
-            message = "no further decrease"
-            break
-        # stop when the step is a hundredth of a standard error (its statistical size)
-        s2 = cn / max(len(r) - len(x), 1)
-        try:
-            se = np.sqrt(np.maximum(s2 * np.diag(np.linalg.inv(A)), 0.0))
-        except np.linalg.LinAlgError:
-            se = np.abs(x) + 1e-8
-        small_step = bool(np.all(np.abs(xn - x) <= 1e-2 * se + 1e-14))
-        small_drop = cost - cn <= 1e-12 * cost
-        x, r, cost = xn, rn, cn
-        lam = max(lam / 3.0, 1e-9)
-        if small_step or small_drop:
-            converged = True
-            message = "converged"
-            break
-    return _Solution(x, r, jac(x), 0.5 * cost, converged, it, message)
-
 def _values(scn: Scenario) -> dict[str, float]:
     """The scenario's values of every fittable key (the starting point of the fit)."""
     motor = scn.motor
@@ -412,6 +205,8 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
             raise ScenarioError(f"log '{log.path}': sampled every {log.ts:g} s but "
                                 f"sensor.rate_hz = {scn.sensor.rate_hz:g}; use --set "
                                 f"sensor.rate_hz={1.0 / log.ts:g}")
+    if scn.motor is not None and not {"rig.inertia_scale", "motor.torque_constant"} & set(fix):
+        fix = (*fix, "rig.inertia_scale")  # see MOTOR_SCALE_NOTE
     fit_logs, val_logs = _split(logs, validation, validate_fraction)
     seg_samples = max(5, int(round(segment / ts)))
     if min(log.n for log in fit_logs) < max_delay + seg_samples:
@@ -427,7 +222,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
 
     def fit(delay: int, names: list[str], fixed: dict[str, float], x_phys: list[float],
             x_states: np.ndarray | None, max_iter: int = 60):  # type: ignore[no-untyped-def]
-        prob = _Problem(scn, fit_logs, seg_samples, delay, start, names, fixed)
+        prob = Problem(scn, fit_logs, seg_samples, delay, start, names, fixed)
         states = prob.initial_states() if x_states is None else x_states
         return prob, prob.solve(np.concatenate([x_phys, states]), max_iter)
 
@@ -456,6 +251,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         names = [*base_free, "actuator.lag"]
         lag_lo = 2.0 * prob.h
         best_lag = None
+        lag_rejected = None
         for d in [dd for dd in (d_best, d_best - 1) if dd in cost]:
             say(f"fitting the actuator lag with delay {d} sample(s)")
             x_phys = [*sol.x[: prob.n_phys], max(ts / 2.0, 3.0 * lag_lo)]
@@ -469,11 +265,16 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
                 prob, sol = fit(d_best, names, nominal, list(sol.x[: prob.n_phys]),
                                 sol.x[prob.n_phys:])
             cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
+        elif best_lag is not None:
+            lag_rejected = float(best_lag[1].x[len(base_free)])
+    else:
+        lag_rejected = None
     if not (sol.converged and np.isfinite(sol.cost)) or np.any(sol.fun >= 1e3):
         raise FitFailed(f"the fit did not converge ({sol.message} after {sol.iterations} "
                         "iterations); try other starting values (--set) or a longer, richer "
                         "log (esoarm excite)")
-    estimates, gravity, resid_s = _estimates(scn, prob, sol, m, nominal, cost, d_best, delays)
+    estimates, gravity, resid_s = _estimates(scn, prob, sol, m, cost, d_best, delays,
+                                             lag_rejected)
     val = _validate(scn, prob.phys(sol.x), val_logs, seg_samples, d_best, start) if val_logs else {}
     y_fit = prob.predict(sol.x)
     mask = prob.mask
@@ -494,7 +295,7 @@ def _fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:
     return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / np.linalg.norm(y - np.mean(y))))
 
 
-def _estimates(scn, prob, sol, m, nominal, cost, d_best, delays):  # type: ignore[no-untyped-def]
+def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: ignore[no-untyped-def]
     jac = sol.jac
     p = jac.shape[1]
     dof = max(m - p, 1)
@@ -509,6 +310,9 @@ def _estimates(scn, prob, sol, m, nominal, cost, d_best, delays):  # type: ignor
         half = 1.96 * float(se[i])
         others = [prob.free[j] for j in range(prob.n_phys) if j != i and abs(corr[i, j]) > 0.98]
         poor = not half <= POOR_REL * max(abs(v), 0.1 * scale) or bool(others)
+        if key == "rig.viscous_friction" and scn.motor is not None:
+            advice = ("with a [motor] table b adds to the back-EMF damping (N·Kt)²/R; only "
+                      "their sum is well determined")
         note = advice + (f"; strongly correlated with {', '.join(others)}" if others else "")
         out[key] = Estimate(key, v, (v - half, v + half), unit, label, True, not poor,
                             note if poor else "")
@@ -516,13 +320,13 @@ def _estimates(scn, prob, sol, m, nominal, cost, d_best, delays):  # type: ignor
         if key not in out and (scn.motor is not None or key != "motor.torque_constant"):
             label, unit, *_ = PARAMS[key]
             v = prob.fixed[key]
-            held = key != "actuator.lag" or key in prob.fixed and key not in prob.free
-            out[key] = Estimate(key, v, (v, v), unit, label, False, True,
-                                "held at the scenario's value" if held else "")
-    if "actuator.lag" in out and not out["actuator.lag"].fitted and len(cost) >= 1 \
-            and nominal["actuator.lag"] != out["actuator.lag"].value:
-        out["actuator.lag"] = Estimate("actuator.lag", 0.0, (0.0, 0.0), "s", PARAMS[
-            "actuator.lag"][0], True, True, "")
+            note = MOTOR_SCALE_NOTE if key == "rig.inertia_scale" and scn.motor else \
+                "held at the scenario's value"
+            out[key] = Estimate(key, v, (v, v), unit, label, False, True, note)
+    if lag_rejected is not None:  # fitted, and T = 0 won the likelihood-ratio test
+        out["actuator.lag"] = Estimate(
+            "actuator.lag", 0.0, (0.0, lag_rejected), "s", PARAMS["actuator.lag"][0], True, True,
+            "")
     best = cost[d_best] if d_best in cost else min(cost.values())
     inside = [d for d in delays if m * math.log(cost[d] / best) <= CHI2_95] or [d_best]
     out[DELAY_KEY] = Estimate(DELAY_KEY, float(d_best), (float(min(inside)), float(max(inside))),
@@ -555,7 +359,7 @@ def _validate(scn, values, logs, seg_samples, delay, start):  # type: ignore[no-
     Returns fit % of the measured angle, the residual RMS [rad] and a whiteness
     test: the residual's autocorrelation at lags 1 … 20 against ±1.96/√M.
     """
-    prob = _Problem(scn, logs, seg_samples, delay, start, [], values)
+    prob = Problem(scn, logs, seg_samples, delay, start, [], values)
     sol = prob.solve(prob.initial_states())
     yhat = prob.predict(sol.x)
     mask = prob.mask

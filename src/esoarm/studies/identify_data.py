@@ -13,7 +13,7 @@ continuity constraints): the arm is nearly neutrally stable, so one open-loop
 simulation over a whole minute would drift away from the data for any error
 in the friction, while a horizon of a few seconds keeps the problem well
 conditioned and still sees every parameter.  The simulator is
-:func:`esoarm.rig.rig_advance` -- the twin's own RK4 integration of the rig --
+:func:`esoarm.plants.lever_arm.rig_advance` -- the twin's own RK4 integration of the rig --
 compiled with numba, one sample at a time with the input held (SPEC-style
 zero-order hold, transport delay applied to the input sequence).
 """
@@ -174,7 +174,7 @@ def simulate_segments(out, rig, src, t, seg_start, seg_len, x0, h, nsub):  # pra
     Segment s starts at sample ``seg_start[s]`` from θ = x0[2s], θ̇ = x0[2s+1]
     (the lag state τ from the previous applied torque), and holds the applied
     torque ``src[k]`` [N·m] over [t_k, t_k + nsub·h) -- the twin's
-    :func:`esoarm.rig.rig_advance`.
+    :func:`esoarm.plants.lever_arm.rig_advance`.
     """
     for s in range(len(seg_start)):
         k0 = seg_start[s]
