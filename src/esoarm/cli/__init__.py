@@ -38,6 +38,10 @@ COMMANDS: dict[str, str] = {
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
     "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",
+    "excite": "Record an identification experiment on the rig at PORT or on the twin of "
+              "SCENARIO.",
+    "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "
+                "error).",
     "replay": "Run the ESO offline over LOG.csv to recover velocity and perturbation estimates.",
     "reproduce": "Run the paper's experiments on the digital twin and compare with its tables.",
     "run": "Drive the rig on PORT through SCENARIO at its rate for its duration.",
