@@ -16,8 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from esoarm.engines import batch
+from esoarm.engines.metrics import pairwise_sum
 from esoarm.engines.simulation import SimulationDiverged, prepare, run_reference
-from esoarm.metrics import pairwise_sum
 from esoarm.scenario import builtin_names, load_scenario
 
 RTOL = 1e-12
@@ -75,7 +75,7 @@ def test_metrics_match_reference(name: str) -> None:
     for i, scn in enumerate(scns):
         ref = run_reference(scn, prepare(scn))
         row = table.row(i)
-        # the metrics' definitions, written out here independently of esoarm.metrics
+        # the metrics' definitions, written out here independently of esoarm.engines.metrics
         expected = {
             "rms_error": float(np.sqrt(np.mean(ref.error**2))),
             "rms_u": float(np.sqrt(np.mean(ref.u**2))),

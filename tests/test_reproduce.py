@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from esoarm.metrics import LOG_ROWS
+from esoarm.engines.metrics import LOG_ROWS
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.result import SimResult
 from esoarm.studies.reproduce import (

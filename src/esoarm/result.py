@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from esoarm._io import atomic_path
-from esoarm.metrics import (
+from esoarm.engines.metrics import (
     ERR,
     NROW,
     OM,
@@ -30,7 +30,7 @@ if TYPE_CHECKING:
 
 __all__ = ["CSV_COLUMNS", "SimResult", "write_csv_atomic"]
 
-#: Time-series CSV columns, SI units (see :data:`esoarm.metrics.SERIES_COLUMNS`).
+#: Time-series CSV columns, SI units (see :data:`esoarm.engines.metrics.SERIES_COLUMNS`).
 CSV_COLUMNS = SERIES_COLUMNS
 
 
@@ -75,7 +75,7 @@ class SimResult:
     diverged : bool
         The run left the finite range (the series end at that sample).
     metrics : dict
-        :data:`esoarm.metrics.METRICS` of the run.
+        :data:`esoarm.engines.metrics.METRICS` of the run.
     """
 
     scenario: Scenario
@@ -95,7 +95,7 @@ class SimResult:
     @classmethod
     def from_log(cls, scenario: Scenario, t: np.ndarray, log: np.ndarray,
                  diverged: bool = False) -> SimResult:
-        """Build from an engine log: rows :data:`esoarm.metrics.LOG_ROWS`, one column per sample.
+        """Build from an engine log (rows :data:`esoarm.engines.metrics.LOG_ROWS`, columns samples).
 
         A one-joint run; the rows are copied out of ``log``.
         """

@@ -18,9 +18,9 @@ Two modes:
   runs, each run keeps one scratch log while it runs, and the noise of a
   seed is drawn once and shared by every run that uses it.
 
-Metrics come from :func:`esoarm.metrics.log_metrics`, which sums in NumPy's
+Metrics come from :func:`esoarm.engines.metrics.log_metrics`, which sums in NumPy's
 pairwise order, so they are identical to the reference engine's
-(:func:`esoarm.metrics.series_metrics`), not merely close.
+(:func:`esoarm.engines.metrics.series_metrics`), not merely close.
 
 The kernels are compiled on first use and cached on disk (``cache=True``); the
 cache is keyed on the source of this module *and* of every physics module it
@@ -41,18 +41,20 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from esoarm import _jit
 from esoarm import kinds as _kinds
 from esoarm.engines.loop import closed_loop
+from esoarm.engines.metrics import METRICS, NMETRIC, NROW, MetricsTable, NoiseCache, log_metrics
 from esoarm.engines.simulation import (
     SimulationDiverged,
     diverged_message,
     prepare,
     run_reference,
 )
-from esoarm.metrics import METRICS, NMETRIC, NROW, log_metrics
-from esoarm.plants.sensor import noise_sequence
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario
+
+_jit.register_all()  # the physics above becomes callable from the kernels below
 
 __all__ = [
     "METRICS",
@@ -78,7 +80,7 @@ DEFAULT_CHUNK = 2048
 # cache keyed on the physics sources as well as this file
 
 _PHYSICS_DIRS = ("engines", "plants", "observers", "controllers")
-_PHYSICS_FILES = ("kinds.py", "metrics.py", "contract.py", "_jit.py")
+_PHYSICS_FILES = ("kinds.py", "contract.py", "_jit.py")
 
 
 def _physics_stamp() -> str:
@@ -227,19 +229,6 @@ class _Pack:
                 self.op, self.cp, self.ap, self.refs, self.noises)
 
 
-class _NoiseCache:
-    """Standard-normal sequences, drawn once per (seed, length) (the noise of every engine)."""
-
-    def __init__(self) -> None:
-        self._store: dict[tuple[int, int], np.ndarray] = {}
-
-    def get(self, seed: int, n: int, noise_deg: float) -> tuple[tuple[int, int], np.ndarray]:
-        key = (seed, n) if noise_deg > 0 else (-1, n)
-        if key not in self._store:
-            self._store[key] = noise_sequence(seed, n, noise_deg)
-        return key, self._store[key]
-
-
 def _stack(rows: list[np.ndarray], width: int | None = None) -> np.ndarray:
     """Rows of different lengths as one zero-padded 2-D array, at least ``width`` wide."""
     longest = max((len(r) for r in rows), default=1)
@@ -253,9 +242,9 @@ def _stack(rows: list[np.ndarray], width: int | None = None) -> np.ndarray:
 
 
 def _pack(points: Sequence[Scenario], runs: Sequence[tuple[int, int]],
-          noise_cache: _NoiseCache | None = None) -> _Pack:
+          noise_cache: NoiseCache | None = None) -> _Pack:
     """Pack ``points`` and ``runs`` = [(point index, seed), ...] for the kernels."""
-    noise_cache = noise_cache or _NoiseCache()
+    noise_cache = noise_cache or NoiseCache()
     p = len(points)
     fpar = np.empty((p, 4))
     ipar = np.empty((p, 7), dtype=np.int64)
@@ -263,7 +252,7 @@ def _pack(points: Sequence[Scenario], runs: Sequence[tuple[int, int]],
     ref_keys: dict[str, int] = {}
     ref_list: list[np.ndarray] = []
     for i, scn in enumerate(points):
-        inp = prepare(scn, draw_noise=False)  # noise is drawn once per seed (_NoiseCache)
+        inp = prepare(scn, draw_noise=False)  # noise is drawn once per seed (NoiseCache)
         fpar[i] = (inp.sigma, inp.q, inp.h, inp.ts)
         ipar[i, :3] = (len(inp.t), inp.nsub, inp.delay)
         ipar[i, 4:] = (inp.plant.n_joints, inp.observer.n_state, inp.controller.n_state)
@@ -324,30 +313,6 @@ class _threads:
 # public API
 
 
-@dataclass(frozen=True)
-class MetricsTable:
-    """Metrics of many runs: ``values[i]`` is run i, columns :data:`METRICS`.
-
-    Attributes
-    ----------
-    values : ndarray, shape (R, len(METRICS))
-        One row per run, in run order.
-    """
-
-    values: np.ndarray
-
-    def column(self, name: str) -> np.ndarray:
-        """One metric for every run (see :data:`METRICS` for names and units)."""
-        return self.values[:, METRICS.index(name)]
-
-    def row(self, i: int) -> dict[str, float]:
-        """Metrics of run ``i`` as a dict."""
-        return {name: float(v) for name, v in zip(METRICS, self.values[i], strict=True)}
-
-    def __len__(self) -> int:
-        return int(self.values.shape[0])
-
-
 def run_metrics(
     points: Sequence[Scenario],
     seeds: Sequence[int] | None = None,
@@ -355,7 +320,7 @@ def run_metrics(
     workers: int | None = None,
     chunk: int = DEFAULT_CHUNK,
     progress: Callable[[int], None] | None = None,
-    _noise_cache: _NoiseCache | None = None,
+    _noise_cache: NoiseCache | None = None,
 ) -> MetricsTable:
     """Run every point (× every seed) and keep only the metrics of each run.
 
@@ -384,7 +349,7 @@ def run_metrics(
     else:
         runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
     out = np.empty((len(runs), NMETRIC))
-    noise_cache = _noise_cache or _NoiseCache()
+    noise_cache = _noise_cache or NoiseCache()
     compiled = [_kinds.kinds_of(scn).jit for scn in points]
     with _threads(workers):
         for start in range(0, len(runs), chunk):
@@ -458,7 +423,7 @@ def simulate_many(
         result and the reference engine's message.
     """
     results: list[SimResult] = []
-    noise_cache = _NoiseCache()
+    noise_cache = NoiseCache()
     scenarios = list(scenarios)
     with _threads(workers):
         for start in range(0, len(scenarios), chunk):

@@ -10,7 +10,7 @@ registry's dispatch functions (:mod:`esoarm.kinds`).  One sample k, t_k = k·Ts:
 2. reference (θd, θ̇d, θ̈d) at t_k (precomputed, ``refs[:, k]``)
 3. estimate ẑ_k (observer kind), control (controller kind), saturate to
    ±torque_limit, through the actuator (motor: duty; :func:`esoarm.plants.actuator.actuate`)
-4. log row k (:data:`esoarm.metrics.LOG_ROWS`): true θ(t_k), θd, e_k = θ(t_k) − θd,
+4. log row k (:data:`esoarm.engines.metrics.LOG_ROWS`): true θ(t_k), θd, e_k = θ(t_k) − θd,
    u_k, ẑ_k, the true perturbation f_k = θ̈(t_k) − b0·u_k, y_k, the saturation flag, θ̇(t_k)
 5. observer update with (y_k, u_k)
 6. the drive of sample k − delay (0 before the first command) held over
@@ -28,7 +28,7 @@ from collections.abc import Callable
 import numpy as np
 
 from esoarm._jit import jitable
-from esoarm.metrics import ERR, NROW, OM, REF, SAT, TH, Z1, Z2, Z3, F, U, Y
+from esoarm.engines.metrics import ERR, NROW, OM, REF, SAT, TH, Z1, Z2, Z3, F, U, Y
 from esoarm.plants.actuator import LIMIT, actuate, delayed_input, saturate
 from esoarm.plants.sensor import measure
 
@@ -65,7 +65,7 @@ def closed_loop(
     Parameters
     ----------
     log : ndarray, shape (len(LOG_ROWS)·joints, ≥ n)
-        Filled column by column (:data:`esoarm.metrics.LOG_ROWS` per joint).
+        Filled column by column (:data:`esoarm.engines.metrics.LOG_ROWS` per joint).
     n : int
         Samples N.
     x : ndarray

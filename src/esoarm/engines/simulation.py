@@ -19,8 +19,8 @@ import numpy as np
 
 from esoarm.contract import ComponentDesign, PlantDesign
 from esoarm.engines.loop import DIVERGENCE_LIMIT, closed_loop, within_limits
+from esoarm.engines.metrics import NROW
 from esoarm.kinds import Kinds, kinds_of
-from esoarm.metrics import NROW
 from esoarm.plants.actuator import actuator_vector
 from esoarm.plants.sensor import noise_sequence
 from esoarm.reference import evaluate_reference
@@ -91,6 +91,11 @@ class RunInputs:
     h: float
     nsub: int
     delay: int
+
+    @property
+    def theta0(self) -> float:
+        """Initial angle of joint 0 [rad]."""
+        return float(self.plant.x0[0])
 
     @property
     def theta_ref(self) -> np.ndarray:

@@ -84,7 +84,7 @@ def experiment_set(overrides: list[str] | None = None) -> dict[str, Scenario]:
 
 
 #: Metrics of each run in the reproduction's tables:
-#: (column name, :data:`esoarm.metrics.METRICS` name).
+#: (column name, :data:`esoarm.engines.metrics.METRICS` name).
 RUN_COLUMNS: tuple[tuple[str, str], ...] = (
     ("rms_error", "rms_error"), ("rms_u", "rms_u"), ("max_abs_error", "max_abs_error"),
     ("du_rms", "rms_du"), ("rate_est_rms", "rms_rate_error"), ("pert_est_rms", "rms_f_error"),
@@ -96,7 +96,7 @@ def table_metrics(res: SimResult) -> dict[str, float]:
 
     ``du_rms`` is the control roughness RMS(u_k − u_{k−1}) [N·m], the measure of
     the paper's "noisy control" claim; ``rate_est_rms`` and ``pert_est_rms`` the
-    RMS errors of the rate and perturbation estimates (:mod:`esoarm.metrics`).
+    RMS errors of the rate and perturbation estimates (:mod:`esoarm.engines.metrics`).
     """
     return {column: res.metrics[name] for column, name in RUN_COLUMNS}
 
