@@ -24,9 +24,9 @@ import numpy as np
 from pydantic import Field
 
 from esoarm._jit import jitable
-from esoarm.controllers import flc
+from esoarm.controllers import computed_torque, flc
 from esoarm.observers import linear
-from esoarm.plants import lever_arm
+from esoarm.plants import lever_arm, urdf
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
@@ -34,9 +34,9 @@ if TYPE_CHECKING:
 __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "kinds_of", "tagged_union"]
 
 #: Registered kinds per component; the first is the default.
-PLANTS: tuple[ModuleType, ...] = (lever_arm,)
+PLANTS: tuple[ModuleType, ...] = (lever_arm, urdf)
 OBSERVERS: tuple[ModuleType, ...] = (linear,)
-CONTROLLERS: tuple[ModuleType, ...] = (flc,)
+CONTROLLERS: tuple[ModuleType, ...] = (flc, computed_torque)
 
 
 def _check(component: str, kinds: tuple[ModuleType, ...]) -> None:
@@ -103,6 +103,12 @@ def plant_acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                        out: np.ndarray) -> None:
     """``acceleration`` of the plant kind whose CODE is p[0]."""
     lever_arm.acceleration(x, u, t, p, out)
+
+
+@jitable
+def plant_observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
+    """``observer_input`` of the plant kind whose CODE is p[0]."""
+    lever_arm.observer_input(zhat, u, p, v)
 
 
 @jitable

@@ -135,7 +135,15 @@ def _by_noise(runs: Mapping[float, SimResult]) -> list[tuple[float, SimResult]]:
 
 
 def plot_run(result: SimResult, path: str | Path | None = None) -> Figure:
-    """Angle and reference, tracking error, control, and perturbation estimate of one run."""
+    """Angle and reference, tracking error, control, and perturbation estimate of one run.
+
+    An arm's run (joint names known) gets one column of panels per joint
+    (:func:`esoarm.plotting_arms.plot_arm_run`).
+    """
+    if result.joint_names:
+        from esoarm.plotting_arms import plot_arm_run
+
+        return plot_arm_run(result, path)
     scn = result.scenario
     fig = Figure(figsize=(8, 9), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)

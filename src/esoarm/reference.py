@@ -9,15 +9,24 @@ precomputes the reference at t_k = k·Ts, so all engines see identical values).
     s(τ) = 10τ³ − 15τ⁴ + 6τ⁵, τ = (t − t0)/T; the angle is held between moves.
 ``multisine``
     θd(t) = offset + Σ aᵢ sin(ωᵢ t + φᵢ), ωᵢ in rad/s.
+
+For an arm of n joints (:func:`reference_rows`) one of the above drives every
+joint, and two more kinds exist:
+
+``per-joint``
+    one quintic-steps or multisine reference per joint, in URDF order;
+``range``
+    quintic-steps of every joint at once through its limits: position p is
+    mid + p · fraction · half of the joint's range [lower, upper].
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from esoarm.scenario import Multisine, QuinticSteps
+from esoarm.scenario import Multisine, PerJoint, QuinticSteps, RangeMoves
 
-__all__ = ["evaluate_reference"]
+__all__ = ["evaluate_reference", "joint_count", "needs_limits", "reference_rows"]
 
 
 def _quintic_steps(
@@ -73,3 +82,47 @@ def evaluate_reference(
     if isinstance(ref, QuinticSteps):
         return _quintic_steps(ref, t_arr)
     return _multisine(ref, t_arr)
+
+
+def joint_count(ref: object) -> int | None:
+    """Joints a reference is written for (``per-joint``), None if it fits any number."""
+    return len(ref.joints) if isinstance(ref, PerJoint) else None
+
+
+def needs_limits(ref: object, n_joints: int) -> list[int]:
+    """Joints whose reference is defined by their limits (all of them for ``range``)."""
+    return list(range(n_joints)) if isinstance(ref, RangeMoves) else []
+
+
+def reference_rows(ref: object, t: np.ndarray, n_joints: int,
+                   limits: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """θd, θ̇d, θ̈d of every joint as rows 3j, 3j+1, 3j+2 of a (3·n, N) array.
+
+    Parameters
+    ----------
+    ref : reference section
+        Any reference kind; a single quintic-steps or multisine drives every joint.
+    t : ndarray (N,)
+        Sample times [s].
+    n_joints : int
+        Joints n.
+    limits : (lower, upper), optional
+        Joint position limits [rad or m], needed by the ``range`` kind.
+    """
+    if isinstance(ref, PerJoint):
+        parts = [np.stack(evaluate_reference(r, t)) for r in ref.joints]
+    elif isinstance(ref, RangeMoves):
+        if limits is None:
+            raise ValueError("reference kind 'range' needs joint limits")
+        lower, upper = limits
+        parts = []
+        for j in range(n_joints):
+            mid = 0.5 * (float(lower[j]) + float(upper[j]))
+            half = 0.5 * (float(upper[j]) - float(lower[j])) * ref.fraction
+            steps = QuinticSteps(start=mid + ref.start * half,
+                                 moves=[[t0, dur, mid + pos * half] for t0, dur, pos in ref.moves])
+            parts.append(np.stack(evaluate_reference(steps, t)))
+    else:
+        one = np.stack(evaluate_reference(ref, t))  # type: ignore[arg-type]
+        parts = [one] * n_joints
+    return np.concatenate(parts, axis=0)

@@ -22,6 +22,7 @@ from esoarm.engines.metrics import (
     F,
     U,
     Y,
+    combine_joints,
     series_metrics,
 )
 
@@ -32,6 +33,18 @@ __all__ = ["CSV_COLUMNS", "SimResult", "write_csv_atomic"]
 
 #: Time-series CSV columns, SI units (see :data:`esoarm.engines.metrics.SERIES_COLUMNS`).
 CSV_COLUMNS = SERIES_COLUMNS
+
+
+_JOINT_KEYS = ("rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error")
+
+
+def _joint_names(scenario: Scenario, n_joints: int) -> tuple[str, ...]:
+    from esoarm.kinds import kinds_of
+
+    plant = kinds_of(scenario).plant
+    if hasattr(plant, "joint_names"):
+        return tuple(plant.joint_names(scenario))
+    return tuple(f"joint {j + 1}" for j in range(n_joints)) if n_joints > 1 else ()
 
 
 def write_csv_atomic(
@@ -75,7 +88,12 @@ class SimResult:
     diverged : bool
         The run left the finite range (the series end at that sample).
     metrics : dict
-        :data:`esoarm.engines.metrics.METRICS` of the run.
+        :data:`esoarm.engines.metrics.METRICS` of the run (an arm: over every joint and sample).
+    joints : tuple of SimResult
+        An arm's joints, one one-joint result each in URDF order (empty for one
+        joint); the series above then hold the first joint's.
+    joint_names : tuple of str
+        Names of the joints (an arm's URDF joint names; empty for the lever arm).
     """
 
     scenario: Scenario
@@ -91,17 +109,33 @@ class SimResult:
     saturated: np.ndarray
     diverged: bool = False
     metrics: dict[str, float] = field(default_factory=dict)
+    joints: tuple[SimResult, ...] = ()
+    joint_names: tuple[str, ...] = ()
 
     @classmethod
     def from_log(cls, scenario: Scenario, t: np.ndarray, log: np.ndarray,
                  diverged: bool = False) -> SimResult:
-        """Build from an engine log (rows :data:`esoarm.engines.metrics.LOG_ROWS`, columns samples).
-
-        A one-joint run; the rows are copied out of ``log``.
-        """
+        """Build from an engine log: :data:`esoarm.engines.metrics.LOG_ROWS` per joint, one
+        column per sample (the rows are copied out of ``log``)."""
         log = np.asarray(log, dtype=float)
-        if log.shape[0] != NROW:
-            raise ValueError(f"a one-joint log has {NROW} rows, got {log.shape[0]}")
+        if log.shape[0] % NROW or not log.shape[0]:
+            raise ValueError(f"an engine log has {NROW} rows per joint, got {log.shape[0]}")
+        n_joints = log.shape[0] // NROW
+        names = _joint_names(scenario, n_joints)
+        parts = [cls._one_joint(scenario, t, log[j * NROW:(j + 1) * NROW], diverged, names)
+                 for j in range(n_joints)]
+        if n_joints == 1:
+            return parts[0]
+        first = parts[0]
+        return cls(scenario=scenario, t=first.t, theta=first.theta, theta_ref=first.theta_ref,
+                   error=first.error, u=first.u, z=first.z, f_true=first.f_true,
+                   omega=first.omega, y=first.y, saturated=first.saturated, diverged=diverged,
+                   joints=tuple(parts), joint_names=names,
+                   metrics=combine_joints([p.metrics for p in parts]))
+
+    @classmethod
+    def _one_joint(cls, scenario: Scenario, t: np.ndarray, log: np.ndarray, diverged: bool,
+                   names: tuple[str, ...]) -> SimResult:
         rows = {name: np.array(log[i]) for name, i in
                 (("theta", TH), ("theta_ref", REF), ("error", ERR), ("u", U), ("f_true", F),
                  ("omega", OM), ("y", Y), ("saturated", SAT))}
@@ -114,8 +148,15 @@ class SimResult:
             metrics=series_metrics(rows["error"], rows["u"], z=z, f_true=rows["f_true"],
                                    omega=rows["omega"], saturated=rows["saturated"],
                                    diverged=diverged),
-            **rows,
+            joint_names=names if len(names) == 1 else (),
+            theta=rows["theta"], theta_ref=rows["theta_ref"], error=rows["error"], u=rows["u"],
+            f_true=rows["f_true"], omega=rows["omega"], y=rows["y"], saturated=rows["saturated"],
         )
+
+    @property
+    def per_joint(self) -> tuple[SimResult, ...]:
+        """One one-joint result per joint (the result itself for one joint)."""
+        return self.joints or (self,)
 
     @property
     def rms_error(self) -> float:
@@ -133,15 +174,24 @@ class SimResult:
         return self.metrics["max_abs_error"]
 
     def table(self) -> np.ndarray:
-        """The time series as an (N, 11) array in :data:`CSV_COLUMNS` order."""
-        return np.column_stack(
-            [self.t, self.theta, self.theta_ref, self.error, self.u, self.z, self.f_true, self.y,
-             self.saturated]
-        )
+        """The time series in :meth:`columns` order: (N, 11), more for an arm."""
+        blocks = [self.t[:, None]]
+        for part in (self, *self.joints):
+            blocks.append(np.column_stack(
+                [part.theta, part.theta_ref, part.error, part.u, part.z, part.f_true, part.y,
+                 part.saturated]))
+        return np.column_stack(blocks)
+
+    def columns(self) -> tuple[str, ...]:
+        """CSV header: :data:`CSV_COLUMNS`, then for an arm every joint's columns suffixed
+        ``_1`` … ``_n`` in URDF order (the unsuffixed columns are joint 1's)."""
+        extra = tuple(f"{name}_{j}" for j in range(1, len(self.joints) + 1)
+                      for name in CSV_COLUMNS[1:])
+        return tuple(CSV_COLUMNS) + extra
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the time series (SPEC §4 columns, SI units); atomic."""
-        write_csv_atomic(path, CSV_COLUMNS, self.table())
+        """Write the time series (:meth:`columns`, SI units); atomic."""
+        write_csv_atomic(path, self.columns(), self.table())
         return Path(path)
 
     def summary(self) -> dict[str, Any]:
@@ -151,8 +201,12 @@ class SimResult:
                     "controller": scn.controller.kind}
         for section in (scn.observer, scn.controller):
             settings.update({k: v for k, v in section.model_dump().items()
-                             if k != "kind" and isinstance(v, str | int | float)})
-        return {**settings, **self.metrics, "samples": int(len(self.t))}
+                             if k != "kind" and isinstance(v, str | int | float | list)})
+        out = {**settings, **self.metrics, "samples": int(len(self.t))}
+        if self.joint_names:  # an arm: the metrics of each joint, in URDF order
+            out["joints"] = [{"name": name, **{k: p.metrics[k] for k in _JOINT_KEYS}}
+                             for name, p in zip(self.joint_names, self.per_joint, strict=True)]
+        return out
 
     def plot(self, path: str | Path | None = None, **kwargs: Any):  # type: ignore[no-untyped-def]
         """Plot angle, error, control and estimates; see :func:`esoarm.plotting.plot_run`."""

@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 import difflib
 import math
+import os
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -160,8 +161,53 @@ class Multisine(_Section):
     offset: float = Field(0.0, description="constant offset", json_schema_extra=_unit("rad"))
 
 
-Reference = Annotated[QuinticSteps | Multisine, Field(discriminator="kind")]
-KIND_SECTIONS["reference"] = (QuinticSteps, Multisine)
+class RangeMoves(_Section):
+    """An arm's joints through their limits: rest-to-rest quintic moves, all joints at once.
+
+    Positions are fractions of each joint's half range around its middle:
+    position p of joint j is mid_j + p · fraction · half_j (needs joint limits).
+    """
+
+    kind: Literal["range"] = "range"
+    fraction: float = Field(0.75, gt=0, le=1, description="share of each joint's half range used",
+                            json_schema_extra=_unit("1"))
+    start: float = Field(0.0, ge=-1, le=1, description="position before the first move (−1…1)",
+                         json_schema_extra=_unit("1"))
+    moves: list[list[float]] = Field(
+        default_factory=lambda: [[1.0, 3.0, 1.0], [8.0, 3.0, -1.0], [15.0, 3.0, 0.0]],
+        description="[start s, duration s, position −1…1] per move, in time order",
+    )
+
+
+SingleReference = Annotated[QuinticSteps | Multisine, Field(discriminator="kind")]
+
+
+class PerJoint(_Section):
+    """One reference per joint of an arm, in URDF order."""
+
+    kind: Literal["per-joint"] = "per-joint"
+    joints: list[SingleReference] = Field(
+        default_factory=lambda: [QuinticSteps()],  # type: ignore[arg-type]
+        min_length=1,
+        description="one [[reference.joints]] table (quintic-steps or multisine) per joint",
+    )
+
+
+Reference = Annotated[QuinticSteps | Multisine | RangeMoves | PerJoint,
+                      Field(discriminator="kind")]
+KIND_SECTIONS["reference"] = (QuinticSteps, Multisine, RangeMoves, PerJoint)
+
+#: Keys naming files, resolved against the scenario file's directory when relative.
+PATH_KEYS: tuple[tuple[str, str], ...] = (("plant", "file"),)
+
+
+def _resolve_paths(data: dict[str, Any], base: Path) -> None:
+    for section, key in PATH_KEYS:
+        table = data.get(section)
+        if isinstance(table, dict) and isinstance(table.get(key), str) and table[key]:
+            path = Path(table[key]).expanduser()
+            if not path.is_absolute():
+                table[key] = os.path.normpath(base / path)
 
 
 class Motor(_Section):
@@ -300,6 +346,7 @@ def load_scenario(
     if text_name in builtin_names() and not path.suffix:
         source = f"built-in scenario '{text_name}'"
         data = _read_toml(_builtin_text(text_name), source)
+        _resolve_paths(data, Path(str(resources.files("esoarm") / "scenarios")))
     elif path.suffix == ".toml" or path.exists() or "/" in text_name or "\\" in text_name:
         source = f"file '{text_name}'"
         if path.is_dir():
@@ -312,6 +359,7 @@ def load_scenario(
             raise ScenarioError(f"{source}: cannot read: {exc}") from None
         data = _read_toml(text, source)
         data.setdefault("name", path.stem)
+        _resolve_paths(data, path.resolve().parent)
     else:
         names = builtin_names()
         close = difflib.get_close_matches(text_name, names, n=1)
@@ -398,6 +446,7 @@ def _build(data: dict[str, Any], overrides: dict[str, Any] | list[str], source: 
     for key, value in pairs:
         _check_key(key, source="--set")
         merged = _merge(merged, _nest(key, value))
+    _resolve_paths(merged, Path.cwd())  # a path given with --set: relative to where we run
     try:
         scn = Scenario.model_validate(merged)
     except ValidationError as exc:
@@ -471,31 +520,52 @@ def _check_consistency(scn: Scenario, source: str) -> None:
     if scn.n_samples < 1:
         fail("duration", f"{scn.duration:g} s is shorter than one sample period ({ts:g} s)")
     ref = scn.reference
-    if isinstance(ref, QuinticSteps):
-        end = -math.inf
-        for i, move in enumerate(ref.moves):
-            if len(move) != 3:
-                fail(f"reference.moves[{i}]", "each move is [start s, duration s, target rad]")
-            t0, dur, _ = move
-            if not all(math.isfinite(v) for v in move):
-                fail(f"reference.moves[{i}]", "must be finite numbers")
-            if dur <= 0:
-                fail(f"reference.moves[{i}]", f"duration {dur:g} s must be > 0")
-            if t0 < 0:
-                fail(f"reference.moves[{i}]", f"start {t0:g} s must be >= 0")
-            if t0 < end - 1e-12:
-                fail(
-                    f"reference.moves[{i}]",
-                    f"starts at {t0:g} s, before the previous move ends ({end:g} s): "
-                    "moves must be in time order and not overlap",
-                )
-            end = t0 + dur
-    else:
-        n = len(ref.amplitudes)
-        if len(ref.frequencies) != n:
-            fail("reference.frequencies", f"needs one entry per amplitude ({n})")
-        if ref.phases and len(ref.phases) != n:
-            fail("reference.phases", f"needs one entry per amplitude ({n}) or none")
+    parts = ([(f"reference.joints[{i}]", r) for i, r in enumerate(ref.joints)]
+             if isinstance(ref, PerJoint) else [("reference", ref)])
+    for where, part in parts:
+        if isinstance(part, QuinticSteps | RangeMoves):
+            _check_moves(part, where, fail)
+        else:
+            n = len(part.amplitudes)
+            if len(part.frequencies) != n:
+                fail(f"{where}.frequencies", f"needs one entry per amplitude ({n})")
+            if part.phases and len(part.phases) != n:
+                fail(f"{where}.phases", f"needs one entry per amplitude ({n}) or none")
+    kinds = _kinds.kinds_of(scn)
+    for module in kinds:  # a kind's own checks against the rest of the scenario
+        check = getattr(module, "check", None)
+        message = check(scn) if check is not None else None
+        if message:
+            raise ScenarioError(f"{source}: {message}")
+    if not hasattr(kinds.plant, "joint_limits"):  # one joint, no limits (the lever arm)
+        if isinstance(ref, RangeMoves):
+            fail("reference.kind", f"'range' moves through joint limits; plant kind "
+                 f"'{scn.plant.kind}' has none (use quintic-steps or multisine)")
+        if isinstance(ref, PerJoint) and len(ref.joints) != 1:
+            fail("reference.joints", f"{len(ref.joints)} entries, but plant kind "
+                 f"'{scn.plant.kind}' has one joint")
+
+
+def _check_moves(ref: QuinticSteps | RangeMoves, where: str, fail: Any) -> None:
+    what = "position −1…1" if isinstance(ref, RangeMoves) else "target rad"
+    end = -math.inf
+    for i, move in enumerate(ref.moves):
+        key = f"{where}.moves[{i}]"
+        if len(move) != 3:
+            fail(key, f"each move is [start s, duration s, {what}]")
+        t0, dur, target = move
+        if not all(math.isfinite(v) for v in move):
+            fail(key, "must be finite numbers")
+        if dur <= 0:
+            fail(key, f"duration {dur:g} s must be > 0")
+        if t0 < 0:
+            fail(key, f"start {t0:g} s must be >= 0")
+        if t0 < end - 1e-12:
+            fail(key, f"starts at {t0:g} s, before the previous move ends ({end:g} s): "
+                 "moves must be in time order and not overlap")
+        if isinstance(ref, RangeMoves) and not -1.0 <= target <= 1.0:
+            fail(key, f"position {target:g} must be within −1…1 (the joint's limits)")
+        end = t0 + dur
 
 
 def scenario_warnings(scn: Scenario) -> list[str]:
@@ -511,7 +581,10 @@ def scenario_warnings(scn: Scenario) -> list[str]:
     eps, disc = getattr(obs, "eps", None), getattr(obs, "discretization", None)
     if eps is None or disc is None:
         return []
-    return observer_warnings(eps, scn.sample_time, disc)
+    out: list[str] = []
+    for value in dict.fromkeys(eps if isinstance(eps, list) else [eps]):  # each ε once
+        out.extend(m for m in observer_warnings(value, scn.sample_time, disc) if m not in out)
+    return out
 
 
 # ---------------------------------------------------------------------------

@@ -28,6 +28,7 @@ COMMANDS: dict[str, str] = {
     "emulate": "esoarm.cli.rig:emulate",
     "run": "esoarm.cli.rig:run",
     "replay": "esoarm.cli.rig:replay",
+    "arm-study": "esoarm.cli.arms:arm_study",
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
 }
@@ -37,6 +38,7 @@ COMMANDS: dict[str, str] = {
 # importing the command (tests/test_cli_startup.py checks they match the
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
+    "arm-study": "Compare controllers and sweep ε on the arm SCENARIO (plant.kind = \"urdf\").",
     "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",
     "excite": "Record an identification experiment on the rig at PORT or on the twin of "
               "SCENARIO.",

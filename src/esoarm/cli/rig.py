@@ -234,6 +234,9 @@ def replay(log_file: str, scenario: str, overrides: tuple[str, ...], out: str | 
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     scn = resolve_scenario(scenario, overrides)
+    if scn.plant.kind == "urdf":  # an arm: one observer per joint
+        _replay_arm(scn, log_file, out_path, plot_path)
+        return
     t, theta, u, ts = read_log(log_file)
     result = run_replay(scn, t, theta, u, ts)
     if out_path is None:
@@ -248,3 +251,29 @@ def replay(log_file: str, scenario: str, overrides: tuple[str, ...], out: str | 
     for label, path in (("estimates", out_path), ("figure", plot_path)):
         if path is not None:
             click.echo(f"{label}: {Path(path)} ({len(t)} rows, Ts = {ts:g} s)")
+
+
+def _replay_arm(scn, log_file: str, out_path: Path | None,  # type: ignore[no-untyped-def]
+                plot_path: Path | None) -> None:
+    """``replay`` with an arm scenario: theta_i, u_i per joint (esoarm.hardware.replay_arm)."""
+    from esoarm.hardware.replay_arm import read_arm_log, replay_arm
+    from esoarm.plants.urdf import joint_names
+
+    names = joint_names(scn)
+    t, theta, u, ts = read_arm_log(log_file, len(names))
+    result = replay_arm(scn, t, theta, u, ts)
+    if out_path is None:
+        import numpy as np
+
+        sys.stdout.write(",".join(result.columns()) + "\n")
+        np.savetxt(sys.stdout, result.table(), delimiter=",", fmt="%.17g")
+    else:
+        result.to_csv(out_path)
+    if plot_path is not None:
+        from esoarm.plotting_arms import figure_arm_replay
+
+        figure_arm_replay(result, names, plot_path)
+    for label, path in (("estimates", out_path), ("figure", plot_path)):
+        if path is not None:
+            click.echo(f"{label}: {Path(path)} ({len(t)} rows, {len(names)} joints, "
+                       f"Ts = {ts:g} s)")

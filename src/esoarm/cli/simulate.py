@@ -68,7 +68,8 @@ def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
     from rich.table import Table
 
     s = result.summary()
-    table = Table(title=f"{s['scenario']}  (ε = {s['eps']:g} s, {s['discretization']}, "
+    eps = s["eps"] if isinstance(s["eps"], list) else f"{s['eps']:g}"
+    table = Table(title=f"{s['scenario']}  (ε = {eps} s, {s['discretization']}, "
                   f"{s['compensation']} compensation)")
     table.add_column("metric")
     table.add_column("value", justify="right")
@@ -77,6 +78,9 @@ def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
     table.add_row("RMS control", f"{s['rms_u']:.5f}", "N·m")
     table.add_row("max |error|", f"{s['max_abs_error']:.5f}", "rad")
     table.add_row("samples", str(s["samples"]), "")
+    for joint in s.get("joints", []) if len(s.get("joints", [])) > 1 else []:
+        table.add_row(f"  {joint['name']}: RMS error", f"{joint['rms_error']:.5f}", "rad")
+        table.add_row(f"  {joint['name']}: RMS control", f"{joint['rms_u']:.5f}", "N·m")
     Console().print(table)
 
 

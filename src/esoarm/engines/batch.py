@@ -174,7 +174,8 @@ def _run(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp, ap):  # pragma: no 
                        ipar[_NSUB], ipar[_DELAY], b0, _tuple16(pp), _tuple32(op), _tuple16(cp),
                        _tuple16(ap), ipar[_NZ], ipar[_NC],
                        _kinds.plant_advance, _kinds.plant_acceleration,
-                       _kinds.observer_initialize, _kinds.observer_estimate,
+                       _kinds.plant_observer_input, _kinds.observer_initialize,
+                       _kinds.observer_estimate,
                        _kinds.observer_advance, _kinds.controller_initialize,
                        _kinds.controller_control)
 

@@ -11,8 +11,9 @@ registry's dispatch functions (:mod:`esoarm.kinds`).  One sample k, t_k = k·Ts:
 3. estimate ẑ_k (observer kind), control (controller kind), saturate to
    ±torque_limit, through the actuator (motor: duty; :func:`esoarm.plants.actuator.actuate`)
 4. log row k (:data:`esoarm.engines.metrics.LOG_ROWS`): true θ(t_k), θd, e_k = θ(t_k) − θd,
-   u_k, ẑ_k, the true perturbation f_k = θ̈(t_k) − b0·u_k, y_k, the saturation flag, θ̇(t_k)
-5. observer update with (y_k, u_k)
+   u_k, ẑ_k, the true perturbation f_k = θ̈(t_k) − b0·v_k, y_k, the saturation flag, θ̇(t_k)
+5. observer update with (y_k, v_k): v_k is the plant kind's observer input for u_k
+   (u_k itself for the lever arm, M̂(q̂)⁻¹(u_k − c·n̂) for a URDF arm)
 6. the drive of sample k − delay (0 before the first command) held over
    [t_k, t_{k+1}); the plant kind integrates to t_{k+1}
 
@@ -56,7 +57,8 @@ def closed_loop(
     refs: np.ndarray, ts: float, h: float, nsub: int, delay: int, b0: np.ndarray,
     pp: np.ndarray, op: np.ndarray, cp: np.ndarray, ap: np.ndarray, nz: int, nc: int,
     plant_advance: Callable[..., None], plant_acceleration: Callable[..., None],
-    observer_initialize: Callable[..., None], observer_estimate: Callable[..., None],
+    plant_observer_input: Callable[..., None], observer_initialize: Callable[..., None],
+    observer_estimate: Callable[..., None],
     observer_advance: Callable[..., None], controller_initialize: Callable[..., None],
     controller_control: Callable[..., None],
 ) -> int:
@@ -82,7 +84,7 @@ def closed_loop(
     nsub, delay : int
         RK4 steps per sample; transport delay [samples].
     b0 : ndarray (joints,)
-        Nominal input gain of the logged perturbation f = θ̈ − b0 u.
+        Nominal input gain of the logged perturbation f = θ̈ − b0 v (v the observer input).
     pp, op, cp, ap : ndarray
         Plant, observer, controller and actuator parameter vectors.
     nz, nc : int
@@ -102,6 +104,7 @@ def closed_loop(
     drive = np.empty(nj)
     applied = np.empty(nj)
     acc = np.empty(nj)
+    v = np.empty(nj)
     sat = np.empty(nj)
     z = np.zeros(max(nz, 1))
     zhat = np.zeros(max(nz, 1))
@@ -128,6 +131,7 @@ def closed_loop(
         delayed_input(hist, k, delay, drive, applied)
         # 4. log
         plant_acceleration(x, applied, tk, pp, acc)
+        plant_observer_input(zhat, u, pp, v)
         ok = True
         for j in range(nj):
             r = j * NROW
@@ -140,7 +144,7 @@ def closed_loop(
             log[r + Z1, k] = zhat[i]
             log[r + Z2, k] = zhat[i + 1]
             log[r + Z3, k] = zhat[i + 2]
-            log[r + F, k] = acc[j] - b0[j] * u[j]
+            log[r + F, k] = acc[j] - b0[j] * v[j]
             log[r + Y, k] = y[j]
             log[r + SAT, k] = sat[j]
             log[r + OM, k] = x[nj + j]
@@ -148,7 +152,7 @@ def closed_loop(
         if not ok:
             return -(k + 1)
         # 5. observer update
-        observer_advance(z, zhat, y, u, op)
+        observer_advance(z, zhat, y, v, op)
         # 6. integrate the plant to t_{k+1}
         plant_advance(x, applied, tk, h, nsub, pp)
     return n

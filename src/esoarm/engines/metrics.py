@@ -43,8 +43,8 @@ from esoarm.plants.sensor import noise_sequence
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["LOG_ROWS", "METRICS", "SERIES_COLUMNS", "MetricsTable", "NoiseCache", "log_metrics",
-           "reference_metrics", "series_metrics"]
+__all__ = ["LOG_ROWS", "METRICS", "SERIES_COLUMNS", "MetricsTable", "NoiseCache", "combine_joints",
+           "log_metrics", "reference_metrics", "series_metrics"]
 
 #: Rows of the engine log per joint (joint j occupies rows j·len(LOG_ROWS) …).
 LOG_ROWS: tuple[str, ...] = ("theta", "theta_ref", "error", "u", "z1", "z2", "z3", "f_true",
@@ -113,6 +113,29 @@ def series_metrics(error: np.ndarray, u: np.ndarray, *, z: np.ndarray | None = N
     out["rms_du"] = _rms(np.diff(u)) if n > 1 else 0.0
     if saturated is not None:
         out["saturated_fraction"] = float(np.mean(saturated))
+    return out
+
+
+def combine_joints(joints: list[dict[str, float]]) -> dict[str, float]:
+    """Metrics of an arm over every joint and sample, from each joint's :func:`series_metrics`.
+
+    Every joint has the same samples, so an RMS over all of them is the root of
+    the joints' mean squares, a maximum the largest joint maximum, a fraction
+    the joints' mean.  One joint: its metrics unchanged.
+    """
+    if len(joints) == 1:
+        return dict(joints[0])
+    out: dict[str, float] = {}
+    for name in METRICS:
+        values = np.array([m[name] for m in joints])
+        if name.startswith("rms_"):
+            out[name] = float(np.sqrt(np.mean(values**2)))
+        elif name.startswith("max_") or name == "diverged":
+            out[name] = float(np.max(values))
+        elif name == "samples":
+            out[name] = float(values[0])
+        else:
+            out[name] = float(np.mean(values))
     return out
 
 

@@ -23,7 +23,7 @@ from esoarm.engines.metrics import NROW
 from esoarm.kinds import Kinds, kinds_of
 from esoarm.plants.actuator import actuator_vector
 from esoarm.plants.sensor import noise_sequence
-from esoarm.reference import evaluate_reference
+from esoarm.reference import reference_rows
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario, ScenarioWarning, load_scenario, scenario_warnings
 
@@ -124,7 +124,8 @@ def prepare(scn: Scenario, *, draw_noise: bool = True) -> RunInputs:
     t = np.arange(n) * ts
     kinds = kinds_of(scn)
     plant = kinds.plant.design(scn)
-    refs = np.stack(evaluate_reference(scn.reference, t))
+    limits = kinds.plant.joint_limits(scn) if hasattr(kinds.plant, "joint_limits") else None
+    refs = reference_rows(scn.reference, t, plant.n_joints, limits)
     return RunInputs(
         t=t,
         refs=refs,
@@ -190,7 +191,8 @@ def run_reference(scn: Scenario, inp: RunInputs) -> SimResult:
         log, n, x, inp.noise, inp.sigma, inp.q, inp.refs, inp.ts, inp.h, inp.nsub, inp.delay,
         inp.plant.b0, inp.plant.vector, inp.observer.vector, inp.controller.vector,
         inp.actuator, inp.observer.n_state, inp.controller.n_state,
-        plant.advance, plant.acceleration, observer.initialize, observer.estimate,
+        plant.advance, plant.acceleration, plant.observer_input, observer.initialize,
+        observer.estimate,
         observer.advance, controller.initialize, controller.control,
     )
     k = abs(rows)

@@ -5,12 +5,12 @@ The arm's counterpart of :mod:`esoarm.hardware.replay`: the log gives ``t``
 ``theta_i`` [rad] and the torque ``u_i`` [N·m] applied from that row on (a
 one-joint arm may use ``theta`` and ``u``).  A CSV of ``esoarm simulate`` on an
 arm replays directly: its measured angles ``y_i`` are used when present, and
-the replay gives back its ``z1_i``, ``z2_i``, ``z3_i``.  Each joint's observer runs exactly as in the loop, through the
-scenario's kinds: row k holds ẑ_k, the estimate the controller would use at
-t_k, then every observer is updated with the observers' input of the plant
-(v = M̂(q̂)⁻¹(u − c n̂), :func:`esoarm.plants.urdf.observer_input`).  A NaN angle
-(a lost sample) is bridged with zero innovation.  The sample period comes from
-the log.
+the replay gives back its ``z1_i``, ``z2_i``, ``z3_i``.  Each joint's observer
+runs exactly as in the loop, through the scenario's kinds: row k holds ẑ_k,
+the estimate the controller would use at t_k, then every observer is updated
+with the observers' input of the plant (v = M̂(q̂)⁻¹(u − c n̂),
+:func:`esoarm.plants.urdf.observer_input`).  A NaN angle (a lost sample) is
+bridged with zero innovation.  The sample period comes from the log.
 """
 
 from __future__ import annotations

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 from pydantic import Field
@@ -94,9 +94,9 @@ class Params(Section):
 
     kind: Literal["linear"] = Field(
         "linear", description="observer kind (the registered kinds: esoarm.kinds)")
-    eps: float = Field(
-        0.09, gt=0, description="free parameter ε; observer poles at −1/ε",
-        json_schema_extra=unit("s"),
+    eps: Annotated[float, Field(gt=0)] | list[Annotated[float, Field(gt=0)]] = Field(
+        0.09, description="free parameter ε; observer poles at −1/ε (an arm: one number for "
+        "every joint, or one per joint)", json_schema_extra=unit("s"),
     )
     discretization: Literal["euler", "zoh", "current"] = Field(
         "euler", description='"euler" (paper) | "zoh" | "current"'
@@ -337,14 +337,19 @@ def eso_advance(z1: float, z2: float, z3: float, zh1: float, zh2: float, zh3: fl
 
 
 def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
-    """(CODE, :attr:`ESODesign.vector`) for the scenario's ε and discretization at Ts [s].
+    """(CODE, one :attr:`ESODesign.vector` per joint) for the scenario's ε and discretization.
 
-    One joint: b0 from the plant's nominal model.  State: 3 per joint.
+    Joint j's ESO uses ε_j (one ε applies to every joint) and the plant's b0_j at
+    Ts [s].  State: 3 per joint.
     """
-    if plant.n_joints != 1:
-        raise ValueError("the linear ESO kind is designed for one joint")
-    obs = design_observer(scn.observer.eps, ts, float(plant.b0[0]), scn.observer.discretization)
-    return ComponentDesign(read_only(np.concatenate([[float(CODE)], obs.vector])), 3)
+    n = plant.n_joints
+    eps = scn.observer.eps
+    eps_j = list(eps) if isinstance(eps, list) else [eps] * n
+    if len(eps_j) != n:
+        raise ValueError(f"observer.eps has {len(eps_j)} entries for {n} joints")
+    blocks = [design_observer(e, ts, float(b0), scn.observer.discretization).vector
+              for e, b0 in zip(eps_j, plant.b0, strict=True)]
+    return ComponentDesign(read_only(np.concatenate([[float(CODE)], *blocks])), 3 * n)
 
 
 @jitable
@@ -358,22 +363,40 @@ def initialize(z: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
 
 @jitable
 def estimate(z: np.ndarray, y: np.ndarray, p: np.ndarray, zhat: np.ndarray) -> None:
-    """Estimate ẑ_k for the controller from z_k and y_k into ``zhat`` (:func:`eso_estimate`)."""
-    obs = p[1:]
+    """Estimate ẑ_k for the controller from z_k and y_k into ``zhat`` (:func:`eso_estimate`).
+
+    ``p`` holds one design per joint; the compiled kernels run one joint and
+    hand ``p`` over as a tuple, which is sliced statically there.
+    """
+    if len(y) == 1:
+        obs = p[1:]
+        zhat[0], zhat[1], zhat[2] = eso_estimate(z[0], z[1], z[2], y[0], obs)
+        return
+    vec = np.asarray(p)
     for j in range(len(y)):
         i = 3 * j
-        zhat[i], zhat[i + 1], zhat[i + 2] = eso_estimate(z[i], z[i + 1], z[i + 2], y[j], obs)
+        obs_j = vec[1 + VECTOR_SIZE * j:1 + VECTOR_SIZE * (j + 1)]
+        zhat[i], zhat[i + 1], zhat[i + 2] = eso_estimate(z[i], z[i + 1], z[i + 2], y[j], obs_j)
 
 
 @jitable
 def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
             p: np.ndarray) -> None:
-    """z_{k+1} in place from z_k, ẑ_k, y_k and the applied u_k (:func:`eso_advance`)."""
-    obs = p[1:]
+    """z_{k+1} in place from z_k, ẑ_k, y_k and the input u_k (:func:`eso_advance`).
+
+    ``u`` is the plant's observer input (the command for the lever arm).
+    """
+    if len(y) == 1:
+        obs = p[1:]
+        z[0], z[1], z[2] = eso_advance(z[0], z[1], z[2], zhat[0], zhat[1], zhat[2], y[0], u[0],
+                                       obs)
+        return
+    vec = np.asarray(p)
     for j in range(len(y)):
         i = 3 * j
+        obs_j = vec[1 + VECTOR_SIZE * j:1 + VECTOR_SIZE * (j + 1)]
         z[i], z[i + 1], z[i + 2] = eso_advance(z[i], z[i + 1], z[i + 2], zhat[i], zhat[i + 1],
-                                               zhat[i + 2], y[j], u[j], obs)
+                                               zhat[i + 2], y[j], u[j], obs_j)
 
 
 class ExtendedStateObserver:

@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = ["CODE", "JIT", "KIND", "Params", "RigParams", "acceleration", "advance", "design",
-           "rig_acceleration", "rig_advance", "rig_derivative", "rig_rk4_step"]
+           "observer_input", "rig_acceleration", "rig_advance", "rig_derivative", "rig_rk4_step"]
 
 KIND = "lever-arm"
 CODE = 0
@@ -229,3 +229,9 @@ def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
     """True θ̈ [rad/s²] at state x, time t, with input u[0] applied from t on, into out[0]."""
     rig = p[1:]
     out[0] = rig_acceleration(x[0], x[1], applied_torque(x[2], u[0], rig), t, rig)
+
+
+@jitable
+def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
+    """The observer's input: the command u itself (the observer's b0 = 1/I0 scales it)."""
+    v[0] = u[0]

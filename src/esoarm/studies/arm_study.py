@@ -30,7 +30,7 @@ import numpy as np
 
 from esoarm import __version__
 from esoarm._io import atomic_path
-from esoarm.engines.simulation import SimulationDiverged, run_reference, prepare
+from esoarm.engines.simulation import SimulationDiverged, prepare, run_reference
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario
 
@@ -235,7 +235,7 @@ def write_arm_study(study: ArmStudy, out: str | Path, fmt: str = "png") -> list[
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
-    for (label, stem, _), res in zip(VARIANTS, study.runs.values(), strict=True):
+    for (_, stem, _), res in zip(VARIANTS, study.runs.values(), strict=True):
         written.append(res.to_csv(out / "runs" / f"{stem}.csv"))
     figures = {
         "ablation": figure_arm_ablation(study.runs, f"{study.scenario.name}: with and without "
