@@ -61,6 +61,19 @@ def sh(cmd: list[str]) -> str:
         return f"({cmd[0]} unavailable: {exc})"
 
 
+def kept_sections() -> str:
+    """Sections of docs/benchmarks.md written by other benchmark scripts, kept on rewrite.
+
+    A script owns the text between ``<!-- begin:NAME -->`` and ``<!-- end:NAME -->``
+    (e.g. ``benchmarks/bench_arms.py``).
+    """
+    import re
+
+    old = DOC.read_text(encoding="utf-8") if DOC.exists() else ""
+    blocks = re.findall(r"<!-- begin:[\w-]+ -->.*?<!-- end:[\w-]+ -->\n?", old, re.S)
+    return "".join("\n" + b if b.endswith("\n") else "\n" + b + "\n" for b in blocks)
+
+
 def load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
@@ -382,7 +395,7 @@ def main() -> None:
         print(text)
         return
     plot_scaling(m["scaling"], PLOT)
-    DOC.write_text(text, encoding="utf-8")
+    DOC.write_text(text + kept_sections(), encoding="utf-8")
     print(f"wrote {DOC} and {PLOT}")
 
 

@@ -231,3 +231,23 @@ def test_arm_study_writes_a_report(tmp_path):
     assert "no estimation" in html and "data:image/png;base64" in html
     data = json.loads((out / "summary.json").read_text())
     assert data["joints"] == ["shoulder", "elbow"] and len(data["eps_sweep"]) == 2
+
+
+def test_rig_commands_refuse_an_arm():
+    res = _cli("emulate", "two-link")
+    assert res.returncode == 2 and "lever-arm rig" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_replay_of_an_arms_simulate_csv_gives_back_its_estimates(tmp_path):
+    sim = tmp_path / "sim.csv"
+    assert _cli("simulate", "two-link", "--set", "duration=0.5", "--out", str(sim)).returncode == 0
+    out = tmp_path / "replay.csv"
+    res = _cli("replay", str(sim), "--scenario", "two-link", "--set", "duration=0.5", "--out",
+               str(out))
+    assert res.returncode == 0, res.stderr
+    a = np.genfromtxt(sim, delimiter=",", names=True)
+    b = np.genfromtxt(out, delimiter=",", names=True)
+    for j in (1, 2):
+        for c in ("z1", "z2", "z3"):
+            np.testing.assert_array_equal(b[f"{c}_{j}"], a[f"{c}_{j}"])

@@ -57,7 +57,7 @@ def _assert_same(fast, ref) -> None:  # type: ignore[no-untyped-def]
         np.testing.assert_allclose(fast.metrics[key], value, rtol=RTOL, atol=0, err_msg=key)
 
 
-@pytest.mark.parametrize("name", builtin_names())
+@pytest.mark.parametrize("name", builtin_names(plant="lever-arm"))
 @pytest.mark.parametrize("disc", DISCRETIZATIONS)
 def test_series_match_reference(name: str, disc: str) -> None:
     scns = [_scenario(name, disc, extra) for extra in CASES.values()]
@@ -66,7 +66,7 @@ def test_series_match_reference(name: str, disc: str) -> None:
         _assert_same(res, run_reference(scn, prepare(scn)))
 
 
-@pytest.mark.parametrize("name", builtin_names())
+@pytest.mark.parametrize("name", builtin_names(plant="lever-arm"))
 def test_metrics_match_reference(name: str) -> None:
     scns = [_scenario(name, disc, extra) for disc in DISCRETIZATIONS
             for extra in CASES.values()]
@@ -93,7 +93,7 @@ def test_metrics_match_reference(name: str) -> None:
             np.testing.assert_allclose(row[key], value, rtol=RTOL, atol=0, err_msg=key)
 
 
-@pytest.mark.parametrize("name", builtin_names())
+@pytest.mark.parametrize("name", builtin_names(plant="lever-arm"))
 def test_bit_identical_builtin(name: str) -> None:
     """Full-length built-in runs: the two engines give the very same floats."""
     scn = load_scenario(name)

@@ -16,6 +16,8 @@ OUTPUTS = {
     "single_run.py": ("single_run.csv", "single_run.png"),
     "compare_compensation.py": ("heavy-disturbance.toml", "compare_compensation.png"),
     "observer_design.py": (),
+    "two_link_arm.py": ("two_link.csv", "two_link.png"),
+    "arm_ur5.py": (),  # needs example-robot-data (optional): it says so and stops without it
 }
 
 

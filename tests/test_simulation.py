@@ -126,7 +126,7 @@ def test_seed_changes_the_noise_and_only_the_noise():
 
 
 @pytest.mark.parametrize("disc", DISCRETIZATIONS)
-@pytest.mark.parametrize("name", builtin_names())
+@pytest.mark.parametrize("name", builtin_names(plant="lever-arm"))  # arms: test_arm_scenarios
 def test_builtin_runs_bounded(name, disc):
     scn = load_scenario(name, {"observer.discretization": disc})
     res = simulate(scn, warn=False)

@@ -301,10 +301,15 @@ class Scenario(_Section):
 # loading
 
 
-def builtin_names() -> list[str]:
-    """Names of the scenarios shipped with the package."""
+def builtin_names(plant: str | None = None) -> list[str]:
+    """Names of the scenarios shipped with the package (only those of plant kind ``plant``)."""
     root = resources.files("esoarm") / "scenarios"
-    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
+    names = sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
+    if plant is None:
+        return names
+    default = _kinds.PLANTS[0].KIND
+    return [n for n in names
+            if tomllib.loads(_builtin_text(n)).get("plant", {}).get("kind", default) == plant]
 
 
 def _read_toml(text: str, source: str) -> dict[str, Any]:

@@ -107,3 +107,11 @@ def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Pa
 def stderr_is_tty() -> bool:
     """Whether progress displays should be drawn."""
     return sys.stderr.isatty()
+
+
+def lever_only(scn: Scenario, command: str) -> None:
+    """The rig protocol, its emulator and identification drive one lever arm: refuse others."""
+    if scn.plant.kind != "lever-arm":
+        raise BadInput(f"scenario '{scn.name}': '{command}' works on the lever-arm rig (one "
+                       f"joint); plant.kind '{scn.plant.kind}' runs in simulate, sweep, tune, "
+                       "replay and arm-study")

@@ -13,6 +13,7 @@ from esoarm.cli._common import (
     BadInput,
     RunFailure,
     bad_input_guard,
+    lever_only,
     output_path,
     resolve_scenario,
     scenario_argument,
@@ -86,6 +87,7 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
         if not (math.isfinite(value) and value > 0):
             raise BadInput(f"{name} {value:g}: must be a finite number > 0")
     scn = resolve_scenario(scenario, overrides)
+    lever_only(scn, "excite")
     plan.check(scn.sample_time)
     limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog)
     if plan_only:
@@ -203,6 +205,7 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     if not 0 <= max_delay <= 20:
         raise BadInput(f"--max-delay {max_delay}: must be in 0 … 20 samples")
     scn = resolve_scenario(scenario, overrides)
+    lever_only(scn, "identify")
     limit = scn.actuator.torque_limit
     motor = scn.motor is not None
     fit_logs = [read_ident_log(p, limit, motor) for p in logs]

@@ -15,6 +15,7 @@ from esoarm.cli._common import (
     BadInput,
     RunFailure,
     bad_input_guard,
+    lever_only,
     output_path,
     resolve_scenario,
     scenario_argument,
@@ -66,6 +67,7 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
 
     specs = [parse_fault(f) for f in faults]
     scn = resolve_scenario(scenario, overrides)
+    lever_only(scn, "emulate")
     emu = Emulator(scn, lockstep=lockstep, faults=specs, once=once, echo=_say)
     _say(f"device: {emu.path}")
     actuator = f"PWM duty ±{emu.twin.pwm_max}" if emu.twin.motor else "ideal torque"
@@ -132,6 +134,7 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
     if baud <= 0:
         raise BadInput(f"--baud {baud}: must be > 0")
     scn = resolve_scenario(scenario, overrides)
+    lever_only(scn, "run")
     limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog)
     try:
         link = SerialLink(port, baudrate=baud)
