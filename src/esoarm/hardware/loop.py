@@ -39,10 +39,10 @@ from pathlib import Path
 import numpy as np
 
 from esoarm.engines.metrics import series_metrics
-from esoarm.plants.actuator import actuate, actuator_vector
 from esoarm.hardware import protocol as P
 from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.link import LinkError, SerialLink
+from esoarm.plants.actuator import actuate, actuator_vector
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
