@@ -76,6 +76,9 @@ _PAR_NAMES = (
 )
 _NPAR = len(_PAR_NAMES)
 _NOUT = 7
+#: Columns of :data:`esoarm.engines.metrics.METRICS` this engine computes (the others are NaN).
+COMPUTED: tuple[int, ...] = tuple(METRICS.index(name) for name in (
+    "rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error", "samples", "diverged"))
 
 
 class FastEngineUnavailable(RuntimeError):
@@ -285,7 +288,7 @@ def _run_pack(lib: ctypes.CDLL, pack: _batch._Pack, workers: int) -> np.ndarray:
     else:
         for b in blocks:
             work(b)
-    # the kernel computes these metrics; the others (rate error, Δu, saturation) are NaN
+    # the kernel computes the metrics of COMPUTED; the others are NaN
     res = np.full((nruns, len(METRICS)), np.nan)
     n_rows = raw[:, 5]
     col = METRICS.index

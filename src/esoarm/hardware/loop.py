@@ -42,6 +42,7 @@ from esoarm.engines.metrics import series_metrics
 from esoarm.hardware import protocol as P
 from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.link import LinkError, SerialLink
+from esoarm.plants.actuator import actuate, actuator_vector
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
@@ -291,6 +292,7 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
     isfinite = math.isfinite
     perf = time.perf_counter
     limit = ctl.torque_limit
+    act = actuator_vector(scn)
     k_next = 0
     y_prev = nan
     u_last = 0.0
@@ -358,7 +360,9 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
                 raise _Stop(f"NaN guard: non-finite control or estimate at sample {k}")
             if abs(u) > limit:  # the FLC saturates; a violation is a bug: stop
                 raise _Stop(f"torque limit: u = {u:.4g} N·m at sample {k}")
-            u_applied, d = ctl.actuate(u)  # the motor's duty (NaN without a motor)
+            # the actuator of every engine: with a motor, the duty and the torque it gives
+            u_host, _, d = actuate(u, z2, act)
+            u_applied = float(u_host)
             if motor is None:
                 link.send(P.TORQUE, k, u)
                 duty = "nan"

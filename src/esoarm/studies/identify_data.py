@@ -28,8 +28,11 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from esoarm import _jit
 from esoarm.plants.lever_arm import rig_advance
 from esoarm.scenario import ScenarioError
+
+_jit.register_all()  # rig_advance becomes callable from simulate_segments (compiled)
 
 __all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "read_ident_log", "simulate_segments"]
 
