@@ -58,8 +58,7 @@ class Params(Section):
     kind: Literal["urdf"] = Field(
         "urdf", description='plant kind: "urdf" (a serial arm from a URDF file)')
     file: str = Field(
-        ..., min_length=1,
-        description="URDF file, relative to the scenario file (built-ins: robots/…)")
+        "", description="URDF file, relative to the scenario file (required)")
     g: float = Field(9.81, ge=0, description="gravity along −z of the URDF base frame",
                      json_schema_extra=unit("m/s²"))
     payload_mass: float = Field(
@@ -68,8 +67,9 @@ class Params(Section):
     payload_offset: list[float] = Field(
         default_factory=lambda: [0.0, 0.0, 0.0], min_length=3, max_length=3,
         description="its position in the last joint's frame", json_schema_extra=unit("m"))
-    q0: list[float] | None = Field(
-        None, description="initial angle of each joint (absent: rig.theta0 for every joint)",
+    q0: list[float] = Field(
+        default_factory=list,
+        description="initial angle of each joint (empty: rig.theta0 for every joint)",
         json_schema_extra=unit("rad"))
 
 
@@ -136,6 +136,9 @@ def check(scn: Scenario) -> str | None:
     Loads the URDF (Pinocchio must be installed), checks the per-joint keys
     against the number of joints and the reference against the joint limits.
     """
+    if not scn.plant.file:
+        return ("key 'plant.file': required for plant.kind = 'urdf' (the arm's URDF file, "
+                "relative to the scenario file)")
     try:
         arm = scenario_arm(scn)
     except UrdfError as exc:
@@ -152,7 +155,7 @@ def check(scn: Scenario) -> str | None:
                 return (f"key '{section}.{key}': {len(value)} entries, but "
                         f"'{Path(scn.plant.file).name}' has {_joint_list(arm)}")
     q0 = scn.plant.q0
-    if q0 is not None and len(q0) != n:
+    if q0 and len(q0) != n:
         return (f"key 'plant.q0': {len(q0)} entries, but '{Path(scn.plant.file).name}' has "
                 f"{_joint_list(arm)}")
     from esoarm.reference import joint_count, needs_limits
@@ -188,7 +191,7 @@ def design(scn: Scenario) -> PlantDesign:
                       each(rig.disturbance.frequency), lag)
     vector = np.concatenate([[float(CODE), float(handle), float(feeds_forward(scn))],
                              pack_params(twin, arm.inertia_scale)])
-    q0 = np.array(scn.plant.q0, dtype=float) if scn.plant.q0 is not None else each(rig.theta0)
+    q0 = np.array(scn.plant.q0, dtype=float) if scn.plant.q0 else each(rig.theta0)
     x0 = np.concatenate([q0, np.zeros(2 * n)])
     return PlantDesign(vector=read_only(vector), x0=read_only(x0), n_joints=n,
                        b0=read_only(np.ones(n)))

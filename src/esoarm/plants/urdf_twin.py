@@ -29,10 +29,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-from numba import njit
 
+from esoarm._jit import jitable
 from esoarm.plants.urdf_model import ArmModel, import_pinocchio
 
 __all__ = ["ArmTwin", "TwinParams", "pack_params", "twin_acceleration", "twin_advance"]
@@ -50,7 +51,7 @@ def pack_params(params: TwinParams, inertia_scale: float) -> np.ndarray:
     return np.concatenate([*blocks, [1.0 / inertia_scale, float(params.lag)]])
 
 
-@njit(cache=True)
+@jitable
 def joint_drive(v, tau, p, out):  # type: ignore[no-untyped-def]
     """ABA input (τ − F(q̇))/s into ``out``: torque less friction, over the scale s."""
     n = v.shape[0]
@@ -60,7 +61,7 @@ def joint_drive(v, tau, p, out):  # type: ignore[no-untyped-def]
         out[i] = (tau[i] - friction) * inv_s
 
 
-@njit(cache=True)
+@jitable
 def add_disturbance(acc, t, p):  # type: ignore[no-untyped-def]
     """q̈ = ABA output + d(t), d_i = amplitude_i sin(frequency_i t) [rad/s²] (eq. 6)."""
     n = acc.shape[0]
@@ -70,7 +71,7 @@ def add_disturbance(acc, t, p):  # type: ignore[no-untyped-def]
     return out
 
 
-@njit(cache=True)
+@jitable
 def rk4_begin(q, v, tau, u, p, w):  # type: ignore[no-untyped-def]
     """Load the state (q, q̇, τ) as RK4 stage 0 into the workspace ``w`` (8, n)."""
     lag = p[p.shape[0] - 1]
@@ -81,7 +82,7 @@ def rk4_begin(q, v, tau, u, p, w):  # type: ignore[no-untyped-def]
     joint_drive(v, tau if lag > 0.0 else u, p, w[3])
 
 
-@njit(cache=True)
+@jitable
 def rk4_stage(stage, q, v, tau, u, t, h, acc, p, w):  # type: ignore[no-untyped-def]
     """Finish RK4 stage ``stage`` (0-3) from the ABA output ``acc`` at stage time t.
 
@@ -118,6 +119,30 @@ def rk4_stage(stage, q, v, tau, u, t, h, acc, p, w):  # type: ignore[no-untyped-
 
 
 _STAGE_TIME = (0.0, 0.5, 0.5, 1.0)
+
+_COMPILED: dict[str, Any] = {}
+
+
+def compiled(name: str) -> Any:
+    """The numba-compiled helper ``name`` (compiled on first use and cached on disk).
+
+    numba is imported only here, so importing the arm's modules stays light;
+    without numba the plain functions run (slowly, the same numbers).
+    """
+    func = _COMPILED.get(name)
+    if func is None:
+        plain = globals()[name]
+        try:
+            from numba import njit
+        except ImportError:  # pragma: no cover - numba is a core dependency
+            func = plain
+        else:
+            from esoarm._jit import register_all
+
+            register_all()  # the helpers call each other: register them first
+            func = njit(cache=True)(plain)
+        _COMPILED[name] = func
+    return func
 
 
 @dataclass(frozen=True)
@@ -158,10 +183,10 @@ def twin_acceleration(arm: ArmModel, x: np.ndarray, u: np.ndarray, t: float, tp:
     v = x[n:2 * n]
     applied = x[2 * n:3 * n] if tp[-1] > 0.0 else u
     drive = np.empty(n)
-    joint_drive(v, applied, tp, drive)
+    compiled("joint_drive")(v, applied, tp, drive)
     # M q̈ + C q̇ + g/s = (τ − F)/s  (ABA on the true model, gravity already g/s)
     acc = arm.aba(arm.true, arm.data("true"), arm.configuration(x[:n]), v, drive)
-    out[:] = add_disturbance(acc, t, tp)
+    out[:] = compiled("add_disturbance")(acc, t, tp)
 
 
 def twin_advance(arm: ArmModel, x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
@@ -174,12 +199,13 @@ def twin_advance(arm: ArmModel, x: np.ndarray, u: np.ndarray, t0: float, h: floa
     q, v, tau = x[:n], x[n:2 * n], x[2 * n:3 * n]
     aba, model, data, config = arm.aba, arm.true, arm.data("true"), arm.configuration
     w = arm.workspace()
-    rk4_begin(q, v, tau, u, tp, w)
+    begin, stage_done = compiled("rk4_begin"), compiled("rk4_stage")
+    begin(q, v, tau, u, tp, w)
     for j in range(nsub):
         t = t0 + j * h
         for stage in range(4):
             acc = aba(model, data, config(w[0]), w[1], w[3])
-            rk4_stage(stage, q, v, tau, u, t + _STAGE_TIME[stage] * h, h, acc, tp, w)
+            stage_done(stage, q, v, tau, u, t + _STAGE_TIME[stage] * h, h, acc, tp, w)
         x[:3 * n] = w[:3].ravel()
 
 
