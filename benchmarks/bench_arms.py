@@ -26,7 +26,6 @@ import importlib.util
 import os
 import platform
 import re
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -80,8 +79,8 @@ def _plain_run(params: dict) -> float:
 
 
 def esoarm_cmd() -> list[str]:
-    exe = shutil.which("esoarm")
-    return [exe] if exe else [sys.executable, "-m", "esoarm"]
+    """This interpreter's esoarm (not whichever ``esoarm`` is first on PATH)."""
+    return [sys.executable, "-m", "esoarm"]
 
 
 def load() -> str:
@@ -167,6 +166,10 @@ def main() -> None:
         f"- when: {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; machine: "
         f"{platform.processor() or platform.machine()}, {cores} cores; load average before / "
         f"after: {load_before} / {load()}",
+        *([f"- the cores were shared with other work (load average ≈ "
+            f"{os.getloadavg()[0]:.0f} on {cores} cores): absolute times are several times an "
+            "idle machine's; the ratios, measured back to back, are the point"]
+          if os.getloadavg()[0] > 1.5 * cores else []),
         f"- esoarm {__version__}, Pinocchio {pinocchio.__version__}, numpy {np.__version__}, "
         f"python {platform.python_version()}",
         f"- two-link, 20 s: RMS tracking error {res.rms_error:.4f} rad (esoarm) and "
