@@ -19,11 +19,12 @@ stays the built-ins'.  Two more calibrations with the same loss are recorded
 as evidence: without the stiction (what the model-class extension buys) and
 with the controller gains k1, k2 free too (the paper does not give them).
 
-How well each value is determined: the residuals r = ln(twin/paper) are
-treated like a least-squares fit with σ̂² = loss/(12 − p); the 95 % range of a
-key is exp(±1.96 se) around its value on the log scale, se from σ̂² (JᵀJ)⁻¹
-with J = ∂r/∂ln(value) by central differences.  A range wider than a factor 2
-means the twelve numbers do not pin the value down.
+How well each value is determined: the best twin still misses the paper by
+a factor of about e^0.8 per value, and stick-slip makes the loss rugged, so
+a least-squares covariance would mean little.  Instead each key is profiled
+alone (:func:`determination`): the range of values over which the loss rises
+by at most 1.  A range wider than a factor 2 means the twelve numbers do not
+pin the value down.
 
 The shipped twin lives in ``scenarios/twins/paper.toml`` (values, loss,
 ranges); ``python -m esoarm.studies.paper_twin`` recomputes it.
@@ -69,7 +70,10 @@ GAIN_SEARCH: dict[str, tuple[float, float]] = {
 STICTION_KEYS = ("rig.stiction", "rig.stribeck_velocity")
 #: Lag offset [s]: the lag is searched as log(T + LAG_OFFSET) so that T = 0 is in the range.
 LAG_OFFSET = 1e-3
-#: A key whose 95 % range spans more than this factor is not determined by the tables.
+#: Rise of the loss that bounds the range of a key (one of the twelve values off by an
+#: extra factor e costs 1).
+PROFILE_RISE = 1.0
+#: A key whose range spans more than this factor is not determined by the tables.
 POORLY_DETERMINED_FACTOR = 2.0
 
 
@@ -96,7 +100,13 @@ def _twin_document(name: str) -> dict[str, Any]:
 def load_twin(name: str) -> tuple[dict[str, Any], dict[str, Any]]:
     """(dotted overrides, calibration record) of a twin; ``nominal`` has neither."""
     doc = dict(_twin_document(name))
-    record = doc.pop("calibration", {})
+    record = dict(doc.pop("calibration", {}))
+    for key in ("range_low", "range_high"):  # dotted keys come back as nested tables
+        if key in record:
+            record[key] = _flatten(record[key])
+    for key, entry in record.items():
+        if isinstance(entry, dict) and "values" in entry:
+            record[key] = {**entry, "values": _flatten(entry["values"])}
     return _flatten(doc), record
 
 
@@ -175,24 +185,32 @@ def _to_values(z: np.ndarray, search: dict[str, tuple[float, float]]) -> dict[st
 
 
 def determination(values: dict[str, float], seeds: tuple[int, ...] = SEEDS,
-                  step: float = 0.05) -> dict[str, tuple[float, float]]:
-    """95 % range of each key from the curvature of the loss (see the module docstring)."""
-    keys = list(values)
+                  steps: int = 4) -> dict[str, tuple[float, float]]:
+    """Range of each key over which the loss rises by at most :data:`PROFILE_RISE`.
+
+    A one-key profile (the other keys held): the key is multiplied by 2^(±j/2),
+    j = 1 … ``steps`` (up to ×/÷ 4), and the range runs to the last factor, on each
+    side, whose loss stays within the rise.  A range reaching a scan edge is
+    reported at that edge: the tables do not pin the key down (nor does a range
+    wider than :data:`POORLY_DETERMINED_FACTOR`).
+    """
     base, _ = paper_residuals(values, seeds)
-    jac = np.empty((len(base), len(keys)))
-    for j, key in enumerate(keys):
-        cols = []
-        for sign in (1.0, -1.0):
-            moved = dict(values)
-            moved[key] = values[key] * math.exp(sign * step)
-            cols.append(paper_residuals(moved, seeds)[0])
-        jac[:, j] = (cols[0] - cols[1]) / (2.0 * step)
-    dof = max(len(base) - len(keys), 1)
-    s2 = float(base @ base) / dof
-    cov = s2 * np.linalg.pinv(jac.T @ jac)
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    return {k: (values[k] * math.exp(-1.96 * se[j]), values[k] * math.exp(1.96 * se[j]))
-            for j, k in enumerate(keys)}
+    limit = float(base @ base) + PROFILE_RISE
+    out = {}
+    for key, value in values.items():
+        ends = []
+        for sign in (-1.0, 1.0):
+            factor = 1.0
+            for j in range(1, steps + 1):
+                trial = dict(values)
+                trial[key] = value * 2.0 ** (sign * j / 2.0)
+                resid, _ = paper_residuals(trial, seeds)
+                if not float(resid @ resid) <= limit:
+                    break
+                factor = 2.0 ** (sign * j / 2.0)
+            ends.append(value * factor)
+        out[key] = (ends[0], ends[1])
+    return out
 
 
 def calibrate(search: dict[str, tuple[float, float]] | None = None,

@@ -166,12 +166,13 @@ def _values_table() -> str:
         body += (f"<tr><td>{_e(key)}</td><td>{nom:.4g}</td><td>{value:.4g}</td><td>{rng}</td>"
                  f"<td>{verdict}</td></tr>")
     return ("<h3>The paper twin's values</h3><p>Fitted by differential evolution on the "
-            "compiled engine (see <code>esoarm.studies.paper_twin</code>); the 95 % range "
-            "comes from the curvature of the loss; wider than a factor "
+            "compiled engine (see <code>esoarm.studies.paper_twin</code>). Range: the values "
+            "of one key (the others held) over which the loss rises by at most 1, scanned "
+            "up to a factor 4 either way; wider than a factor "
             f"{POORLY_DETERMINED_FACTOR:g} means the twelve published numbers do not pin "
             f"the value down. Recorded loss {record.get('loss', float('nan')):.3f} over noise "
             f"seeds {record.get('seeds', [])}.</p><table><thead><tr><th>key</th>"
-            "<th>nominal twin</th><th>paper twin</th><th>95 % range</th><th></th></tr></thead>"
+            "<th>nominal twin</th><th>paper twin</th><th>range</th><th></th></tr></thead>"
             f"<tbody>{body}</tbody></table>")
 
 
