@@ -40,6 +40,7 @@ CASES = {
     "eps-0.05": {"observer.eps": 0.05},
     "motor": {"motor.pwm_max": 1023, "motor.deadband": 0.05, "actuator.delay_samples": 1},
     "motor+lag": {"motor.supply_voltage": 6.0, "actuator.lag": 0.02},
+    "stiction": {"rig.stiction": 0.15, "rig.stribeck_velocity": 0.05},
 }
 DISCRETIZATIONS = ("euler", "zoh", "current")
 

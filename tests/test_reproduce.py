@@ -193,7 +193,11 @@ def test_cli_reproduce_writes_everything(run_cli, tmp_path):
         rows = list(csv.DictReader(fh))
     assert {r["run"] for r in rows} == set(experiment_set())
     assert float(rows[0]["rms_error"]) == pytest.approx(data["tables"][0]["rms_error"])
-    assert '<img src="data:image/png;base64,' in (out / "report.html").read_text()
+    html = (out / "report.html").read_text()
+    assert '<img src="data:image/png;base64,' in html
+    # both twins in the report, whichever one ran
+    assert 'id="twins"' in html and "paper twin" in html and "nominal twin" in html
+    assert "What stands in the way" in html
 
 
 def test_cli_reproduce_bad_out_is_exit_2(run_cli, tmp_path):
@@ -202,6 +206,8 @@ def test_cli_reproduce_bad_out_is_exit_2(run_cli, tmp_path):
     res = run_cli("reproduce", "--out", str(target))
     assert res.exit_code == 2
     assert "not a directory" in res.stderr and "Traceback" not in res.stderr
+    res = run_cli("reproduce", "--twin", "hardware")
+    assert res.exit_code == 2 and "--twin" in res.stderr
     res = run_cli("reproduce", "--format", "jpg")
     assert res.exit_code == 2
 

@@ -1,8 +1,13 @@
 """Plant kind ``"lever-arm"``: the paper's robotic lever arm and its digital twin.
 
-    θ̈ = (τ − G(θ) − Fc tanh(θ̇/vs) − b θ̇) / I + d(t),     I = inertia_scale · I0
+    θ̈ = (τ − G(θ) − F(θ̇)) / I + d(t),     I = inertia_scale · I0
+    F(θ̇) = (Fc + Fst exp(−(θ̇/vst)²)) tanh(θ̇/vs) + b θ̇      (Stribeck friction)
     τ̇ = (u_applied − τ) / T      (actuator lag T > 0; τ = u_applied when T = 0)
     d(t) = amplitude · sin(frequency · t)                  (paper eq. 6)
+
+Fst (``rig.stiction``, default 0) is the breakaway torque above Coulomb
+friction, decaying over the Stribeck velocity vst; with Fst = 0 the friction is
+exactly Fc tanh(θ̇/vs) + b θ̇ (bit for bit: Fc + 0·exp(…) = Fc).
 
 integrated with classical RK4 at a fixed step h, d evaluated at each stage
 time.  The scalar functions take the rig parameters packed in one float vector
@@ -56,8 +61,8 @@ class Params(Section):
     )
     g: float = Field(9.81, ge=0, description="gravity", json_schema_extra=unit("m/s²"))
 
-INERTIA, GCOEF, FC, VS, VISC, DAMP, DFREQ, LAG = range(8)
-VECTOR_SIZE = 8
+INERTIA, GCOEF, FC, VS, VISC, DAMP, DFREQ, LAG, FST, VST = range(10)
+VECTOR_SIZE = 10
 
 
 @jitable
@@ -69,7 +74,9 @@ def disturbance(t: float, rig: Vector) -> float:
 @jitable
 def rig_acceleration(theta: float, omega: float, tau: float, t: float, rig: Vector) -> float:
     """True angular acceleration θ̈ [rad/s²] at angle θ, rate θ̇, torque τ, time t."""
-    friction = rig[FC] * math.tanh(omega / rig[VS]) + rig[VISC] * omega
+    x = omega / rig[VST]
+    friction = (rig[FC] + rig[FST] * math.exp(-x * x)) * math.tanh(omega / rig[VS]) \
+        + rig[VISC] * omega
     return (tau - gravity_torque(theta, rig[GCOEF]) - friction) / rig[INERTIA] + disturbance(t, rig)
 
 
@@ -141,6 +148,10 @@ class RigParams:
         [rad/s].
     lag : float
         Actuator time constant T [s]; 0 for none.
+    stiction : float
+        Breakaway torque above Coulomb friction Fst [N·m]; 0 for none.
+    stribeck_velocity : float
+        Stribeck velocity vst [rad/s] over which the stiction decays.
     """
 
     inertia: float
@@ -151,6 +162,8 @@ class RigParams:
     disturbance_amplitude: float
     disturbance_frequency: float
     lag: float
+    stiction: float = 0.0
+    stribeck_velocity: float = 0.1
 
     @classmethod
     def from_scenario(cls, scn: Scenario) -> RigParams:
@@ -165,6 +178,8 @@ class RigParams:
             disturbance_amplitude=r.disturbance.amplitude,
             disturbance_frequency=r.disturbance.frequency,
             lag=scn.actuator.lag,
+            stiction=r.stiction,
+            stribeck_velocity=r.stribeck_velocity,
         )
 
     @cached_property
@@ -180,6 +195,8 @@ class RigParams:
                 self.disturbance_amplitude,
                 self.disturbance_frequency,
                 self.lag,
+                self.stiction,
+                self.stribeck_velocity,
             ]
         )
         vec.setflags(write=False)
@@ -219,7 +236,7 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
     :attr:`PlantDesign.vector`.
     """
     # the parameters as a tuple: compiled, they live in registers through the RK4 loop
-    rig = (p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8])
+    rig = (p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10])
     x[0], x[1], x[2] = rig_advance(x[0], x[1], x[2], u[0], t0, h, nsub, rig)
 
 
