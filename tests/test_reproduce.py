@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from esoarm.engines.metrics import LOG_ROWS
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.result import SimResult
 from esoarm.studies.reproduce import (
@@ -22,8 +23,8 @@ from esoarm.studies.reproduce import (
     observer_checks,
     plan_runs,
     run_id,
-    run_metrics,
     run_reproduction,
+    table_metrics,
 )
 
 # -- the plan ------------------------------------------------------------------
@@ -57,10 +58,10 @@ def _fake(scn, error_rms: float, u_rms: float, rough: float = 0.0) -> SimResult:
     if rough:
         # alternating ±rough/2 around u_rms keeps RMS(Δu) = rough
         u = u_rms + 0.5 * rough * (-1.0) ** np.arange(n)
-    log = np.zeros((n, 8))
-    log[:, 2] = error_rms
-    log[:, 3] = u
-    return SimResult.from_log(scn, t, log, np.zeros(n))
+    log = np.zeros((len(LOG_ROWS), n))
+    log[LOG_ROWS.index("error")] = error_rms
+    log[LOG_ROWS.index("u")] = u
+    return SimResult.from_log(scn, t, log)
 
 
 def _fake_rep(best_eps: float, eso_better: bool) -> Reproduction:
@@ -165,7 +166,7 @@ def test_discretization_findings_quote_the_sweep():
         assert f"ε = {best:g} s for {disc} ({by_eps[best].rms_error:.4f} rad)" in text
     rows = rep.sweep_rows()
     assert len(rows) == 3 * len(SWEEP_EPS)
-    assert rows[0]["rms_error"] == run_metrics(rep.sweep[rows[0]["discretization"]][
+    assert rows[0]["rms_error"] == table_metrics(rep.sweep[rows[0]["discretization"]][
         rows[0]["eps"]])["rms_error"]
 
 
