@@ -48,7 +48,7 @@ import numpy as np
 
 from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario, ScenarioError
-from esoarm.studies.identify_data import IdentLog
+from esoarm.studies.identify_data import IdentLog, check_supported
 from esoarm.studies.identify_fit import PARAMS, Problem
 
 __all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
@@ -198,6 +198,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         The solver did not converge.
     """
     t_start = time.perf_counter()
+    check_supported(scn)
     for key in fix:
         if key not in FREE_KEYS:
             raise ScenarioError(f"--fix {key}: not a fitted key (one of {', '.join(FREE_KEYS)})")
