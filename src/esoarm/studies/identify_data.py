@@ -13,9 +13,10 @@ continuity constraints): the arm is nearly neutrally stable, so one open-loop
 simulation over a whole minute would drift away from the data for any error
 in the friction, while a horizon of a few seconds keeps the problem well
 conditioned and still sees every parameter.  The simulator is
-:func:`esoarm.plants.lever_arm.advance` -- the lever-arm plant step, the twin's own RK4
-integration of the rig -- compiled with numba, one sample at a time with the input held (SPEC-style
-zero-order hold, transport delay applied to the input sequence).
+:func:`esoarm.plants.lever_arm.advance` -- the lever-arm plant step, the twin's
+own RK4 integration of the rig -- compiled with numba, one sample at a time
+with the input held over the sample (zero-order hold, as in every engine) and
+the transport delay applied to the input sequence.
 """
 
 from __future__ import annotations
