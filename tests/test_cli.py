@@ -375,7 +375,7 @@ def test_same_command_same_bytes(run_cli, tmp_path):
 @pytest.mark.parametrize(
     ("args", "fragment"),
     [(["simulate"], "Missing argument 'SCENARIO'"),
-     (["simulate", "test-1", "--sett", "x=1"], "Did you mean '--set'"),
+     (["simulate", "test-1", "--sett", "x=1"], "'--set'"),
      (["simulate", "test-1", "--out"], "requires an argument")],
     ids=["missing-argument", "unknown-option", "option-without-value"],
 )

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from esoarm import __version__
-from esoarm._io import atomic_path
+from esoarm._io import atomic_path, make_dir
 from esoarm.observer import DISCRETIZATIONS
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario, load_scenario
@@ -642,7 +642,7 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
     if fmt not in plotting.FIGURE_FORMATS:
         raise ValueError(f"fmt must be one of {', '.join(plotting.FIGURE_FORMATS)}, got {fmt!r}")
     out = Path(out_dir)
-    (out / "runs").mkdir(parents=True, exist_ok=True)
+    make_dir(out / "runs")
     written: list[Path] = []
     for key, res in rep.runs.items():
         written.append(res.to_csv(out / "runs" / f"{key}.csv"))

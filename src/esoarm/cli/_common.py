@@ -1,4 +1,12 @@
-"""Shared pieces of the command line: errors, --set, scenario loading, outputs."""
+"""Shared pieces of the command line: errors, verbosity, --set, scenario loading, outputs.
+
+Every command gets these without doing anything: ``--quiet``/``--verbose``
+(added to each command by the group, see :func:`add_verbosity_options`), the
+mapping of library errors to exit codes (in :func:`esoarm.cli.main`), and the
+one-line warnings.  A command that writes files checks its output paths with
+:func:`output_path` / :func:`output_dir` before any work and writes them
+through :func:`esoarm._io.atomic_path`.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +19,7 @@ from typing import Any, TypeVar
 
 import click
 
+from esoarm._io import OutputError, check_writable
 from esoarm.scenario import Scenario, ScenarioError, ScenarioWarning, load_scenario
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -36,8 +45,77 @@ class RunFailure(click.ClickException):
         click.echo(f"esoarm: failed: {self.format_message()}", err=True)
 
 
+# ---------------------------------------------------------------------------
+# verbosity: 0 quiet, 1 normal, 2 verbose (reset for every invocation)
+
+QUIET, NORMAL, VERBOSE = 0, 1, 2
+_state = {"level": NORMAL, "quiet": False, "verbose": False}
+
+
+def reset_verbosity() -> None:
+    """Back to normal output (called at the start of every invocation)."""
+    _state.update(level=NORMAL, quiet=False, verbose=False)
+
+
+def verbosity() -> int:
+    """The current level: :data:`QUIET`, :data:`NORMAL` or :data:`VERBOSE`."""
+    return int(_state["level"])
+
+
+def _set_level(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    if not value:
+        return
+    assert param.name is not None
+    _state[param.name] = True
+    if _state["quiet"] and _state["verbose"]:
+        raise BadInput("--quiet and --verbose exclude each other; give one")
+    _state["level"] = QUIET if param.name == "quiet" else VERBOSE
+
+
+QUIET_HELP = "Print only the results and errors: no progress, warnings or notes on stderr."
+VERBOSE_HELP = ("Also print what is done, step by step, on stderr (progress lines even when "
+                "stderr is not a terminal, files written, timings).")
+
+
+def verbosity_params() -> list[click.Option]:
+    """Fresh ``-q/--quiet`` and ``-v/--verbose`` options (they only set the level)."""
+    return [
+        click.Option(["-q", "--quiet"], is_flag=True, expose_value=False, is_eager=True,
+                     callback=_set_level, help=QUIET_HELP),
+        click.Option(["-v", "--verbose"], is_flag=True, expose_value=False, is_eager=True,
+                     callback=_set_level, help=VERBOSE_HELP),
+    ]
+
+
+def add_verbosity_options(cmd: click.Command) -> click.Command:
+    """Give ``cmd`` the ``--quiet``/``--verbose`` options (once)."""
+    if not any(p.name in ("quiet", "verbose") for p in cmd.params):
+        cmd.params.extend(verbosity_params())
+    return cmd
+
+
+def note(message: str) -> None:
+    """An informational line on stderr (not shown with --quiet)."""
+    if verbosity() >= NORMAL:
+        click.echo(f"esoarm: {message}", err=True)
+
+
+def detail(message: str) -> None:
+    """A line shown only with --verbose, on stderr."""
+    if verbosity() >= VERBOSE:
+        click.echo(f"esoarm: {message}", err=True)
+
+
+def warn_line(message: str) -> None:
+    """A one-line warning on stderr (not shown with --quiet)."""
+    if verbosity() >= NORMAL:
+        click.echo(f"esoarm: warning: {message}", err=True)
+
+
 def show_warning(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
     """Print warnings as one line on stderr (ScenarioWarning without a location)."""
+    if verbosity() < NORMAL:
+        return
     if issubclass(category, ScenarioWarning):
         click.echo(f"esoarm: warning: {message}", err=True)
     else:
@@ -52,7 +130,7 @@ def bad_input_guard(func: F) -> F:
         try:
             return func(*args, **kwargs)
         except ScenarioError as exc:
-            raise BadInput(str(exc)) from None
+            raise BadInput(cli_wording(str(exc))) from None
 
     return wrapper  # type: ignore[return-value]
 
@@ -74,9 +152,20 @@ def scenario_argument(func: F) -> F:
     return click.argument("scenario", metavar="SCENARIO")(func)
 
 
+def cli_wording(message: str) -> str:
+    """A library message about an override, worded for the command line (``--set``)."""
+    for lib, flag in (("override ", "--set "), ("overrides: ", "--set: ")):
+        if message.startswith(lib):
+            return flag + message[len(lib):]
+    return message
+
+
 def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scenario:
     """Load a scenario with overrides and print its warnings (one line each)."""
     scn = load_scenario(name, list(overrides))
+    detail(f"scenario '{scn.name}': {scn.n_samples} samples at {scn.sensor.rate_hz:g} Hz, "
+           f"{scn.substeps} RK4 steps per sample, ε = {scn.observer.eps:g} s "
+           f"({scn.observer.discretization})")
     from esoarm.scenario import scenario_warnings
 
     for msg in scenario_warnings(scn):
@@ -85,7 +174,10 @@ def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scena
 
 
 def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Path | None:
-    """Check an output path before any work: allowed suffix, not a directory."""
+    """Check an output file before any work: allowed suffix, a place that can be written.
+
+    Raises :class:`BadInput` (exit status 2) naming the option and the path.
+    """
     if value is None:
         return None
     path = Path(value)
@@ -95,9 +187,24 @@ def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Pa
         raise BadInput(f"{option} '{value}': is a directory, expected a file name")
     if path.parent.exists() and not path.parent.is_dir():
         raise BadInput(f"{option} '{value}': '{path.parent}' is not a directory")
+    _check(path, option, directory=False)
     return path
 
 
+def output_dir(value: str, option: str) -> Path:
+    """Check an output directory before any work (it may not exist yet)."""
+    path = Path(value)
+    _check(path, option, directory=True)
+    return path
+
+
+def _check(path: Path, option: str, directory: bool) -> None:
+    try:
+        check_writable(path, directory=directory)
+    except OutputError as exc:
+        raise BadInput(f"{option} '{path}': {exc.reason}") from None
+
+
 def stderr_is_tty() -> bool:
-    """Whether progress displays should be drawn."""
-    return sys.stderr.isatty()
+    """Whether live progress displays should be drawn (a terminal, and not --quiet)."""
+    return sys.stderr.isatty() and verbosity() >= NORMAL

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from esoarm.cli._common import BadInput, RunFailure, bad_input_guard
+from esoarm.cli._common import RunFailure, bad_input_guard, output_dir
 
 
 @click.command()
@@ -34,9 +34,7 @@ def reproduce(out_dir: str, fmt: str) -> None:
     from esoarm.reproduce import figure_specs, plan_runs, run_reproduction, write_outputs
     from esoarm.simulation import SimulationDiverged
 
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise BadInput(f"--out '{out_dir}': exists and is not a directory")
+    out = output_dir(out_dir, "--out")
     n_runs = len(plan_runs())
     console = Console(stderr=True)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),

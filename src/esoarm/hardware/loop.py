@@ -29,6 +29,7 @@ before t_dev,k + offset + Ts, offset the smallest arrival delay seen
 from __future__ import annotations
 
 import math
+import os
 import signal
 import threading
 import time
@@ -38,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm._io import OutputError, describe_os_error
 from esoarm.hardware import protocol as P
 from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.link import LinkError, SerialLink
@@ -134,26 +136,59 @@ def check_device(info: P.Info, scn: Scenario) -> float:
 
 
 class _LogWriter:
-    """CSV rows streamed to disk, one flushed line per sample."""
+    """CSV rows streamed to disk, one flushed line per sample.
+
+    If the disk fills up (or any write fails) the run stops like any other
+    fault, and the file is cut back to its last whole row.
+    """
 
     def __init__(self, path: Path | None) -> None:
         self.path = path
         self.rows = 0
         self._fh = None
+        self._good = 0  # bytes of whole rows written
         if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
-            self._fh.write(",".join(LOG_COLUMNS) + "\n")
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
+            except OSError as exc:
+                raise OutputError(path, describe_os_error(exc)) from None
+            self.write(",".join(LOG_COLUMNS) + "\n", row=False)
 
-    def write(self, line: str) -> None:
-        self.rows += 1
+    def write(self, line: str, row: bool = True) -> None:
         if self._fh is not None:
-            self._fh.write(line)
+            try:
+                self._fh.write(line)
+            except OSError as exc:
+                self._fail(exc)
+            self._good += len(line)  # ASCII: characters are bytes
+        if row:
+            self.rows += 1
+
+    def _fail(self, exc: OSError) -> None:
+        fh, self._fh = self._fh, None
+        try:
+            assert fh is not None
+            fh.close()
+        except OSError:
+            pass
+        try:
+            os.truncate(str(self.path), self._good)
+        except OSError:
+            pass
+        raise _Stop(f"cannot write the log '{self.path}': {describe_os_error(exc)} "
+                    f"(log cut back to its last whole row)")
 
     def close(self) -> None:
         if self._fh is not None:
-            self._fh.flush()
-            self._fh.close()
+            try:
+                self._fh.flush()
+                self._fh.close()
+            except OSError:
+                try:
+                    os.truncate(str(self.path), self._good)
+                except OSError:
+                    pass
             self._fh = None
 
 
