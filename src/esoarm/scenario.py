@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import functools
 import math
 import tomllib
 from importlib import resources
@@ -37,6 +38,10 @@ __all__ = [
 
 #: Longest run a scenario may ask for, in samples (duration · rate_hz).
 MAX_SAMPLES = 100_000_000
+#: Most runs (grid points × seeds) a sweep may have unless the caller raises it
+#: (``max_runs=``, ``--max-runs``): the result table alone takes about 80 bytes a
+#: run, and every grid point is checked before the first run (~0.3 ms each).
+MAX_RUNS = 1_000_000
 
 
 class ScenarioError(ValueError):
@@ -345,7 +350,13 @@ def load_scenario(
 
 
 def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
-    out = copy.deepcopy(base)
+    """``base`` updated by ``over``, table by table; neither is modified.
+
+    The tables along the way are new dicts and the values from ``over`` are
+    copied; untouched values of ``base`` are shared (validation copies them
+    again), which keeps checking a large sweep grid quick.
+    """
+    out = dict(base)
     for key, value in over.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
             old_kind = out[key].get("kind")
@@ -358,8 +369,13 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _defaults() -> dict[str, Any]:
+@functools.cache
+def _defaults_cached() -> dict[str, Any]:
     return Scenario().model_dump()
+
+
+def _defaults() -> dict[str, Any]:
+    return copy.deepcopy(_defaults_cached())
 
 
 def parse_override(item: str) -> tuple[str, Any]:
@@ -388,7 +404,16 @@ def _nest(key: str, value: Any) -> dict[str, Any]:
     return out
 
 
+@functools.cache
+def _valid_keys_cached() -> tuple[str, ...]:
+    return tuple(_walk_keys())
+
+
 def _valid_keys() -> list[str]:
+    return list(_valid_keys_cached())
+
+
+def _walk_keys() -> list[str]:
     keys: list[str] = []
 
     def walk(model: type[BaseModel], prefix: str) -> None:
@@ -413,7 +438,7 @@ def _build(data: dict[str, Any], overrides: dict[str, Any] | list[str], source: 
         pairs = [parse_override(item) for item in overrides]
     else:
         pairs = list(overrides.items())
-    merged = _merge(_defaults(), data)
+    merged = _merge(_defaults_cached(), data)
     for key, value in pairs:
         _check_key(key, source="--set")
         merged = _merge(merged, _nest(key, value))

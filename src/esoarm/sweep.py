@@ -33,7 +33,7 @@ import numpy as np
 
 from esoarm._io import atomic_path
 from esoarm.batch import METRICS, _NoiseCache, run_metrics
-from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
+from esoarm.scenario import MAX_RUNS, Scenario, ScenarioError, parse_override, scenario_warnings
 
 __all__ = [
     "SweepGrid",
@@ -51,6 +51,13 @@ LOCAL_CHUNK = 1024
 DASK_CHUNK = 256
 #: How long to try reaching a Dask scheduler.
 CONNECT_TIMEOUT = "10s"
+
+
+def _too_many(n: float, max_runs: int, what: str) -> ScenarioError:
+    return ScenarioError(
+        f"{what} {n:,.0f} runs (grid points × seeds), more than the limit of {max_runs:,}: "
+        f"that is about {n * 80 / 1e6:,.0f} MB for the results alone; "
+        f"shrink the grid or raise the limit (--max-runs N, or max_runs=N in Python)")
 
 
 @dataclass(frozen=True)
@@ -76,11 +83,12 @@ def _lookup(data: dict[str, Any], key: str) -> Any:
     return node
 
 
-def parse_vary(item: str, base: Scenario | None = None) -> VarySpec:
+def parse_vary(item: str, base: Scenario | None = None, max_values: int = MAX_RUNS) -> VarySpec:
     """Parse one ``KEY=SPEC`` (see the module docstring).
 
     With ``base``, values of integer keys given as ``lin``/``geom`` are made
-    integers when they are whole numbers.
+    integers when they are whole numbers.  A ``lin``/``geom`` NUM above
+    ``max_values`` is rejected before anything is allocated.
 
     Raises
     ------
@@ -112,6 +120,8 @@ def parse_vary(item: str, base: Scenario | None = None) -> VarySpec:
             raise ScenarioError(f"--vary {key}: '{spec}': START and STOP must be finite")
         if num < 1:
             raise ScenarioError(f"--vary {key}: '{spec}': NUM must be >= 1")
+        if num > max_values:
+            raise _too_many(num, max_values, f"--vary {key}: '{spec}' alone is")
         if head == "geom":
             if start == 0 or stop == 0 or (start < 0) != (stop < 0):
                 raise ScenarioError(
@@ -221,7 +231,9 @@ class SweepGrid:
         return list(self.risky)
 
 
-def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid:
+def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1, *,
+               max_runs: int = MAX_RUNS,
+               progress: Callable[[int], None] | None = None) -> SweepGrid:
     """Parse ``--vary`` items and validate every grid point before any run.
 
     Parameters
@@ -232,17 +244,28 @@ def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid
         ``KEY=SPEC`` items; at least one.
     seeds : int
         K ≥ 1: every point runs with ``sensor.seed`` = 0 … K−1.
+    max_runs : int
+        Refuse grids of more runs (grid points × seeds) than this, before
+        building anything (default :data:`MAX_RUNS`).
+    progress : callable, optional
+        Called with the number of grid points checked since the last call.
 
     Raises
     ------
     ScenarioError
-        Bad SPEC, unknown key, a value out of range (the message names the key).
+        Bad SPEC, unknown key, a value out of range (the message names the key),
+        or more runs than ``max_runs``.
     """
+    if isinstance(max_runs, bool) or not isinstance(max_runs, int) or max_runs < 1:
+        raise ScenarioError(f"--max-runs {max_runs!r}: must be a whole number >= 1")
     if not vary:
         raise ScenarioError("--vary: give at least one KEY=SPEC")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise ScenarioError(f"--seeds {seeds!r}: must be a whole number >= 1")
-    specs = [parse_vary(item, base) for item in vary]
+    specs = [parse_vary(item, base, max_values=max_runs) for item in vary]
+    n_runs = math.prod(len(s.values) for s in specs) * seeds
+    if n_runs > max_runs:
+        raise _too_many(n_runs, max_runs, "this sweep is")
     keys = [s.key for s in specs]
     for key in keys:
         if keys.count(key) > 1:
@@ -257,9 +280,16 @@ def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid
                 _apply(base, {spec.key: value}, spec.key)
     points = GridPoints(base, tuple(specs))
     risky: dict[str, None] = {}
+    checked = 0
     for scn in points:  # every point validated (and its warnings noted), none kept
         for msg in scenario_warnings(scn):
             risky.setdefault(msg, None)
+        checked += 1
+        if progress is not None and checked == 100:
+            progress(checked)
+            checked = 0
+    if progress is not None and checked:
+        progress(checked)
     # with sensor.seed as a grid key each point keeps its own seed (seeds = ())
     seed_list = () if "sensor.seed" in keys else tuple(range(seeds))
     return SweepGrid(base, tuple(specs), seed_list, points, tuple(risky))
@@ -349,6 +379,63 @@ class ClusterError(RuntimeError):
     """The Dask cluster could not be used (unreachable, lost, or not installed)."""
 
 
+#: How long to wait for a TCP answer from the scheduler before giving up [s].
+PROBE_TIMEOUT = 5.0
+
+
+def parse_scheduler(address: str) -> tuple[str, str, int]:
+    """Split ``[tcp://|tls://]HOST:PORT`` into (scheme, host, port).
+
+    Raises
+    ------
+    ScenarioError
+        Not an address of that form (one line, exit status 2 on the command line).
+    """
+    shown = f"--scheduler '{address}'"
+    scheme, sep, rest = address.strip().partition("://")
+    if not sep:
+        scheme, rest = "tcp", address.strip()
+    if scheme not in ("tcp", "tls"):
+        raise ScenarioError(f"{shown}: scheme '{scheme}://' is not supported; "
+                            "expected tcp://HOST:PORT or tls://HOST:PORT")
+    host, colon, port_text = rest.rpartition(":")
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    if not colon or not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
+        raise ScenarioError(f"{shown}: expected tcp://HOST:PORT with a port 1-65535, "
+                            "e.g. tcp://127.0.0.1:8786")
+    return scheme, host, int(port_text)
+
+
+def probe_scheduler(address: str, timeout: float = PROBE_TIMEOUT) -> None:
+    """Check within ``timeout`` seconds that something accepts connections at ``address``.
+
+    Done before a Dask client is made: a client that cannot connect takes
+    tens of seconds to give up and complains again when garbage-collected.
+
+    Raises
+    ------
+    ScenarioError
+        The address is malformed.
+    ClusterError
+        The host is unknown or nothing answers there.
+    """
+    import socket
+
+    _, host, port = parse_scheduler(address)
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except socket.gaierror as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: unknown host "
+                           f"'{host}' ({exc.strerror})") from None
+    except TimeoutError:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: no answer within "
+                           f"{timeout:g} s") from None
+    except OSError as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: "
+                           f"{exc.strerror or exc} (is 'dask scheduler' running there?)") from None
+
+
 def _iter_dask(grid: SweepGrid, address: str, threads: int,
                chunk: int) -> Iterator[tuple[int, np.ndarray]]:
     try:
@@ -359,10 +446,34 @@ def _iter_dask(grid: SweepGrid, address: str, threads: int,
         ) from None
     per_point = max(len(grid.seeds), 1)
     seeds = list(grid.seeds)
+    probe_scheduler(address)
+
+    class _QuietClient(Client):  # type: ignore[misc, valid-type]
+        """A client that, when its constructor failed, is dropped quietly and at once.
+
+        (distributed's own ``__del__`` would wait twice the connect timeout and
+        print a traceback after the one-line error.)
+        """
+
+        _esoarm_ok = False
+
+        def __del__(self) -> None:
+            if self._esoarm_ok:
+                super().__del__()
+                return
+            try:
+                self.close(timeout=0.5)
+            except BaseException:  # noqa: S110 - best effort on a client that never worked
+                pass
+
     try:
-        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+        client = _QuietClient(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+    except Exception as exc:  # noqa: BLE001 - anything here means: no usable scheduler
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if isinstance(exc, MemoryError):
+            reason = "something answers there, but not a Dask scheduler"
+        raise ClusterError(f"cannot use the Dask scheduler at {address}: {reason}") from None
+    client._esoarm_ok = True
     futures = {}
     try:
         for lo, hi in _chunks(grid, chunk):
