@@ -14,8 +14,8 @@ import click
 
 from esoarm.cli._common import (
     PLOT_SUFFIXES,
-    BadInput,
     VERBOSE,
+    BadInput,
     RunFailure,
     bad_input_guard,
     output_path,
