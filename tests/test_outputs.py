@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from esoarm import _io
+from esoarm.engines.simulation import simulate
 from esoarm.scenario import load_scenario
-from esoarm.simulation import simulate
 
 SHORT = ["--set", "duration=1.0"]
 LINUX = sys.platform.startswith("linux")
@@ -90,7 +90,7 @@ def test_reproduce_out_that_is_a_file(run_cli, tmp_path):
 @pytest.mark.skipif(not LINUX or not os.path.isdir("/proc/self"), reason="needs Linux /proc")
 def test_api_writers_raise_output_error_naming_the_path(tmp_path):
     from esoarm.hardware.replay import ReplayResult
-    from esoarm.sweep import build_grid, run_sweep
+    from esoarm.studies.sweep import build_grid, run_sweep
 
     res = simulate(load_scenario("test-1", {"duration": 0.2}))
     grid = build_grid(load_scenario("test-1", {"duration": 0.2}), ["observer.eps=0.05"])
