@@ -229,3 +229,58 @@ def test_parse_override_examples():
     assert isinstance(v, float) and math.isnan(v)
     with pytest.raises(ScenarioError, match="KEY=VALUE"):
         parse_override("observer.eps")
+
+
+# -- messages of the library speak of its own arguments, the CLI of its options -----
+
+
+@pytest.mark.parametrize(
+    ("overrides", "fragments"),
+    [
+        ({"observer.epsilon": 0.05}, ["override", "unknown key 'observer.epsilon'",
+                                      "did you mean 'observer.eps'"]),
+        ({"observer.eps": 0}, ["override", "observer.eps"]),
+        ({"reference.moves": [[2.0, 1.0, 1.0], [1.0, 1.0, 0.0]]}, ["override",
+                                                                   "reference.moves[1]"]),
+        (["observer.eps"], ["override 'observer.eps'", "KEY=VALUE"]),
+        ({1: 2}, ["override 1", "dotted string"]),
+        ("observer.eps=0.05", ["overrides", "dict"]),
+    ],
+    ids=["unknown-key", "out-of-range", "moves-order", "no-equals", "non-string-key", "a-string"],
+)
+def test_api_errors_speak_of_the_override_not_the_cli(overrides, fragments):
+    with pytest.raises(ScenarioError) as info:
+        load_scenario("test-1", overrides)
+    msg = str(info.value)
+    assert "--set" not in msg and "\n" not in msg
+    for fragment in fragments:
+        assert fragment in msg
+
+
+def test_cli_words_the_same_error_for_its_option(run_cli):
+    res = run_cli("show", "test-1", "--set", "observer.epsilon=0.05")
+    assert res.exit_code == 2
+    assert res.stderr.strip() == ("esoarm: error: --set: unknown key 'observer.epsilon'; "
+                                  "did you mean 'observer.eps'?")
+    res = run_cli("show", "test-1", "--set", "observer.eps=0")
+    assert res.stderr.startswith("esoarm: error: --set: key 'observer.eps' = 0")
+
+
+def test_library_study_errors_name_arguments_not_options():
+    from esoarm.studies import sweep, tune
+    from esoarm.studies.sweep import parse_scheduler
+
+    base = load_scenario("test-1")
+    calls = [
+        lambda: sweep.build_grid(base, []),
+        lambda: sweep.build_grid(base, ["observer.eps=0.1"], seeds=0),
+        lambda: sweep.build_grid(base, ["observer.eps=0.1"], max_runs=0),
+        lambda: sweep.parse_vary("observer.eps"),
+        lambda: parse_scheduler("nope"),
+        lambda: tune.Objective("rms_error +", 1.0),
+        lambda: tune.parse_bound("observer.eps=3", base),
+    ]
+    for call in calls:
+        with pytest.raises(ScenarioError) as info:
+            call()
+        assert not str(info.value).startswith("--"), str(info.value)

@@ -17,6 +17,7 @@ import difflib
 import functools
 import math
 import tomllib
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -379,14 +380,20 @@ def _defaults() -> dict[str, Any]:
 
 
 def parse_override(item: str) -> tuple[str, Any]:
-    """Parse one ``KEY=VALUE`` override; VALUE as TOML, else as a string."""
+    """Parse one ``KEY=VALUE`` override; VALUE as TOML, else as a string.
+
+    Messages speak of the override (``override 'x': …``); the command line
+    words them for its ``--set`` option.
+    """
+    if not isinstance(item, str):
+        raise ScenarioError(f"override {item!r}: expected a 'KEY=VALUE' string")
     if "=" not in item:
-        raise ScenarioError(f"--set '{item}': expected KEY=VALUE, e.g. observer.eps=0.05")
+        raise ScenarioError(f"override '{item}': expected KEY=VALUE, e.g. observer.eps=0.05")
     key, raw = item.split("=", 1)
     key = key.strip()
     raw = raw.strip()
     if not key:
-        raise ScenarioError(f"--set '{item}': empty key")
+        raise ScenarioError(f"override '{item}': empty key")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
@@ -434,19 +441,29 @@ def _walk_keys() -> list[str]:
 
 
 def _build(data: dict[str, Any], overrides: dict[str, Any] | list[str], source: str) -> Scenario:
-    if isinstance(overrides, list):
+    if isinstance(overrides, list | tuple):
         pairs = [parse_override(item) for item in overrides]
-    else:
+    elif isinstance(overrides, dict):
         pairs = list(overrides.items())
+    else:
+        raise ScenarioError(f"overrides: expected a dict {{'observer.eps': 0.05}} or a list of "
+                            f"'KEY=VALUE' strings, got {type(overrides).__name__}")
     merged = _merge(_defaults_cached(), data)
     for key, value in pairs:
-        _check_key(key, source="--set")
+        if not isinstance(key, str):
+            raise ScenarioError(f"override {key!r}: a key is a dotted string, e.g. 'observer.eps'")
+        _check_key(key, source="override")
         merged = _merge(merged, _nest(key, value))
+    overridden = {key for key, _ in pairs}
+
+    def origin(key: str) -> str:  # blame the override when it set the offending key
+        return "override" if key.split("[")[0] in overridden else source
+
     try:
         scn = Scenario.model_validate(merged)
     except ValidationError as exc:
-        raise ScenarioError(_format_validation_error(exc, source)) from None
-    _check_consistency(scn, source)
+        raise ScenarioError(_format_validation_error(exc, source, origin)) from None
+    _check_consistency(scn, source, origin)
     return scn
 
 
@@ -460,7 +477,8 @@ def _check_key(key: str, source: str) -> None:
     raise ScenarioError(f"{source}: unknown key '{key}'{hint}")
 
 
-def _format_validation_error(exc: ValidationError, source: str) -> str:
+def _format_validation_error(exc: ValidationError, source: str,
+                             origin: Callable[[str], str] | None = None) -> str:
     err = exc.errors()[0]
     loc = [str(p) for p in err["loc"] if not isinstance(p, int)]
     # drop the discriminator tag pydantic inserts for tagged unions
@@ -470,6 +488,8 @@ def _format_validation_error(exc: ValidationError, source: str) -> str:
     more = len(exc.errors()) - 1
     tail = f" (and {more} more error{'s' if more > 1 else ''})" if more else ""
     kind = err["type"]
+    if origin is not None:
+        source = origin(key if kind != "union_tag_invalid" else key + ".kind")
     if kind == "extra_forbidden":
         valid = _valid_keys()
         tags = [p for p in err["loc"] if p in ("quintic-steps", "multisine")]
@@ -493,9 +513,11 @@ def _format_validation_error(exc: ValidationError, source: str) -> str:
     return f"{source}: key '{where}' = {shown}: {msg}{tail}"
 
 
-def _check_consistency(scn: Scenario, source: str) -> None:
+def _check_consistency(scn: Scenario, source: str,
+                       origin: Callable[[str], str] | None = None) -> None:
     def fail(key: str, msg: str) -> None:
-        raise ScenarioError(f"{source}: key '{key}': {msg}")
+        where = origin(key) if origin else source
+        raise ScenarioError(f"{where}: key '{key}': {msg}")
 
     ts = scn.sample_time
     ratio = ts / scn.rig.step

@@ -9,6 +9,7 @@ logged row intact.  Scenarios are shortened to 1-2 s.
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import time
@@ -87,9 +88,12 @@ def test_real_time_run(tmp_path):
                      "--json")
         elapsed = time.monotonic() - t0
         assert res.returncode == 0, res.stderr
-        assert "stop received" in emu.output()
+        said = emu.output()
+        assert "stop received" in said
     summary = json.loads(res.stdout)
     data = _read_log(log)
+    held = re.search(r"(\d+) samples ran on an older command", said)
+    assert held is not None, said
     assert summary["mode"] == "real time"
     assert summary["samples"] == len(data) == 75
     assert elapsed >= 1.4  # paced by the device clock, not as fast as possible
@@ -97,8 +101,9 @@ def test_real_time_run(tmp_path):
     assert summary["deadline_misses"] == int(data["late"].sum())
     # device timestamps advance by about Ts
     assert np.median(np.diff(data["t_device"])) == pytest.approx(0.02, abs=2e-3)
-    if summary["deadline_misses"] == 0 and summary["lost_samples"] == 0:
-        # on time, each command acts over its own sample: the simulator's sequence
+    if int(held.group(1)) == 0 and summary["lost_samples"] == 0:
+        # every command reached the device within its own sample (the device says so; on a
+        # loaded machine the host's deadline estimate cannot tell): the simulator's sequence
         assert np.array_equal(data["u"], simulate("test-1", sets, warn=False).u)
 
 

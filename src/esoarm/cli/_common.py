@@ -11,6 +11,7 @@ through :func:`esoarm._io.atomic_path`.
 from __future__ import annotations
 
 import functools
+import re
 import sys
 import warnings
 from collections.abc import Callable
@@ -152,12 +153,20 @@ def scenario_argument(func: F) -> F:
     return click.argument("scenario", metavar="SCENARIO")(func)
 
 
+#: Library wording of an argument -> the command-line option that carries it.
+CLI_FLAGS = {"override": "--set", "overrides": "--set", "vary": "--vary", "seeds": "--seeds",
+             "max_runs": "--max-runs", "scheduler": "--scheduler", "objective": "--objective",
+             "robust": "--robust", "samples": "--samples", "fault": "--fault"}
+_LEAD = re.compile(r"^(" + "|".join(sorted(CLI_FLAGS, key=len, reverse=True)) + r")(?=[ :])")
+
+
 def cli_wording(message: str) -> str:
-    """A library message about an override, worded for the command line (``--set``)."""
-    for lib, flag in (("override ", "--set "), ("overrides: ", "--set: ")):
-        if message.startswith(lib):
-            return flag + message[len(lib):]
-    return message
+    """A library message, worded for the command line.
+
+    The library speaks of its arguments (``override 'observer.epsilon': unknown
+    key``); the command line names the option (``--set 'observer.epsilon': …``).
+    """
+    return _LEAD.sub(lambda m: CLI_FLAGS[m.group(1)], message, count=1)
 
 
 def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scenario:

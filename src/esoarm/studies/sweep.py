@@ -97,35 +97,35 @@ def parse_vary(item: str, base: Scenario | None = None, max_values: int = MAX_RU
     """
     if "=" not in item:
         raise ScenarioError(
-            f"--vary '{item}': expected KEY=SPEC, e.g. observer.eps=geom:0.03:0.3:10"
+            f"vary '{item}': expected KEY=SPEC, e.g. observer.eps=geom:0.03:0.3:10"
         )
     key, spec = (s.strip() for s in item.split("=", 1))
     if not key:
-        raise ScenarioError(f"--vary '{item}': empty key")
+        raise ScenarioError(f"vary '{item}': empty key")
     if not spec:
-        raise ScenarioError(f"--vary {key}: empty value list")
+        raise ScenarioError(f"vary {key}: empty value list")
     head = spec.split(":", 1)[0]
     if head in ("lin", "geom") and ":" in spec:
         parts = spec.split(":")
         if len(parts) != 4:
-            raise ScenarioError(f"--vary {key}: '{spec}' must be {head}:START:STOP:NUM")
+            raise ScenarioError(f"vary {key}: '{spec}' must be {head}:START:STOP:NUM")
         try:
             start, stop = float(parts[1]), float(parts[2])
             num = int(parts[3])
         except ValueError:
             raise ScenarioError(
-                f"--vary {key}: '{spec}': START and STOP must be numbers and NUM a whole number"
+                f"vary {key}: '{spec}': START and STOP must be numbers and NUM a whole number"
             ) from None
         if not (math.isfinite(start) and math.isfinite(stop)):
-            raise ScenarioError(f"--vary {key}: '{spec}': START and STOP must be finite")
+            raise ScenarioError(f"vary {key}: '{spec}': START and STOP must be finite")
         if num < 1:
-            raise ScenarioError(f"--vary {key}: '{spec}': NUM must be >= 1")
+            raise ScenarioError(f"vary {key}: '{spec}': NUM must be >= 1")
         if num > max_values:
-            raise _too_many(num, max_values, f"--vary {key}: '{spec}' alone is")
+            raise _too_many(num, max_values, f"vary {key}: '{spec}' alone is")
         if head == "geom":
             if start == 0 or stop == 0 or (start < 0) != (stop < 0):
                 raise ScenarioError(
-                    f"--vary {key}: '{spec}': geom needs START and STOP non-zero and of one sign"
+                    f"vary {key}: '{spec}': geom needs START and STOP non-zero and of one sign"
                 )
             arr = np.geomspace(start, stop, num)
         else:
@@ -139,7 +139,7 @@ def parse_vary(item: str, base: Scenario | None = None, max_values: int = MAX_RU
         return VarySpec(key, tuple(values), head)
     items = [s.strip() for s in spec.split(",")]
     if any(not s for s in items):
-        raise ScenarioError(f"--vary {key}: '{spec}' has an empty item")
+        raise ScenarioError(f"vary {key}: '{spec}' has an empty item")
     values = [parse_override(f"{key}={s}")[1] for s in items]
     return VarySpec(key, tuple(values), "list")
 
@@ -257,11 +257,11 @@ def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1, *,
         or more runs than ``max_runs``.
     """
     if isinstance(max_runs, bool) or not isinstance(max_runs, int) or max_runs < 1:
-        raise ScenarioError(f"--max-runs {max_runs!r}: must be a whole number >= 1")
+        raise ScenarioError(f"max_runs {max_runs!r}: must be a whole number >= 1")
     if not vary:
-        raise ScenarioError("--vary: give at least one KEY=SPEC")
+        raise ScenarioError("vary: give at least one KEY=SPEC")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-        raise ScenarioError(f"--seeds {seeds!r}: must be a whole number >= 1")
+        raise ScenarioError(f"seeds {seeds!r}: must be a whole number >= 1")
     specs = [parse_vary(item, base, max_values=max_runs) for item in vary]
     n_runs = math.prod(len(s.values) for s in specs) * seeds
     if n_runs > max_runs:
@@ -269,9 +269,10 @@ def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1, *,
     keys = [s.key for s in specs]
     for key in keys:
         if keys.count(key) > 1:
-            raise ScenarioError(f"--vary {key}: given more than once")
+            raise ScenarioError(f"vary {key}: given more than once")
         if key == "sensor.seed" and seeds > 1:
-            raise ScenarioError("--vary sensor.seed: use --seeds K instead (or --seeds 1)")
+            raise ScenarioError(
+                "vary sensor.seed: give the number of noise seeds instead (seeds K, or 1)")
     # each value alone first: the message then names the key and value
     # (with one key the grid points are exactly these)
     if len(specs) > 1:
@@ -300,11 +301,11 @@ def _apply(base: Scenario, over: dict[str, Any], keys: str) -> Scenario:
         return base.with_overrides(over)
     except ScenarioError as exc:
         msg = str(exc)
-        for prefix in ("--set: ", f"scenario '{base.name}': "):
+        for prefix in ("override: ", f"scenario '{base.name}': "):
             if msg.startswith(prefix):
                 msg = msg[len(prefix):]
         shown = ", ".join(f"{k}={v!r}" for k, v in over.items())
-        raise ScenarioError(f"--vary {shown}: {msg}") from None
+        raise ScenarioError(f"vary {shown}: {msg}") from None
 
 
 # ---------------------------------------------------------------------------
@@ -391,7 +392,7 @@ def parse_scheduler(address: str) -> tuple[str, str, int]:
     ScenarioError
         Not an address of that form (one line, exit status 2 on the command line).
     """
-    shown = f"--scheduler '{address}'"
+    shown = f"scheduler '{address}'"
     scheme, sep, rest = address.strip().partition("://")
     if not sep:
         scheme, rest = "tcp", address.strip()
@@ -442,7 +443,7 @@ def _iter_dask(grid: SweepGrid, address: str, threads: int,
         from distributed import Client, as_completed
     except ImportError:
         raise ClusterError(
-            "--scheduler needs Dask distributed: pip install 'esoarm[cluster]'"
+            "a Dask scheduler needs Dask distributed: pip install 'esoarm[cluster]'"
         ) from None
     per_point = max(len(grid.seeds), 1)
     seeds = list(grid.seeds)
