@@ -41,6 +41,8 @@ COMMANDS: dict[str, str] = {
     "emulate": "esoarm.cli.rig:emulate",
     "run": "esoarm.cli.rig:run",
     "replay": "esoarm.cli.rig:replay",
+    "excite": "esoarm.cli.identify:excite",
+    "identify": "esoarm.cli.identify:identify",
 }
 
 

@@ -142,7 +142,7 @@ class _LogWriter:
     fault, and the file is cut back to its last whole row.
     """
 
-    def __init__(self, path: Path | None) -> None:
+    def __init__(self, path: Path | None, columns: tuple[str, ...] = LOG_COLUMNS) -> None:
         self.path = path
         self.rows = 0
         self._fh = None
@@ -153,7 +153,7 @@ class _LogWriter:
                 self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
             except OSError as exc:
                 raise OutputError(path, describe_os_error(exc)) from None
-            self.write(",".join(LOG_COLUMNS) + "\n", row=False)
+            self.write(",".join(columns) + "\n", row=False)
 
     def write(self, line: str, row: bool = True) -> None:
         if self._fh is not None:
@@ -220,7 +220,8 @@ class _Stop(Exception):
 
 def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             limits: SafetyLimits | None = None,
-            status: Callable[[dict], None] | None = None) -> RunSummary:
+            status: Callable[[dict], None] | None = None,
+            controller: DeploymentController | None = None) -> RunSummary:
     """Drive the device on ``link`` through one run of ``scn``.
 
     Parameters
@@ -236,6 +237,11 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     status : callable, optional
         Called about ten times a second with a dict (t, theta, error, u,
         deadline_misses) for a live display.
+    controller : optional
+        What computes u_k from y_k (``step``, ``commit``, ``predict``, ``zhat``,
+        ``reference``, ``t``, ``n_samples``, ``ts``, ``torque_limit``); default the
+        scenario's ESO + FLC.  The identification experiment passes its
+        :class:`~esoarm.studies.excitation.ExcitationController`.
 
     Returns
     -------
@@ -267,7 +273,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
         raise ScenarioError(
             f"motor.pwm_max = {motor.pwm_max} does not match the device's PWM range "
             f"±{info.pwm_max}")
-    ctl = DeploymentController(scn)
+    ctl = controller if controller is not None else DeploymentController(scn)
     n, ts = ctl.n_samples, ctl.ts
     log = _LogWriter(log_path)
     summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
