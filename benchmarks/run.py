@@ -13,7 +13,7 @@ in one run, on one machine, against
     (plant + eq. 8 ESO + FLC, no sampling, noise or quantization): a subset,
     extrapolated;
 (c) ``benchmarks/loop.c``, a straightforward single-threaded C implementation of
-    the SPEC §2 loop, built with ``gcc -O3`` here, fed the very same inputs.
+    the sampled-data loop, built with ``gcc -O3`` here, fed the very same inputs.
 
 Plus one compiled run against one C run, the first-call compile time, and the
 peak memory of a 100,000-run metrics-only sweep.  Numbers depend on the
@@ -172,7 +172,7 @@ def bench_python(grid, n: int = 10) -> dict[str, float]:  # type: ignore[no-unty
 def _continuous_loop(scn):  # type: ignore[no-untyped-def]
     """The continuous-time closed loop as a python-control nonlinear system.
 
-    States (θ, θ̇, z1, z2, z3): the rig of SPEC §2 (no lag), the eq. 8 ESO fed
+    States (θ, θ̇, z1, z2, z3): the rig of the sampled-data loop (no lag), the eq. 8 ESO fed
     y = θ, and the saturated FLC -- built from esoarm's own physics functions.
     """
     import control as ct

@@ -1,7 +1,7 @@
-"""The command line: simulate, show, scenarios, and every bad input of SPEC §5.
+"""The command line: simulate, show, scenarios, and every bad input.
 
 Bad input must give exit status 2, one line on stderr naming the offending
-key or file, no traceback, and no output file (SPEC §4-5).
+key or file, no traceback, and no output file (docs/semantics.md, "Errors and exit codes").
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Scenario files (SPEC §3): defaults, built-ins, overrides, validation, TOML round trip."""
+"""Scenario files: defaults, built-ins, overrides, validation, TOML round trip."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from esoarm.scenario import (
     to_toml,
 )
 
-# SPEC §3, typed again from the specification.
+# the scenario format, typed again from the specification.
 SPEC_DEFAULTS = {
     "name": "test-1",
     "duration": 20.0,

@@ -15,12 +15,12 @@ if TYPE_CHECKING:
 
 __all__ = ["CSV_COLUMNS", "SimResult", "compute_metrics", "write_csv_atomic"]
 
-#: Time-series CSV columns (SPEC §4), SI units.
+#: Time-series CSV columns (docs/semantics.md, output files and columns), SI units.
 CSV_COLUMNS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3", "f_true")
 
 
 def compute_metrics(error: np.ndarray, u: np.ndarray) -> dict[str, float]:
-    """RMS tracking error [rad], RMS control [N·m], max |error| [rad] (SPEC §2)."""
+    """RMS tracking error [rad], RMS control [N·m], max |error| [rad] (the sampled-data loop)."""
     if len(error) == 0:
         return {"rms_error": float("nan"), "rms_u": float("nan"), "max_abs_error": float("nan")}
     return {
@@ -117,7 +117,7 @@ class SimResult:
         )
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the time series (SPEC §4 columns, SI units); atomic."""
+        """Write the time series (output columns, SI units); atomic."""
         write_csv_atomic(path, CSV_COLUMNS, self.table())
         return Path(path)
 

@@ -1,6 +1,6 @@
 """Scenario files: the validated, immutable description of one closed-loop run.
 
-A scenario is a TOML file (SPEC §3).  Every key has a default; a file gives only
+A scenario is a TOML file (the scenario format).  Every key has a default; a file gives only
 what differs.  Built-in scenarios ship in ``esoarm/scenarios/*.toml`` and are
 addressed by name.  Validation happens here, once, at the edge: the numerics
 trust a :class:`Scenario`.
@@ -85,7 +85,7 @@ class Disturbance(_Section):
 
 
 class Rig(_Section):
-    """The true system: the digital twin of the paper's rig (SPEC §2)."""
+    """The true system: the digital twin of the paper's rig (the sampled-data loop)."""
 
     inertia_scale: float = Field(
         1.1, gt=0, description="true inertia / nominal inertia", json_schema_extra=_unit("1")
@@ -144,7 +144,7 @@ class Observer(_Section):
         json_schema_extra=_unit("s"),
     )
     discretization: Literal["euler", "zoh", "current"] = Field(
-        "euler", description='"euler" (paper) | "zoh" | "current" (SPEC §2)'
+        "euler", description='"euler" (paper) | "zoh" | "current"; see docs/semantics.md'
     )
 
 
@@ -194,7 +194,7 @@ Reference = Annotated[QuinticSteps | Multisine, Field(discriminator="kind")]
 class Motor(_Section):
     """Optional DC motor and driver model: maps the torque command to a PWM duty.
 
-    Without a ``[motor]`` table the actuator is an ideal torque source (SPEC §2).
+    Without a ``[motor]`` table the actuator is an ideal torque source (the sampled-data loop).
     With one, the real-time loop sends a duty computed from the torque and the
     estimated rate (back-EMF), and the emulator models the same motor (see
     :mod:`esoarm.plants.motor`).  Torque and back-EMF constants are equal in
@@ -226,7 +226,7 @@ class Motor(_Section):
 
 
 class Scenario(_Section):
-    """A complete, validated closed-loop experiment (SPEC §3).
+    """A complete, validated closed-loop experiment (the scenario format).
 
     Build one with :func:`load_scenario`; the object is immutable.  Use
     :meth:`with_overrides` for variations.

@@ -153,20 +153,32 @@ def scenario_argument(func: F) -> F:
     return click.argument("scenario", metavar="SCENARIO")(func)
 
 
-#: Library wording of an argument -> the command-line option that carries it.
-CLI_FLAGS = {"override": "--set", "overrides": "--set", "vary": "--vary", "seeds": "--seeds",
-             "max_runs": "--max-runs", "scheduler": "--scheduler", "objective": "--objective",
-             "robust": "--robust", "samples": "--samples", "fault": "--fault"}
-_LEAD = re.compile(r"^(" + "|".join(sorted(CLI_FLAGS, key=len, reverse=True)) + r")(?=[ :])")
+#: Library wording of an argument -> the command-line option that carries it, where the
+#: option is not simply ``--`` + the argument's name (those are found on the command).
+CLI_FLAGS = {"override": "--set", "overrides": "--set"}
+_LEAD = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)(?=[ :'])")
 
 
 def cli_wording(message: str) -> str:
     """A library message, worded for the command line.
 
-    The library speaks of its arguments (``override 'observer.epsilon': unknown
-    key``); the command line names the option (``--set 'observer.epsilon': …``).
+    The library names its arguments (``override 'observer.epsilon': unknown
+    key``, ``max_runs 0: …``); the command line names the option that carries
+    them (``--set …``, ``--max-runs 0: …``): :data:`CLI_FLAGS`, else an option
+    of the running command whose parameter has that name.
     """
-    return _LEAD.sub(lambda m: CLI_FLAGS[m.group(1)], message, count=1)
+    match = _LEAD.match(message)
+    if match is None:
+        return message
+    word = match.group(1)
+    flag = CLI_FLAGS.get(word)
+    ctx = click.get_current_context(silent=True)
+    if flag is None and ctx is not None:
+        for param in ctx.command.params:
+            if isinstance(param, click.Option) and param.name == word:
+                flag = max(param.opts, key=len)
+                break
+    return flag + message[len(word):] if flag else message
 
 
 def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scenario:

@@ -225,7 +225,7 @@ def replay(log_file: str, scenario: str, overrides: tuple[str, ...], out: str | 
 
     LOG.csv needs columns t [s, uniform], theta [rad, measured] and u [N·m,
     applied from that row on]; logs from 'esoarm run' replay directly. Row k of
-    the output holds the estimate the controller would use at t_k (SPEC §2); the
+    the output holds the estimate the controller would use at t_k (the sampled-data loop); the
     sample period comes from the log.
     """
     from esoarm.hardware.replay import plot_replay, read_log

@@ -32,7 +32,7 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
              as_json: bool) -> None:
     """Simulate SCENARIO (a built-in name or a TOML file) on the digital twin.
 
-    Follows the sampled-data semantics of SPEC §2 with the reference engine
+    Follows the sampled-data semantics (docs/semantics.md) with the reference engine
     and prints the metrics: RMS tracking error [rad], RMS control [N·m] and
     max |error| [rad].
     """

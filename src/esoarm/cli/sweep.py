@@ -139,7 +139,7 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
           scheduler: str | None, chunk: int | None, max_runs: int) -> None:
     """Sweep SCENARIO over a grid of parameters × noise seeds (compiled engine).
 
-    Every run follows the SPEC §2 closed loop exactly (same numbers as
+    Every run follows the sampled-data closed loop (docs/semantics.md) exactly (same numbers as
     `esoarm simulate`); only metrics are kept. Ctrl-C stops the sweep and keeps
     the finished rows in --out. Example:
 

@@ -1,4 +1,4 @@
-"""Compiled batch engine: many closed-loop runs at once, SPEC §2 semantics exactly.
+"""Compiled batch engine: many closed-loop runs at once, the semantics of docs/semantics.md exactly.
 
 The per-sample loop here is the loop of :func:`esoarm.engines.simulation.run_reference`,
 compiled with numba and run in parallel over runs (``prange``) on all cores.  It
@@ -70,7 +70,7 @@ __all__ = [
 
 #: Metric columns of :func:`run_metrics`, in order.
 #:
-#: ``rms_error`` [rad], ``rms_u`` [N·m], ``max_abs_error`` [rad] as SPEC §2;
+#: ``rms_error`` [rad], ``rms_u`` [N·m], ``max_abs_error`` [rad] as the sampled-data loop;
 #: ``max_abs_u`` [N·m] the largest |u_k|; ``rms_f_error`` [rad/s²] the RMS
 #: error of the ESO's perturbation estimate, sqrt(mean((ẑ3_k − f_k)²));
 #: ``samples`` the number of samples logged (N, or fewer for a diverged run);
@@ -169,7 +169,7 @@ _install_cache_locator()
 @njit(cache=True)
 def _closed_loop(log, n, theta0, noise, sigma, q, tref, dref, ddref, rig, obs, ctl, h, nsub,
                  delay, b0, ts):  # pragma: no cover - compiled
-    """SPEC §2 loop of one run into ``log`` (9, ≥n).
+    """The sampled-data loop of one run into ``log`` (9, ≥n).
 
     Returns the number of rows logged, negated if the run diverged (the last
     row logged is then the sample at which it left the finite range).
@@ -377,7 +377,7 @@ class _Pack:
 
 
 class _NoiseCache:
-    """Standard-normal sequences, drawn once per (seed, N) (SPEC §2 noise)."""
+    """Standard-normal sequences, drawn once per (seed, N) (the loop's noise)."""
 
     def __init__(self) -> None:
         self._store: dict[tuple[int, int], np.ndarray] = {}

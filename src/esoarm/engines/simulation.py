@@ -1,4 +1,4 @@
-"""Reference simulator: the sampled-data closed loop of SPEC §2, in plain Python.
+"""Reference simulator: the sampled-data closed loop (docs/semantics.md), in plain Python.
 
 This engine is the readable statement of the semantics; the compiled batch
 engine follows it exactly and is tested against it.  One sample k:
@@ -135,7 +135,7 @@ def simulate(
     *,
     warn: bool = True,
 ) -> SimResult:
-    """Simulate one closed-loop run with the reference engine (SPEC §2).
+    """Simulate one closed-loop run with the reference engine (the sampled-data loop).
 
     Parameters
     ----------
@@ -165,7 +165,7 @@ def simulate(
 
 
 def run_reference(scn: Scenario, inp: RunInputs) -> SimResult:
-    """The SPEC §2 loop over prepared inputs, one sample at a time."""
+    """The sampled-data loop (docs/semantics.md) over prepared inputs, one sample at a time."""
     n = len(inp.t)
     rig, obs, ctl = inp.rig, inp.obs, inp.ctl
     log = np.full((n, 8), np.nan)  # theta, theta_ref, error, u, z1, z2, z3, f_true

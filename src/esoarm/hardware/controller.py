@@ -2,9 +2,9 @@
 
 It is :class:`esoarm.observers.linear.ExtendedStateObserver` and
 :func:`esoarm.controllers.flc.flc_control` -- the very functions the simulators call
--- driven from measured angles (SPEC §2 steps 2-5):
+-- driven from measured angles (the sampled-data loop, steps 2-5):
 
-    ẑ_k = estimate(y_k)                 (eq. 8, discretized; SPEC §2 step 5)
+    ẑ_k = estimate(y_k)                 (eq. 8, discretized; the sampled-data loop, step 5)
     u_k = sat(I0 (α_k − β̂_k))           (eq. 14-16)
     update(u_k)                         (z_{k+1})
 
@@ -50,7 +50,7 @@ class DeploymentController:
     ts : float
         Sample period [s].
     eso : ExtendedStateObserver or None
-        Created at the first sample, z_0 = (y_0, 0, 0) (SPEC §2).
+        Created at the first sample, z_0 = (y_0, 0, 0) (the sampled-data loop).
     zhat : tuple of float
         Estimate ẑ_k used for the latest control [rad, rad/s, rad/s²].
     """

@@ -2,7 +2,7 @@
 
 The emulator speaks the protocol of :mod:`esoarm.hardware.protocol` exactly as
 the firmware does, so the host loop cannot tell it from a rig.  Its physics is
-the simulators' (:func:`esoarm.plants.lever_arm.rig_advance`, SPEC §2 step 6, with
+the simulators' (:func:`esoarm.plants.lever_arm.rig_advance`, the sampled-data loop, step 6, with
 actuator lag and transport delay), and the measurement leaves the device as
 an encoder count
 
@@ -176,7 +176,7 @@ class Twin:
         return self.scn.actuator.torque_limit * max(-1.0, min(1.0, duty / self.pwm_max))
 
     def advance(self, u: float) -> None:
-        """Hold command u over [t_k, t_{k+1}) (SPEC §2 step 6) and integrate."""
+        """Hold command u over [t_k, t_{k+1}) (the sampled-data loop, step 6) and integrate."""
         if not self.motor_on or not math.isfinite(u):
             u = 0.0
         self.history.append(u)

@@ -2,7 +2,7 @@
 
 The device is the clock: it sends sample k (device time, encoder count) every
 Ts (or, in lockstep, after each command).  For every sample the host does
-SPEC §2 steps 1-5 with :class:`~esoarm.hardware.controller.DeploymentController`:
+the sampled-data loop, steps 1-5 with :class:`~esoarm.hardware.controller.DeploymentController`:
 
 1. y_k = q · count_k   (q = radians(sensor.resolution_deg); exact, see emulator)
 2.-3. ẑ_k, u_k = sat(FLC(ẑ_k, reference at t_k))
@@ -49,7 +49,7 @@ from esoarm.scenario import Scenario, ScenarioError
 __all__ = ["LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",
            "check_device", "run_rig"]
 
-#: Columns of the run log: SPEC §4 columns (theta as measured, no f_true), then timing.
+#: Columns of the run log: output columns (theta as measured, no f_true), then timing.
 LOG_COLUMNS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3",
                "k", "t_device", "t_host", "latency", "late", "duty")
 
@@ -75,7 +75,7 @@ class SafetyLimits:
 
 @dataclass
 class RunSummary:
-    """Metrics of a run over the rows logged (SPEC §2 metrics on the measured angle)."""
+    """Metrics of a run over the rows logged (the loop's metrics on the measured angle)."""
 
     samples: int = 0
     lost_samples: int = 0

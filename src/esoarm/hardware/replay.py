@@ -3,7 +3,7 @@
 Given a log with ``t`` [s, uniform], ``theta`` [rad, measured] and ``u``
 [N·m, applied from that row on], the observer of the scenario (ε,
 discretization, b0 = 1/I0) is run sample by sample exactly as in the loop
-(SPEC §2 step 5): row k holds ẑ_k, the estimate the controller would use at
+(the sampled-data loop, step 5): row k holds ẑ_k, the estimate the controller would use at
 t_k, then the observer is updated with (y_k, u_k).  A row with ``theta = nan``
 (a sample lost on the link, as ``esoarm run`` logs it) is bridged with zero
 innovation, as the loop does.  A log of ``esoarm run`` therefore replays to

@@ -1,4 +1,4 @@
-"""The true system: the digital twin of the paper's rig (SPEC §2).
+"""The true system: the digital twin of the paper's rig (the sampled-data loop).
 
     θ̈ = (τ − G(θ) − Fc tanh(θ̇/vs) − b θ̇) / I + d(t),     I = inertia_scale · I0
     τ̇ = (u_applied − τ) / T      (actuator lag T > 0; τ = u_applied when T = 0)
