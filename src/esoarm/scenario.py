@@ -471,6 +471,8 @@ def _check_key(key: str, source: str) -> None:
     valid = _valid_keys()
     if key in valid:
         return
+    if not key.strip():
+        raise ScenarioError(f"{source}: empty key; give a dotted key such as 'observer.eps'")
     # a whole table given to --set is not allowed either; suggest a leaf key
     close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
     hint = f"; did you mean '{close[0]}'?" if close else ""
