@@ -164,7 +164,7 @@ def test_file_size_limit_is_one_line_exit_1(kind, tmp_path, log_csv):
     }[kind]
     if kind == "replay-csv":  # a log long enough to exceed the limit
         simulate(load_scenario("test-1", {"duration": 20.0})).to_csv(log_csv)
-    proc = _limited(args, out)
+    proc = _limited([*args, "--quiet"], out)  # --quiet: warnings off, the error still shown
     line = _one_line(proc.stderr)
     assert proc.returncode == 1, proc.stderr
     assert line.startswith("esoarm: failed: cannot write '") and "file too large" in line
@@ -225,3 +225,9 @@ def test_run_log_that_cannot_be_written_stops_the_run_cleanly(tmp_path):
     lines = path.read_text(encoding="utf-8").splitlines()
     assert len(lines) == 4 and lines[0].startswith("t,") and log.rows == 3
     assert np.loadtxt(path, delimiter=",", skiprows=1).shape == (3, 14)
+
+
+def test_a_suffix_without_a_name_is_bad_input(run_cli):
+    res = run_cli("simulate", "test-1", "--out", ".csv")
+    assert res.exit_code == 2
+    assert "give a file name before the suffix" in _one_line(res.stderr)

@@ -284,3 +284,37 @@ def test_library_study_errors_name_arguments_not_options():
         with pytest.raises(ScenarioError) as info:
             call()
         assert not str(info.value).startswith("--"), str(info.value)
+
+
+# -- settings that silently do nothing (or less than asked) are warned about -------
+
+
+@pytest.mark.parametrize(
+    ("overrides", "fragment"),
+    [
+        ({"actuator.delay_samples": 1000}, "no command ever reaches the arm"),
+        ({"reference.moves": [[30.0, 1.0, 1.0]]}, "reference.moves[0] starts at 30 s"),
+        ({"duration": 0.03}, "not a whole number of sample periods"),
+    ],
+    ids=["delay-longer-than-run", "move-after-the-end", "duration-rounded"],
+)
+def test_ineffective_settings_warn(overrides, fragment):
+    from esoarm.scenario import scenario_warnings
+
+    msgs = scenario_warnings(load_scenario("test-1", overrides))
+    assert any(fragment in m for m in msgs), msgs
+    assert all("\n" not in m for m in msgs)
+
+
+def test_aliased_multisine_reference_warns():
+    from esoarm.scenario import scenario_warnings
+
+    msgs = scenario_warnings(load_scenario("test-2", {"reference.frequencies": [200.0]}))
+    assert any("reference.frequencies[0]" in m and "Nyquist" in m for m in msgs), msgs
+
+
+@pytest.mark.parametrize("name", builtin_names())
+def test_builtins_have_no_timing_warnings(name):
+    from esoarm.scenario import timing_warnings
+
+    assert timing_warnings(load_scenario(name)) == []

@@ -566,13 +566,52 @@ def _check_consistency(scn: Scenario, source: str,
 def scenario_warnings(scn: Scenario) -> list[str]:
     """Legal but risky settings of ``scn``, as one-line messages.
 
-    Currently: a discrete observer whose error poles are unstable or poorly
-    damped at this sample rate, or faster than the samples support (see
-    :func:`esoarm.studies.analysis.observer_warnings`).
+    A discrete observer whose error poles are unstable or poorly damped at
+    this sample rate, or faster than the samples support (see
+    :func:`esoarm.studies.analysis.observer_warnings`); and settings that
+    silently do nothing or less than asked (:func:`timing_warnings`).
     """
     from esoarm.studies.analysis import observer_warnings
 
-    return observer_warnings(scn.observer.eps, scn.sample_time, scn.observer.discretization)
+    return [*observer_warnings(scn.observer.eps, scn.sample_time, scn.observer.discretization),
+            *timing_warnings(scn)]
+
+
+def timing_warnings(scn: Scenario) -> list[str]:
+    """Settings that the run's length or sample rate makes (partly) ineffective.
+
+    A transport delay as long as the run (no command ever acts), a reference
+    move that starts after the run has ended, a multisine tone at or above
+    the Nyquist frequency of the samples, and a duration that is not a whole
+    number of sample periods (the run is rounded to N samples).
+    """
+    out: list[str] = []
+    ts, n = scn.sample_time, scn.n_samples
+    end = n * ts
+    delay = scn.actuator.delay_samples
+    if delay >= n:
+        out.append(f"actuator.delay_samples = {delay} ({delay * ts:g} s) is as long as the run "
+                   f"({n} samples, {end:g} s): no command ever reaches the arm")
+    ref = scn.reference
+    if isinstance(ref, QuinticSteps):
+        late = [i for i, move in enumerate(ref.moves) if len(move) == 3 and move[0] >= end]
+        if late:
+            i = late[0]
+            more = f" (and {len(late) - 1} later moves)" if len(late) > 1 else ""
+            out.append(f"reference.moves[{i}] starts at {ref.moves[i][0]:g} s, when the run has "
+                       f"ended ({end:g} s): it is never tracked{more}; raise duration")
+    else:
+        nyquist = math.pi / ts
+        fast = [i for i, w in enumerate(ref.frequencies) if abs(w) >= nyquist]
+        if fast:
+            i = fast[0]
+            out.append(f"reference.frequencies[{i}] = {ref.frequencies[i]:g} rad/s is at or above "
+                       f"the Nyquist frequency of the samples (π·rate_hz = {nyquist:g} rad/s): "
+                       "the loop sees an aliased reference")
+    if abs(end - scn.duration) > 1e-9 * max(scn.duration, 1.0):
+        out.append(f"duration = {scn.duration:g} s is not a whole number of sample periods "
+                   f"(Ts = {ts:g} s): the run has {n} samples ({end:g} s)")
+    return out
 
 
 # ---------------------------------------------------------------------------

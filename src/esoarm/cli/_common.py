@@ -202,6 +202,9 @@ def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Pa
     if value is None:
         return None
     path = Path(value)
+    if not path.suffix and path.name.lower() in suffixes:  # ".csv": a hidden name, no suffix
+        raise BadInput(f"{option} '{value}': give a file name before the suffix, e.g. "
+                       f"run{path.name.lower()}")
     if path.suffix.lower() not in suffixes:
         raise BadInput(f"{option} '{value}': the file name must end in {' or '.join(suffixes)}")
     if path.is_dir():

@@ -20,6 +20,7 @@ from esoarm.cli._common import (
     scenario_argument,
     set_option,
     stderr_is_tty,
+    warn_line,
 )
 
 
@@ -235,6 +236,10 @@ def replay(log_file: str, scenario: str, overrides: tuple[str, ...], out: str | 
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     scn = resolve_scenario(scenario, overrides)
     t, theta, u, ts = read_log(log_file)
+    lost = int(sum(1 for v in theta.tolist() if v != v))  # NaN: a sample lost on the link
+    if lost:
+        warn_line(f"{lost} of {len(t)} rows of '{log_file}' have no measured angle (theta = nan, "
+                  "lost samples): bridged by the observer's prediction with zero innovation")
     result = run_replay(scn, t, theta, u, ts)
     if out_path is None:
         import numpy as np
