@@ -8,6 +8,12 @@ kernels.  :func:`jitable` is numba's ``register_jitable``: in the interpreter it
 returns the function unchanged, and it teaches numba to compile the function
 when a jitted kernel calls it.  Without numba installed it is the identity, so
 the reference engine works without a compiler.
+
+Registration is deferred: :func:`jitable` only records the function, and
+:func:`register_all` (called by the compiled engines when they are imported)
+hands every recorded function to numba.  Importing the physics therefore does
+not import numba (~0.15 s), which keeps the command line and the reference
+engine quick to start.
 """
 
 from __future__ import annotations
@@ -17,14 +23,63 @@ from typing import TypeVar
 
 F = TypeVar("F", bound=Callable[..., object])
 
-try:  # pragma: no cover - exercised by whichever branch the environment has
-    from numba.extending import register_jitable as _register_jitable
-except ImportError:  # pragma: no cover
-    _register_jitable = None
+_pending: list[Callable[..., object]] = []
+_registered = False
+
+
+def _register(func: Callable[..., object]) -> None:
+    try:
+        from numba.extending import register_jitable
+    except ImportError:  # pragma: no cover - the reference engine needs no numba
+        return
+    register_jitable(func)  # returns func itself: the interpreter keeps calling it
 
 
 def jitable(func: F) -> F:
-    """Return ``func`` unchanged, registered for use inside numba kernels."""
-    if _register_jitable is None:
-        return func
-    return _register_jitable(func)  # type: ignore[no-any-return]
+    """Return ``func`` unchanged, recorded for use inside numba kernels."""
+    if _registered:
+        _register(func)
+    else:
+        _pending.append(func)
+    return func
+
+
+def register_all() -> None:
+    """Register every function marked :func:`jitable` with numba (idempotent).
+
+    Compiled engines call this once, after importing the physics they use and
+    before their kernels are compiled or loaded from the cache.
+    """
+    global _registered
+    if not _registered:
+        _tolerate_cache_write_errors()
+    _registered = True
+    while _pending:
+        _register(_pending.pop(0))
+
+
+def _tolerate_cache_write_errors() -> None:
+    """A compiled kernel that cannot be saved to numba's disk cache still runs.
+
+    numba writes its cache beside the sources (or in NUMBA_CACHE_DIR); a full
+    disk, a file-size limit or a read-only tree would otherwise end the run
+    with an OSError that has nothing to do with the user's outputs.  The
+    kernel is then simply compiled again next time.
+    """
+    try:
+        from numba.core import caching
+    except ImportError:  # pragma: no cover
+        return
+    cache = getattr(caching, "Cache", None)
+    original = getattr(cache, "save_overload", None)
+    if original is None or getattr(original, "_esoarm_tolerant", False):
+        return  # pragma: no cover - numba's layout changed, or already done
+
+    def save_overload(self, sig, data):  # type: ignore[no-untyped-def]
+        try:
+            original(self, sig, data)
+        except OSError:
+            pass  # not cached; compiled again on the next start
+
+    save_overload._esoarm_tolerant = True  # type: ignore[attr-defined]
+    cache.save_overload = save_overload  # type: ignore[union-attr]

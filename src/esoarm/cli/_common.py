@@ -16,12 +16,14 @@ import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
 from esoarm._io import OutputError, check_writable
-from esoarm.scenario import Scenario, ScenarioError, ScenarioWarning, load_scenario
+
+if TYPE_CHECKING:  # imported where used: `esoarm --help` must not load pydantic
+    from esoarm.scenario import Scenario
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -115,6 +117,8 @@ def warn_line(message: str) -> None:
 
 def show_warning(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
     """Print warnings as one line on stderr (ScenarioWarning without a location)."""
+    from esoarm.scenario import ScenarioWarning
+
     if verbosity() < NORMAL:
         return
     if issubclass(category, ScenarioWarning):
@@ -128,6 +132,8 @@ def bad_input_guard(func: F) -> F:
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
+        from esoarm.scenario import ScenarioError
+
         try:
             return func(*args, **kwargs)
         except ScenarioError as exc:
@@ -183,11 +189,12 @@ def cli_wording(message: str) -> str:
 
 def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scenario:
     """Load a scenario with overrides and print its warnings (one line each)."""
+    from esoarm.scenario import ScenarioWarning, load_scenario, scenario_warnings
+
     scn = load_scenario(name, list(overrides))
     detail(f"scenario '{scn.name}': {scn.n_samples} samples at {scn.sensor.rate_hz:g} Hz, "
            f"{scn.substeps} RK4 steps per sample, ε = {scn.observer.eps:g} s "
            f"({scn.observer.discretization})")
-    from esoarm.scenario import scenario_warnings
 
     for msg in scenario_warnings(scn):
         warnings.warn(msg, ScenarioWarning, stacklevel=2)
