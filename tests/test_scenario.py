@@ -318,3 +318,23 @@ def test_builtins_have_no_timing_warnings(name):
     from esoarm.scenario import timing_warnings
 
     assert timing_warnings(load_scenario(name)) == []
+
+
+@pytest.mark.parametrize(
+    ("overrides", "key"),
+    [({"observer.eps": 1e-110}, "observer.eps"), ({"observer.eps": 1e200}, "observer.eps"),
+     ({"rig.friction_velocity": 1e-320}, "rig.friction_velocity"),
+     ({"actuator.lag": 1e-320}, "actuator.lag"),
+     ({"rig.inertia_scale": 1e-320}, "rig.inertia_scale")],
+    ids=["eps-tiny", "eps-huge", "vs-subnormal", "lag-subnormal", "inertia-underflow"],
+)
+def test_values_whose_derived_quantities_overflow_are_rejected(overrides, key):
+    with pytest.raises(ScenarioError, match=f"key '{key}': out of the range double precision"):
+        load_scenario("test-1", overrides)
+
+
+def test_a_run_of_hours_is_warned_about():
+    from esoarm.scenario import timing_warnings
+
+    msgs = timing_warnings(load_scenario("test-1", {"rig.step": 1e-9, "duration": 2.0}))
+    assert any("20,000,000 RK4 steps per sample" in m for m in msgs), msgs

@@ -22,6 +22,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pydantic.json_schema import JsonDict
 
@@ -524,6 +525,7 @@ def _check_consistency(scn: Scenario, source: str,
             f"{scn.rig.step:g} s must divide the sample period Ts = 1/rate_hz = {ts:g} s "
             "into a whole number of RK4 steps",
         )
+    _check_computable(scn, fail)
     samples = scn.duration * scn.sensor.rate_hz
     if not samples <= MAX_SAMPLES:  # also catches an overflow to inf
         fail("duration", f"{scn.duration:g} s at {scn.sensor.rate_hz:g} Hz is {samples:.3g} "
@@ -556,6 +558,39 @@ def _check_consistency(scn: Scenario, source: str,
             fail("reference.frequencies", f"needs one entry per amplitude ({n})")
         if ref.phases and len(ref.phases) != n:
             fail("reference.phases", f"needs one entry per amplitude ({n}) or none")
+
+
+def _check_computable(scn: Scenario, fail: Callable[[str, str], None]) -> None:
+    """Values each legal alone whose derived quantities overflow double precision.
+
+    The input gain 1/I0, the true inertia, the observer gains up to 1/ε³, the
+    gravity torque and the tanh friction slope 1/vs must be finite and the
+    divisors non-zero; otherwise the engines would compute inf or NaN (or fail)
+    from the first sample on.
+    """
+    p, rig = scn.plant, scn.rig
+    with np.errstate(all="ignore"):
+        checks = [
+            ("plant.inertia", 1.0 / p.inertia, "1/plant.inertia (the input gain b0)"),
+            ("rig.inertia_scale", p.inertia * rig.inertia_scale,
+             "plant.inertia · rig.inertia_scale (the true inertia)"),
+            ("rig.inertia_scale", 1.0 / (p.inertia * rig.inertia_scale),
+             "1/(plant.inertia · rig.inertia_scale)"),
+            ("observer.eps", 1.0 / np.float64(scn.observer.eps) ** 3,
+             "the observer gain β3 = 1/ε³"),
+            ("plant.g", (p.m1 * p.l1 - p.m2 * p.l2) * p.g, "the gravity torque amplitude"),
+            ("rig.friction_velocity", rig.coulomb_friction / rig.friction_velocity,
+             "the friction slope Fc/vs"),
+            ("actuator.lag", 1.0 / scn.actuator.lag if scn.actuator.lag else 0.0,
+             "1/actuator.lag"),
+            ("controller.k2", scn.controller.k2 * p.inertia * 10.0,
+             "the control gain I0 · k2"),
+        ]
+    for key, value, what in checks:
+        divisor = key in ("plant.inertia", "rig.inertia_scale", "observer.eps")
+        if not (math.isfinite(float(value)) and (value != 0 or not divisor)):
+            fail(key, f"out of the range double precision can compute with: {what} "
+                 f"is {float(value):g}")
 
 
 def scenario_warnings(scn: Scenario) -> list[str]:
@@ -603,6 +638,11 @@ def timing_warnings(scn: Scenario) -> list[str]:
             out.append(f"reference.frequencies[{i}] = {ref.frequencies[i]:g} rad/s is at or above "
                        f"the Nyquist frequency of the samples (π·rate_hz = {nyquist:g} rad/s): "
                        "the loop sees an aliased reference")
+    steps = n * scn.substeps
+    if scn.substeps > 10_000 or steps > 100_000_000:
+        out.append(f"rig.step = {scn.rig.step:g} s is {scn.substeps:,} RK4 steps per sample, "
+                   f"{steps:,} for the run: that takes hours in esoarm simulate; a step of "
+                   f"about Ts/20 = {ts / 20:g} s is usually enough")
     if abs(end - scn.duration) > 1e-9 * max(scn.duration, 1.0):
         out.append(f"duration = {scn.duration:g} s is not a whole number of sample periods "
                    f"(Ts = {ts:g} s): the run has {n} samples ({end:g} s)")

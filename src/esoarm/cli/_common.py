@@ -161,7 +161,7 @@ def scenario_argument(func: F) -> F:
 
 #: Library wording of an argument -> the command-line option that carries it, where the
 #: option is not simply ``--`` + the argument's name (those are found on the command).
-CLI_FLAGS = {"override": "--set", "overrides": "--set"}
+CLI_FLAGS = {"override": "--set", "overrides": "--set", "fault": "--fault"}
 _LEAD = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)(?=[ :'])")
 
 

@@ -28,8 +28,11 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from esoarm._jit import register_all
 from esoarm.plants.lever_arm import rig_advance
 from esoarm.scenario import ScenarioError
+
+register_all()  # the physics called from the kernel below must be known to numba
 
 __all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "read_ident_log", "simulate_segments"]
 
