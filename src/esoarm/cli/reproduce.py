@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from esoarm.cli._common import RunFailure, bad_input_guard, output_dir
+from esoarm.cli._common import RunFailure, bad_input_guard, detail, output_dir, stderr_is_tty
 
 
 @click.command()
@@ -39,16 +39,21 @@ def reproduce(out_dir: str, fmt: str) -> None:
     console = Console(stderr=True)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
-    with Progress(*columns, console=console, transient=True) as bar:
+    with Progress(*columns, console=console, transient=True,
+                  disable=not stderr_is_tty()) as bar:  # no bar in logs, pipes or --quiet
         task = bar.add_task("simulating", total=n_runs)
+
+        def step(what: str) -> None:
+            bar.update(task, advance=1, description=what)
+            if bar.disable:  # --verbose without a terminal: one line per step
+                detail(what)
+
         try:
-            rep = run_reproduction(progress=lambda key: bar.update(
-                task, advance=1, description=f"simulated {key}"))
+            rep = run_reproduction(progress=lambda key: step(f"simulated {key}"))
         except SimulationDiverged as exc:  # nothing written yet: no half-complete results
             raise RunFailure(str(exc)) from None
         bar.update(task, total=n_runs + len(figure_specs(rep)) + 2)
-        write_outputs(rep, out, fmt=fmt, progress=lambda what: bar.update(
-            task, advance=1, description=f"wrote {what}"))
+        write_outputs(rep, out, fmt=fmt, progress=lambda what: step(f"wrote {what}"))
     _print(rep, out, fmt)
 
 

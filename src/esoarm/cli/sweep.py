@@ -447,5 +447,5 @@ def _print_tune(res: Any, name: str, objective: str, w: float) -> None:
     if res.robust_samples:
         click.echo(f"averaged over {len(res.robust_samples)} rig variants × seeds")
     if res.best_metrics.get("diverged_runs"):
-        click.echo("esoarm: warning: some runs at the best point diverged", err=True)
+        warn_line("some runs at the best point diverged")
     sys.stdout.flush()
