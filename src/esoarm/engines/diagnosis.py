@@ -63,10 +63,12 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
         causes.append(f"controller.k1 = {ctl.k1:g} 1/s, k2 = {ctl.k2:g} 1/s² (too fast for "
                       f"Ts = {ts:g} s)")
     ref = scn.reference
-    amplitude = (max([abs(m[2]) for m in getattr(ref, "moves", []) if len(m) == 3]
-                     + [abs(getattr(ref, "start", 0.0))])
-                 if ref.kind == "quintic-steps"
-                 else abs(getattr(ref, "offset", 0.0)) + sum(map(abs, getattr(ref, "amplitudes", []))))
+    if ref.kind == "quintic-steps":
+        targets = [abs(m[2]) for m in getattr(ref, "moves", []) if len(m) == 3]
+        amplitude = max([*targets, abs(getattr(ref, "start", 0.0))])
+    else:
+        amplitude = abs(getattr(ref, "offset", 0.0)) + sum(
+            abs(a) for a in getattr(ref, "amplitudes", []))
     if amplitude >= limit / 10:
         causes.append(f"a reference of {amplitude:g} rad")
     return causes
