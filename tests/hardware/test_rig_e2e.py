@@ -143,11 +143,20 @@ def test_fault_ends_safe_with_log_intact(kind, mode, tmp_path):
     sets = ["duration=2"]
     log = tmp_path / "fault.csv"
     lock = ["--lockstep"] if mode == "lockstep" else []
-    with emulator("test-1", *lock, "--fault", f"{kind}@0.4", *_sets(sets)) as emu:
-        res = esoarm("run", "test-1", "--port", emu.path, *_sets(sets), "--log", str(log))
-        out = emu.output(wait=0.5)
+    for _attempt in range(4):
+        with emulator("test-1", *lock, "--fault", f"{kind}@0.4", *_sets(sets)) as emu:
+            res = esoarm("run", "test-1", "--port", emu.path, *_sets(sets), "--log", str(log))
+            out = emu.output(wait=0.5)
+        lines = _failure_lines(res.stderr)  # scenario warnings may come first
+        # real time on a starved machine: the host may miss the device's 100 ms command
+        # watchdog before the injected fault; that run tests nothing, so run it again
+        starved = ("command watchdog fault" in res.stderr
+                   and "fault injected" not in out.split("watchdog: no command")[0])
+        if not (mode == "real-time" and starved):
+            break
+    else:
+        pytest.skip("the machine is too loaded for a real-time run before t = 0.4 s")
     assert res.returncode == 1
-    lines = _failure_lines(res.stderr)  # scenario warnings may come first
     assert len(lines) == 1, res.stderr
     assert lines[0].startswith("esoarm: failed: ") and FAULT_MESSAGES[kind] in lines[0]
     assert "stop sent" in lines[0] and "Traceback" not in res.stderr

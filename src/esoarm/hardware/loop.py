@@ -49,9 +49,12 @@ from esoarm.scenario import Scenario, ScenarioError
 __all__ = ["LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",
            "check_device", "run_rig"]
 
-#: Columns of the run log: output columns (theta as measured, no f_true), then timing.
+#: Columns of the run log (docs/semantics.md, "Output files and columns"): the time-series
+#: columns, but ``theta`` and ``error`` from the *measured* angle (a rig's true angle is
+#: unknown) and no ``f_true``; then timing, the duty sent, and ``y``, the measured angle
+#: under the name it has in every file (here equal to ``theta``).
 LOG_COLUMNS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3",
-               "k", "t_device", "t_host", "latency", "late", "duty")
+               "k", "t_device", "t_host", "latency", "late", "duty", "y")
 
 
 @dataclass(frozen=True)
@@ -372,7 +375,7 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
                 z1, z2, z3 = ctl.predict(u_last)
                 log.write(f"{fmt(ctl.t[k_next])},nan,{fmt(ctl.reference(k_next))},nan,"
                           f"{fmt(u_last)},{fmt(z1)},{fmt(z2)},{fmt(z3)},{k_next},nan,nan,nan,0,"
-                          f"nan\n")
+                          f"nan,nan\n")
                 summary.lost_samples += 1
                 k_next += 1
             if k_next >= n:
@@ -411,7 +414,7 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             e = y - ref
             log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u_applied)},"
                       f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},{fmt(t_dev)},{fmt(now - t_start)},"
-                      f"{fmt(latency)},{late},{duty}\n")
+                      f"{fmt(latency)},{late},{duty},{fmt(y)}\n")
             acc["e2"] += e * e
             acc["u2"] += u_applied * u_applied
             acc["m"] += 1
