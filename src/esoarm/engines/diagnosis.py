@@ -15,7 +15,10 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["divergence_causes", "what_left"]
+__all__ = ["SATURATION_WARNING", "divergence_causes", "saturation_warning", "what_left"]
+
+#: Warn when the command sat at ±torque_limit for more than this share of a run's samples.
+SATURATION_WARNING = 0.5
 
 
 def what_left(theta: float, z1: float, z2: float, z3: float, u: float, limit: float) -> str:
@@ -40,6 +43,10 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
 
     causes: list[str] = []
     ts = scn.sample_time
+    inertia = getattr(scn.plant, "inertia", None)
+    if inertia is not None and 1.0 / inertia >= limit:
+        causes.append(f"plant.inertia = {inertia:g} kg·m² (the input gain 1/I0 = "
+                      f"{1.0 / inertia:.3g})")
     rig, sensor = scn.rig, scn.sensor
     if abs(rig.theta0) >= limit / 10:
         causes.append(f"rig.theta0 = {rig.theta0:g} rad (the initial angle)")
@@ -72,3 +79,13 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
     if amplitude >= limit / 10:
         causes.append(f"a reference of {amplitude:g} rad")
     return causes
+
+
+def saturation_warning(fraction: float, torque_limit: float) -> str | None:
+    """A one-line warning when the command was saturated for most of a run, else None."""
+    if not fraction > SATURATION_WARNING:  # also None for NaN
+        return None
+    return (f"the command sat at the torque limit ±{torque_limit:g} N·m in "
+            f"{100 * fraction:.0f} % of the samples (saturated_fraction = {fraction:.3g}): the "
+            "loop is not the linearized one the FLC assumes; raise actuator.torque_limit or ask "
+            "for a gentler reference")
