@@ -23,6 +23,7 @@ from esoarm.cli._common import (
     BadInput,
     RunFailure,
     add_verbosity_options,
+    one_line,
     reset_verbosity,
     show_warning,
     verbosity,
@@ -152,7 +153,8 @@ def main(argv: list[str] | None = None) -> None:
     except click.UsageError as exc:
         # one line, like every other input error, with where to look for help
         where = exc.ctx.command_path if exc.ctx is not None else "esoarm"
-        click.echo(f"esoarm: error: {exc.format_message()} (see '{where} --help')", err=True)
+        click.echo(f"esoarm: error: {one_line(exc.format_message())} (see '{where} --help')",
+                   err=True)
         sys.exit(2)
     except click.ClickException as exc:
         exc.show()
@@ -164,7 +166,7 @@ def main(argv: list[str] | None = None) -> None:
                    "split the work", err=True)
         sys.exit(1)
     except OutputError as exc:  # full disk, file-size limit, lost permission, ...
-        click.echo(f"esoarm: failed: {exc} (no partial file left behind)", err=True)
+        click.echo(f"esoarm: failed: {one_line(str(exc))} (no partial file left behind)", err=True)
         sys.exit(1)
     except BrokenPipeError:  # e.g. `esoarm show test-1 | head`
         sys.stderr.close()

@@ -30,13 +30,23 @@ F = TypeVar("F", bound=Callable[..., Any])
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 
 
+def one_line(text: str) -> str:
+    """``text`` with control characters escaped, so that a message is one line whatever it quotes.
+
+    (A key given as ``'0\\r0'`` must not break the one-line error in two.)
+    """
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 class BadInput(click.ClickException):
     """Bad input from the user: one line on stderr, exit status 2."""
 
     exit_code = 2
 
     def show(self, file: Any = None) -> None:
-        click.echo(f"esoarm: error: {self.format_message()}", err=True)
+        click.echo(f"esoarm: error: {one_line(self.format_message())}", err=True)
 
 
 class RunFailure(click.ClickException):
@@ -45,7 +55,7 @@ class RunFailure(click.ClickException):
     exit_code = 1
 
     def show(self, file: Any = None) -> None:
-        click.echo(f"esoarm: failed: {self.format_message()}", err=True)
+        click.echo(f"esoarm: failed: {one_line(self.format_message())}", err=True)
 
 
 # ---------------------------------------------------------------------------
@@ -112,7 +122,7 @@ def detail(message: str) -> None:
 def warn_line(message: str) -> None:
     """A one-line warning on stderr (not shown with --quiet)."""
     if verbosity() >= NORMAL:
-        click.echo(f"esoarm: warning: {message}", err=True)
+        click.echo(f"esoarm: warning: {one_line(message)}", err=True)
 
 
 def show_warning(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
@@ -122,9 +132,9 @@ def show_warning(message, category, filename, lineno, file=None, line=None):  # 
     if verbosity() < NORMAL:
         return
     if issubclass(category, ScenarioWarning):
-        click.echo(f"esoarm: warning: {message}", err=True)
+        click.echo(f"esoarm: warning: {one_line(str(message))}", err=True)
     else:
-        click.echo(f"esoarm: warning: {category.__name__}: {message}", err=True)
+        click.echo(f"esoarm: warning: {category.__name__}: {one_line(str(message))}", err=True)
 
 
 def bad_input_guard(func: F) -> F:
