@@ -14,7 +14,7 @@ import math
 import warnings
 from typing import Any
 
-from hypothesis import HealthCheck, event, example, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from esoarm.engines.simulation import SimulationDiverged, simulate
