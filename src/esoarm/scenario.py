@@ -17,6 +17,7 @@ import difflib
 import functools
 import math
 import os
+import re
 import tomllib
 from collections.abc import Callable
 from importlib import resources
@@ -518,6 +519,9 @@ def _check_key(key: str, source: str) -> None:
     raise ScenarioError(f"{source}: unknown key '{key}'{hint}")
 
 
+_UNION_MEMBER = re.compile(r"^(constrained-)?(float|int|str|bool)$|^list\[.*\]$")
+
+
 def _format_validation_error(exc: ValidationError, source: str,
                              origin: Callable[[str], str] | None = None) -> str:
     err = exc.errors()[0]
@@ -527,9 +531,13 @@ def _format_validation_error(exc: ValidationError, source: str,
     tags = {m.model_fields["kind"].default: m for m in KIND_SECTIONS.get(section, ())}
     tag_in_loc = [p for p in loc[1:2] if p in tags]
     loc = [p for i, p in enumerate(loc) if not (i == 1 and p in tags)]
+    # and the member names of a plain union (a number or a per-joint list: "float", "list[…]")
+    loc = [p for p in loc if not _UNION_MEMBER.match(p)]
     idx = [p for p in err["loc"] if isinstance(p, int)]
     key = ".".join(loc)
-    more = len(exc.errors()) - 1
+    keys = {tuple(str(p) for p in e["loc"] if not isinstance(p, int)
+                  and not _UNION_MEMBER.match(str(p))) for e in exc.errors()}
+    more = len(keys) - 1
     tail = f" (and {more} more error{'s' if more > 1 else ''})" if more else ""
     kind = err["type"]
     if origin is not None:
