@@ -22,12 +22,19 @@
 #include "esoarm_protocol.h"
 
 /* ---- configuration (match the scenario: sensor.rate_hz, sensor.resolution_deg) ---- */
+/* Each can also be set from the build: make -C firmware SAMPLE_PERIOD_US=1000 BAUD=1000000 */
+#ifndef SAMPLE_PERIOD_US
 #define SAMPLE_PERIOD_US 20000UL   /* 50 Hz, as in the paper */
+#endif
+#ifndef ENCODER_PPR
 #define ENCODER_PPR 600UL          /* HN3806-600BM: 600 pulses/rev per channel */
+#endif
 #define COUNTS_PER_REV (4UL * ENCODER_PPR) /* x4 decoding: 2400 -> 0.15 deg */
 #define PWM_MAX 255                /* analogWrite range on AVR */
 #define WATCHDOG_MS 100UL
-#define BAUD 115200UL
+#ifndef BAUD
+#define BAUD 115200UL              /* 1000000 for 1 kHz sampling (see docs/hardware.md) */
+#endif
 
 #define PIN_ENC_A 2                /* interrupt pins on Uno/Nano */
 #define PIN_ENC_B 3
