@@ -1,14 +1,14 @@
 """Analysis helpers: observer gains and poles, stability checks, Theorem 1 and 2 bounds.
 
 Everything here is computed from the same designs the simulators run
-(:func:`esoarm.observer.design_observer`), so an analysis cannot drift from
+(:func:`esoarm.observers.linear.design_observer`), so an analysis cannot drift from
 the code it describes.
 
 Observer (paper eq. 8-10, Theorem 1)
     The continuous ESO with β = (3/ε, 3/ε², 1/ε³) has the estimation-error
     matrix A − βC of eq. 10, characteristic polynomial (s + 1/ε)³.  Each
     discretization of SPEC §2 step 5 has its own error recursion
-    z̃⁺ = M z̃ (:func:`esoarm.observer.discrete_error_matrix`): "euler" puts
+    z̃⁺ = M z̃ (:func:`esoarm.observers.linear.discrete_error_matrix`): "euler" puts
     the triple pole at 1 − Ts/ε, "zoh" and "current" at e^{−Ts/ε}.
 
 Estimation-error bound (eq. 11-12)
@@ -41,8 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esoarm.model import gravity_coefficient, gravity_torque, input_gain
-from esoarm.observer import (
+from esoarm.observers.linear import (
     DISCRETIZATIONS,
     continuous_error_matrix,
     continuous_gains,
@@ -50,6 +49,7 @@ from esoarm.observer import (
     discrete_error_matrix,
     discrete_error_poles,
 )
+from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
 
 __all__ = [
     "CONTINUOUS",
