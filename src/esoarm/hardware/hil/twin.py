@@ -1,10 +1,10 @@
 """The arm behind the pins: the twin's physics, an encoder disc and a motor driver.
 
 :class:`PinTwin` advances the digital twin one RK4 step of ``rig.step`` at a
-time with the functions every engine uses (:func:`esoarm.rig.rig_advance`,
-the motor law of :mod:`esoarm.hardware.motor` through
-:func:`~esoarm.hardware.motor.twin_rig_vector` and
-:meth:`~esoarm.hardware.motor.MotorParams.source_torque`); nothing of the
+time with the functions every engine uses (:func:`esoarm.plants.lever_arm.rig_advance`,
+the motor law of :mod:`esoarm.plants.motor` through
+:func:`~esoarm.plants.motor.twin_rig_vector` and
+:meth:`~esoarm.plants.motor.MotorParams.source_torque`); nothing of the
 physics is written again here.  What it adds is the geometry of the sensor and
 the timing of the pins:
 
@@ -27,8 +27,8 @@ import math
 
 import numpy as np
 
-from esoarm.hardware.motor import MotorParams, twin_rig_vector
-from esoarm.rig import RigParams, rig_advance
+from esoarm.plants.lever_arm import RigParams, rig_advance
+from esoarm.plants.motor import MotorParams, twin_rig_vector
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["GRAY", "PinTwin"]
