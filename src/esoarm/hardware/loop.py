@@ -136,14 +136,14 @@ def check_device(info: P.Info, scn: Scenario) -> float:
 class _LogWriter:
     """CSV rows streamed to disk, one flushed line per sample."""
 
-    def __init__(self, path: Path | None) -> None:
+    def __init__(self, path: Path | None, columns: tuple[str, ...] = LOG_COLUMNS) -> None:
         self.path = path
         self.rows = 0
         self._fh = None
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
-            self._fh.write(",".join(LOG_COLUMNS) + "\n")
+            self._fh.write(",".join(columns) + "\n")
 
     def write(self, line: str) -> None:
         self.rows += 1
@@ -185,7 +185,8 @@ class _Stop(Exception):
 
 def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             limits: SafetyLimits | None = None,
-            status: Callable[[dict], None] | None = None) -> RunSummary:
+            status: Callable[[dict], None] | None = None,
+            controller: DeploymentController | None = None) -> RunSummary:
     """Drive the device on ``link`` through one run of ``scn``.
 
     Parameters
@@ -201,6 +202,11 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     status : callable, optional
         Called about ten times a second with a dict (t, theta, error, u,
         deadline_misses) for a live display.
+    controller : optional
+        What computes u_k from y_k (``step``, ``commit``, ``predict``, ``zhat``,
+        ``reference``, ``t``, ``n_samples``, ``ts``, ``torque_limit``); default the
+        scenario's ESO + FLC.  The identification experiment passes its
+        :class:`~esoarm.studies.excitation.ExcitationController`.
 
     Returns
     -------
@@ -232,7 +238,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
         raise ScenarioError(
             f"motor.pwm_max = {motor.pwm_max} does not match the device's PWM range "
             f"±{info.pwm_max}")
-    ctl = DeploymentController(scn)
+    ctl = controller if controller is not None else DeploymentController(scn)
     n, ts = ctl.n_samples, ctl.ts
     log = _LogWriter(log_path)
     summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
