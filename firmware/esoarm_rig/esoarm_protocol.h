@@ -42,6 +42,7 @@
 #define ESO_FAULT_WATCHDOG 1u
 #define ESO_FAULT_OVERRUN 2u
 #define ESO_FAULT_BAD_COMMAND 3u
+#define ESO_FAULT_ENCODER 4u      /* both encoder lines changed at once: counts lost */
 
 /* Fixed payload length of a message type; -1 for an unknown type. */
 static inline int eso_payload_size(uint8_t type)

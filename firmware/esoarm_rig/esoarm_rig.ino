@@ -15,6 +15,8 @@
  *   - STOP  -> motor off, sampling stops, STOPPED
  *   - watchdog: no valid DUTY within 100 ms -> motor off, FAULT(WATCHDOG);
  *     the motor stays off until the next START
+ *   - encoder check: both lines changed between two interrupts (a glitch, or an
+ *     edge missed) -> motor off, FAULT(ENCODER); off until the next START
  * Corrupted or partial frames are counted and skipped by the parser in
  * esoarm_protocol.h (the same rule as the Python host; see docs/protocol.md).
  * See docs/hardware.md for wiring, flashing and the first run.
@@ -50,8 +52,12 @@
 
 static volatile int32_t encoder_count = 0;
 static volatile uint8_t encoder_state = 0;
-/* x4 quadrature table: index = (previous AB << 2) | current AB -> step */
-static const int8_t QUAD_TABLE[16] = {0, +1, -1, 0, -1, 0, 0, +1, +1, 0, 0, -1, 0, -1, +1, 0};
+static volatile uint8_t encoder_errors = 0;   /* invalid transitions since START (saturates) */
+/* x4 quadrature table: index = (previous AB << 2) | current AB -> step; QUAD_BAD where
+ * both lines changed between two reads (a glitch, or an edge missed): the count is wrong */
+#define QUAD_BAD 2
+static const int8_t QUAD_TABLE[16] = {0, +1, -1, QUAD_BAD, -1, 0, QUAD_BAD, +1,
+                                      +1, QUAD_BAD, 0, -1, QUAD_BAD, -1, +1, 0};
 
 static eso_parser_t parser;
 static uint8_t tx_seq = 0;
@@ -59,6 +65,7 @@ static uint8_t frame_buf[ESO_MAX_FRAME];
 
 static bool running = false;
 static bool watchdog_tripped = false;
+static bool encoder_fault = false;
 static uint32_t sample_k = 0;
 static uint32_t t_start_us = 0;
 static uint32_t next_sample_us = 0;
@@ -67,7 +74,12 @@ static uint32_t last_command_ms = 0;
 static void encoder_isr()
 {
     uint8_t ab = (uint8_t)((digitalRead(PIN_ENC_A) << 1) | digitalRead(PIN_ENC_B));
-    encoder_count += QUAD_TABLE[(encoder_state << 2) | ab];
+    int8_t step = QUAD_TABLE[(encoder_state << 2) | ab];
+    if (step == QUAD_BAD) {
+        if (encoder_errors < 255) encoder_errors++;
+    } else {
+        encoder_count += step;
+    }
     encoder_state = ab;
 }
 
@@ -118,7 +130,9 @@ static void handle_frame(const eso_frame_t *f)
         motor_off();
         noInterrupts();
         encoder_count = 0;   /* the angle at START is theta = 0 */
+        encoder_errors = 0;
         interrupts();
+        encoder_fault = false;
         sample_k = 0;
         t_start_us = micros();
         next_sample_us = t_start_us;
@@ -134,7 +148,7 @@ static void handle_frame(const eso_frame_t *f)
                                         eso_get_u32(f->payload)));
             break;
         }
-        if (!running || watchdog_tripped) break;
+        if (!running || watchdog_tripped || encoder_fault) break;
         last_command_ms = millis();
         motor_write(duty);
         break;
@@ -183,6 +197,13 @@ void loop()
         motor_off();
         watchdog_tripped = true;
         send_frame(eso_encode_fault(frame_buf, tx_seq, ESO_FAULT_WATCHDOG, sample_k));
+    }
+
+    if (!encoder_fault && encoder_errors != 0) {
+        /* the angle can no longer be trusted: motor off until the next START */
+        motor_off();
+        encoder_fault = true;
+        send_frame(eso_encode_fault(frame_buf, tx_seq, ESO_FAULT_ENCODER, sample_k));
     }
 
     uint32_t now = micros();

@@ -119,8 +119,9 @@ def test_run_against_hil_tracks_like_simulate(elf, tmp_path):
     """10 s of simulated time: esoarm run on the unchanged host against the Uno binary."""
     hil = Hil(["uno-rig", "--once", "--elf", str(elf)])
     log = tmp_path / "run.csv"
+    # --watchdog 2: a loaded test machine can starve the simulator for a few hundred ms
     run = _json(["run", "uno-rig", "--port", hil.device, "--set", "duration=10",
-                 "--json", "--log", str(log)])
+                 "--json", "--log", str(log), "--watchdog", "2"])
     assert hil.finish() == 0, hil.lines
     sim = _json(["simulate", "uno-rig", "--set", "duration=10", "--json"])
     assert run["samples"] == 500 and run["lost_samples"] == 0
@@ -132,3 +133,61 @@ def test_run_against_hil_tracks_like_simulate(elf, tmp_path):
     assert any(line.startswith("motor off at t = ") for line in hil.lines), hil.lines
     isr = [ln for ln in hil.lines if ln.startswith("encoder interrupts:")]
     assert isr and int(isr[0].split()[2].rstrip(",")) > 100
+
+
+def _run_cli(args: list[str]) -> subprocess.CompletedProcess:
+    return subprocess.run([*ESOARM, *args], capture_output=True, text=True, timeout=300)
+
+
+def _motor_off_delays(lines: list[str]) -> list[float]:
+    """Milliseconds from the host's last byte to each 'motor off' the harness saw."""
+    return [float(ln.split("(")[1].split(" ms")[0]) for ln in lines
+            if ln.startswith("motor off at t = ")]
+
+
+# fault -> (what ends the run on the host, the host's --watchdog [s])
+FAULTS = {
+    "driver@1.5": ("following error", "2"),
+    "encoder-break@1.5": ("following error", "2"),
+    "encoder-noise@0.5": ("device reported a fault: encoder", "2"),
+    "brownout@1.5": ("watchdog: no sample from the device", "0.5"),
+    "unplug@1.5": ("went away", "2"),
+}
+
+
+@pytest.mark.parametrize("fault", sorted(FAULTS))
+def test_fault_ends_safe_on_both_sides(elf, tmp_path, fault):
+    cause, watchdog = FAULTS[fault]
+    hil = Hil(["uno-rig", "--once", "--elf", str(elf), "--fault", fault])
+    log = tmp_path / "run.csv"
+    res = _run_cli(["run", "uno-rig", "--port", hil.device, "--set", "duration=4",
+                    "--log", str(log), "--watchdog", watchdog])
+    assert hil.finish() == 0, hil.lines
+    # host: exit 1, one line naming the cause, every row kept
+    assert res.returncode == 1, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and cause in lines[0], res.stderr
+    rows = len(log.read_text().splitlines()) - 1
+    at = float(fault.split("@")[1])
+    assert f"{rows} rows in" in lines[0]
+    assert at * 50 - 2 <= rows < 200
+    # device: the motor pins go off, at the latest one watchdog (100 ms) after the host
+    # stopped talking (the check runs every 1 ms step; the last frame takes ~1 ms to arrive)
+    assert f"fault injected: {fault.split('@')[0]} at t = {at:g} s" in hil.lines
+    delays = _motor_off_delays(hil.lines)
+    assert delays and delays[-1] <= 105, hil.lines
+    if fault.startswith("unplug"):
+        assert delays[-1] >= 100  # nobody left to send STOP: the firmware's watchdog did it
+        assert any(ln.startswith("device fault: watchdog") for ln in hil.lines)
+    if fault.startswith("encoder-noise"):  # the firmware caught it before the count drifted
+        assert "encoder: device count − arm position at the last sample: +0 counts" in \
+            "\n".join(hil.lines)
+
+
+def test_hil_bad_input(elf, tmp_path):
+    res = _run_cli(["hil", "test-1", "--elf", str(elf)])
+    assert res.returncode == 2 and "[motor] table" in res.stderr
+    res = _run_cli(["hil", "uno-rig", "--elf", str(tmp_path / "missing.elf")])
+    assert res.returncode == 2 and "missing.elf" in res.stderr
+    res = _run_cli(["hil", "uno-rig", "--elf", str(elf), "--fault", "meteor@1"])
+    assert res.returncode == 2 and "encoder-break" in res.stderr

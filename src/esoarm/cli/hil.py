@@ -39,8 +39,8 @@ def _say(line: str) -> None:
 @click.option("--driver", type=click.Choice(["l298n", "bts7960"]), default="l298n",
               show_default=True, help="Driver variant to build when --elf is not given.")
 @click.option("--once", is_flag=True,
-              help="Exit once the host has stopped a run (STOP, or a fault on either side) "
-              "and the motor pins are off.")
+              help="Exit after the first run: once the motor pins are off and the host has "
+              "sent STOP (or the link is unplugged, or the host is silent for 5 s).")
 @bad_input_guard
 def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], realtime: bool,
         elf: str | None, driver: str, once: bool) -> None:
@@ -79,8 +79,12 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         terminated.append(signum)
 
     def done() -> bool:
-        return bool(terminated) or (once and server.log.start_cycle is not None
-                                    and server.motor_duty == 0 and server.host_quiet(0.5))
+        # --once: a run was started, the motor pins are off, and the host has said STOP
+        # (0.3 s ago, so that STOPPED reaches it), pulled the plug, or gone quiet for 5 s
+        return bool(terminated) or (
+            once and server.log.start_cycle is not None and server.motor_duty == 0
+            and (server.unplugged or server.host_quiet(5.0)
+                 or server.stop_seen and server.host_quiet(0.3)))
 
     old = signal.signal(signal.SIGTERM, on_term)
     try:
@@ -93,6 +97,9 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         signal.signal(signal.SIGTERM, old)
         stats = server.board.isr_stats()
         server.close()
+    if server.log.start_cycle is not None:
+        _say(f"encoder: device count − arm position at the last sample: "
+             f"{server.count_error:+d} counts (largest {server.count_error_max})")
     if stats["n"]:
         _say(f"encoder interrupts: {stats['n']}, {stats['isr_sum'] / stats['n']:.0f} cycles "
              f"mean, {stats['isr_max']} max in the handler")

@@ -144,6 +144,9 @@ class HilServer:
         self._wall0 = time.perf_counter()
         self._cycle0 = 0
         self.motor_duty = 0
+        self.stop_seen = False    # the host sent STOP after the last START
+        self.count_error = 0      # device count − arm position [counts] at the last sample
+        self.count_error_max = 0
         self.board.set_encoder(self.twin.levels)  # the lines show where the disc is
         self.board.run(round(BOOT_TIME * F_CPU))
 
@@ -203,12 +206,19 @@ class HilServer:
         if self.log.keep_frames:
             self.log.device_frames.append(rec)
         kind = rec.frame.kind
+        if kind == P.SAMPLE and self.twin.running:
+            # the device's count against the disc (the arm moves a count or two while
+            # the frame is on the wire)
+            count = rec.frame.fields()[2]
+            self.count_error = count - (self.twin.position - self.twin.start_position)
+            self.count_error_max = max(self.count_error_max, abs(self.count_error))
         if kind in (P.SAMPLE, P.FAULT, P.INFO, P.STOPPED):
             self._awaiting = (time.perf_counter(), self.board.cycle)
         if kind == P.FAULT:
             code, detail = rec.frame.fields()
             name = {P.FAULT_WATCHDOG: "watchdog", P.FAULT_OVERRUN: "overrun",
-                    P.FAULT_BAD_COMMAND: "bad command"}.get(code, f"code {code}")
+                    P.FAULT_BAD_COMMAND: "bad command",
+                    P.FAULT_ENCODER: "encoder"}.get(code, f"code {code}")
             self.echo(f"device fault: {name} (detail {detail}) at t = {self.twin.t:.4g} s")
         if kind == P.STOPPED:
             self.run_active = False
@@ -242,11 +252,13 @@ class HilServer:
                 self.log.host_frames.append((frame, self.board.cycle))
             if frame.kind == P.START:
                 self.twin.start()
+                self.stop_seen = False
                 self.run_active = True
                 self.log.start_cycle = self.board.cycle
                 self._apply_faults(at_start=True)
             elif frame.kind == P.STOP:
                 self.run_active = False
+                self.stop_seen = True
 
     # -- faults ----------------------------------------------------------------
     def _apply_faults(self, at_start: bool = False) -> None:
@@ -311,7 +323,15 @@ class HilServer:
         self._wall0, self._cycle0 = time.perf_counter(), board.cycle
         end = None if max_seconds is None else board.cycle + round(max_seconds * F_CPU)
         prev_duty = None
+        debug = bool(os.environ.get("ESOARM_HIL_DEBUG"))
+        t_prev = time.perf_counter()
         while not self.closed and not until():
+            if debug:
+                t_now = time.perf_counter()
+                if t_now - t_prev > 0.1:
+                    self.echo(f"debug: {t_now - t_prev:.3f} s for one step at "
+                              f"t = {self.twin.t:.4g} s")
+                t_prev = t_now
             c0 = board.cycle
             if end is not None and c0 >= end:
                 break

@@ -73,6 +73,7 @@ class PinTwin:
         self.t = 0.0
         self.theta, self.omega, self.tau = self.theta0, 0.0, 0.0
         self.position = self._count(self.theta0)
+        self.start_position = self.position
         self._phase_offset = 0
         self.duty = 0
         self.torque = 0.0
@@ -95,6 +96,7 @@ class PinTwin:
         self.t = 0.0
         self.theta, self.omega, self.tau = self.theta0, 0.0, 0.0
         self.position = self._count(self.theta0)
+        self.start_position = self.position
         self._phase_offset = GRAY.index(old) - self.position % 4
         self.running = True
 
