@@ -63,6 +63,18 @@ def _progress(total: int, label: str, unit: str) -> Iterator[Callable[[int], Non
         yield lambda n: bar.advance(task, n)
 
 
+def _check_engine(engine: str, scn: Any) -> None:
+    """--engine fast on a scenario it does not model is bad input (one line)."""
+    if engine != "fast":
+        return
+    from esoarm.engines.fast import unsupported
+
+    why = unsupported(scn)
+    if why is not None:
+        raise BadInput(f"--engine fast: scenario '{scn.name}' has {why}, which the fast engine "
+                       "does not model; use --engine exact")
+
+
 def _fmt(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:.5g}"
@@ -91,6 +103,11 @@ def _fmt(value: Any) -> str:
               "spread over seeds, or heat maps for two varied keys (.png, .pdf or .svg).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print a JSON summary: runs, seconds, best grid points (seed means).")
+@click.option("--engine", "engine", type=click.Choice(["exact", "fast"]), default="exact",
+              show_default=True,
+              help="exact: bit-identical to `esoarm simulate`. fast: vectorized C kernel built on "
+              "first use with the system C compiler, agrees to relative 1e-9 (see the "
+              "benchmarks page); falls back to exact with a warning where no compiler works.")
 @click.option("--workers", "workers", type=int, default=None, metavar="N",
               help="Threads (cores) in this process [default: all]; with --scheduler, numba "
               "threads per Dask task [default: 1].")
@@ -104,7 +121,7 @@ def _fmt(value: Any) -> str:
               "Does not change the results.")
 @bad_input_guard
 def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seeds: int,
-          out: str | None, plot: str | None, as_json: bool, workers: int | None,
+          out: str | None, plot: str | None, as_json: bool, engine: str, workers: int | None,
           scheduler: str | None, chunk: int | None) -> None:
     """Sweep SCENARIO over a grid of parameters × noise seeds (compiled engine).
 
@@ -129,12 +146,13 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
     if plot_path is not None and len(grid.vary) > 2:
         raise BadInput(f"--plot draws one or two varied keys; this sweep varies {len(grid.vary)}")
     _warn_grid(grid.warnings())
+    _check_engine(engine, grid.points[0] if len(grid.points) else base)
 
     result = SweepResult.empty(grid)
     try:
         with _progress(grid.n_runs, "sweep", "runs") as advance:
             run_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk, progress=advance,
-                      result=result)
+                      result=result, engine=engine)
     except KeyboardInterrupt:
         kept = _keep_partial(result, out_path)
         click.echo(f"esoarm: interrupted: {result.n_done} of {grid.n_runs} runs finished{kept}",
@@ -248,6 +266,11 @@ def _print_sweep(result: Any, diverged: int) -> None:
               help="Differential-evolution generations at most.")
 @click.option("--popsize", "popsize", type=int, default=10, show_default=True,
               help="Population per tuned key.")
+@click.option("--engine", "engine", type=click.Choice(["exact", "fast"]), default="exact",
+              show_default=True,
+              help="exact: bit-identical to `esoarm simulate`. fast: vectorized C kernel built on "
+              "first use with the system C compiler, agrees to relative 1e-9 (see the "
+              "benchmarks page); falls back to exact with a warning where no compiler works.")
 @click.option("--workers", "workers", type=int, default=None, metavar="N",
               help="Threads (cores) [default: all].")
 @click.option("--out", "out", metavar="FILE.csv",
@@ -261,7 +284,7 @@ def _print_sweep(result: Any, diverged: int) -> None:
 @bad_input_guard
 def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
          objective: str | None, weight: float | None, seeds: int, robust: tuple[str, ...],
-         samples: int, seed: int, maxiter: int, popsize: int, workers: int | None,
+         samples: int, seed: int, maxiter: int, popsize: int, engine: str, workers: int | None,
          out: str | None, plot: str, no_plot: bool, as_json: bool) -> None:
     """Tune keys of SCENARIO to minimize an objective (SciPy differential evolution).
 
@@ -295,11 +318,12 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     if not bounds:
         raise BadInput("--vary: give at least one KEY=LOW:HIGH to tune, "
                        "e.g. --vary observer.eps=0.02:0.3")
+    _check_engine(engine, base)
     try:
         with _progress(maxiter, "tune", "generations") as advance:
             res = run_tune(base, bounds, objective=obj, seeds=seeds, robust=rob,
                            samples=samples, seed=seed, maxiter=maxiter, popsize=popsize,
-                           workers=workers, progress=advance)
+                           workers=workers, progress=advance, engine=engine)
     except KeyboardInterrupt:
         click.echo("esoarm: interrupted: tuning stopped, nothing written", err=True)
         raise click.exceptions.Exit(INTERRUPTED) from None

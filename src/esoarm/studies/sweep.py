@@ -9,7 +9,7 @@ each grid point with ``sensor.seed`` = 0 … K−1 (seed fastest).  SPEC is
 * ``lin:START:STOP:NUM`` -- ``numpy.linspace(START, STOP, NUM)``,
 * ``geom:START:STOP:NUM`` -- ``numpy.geomspace(START, STOP, NUM)``.
 
-Only metrics are kept (:data:`esoarm.engines.batch.METRICS`), so memory does not grow
+Only metrics are kept (:data:`esoarm.engines.metrics.METRICS`), so memory does not grow
 with runs × samples.  The work is cut into chunks of whole grid points; chunks
 run in this process on all cores (numba threads) or, given a scheduler
 address, as tasks on a Dask distributed cluster.  Every run is independent and
@@ -32,10 +32,11 @@ from typing import Any
 import numpy as np
 
 from esoarm._io import atomic_path
-from esoarm.engines.batch import METRICS, _NoiseCache, run_metrics
+from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache, reference_metrics
 from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
 
 __all__ = [
+    "ENGINES",
     "SweepGrid",
     "SweepResult",
     "VarySpec",
@@ -291,9 +292,45 @@ def _chunks(grid: SweepGrid, chunk_runs: int) -> list[tuple[int, int]]:
 
 _CHUNK_LOCK = threading.Lock()
 
+#: Engines a sweep (or a tuning run) can use: "exact" (the default, bit-identical
+#: to the reference engine) and "fast" (vectorized, agrees to round-off; see
+#: :mod:`esoarm.engines.fast`).
+ENGINES: tuple[str, ...] = ("exact", "fast")
+
+
+#: Up to this many runs the exact engine runs on the reference loop (same
+#: numbers): loading numba and the compiled kernels costs more than the runs.
+REFERENCE_RUNS = 3
+
+
+def _run_exact(points: Sequence[Scenario], seeds: Sequence[int] | None = None,
+               **kwargs: Any) -> MetricsTable:
+    runs = len(points) * (len(seeds) if seeds is not None else 1)
+    if runs <= REFERENCE_RUNS:
+        return reference_metrics(points, seeds, progress=kwargs.get("progress"))
+    from esoarm.engines.batch import run_metrics
+
+    return run_metrics(points, seeds, **kwargs)
+
+
+def metrics_runner(engine: str = "exact") -> Callable[..., MetricsTable]:
+    """The ``run_metrics`` function of an engine (``"exact"`` or ``"fast"``).
+
+    "exact" is :func:`esoarm.engines.batch.run_metrics`, except that a call of
+    at most :data:`REFERENCE_RUNS` runs uses the reference engine (identical
+    numbers, no compiled kernel to load).
+    """
+    if engine == "exact":
+        return _run_exact
+    if engine == "fast":
+        from esoarm.engines.fast import run_metrics as run_fast
+
+        return run_fast
+    raise ValueError(f"engine must be one of {', '.join(ENGINES)}; got {engine!r}")
+
 
 def _run_chunk(points: Sequence[Scenario], seeds: Sequence[int] | None,
-               threads: int | None) -> np.ndarray:
+               threads: int | None, engine: str = "exact") -> np.ndarray:
     """One chunk's metrics: the Dask task.
 
     A worker process runs one chunk at a time (on ``threads`` numba threads):
@@ -302,7 +339,7 @@ def _run_chunk(points: Sequence[Scenario], seeds: Sequence[int] | None,
     one process per core, or fewer processes and ``--workers N``.
     """
     with _CHUNK_LOCK:
-        return run_metrics(points, seeds if seeds else None, workers=threads).values
+        return metrics_runner(engine)(points, seeds if seeds else None, workers=threads).values
 
 
 def iter_sweep(
@@ -311,6 +348,7 @@ def iter_sweep(
     workers: int | None = None,
     scheduler: str | None = None,
     chunk: int | None = None,
+    engine: str = "exact",
 ) -> Iterator[tuple[int, np.ndarray]]:
     """Run the sweep chunk by chunk; yield (first run index, metrics rows).
 
@@ -331,18 +369,21 @@ def iter_sweep(
     chunk : int, optional
         Runs per chunk (rounded to whole grid points); default
         :data:`LOCAL_CHUNK` or :data:`DASK_CHUNK`.
+    engine : {"exact", "fast"}
+        :data:`ENGINES`; "fast" agrees with "exact" to round-off (:mod:`esoarm.engines.fast`).
     """
+    run_metrics = metrics_runner(engine)
     per_point = max(len(grid.seeds), 1)
     seeds = list(grid.seeds) or None
     if scheduler is None:
         ranges = _chunks(grid, chunk or LOCAL_CHUNK)
-        noise_cache = _NoiseCache()  # each seed's noise drawn once for the whole sweep
+        noise_cache = NoiseCache()  # each seed's noise drawn once for the whole sweep
         for lo, hi in ranges:
             table = run_metrics(grid.points[lo:hi], seeds, workers=workers,
                                 _noise_cache=noise_cache)
             yield lo * per_point, table.values
         return
-    yield from _iter_dask(grid, scheduler, workers or 1, chunk or DASK_CHUNK)
+    yield from _iter_dask(grid, scheduler, workers or 1, chunk or DASK_CHUNK, engine)
 
 
 class ClusterError(RuntimeError):
@@ -350,7 +391,7 @@ class ClusterError(RuntimeError):
 
 
 def _iter_dask(grid: SweepGrid, address: str, threads: int,
-               chunk: int) -> Iterator[tuple[int, np.ndarray]]:
+               chunk: int, engine: str = "exact") -> Iterator[tuple[int, np.ndarray]]:
     try:
         from distributed import Client, as_completed
     except ImportError:
@@ -366,7 +407,8 @@ def _iter_dask(grid: SweepGrid, address: str, threads: int,
     futures = {}
     try:
         for lo, hi in _chunks(grid, chunk):
-            fut = client.submit(_run_chunk, grid.points[lo:hi], seeds, threads, pure=False)
+            fut = client.submit(_run_chunk, grid.points[lo:hi], seeds, threads, engine,
+                                pure=False)
             futures[fut] = lo
         for fut in as_completed(list(futures), loop=client.loop):
             try:
@@ -497,6 +539,7 @@ def run_sweep(
     chunk: int | None = None,
     progress: Callable[[int], None] | None = None,
     result: SweepResult | None = None,
+    engine: str = "exact",
 ) -> SweepResult:
     """Run a whole sweep and collect it (see :func:`iter_sweep` for the options).
 
@@ -506,7 +549,8 @@ def run_sweep(
     result = result if result is not None else SweepResult.empty(grid)
     start = time.perf_counter()
     try:
-        for first, values in iter_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk):
+        for first, values in iter_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk,
+                                        engine=engine):
             result.add(first, values)
             if progress is not None:
                 progress(len(values))
