@@ -71,9 +71,20 @@ static uint32_t t_start_us = 0;
 static uint32_t next_sample_us = 0;
 static uint32_t last_command_ms = 0;
 
+/* The encoder levels AB (bit 1 = A, bit 0 = B). */
+static inline uint8_t read_ab()
+{
+#if defined(__AVR_ATmega328P__) && PIN_ENC_A == 2 && PIN_ENC_B == 3
+    uint8_t pins = PIND; /* Uno/Nano: A = PD2, B = PD3, sampled in one instruction */
+    return (uint8_t)(((pins >> 1) & 0x02u) | ((pins >> 3) & 0x01u));
+#else
+    return (uint8_t)((digitalRead(PIN_ENC_A) << 1) | digitalRead(PIN_ENC_B));
+#endif
+}
+
 static void encoder_isr()
 {
-    uint8_t ab = (uint8_t)((digitalRead(PIN_ENC_A) << 1) | digitalRead(PIN_ENC_B));
+    uint8_t ab = read_ab();
     int8_t step = QUAD_TABLE[(encoder_state << 2) | ab];
     if (step == QUAD_BAD) {
         if (encoder_errors < 255) encoder_errors++;
@@ -177,7 +188,7 @@ void setup()
     pinMode(PIN_IN2, OUTPUT);
 #endif
     motor_off();
-    encoder_state = (uint8_t)((digitalRead(PIN_ENC_A) << 1) | digitalRead(PIN_ENC_B));
+    encoder_state = read_ab();
     attachInterrupt(digitalPinToInterrupt(PIN_ENC_A), encoder_isr, CHANGE);
     attachInterrupt(digitalPinToInterrupt(PIN_ENC_B), encoder_isr, CHANGE);
     eso_parser_init(&parser);

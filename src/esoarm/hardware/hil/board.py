@@ -85,6 +85,10 @@ class Board:
                                       ctypes.c_int]
         lib.hil_reset.argtypes = [ctypes.c_void_p]
         lib.hil_isr_stats.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
+        lib.hil_isr_clear.argtypes = [ctypes.c_void_p]
+        lib.hil_probe.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
+        lib.hil_probe_take.restype = ctypes.c_int
+        lib.hil_probe_take.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
         self._lib = lib
         handle = lib.hil_open(str(elf).encode(), F_CPU)
         if not handle:
@@ -136,6 +140,20 @@ class Board:
         self._lib.hil_isr_stats(self._h, out.ctypes.data)
         n, s, mx, ls, lmx = (int(v) for v in out)
         return {"n": n, "isr_sum": s, "isr_max": mx, "latency_sum": ls, "latency_max": lmx}
+
+    def isr_clear(self) -> None:
+        """Forget the encoder interrupt statistics."""
+        self._lib.hil_isr_clear(self._h)
+
+    def probe(self, pc: int) -> None:
+        """Record the cycles at which the program counter reaches byte address ``pc``."""
+        self._lib.hil_probe(self._h, pc)
+
+    def probe_hits(self) -> np.ndarray:
+        """Cycles recorded by :meth:`probe` since the last call."""
+        out = np.zeros(4096, dtype=np.uint64)
+        n = self._lib.hil_probe_take(self._h, out.ctypes.data, len(out))
+        return out[:n].copy()
 
     def motor(self) -> MotorPins:
         """The motor driver inputs, read from the port and Timer1 registers."""

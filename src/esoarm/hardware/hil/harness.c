@@ -16,6 +16,8 @@
  *                                       the last call, with the cycle of each write
  *   hil_data(h)                         the AVR's data space (registers, I/O, SRAM)
  *   hil_reset(h)                        reset the MCU (brown-out); the cycle count goes on
+ *   hil_probe(h, pc) / hil_probe_take   cycles at which the program counter reached
+ *                                       the byte address pc (timing measurements)
  *
  * Measurement of the encoder interrupt: after each applied edge the harness
  * follows the program counter to the INT0/INT1 vector and back to the
@@ -43,6 +45,8 @@
 #define ENC_PIN_B 3   /* D3 = PD3 = INT1 */
 #define VECTOR_INT0 (1 * 4) /* byte addresses of the vectors (2-word entries) */
 #define VECTOR_INT1 (2 * 4)
+#define PROBE_MAX 4096
+#define NO_PROBE 0xFFFFFFFFu
 
 typedef struct hil {
     avr_t *avr;
@@ -63,7 +67,10 @@ typedef struct hil {
     uint32_t ret_pc;
     uint16_t sp_entry;
     uint64_t isr_n, isr_sum, isr_max, lat_sum, lat_max;
-    char error[256];
+    /* program-counter probe: cycles at which the PC reached probe_pc */
+    uint32_t probe_pc;
+    uint64_t probe[PROBE_MAX];
+    int probe_n;
 } hil_t;
 
 static char last_error[256];
@@ -196,6 +203,7 @@ hil_t *hil_open(const char *elf_path, uint32_t frequency)
     h->ab = 0;
     set_encoder(h, 3); /* both lines idle high (open collector with pull-ups) */
     h->track = 0;
+    h->probe_pc = NO_PROBE;
     return h;
 }
 
@@ -222,6 +230,7 @@ int hil_run(hil_t *h, uint64_t until, const uint64_t *cycles, const uint8_t *ab,
         int state = avr_run(avr);
         if (state == cpu_Done || state == cpu_Crashed) return -1;
         if (h->track) follow_isr(h);
+        if (avr->pc == h->probe_pc && h->probe_n < PROBE_MAX) h->probe[h->probe_n++] = avr->cycle;
     }
     while (i < n && cycles[i] <= avr->cycle) set_encoder(h, ab[i++]);
     return i;
@@ -275,4 +284,27 @@ void hil_isr_stats(hil_t *h, uint64_t *out)
     out[2] = h->isr_max;
     out[3] = h->lat_sum;
     out[4] = h->lat_max;
+}
+
+/* Record the cycles at which the program counter reaches byte address pc (one probe). */
+void hil_probe(hil_t *h, uint32_t pc)
+{
+    h->probe_pc = pc;
+    h->probe_n = 0;
+}
+
+int hil_probe_take(hil_t *h, uint64_t *out, int max)
+{
+    int n = h->probe_n < max ? h->probe_n : max;
+    memcpy(out, h->probe, (size_t)n * sizeof(uint64_t));
+    memmove(h->probe, h->probe + n, (size_t)(h->probe_n - n) * sizeof(uint64_t));
+    h->probe_n -= n;
+    return n;
+}
+
+/* Forget the encoder interrupt statistics (after boot, before a measurement). */
+void hil_isr_clear(hil_t *h)
+{
+    h->isr_n = h->isr_sum = h->isr_max = h->lat_sum = h->lat_max = 0;
+    h->track = 0;
 }

@@ -149,6 +149,7 @@ class HilServer:
         self.count_error_max = 0
         self.board.set_encoder(self.twin.levels)  # the lines show where the disc is
         self.board.run(round(BOOT_TIME * F_CPU))
+        self.board.isr_clear()
 
     # -- pins ------------------------------------------------------------------
     def _edges(self, cycle0: int) -> tuple[np.ndarray, np.ndarray]:
