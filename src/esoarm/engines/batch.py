@@ -81,7 +81,7 @@ _THETA0, _SIGMA, _Q, _H, _TS, _B0 = range(6)
 _N, _NSUB, _DELAY, _REFIDX = range(4)
 
 # _closed_loop unpacks the parameter vectors into tuples of these lengths
-if (_rig.VECTOR_SIZE, _observer.VECTOR_SIZE, _controller.VECTOR_SIZE) != (8, 21, 6):
+if (_rig.VECTOR_SIZE, _observer.VECTOR_SIZE, _controller.VECTOR_SIZE) != (10, 21, 6):
     raise ImportError(  # pragma: no cover - guards a core change
         "esoarm.engines.batch: the packed rig/observer/controller vectors changed size; "
         "update the tuple unpacking in esoarm.engines.batch._closed_loop"
@@ -104,6 +104,20 @@ def _physics_stamp() -> str:
     for name in _PHYSICS_MODULES:
         digest.update((root / f"{name}.py").read_bytes())
     return digest.hexdigest()
+
+
+#: Source files whose numba kernels are cached under the physics stamp (this one, and any
+#: module that calls :func:`cover_with_physics_stamp`).
+_COVERED_FILES: set[str] = {os.path.realpath(__file__)}
+
+
+def cover_with_physics_stamp(path: str) -> None:
+    """Key the on-disk cache of the numba kernels defined in ``path`` on the physics too.
+
+    For modules outside the engines whose kernels call the physics functions
+    (e.g. the identification's segment simulator); call before the first use.
+    """
+    _COVERED_FILES.add(os.path.realpath(path))
 
 
 def _install_cache_locator() -> None:
@@ -129,7 +143,6 @@ def _install_cache_locator() -> None:
              first("UserWideCacheLocator", "_UserWideCacheLocator")]
     if impl is None or None in bases or not hasattr(impl, "_locator_classes"):
         return  # pragma: no cover
-    this_file = os.path.realpath(__file__)
     stamp = _physics_stamp()
 
     def make(base: type) -> type:
@@ -139,7 +152,7 @@ def _install_cache_locator() -> None:
 
             @classmethod
             def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
-                if os.path.realpath(py_file) != this_file:
+                if os.path.realpath(py_file) not in _COVERED_FILES:
                     return None
                 return super().from_function(py_func, py_file)
 
@@ -171,7 +184,7 @@ def _closed_loop(log, n, theta0, noise, sigma, q, tref, dref, ddref, rig, obs, c
     """
     # the packed parameter vectors as tuples: the physics functions index them
     # exactly like arrays, but tuples live in registers (no reference counting)
-    rig = (rig[0], rig[1], rig[2], rig[3], rig[4], rig[5], rig[6], rig[7])
+    rig = (rig[0], rig[1], rig[2], rig[3], rig[4], rig[5], rig[6], rig[7], rig[8], rig[9])
     ctl = (ctl[0], ctl[1], ctl[2], ctl[3], ctl[4], ctl[5])
     obs = (obs[0], obs[1], obs[2], obs[3], obs[4], obs[5], obs[6], obs[7], obs[8], obs[9],
            obs[10], obs[11], obs[12], obs[13], obs[14], obs[15], obs[16], obs[17], obs[18],
