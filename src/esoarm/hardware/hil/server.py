@@ -133,7 +133,6 @@ class HilServer:
         self.rx_parser = P.Parser()   # host -> device (watched, not consumed)
         self.tx_parser = P.Parser()   # device -> host
         self._tx_first: int | None = None
-        self._tx_pending = bytearray()
         self.run_active = False
         self.encoder_break = False
         self.noise = False
@@ -162,9 +161,11 @@ class HilServer:
             n = int(self._rng.poisson(GLITCH_RATE * self.twin.h))
             if n:
                 # a glitch flips A, B or both for 1-20 µs, then the true level returns
-                at = np.sort(self._rng.integers(0, self.twin.step_cycles, n)).astype(np.uint64)
-                width = self._rng.integers(round(GLITCH_MIN * F_CPU), round(GLITCH_MAX * F_CPU),
-                                           n).astype(np.uint64)
+                wmax = round(GLITCH_MAX * F_CPU)
+                width = self._rng.integers(round(GLITCH_MIN * F_CPU), wmax, n).astype(np.uint64)
+                # glitches start and end inside this step
+                at = np.sort(self._rng.integers(0, self.twin.step_cycles - wmax, n))
+                at = at.astype(np.uint64)
                 mask = self._rng.integers(1, 4, n).astype(np.uint8)
                 at += np.uint64(cycle0)
 

@@ -1,11 +1,11 @@
 """The arm behind the pins: the twin's physics, an encoder disc and a motor driver.
 
 :class:`PinTwin` advances the digital twin one RK4 step of ``rig.step`` at a
-time with the functions every engine uses (:func:`esoarm.plants.lever_arm.rig_advance`,
-the motor law of :mod:`esoarm.plants.motor` through
-:func:`~esoarm.plants.motor.twin_rig_vector` and
-:meth:`~esoarm.plants.motor.MotorParams.source_torque`); nothing of the
-physics is written again here.  What it adds is the geometry of the sensor and
+time with the plant step every engine uses (the scenario's plant kind:
+``design`` and ``advance``, :mod:`esoarm.plants.lever_arm`, whose design adds
+the motor's back-EMF damping) driven by the motor's torque
+(:func:`esoarm.plants.motor.source_torque`); nothing of the physics is written
+again here.  What it adds is the geometry of the sensor and
 the timing of the pins:
 
 - Encoder: position p = floor(θ/q + 1/2) in counts (q = 360°/counts per rev,
@@ -27,8 +27,8 @@ import math
 
 import numpy as np
 
-from esoarm.plants.lever_arm import RigParams, rig_advance
-from esoarm.plants.motor import MotorParams, twin_rig_vector
+from esoarm.kinds import kinds_of
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["GRAY", "PinTwin"]
@@ -62,22 +62,42 @@ class PinTwin:
                 f"sensor.resolution_deg = {res:g}: must be 360° divided by the encoder's "
                 "counts per revolution (0.15 for 600 pulses/rev decoded x4)")
         self.motor = motor
-        self.rig = tuple(twin_rig_vector(RigParams.from_scenario(scn).vector, motor).tolist())
+        self.plant = kinds_of(scn).plant
+        self.design = self.plant.design(scn)
+        if self.design.n_joints != 1:
+            raise ScenarioError(
+                f"plant.kind = '{scn.plant.kind}' has {self.design.n_joints} joints: the Uno "
+                "firmware reads one encoder and drives one motor")
         self.h = scn.rig.step
         self.q = math.radians(res)
         self.counts_per_rev = cpr
-        self.theta0 = scn.rig.theta0
         self.f_cpu = f_cpu
         self.step_cycles = round(self.h * f_cpu)
         self.running = False
-        self.t = 0.0
-        self.theta, self.omega, self.tau = self.theta0, 0.0, 0.0
-        self.position = self._count(self.theta0)
+        self.steps = 0
+        self.x = np.array(self.design.x0)  # (θ, θ̇, τ)
+        self._u = np.zeros(1)
+        self.position = self._count(self.theta)
         self.start_position = self.position
         self._phase_offset = 0
         self.duty = 0
         self.torque = 0.0
         self.ignore_motor = False  # driver fault: the pins no longer reach the motor
+
+    @property
+    def theta(self) -> float:
+        """Arm angle θ [rad]."""
+        return float(self.x[0])
+
+    @property
+    def omega(self) -> float:
+        """Arm rate θ̇ [rad/s]."""
+        return float(self.x[1])
+
+    @property
+    def t(self) -> float:
+        """Twin time since START [s] (whole steps of h)."""
+        return self.steps * self.h
 
     def _count(self, theta: float) -> int:
         return math.floor(theta / self.q + 0.5)
@@ -93,9 +113,9 @@ class PinTwin:
         The encoder lines keep their levels (the arm is set back, not swept back).
         """
         old = self.levels
-        self.t = 0.0
-        self.theta, self.omega, self.tau = self.theta0, 0.0, 0.0
-        self.position = self._count(self.theta0)
+        self.steps = 0
+        self.x = np.array(self.design.x0)
+        self.position = self._count(self.theta)
         self.start_position = self.position
         self._phase_offset = GRAY.index(old) - self.position % 4
         self.running = True
@@ -121,17 +141,18 @@ class PinTwin:
             return _NO_CYCLES, _NO_LEVELS
         self.torque = self.motor.source_torque(self.duty)
         theta0 = self.theta
-        self.theta, self.omega, self.tau = rig_advance(
-            self.theta, self.omega, self.tau, self.torque, self.t, self.h, 1, self.rig)
-        self.t += self.h
-        p0, p1 = self.position, self._count(self.theta)
+        self._u[0] = self.torque
+        self.plant.advance(self.x, self._u, self.t, self.h, 1, self.design.vector)
+        self.steps += 1
+        theta1 = self.theta
+        p0, p1 = self.position, self._count(theta1)
         if p1 == p0:
             return _NO_CYCLES, _NO_LEVELS
         direction = 1 if p1 > p0 else -1
         n = abs(p1 - p0)
         positions = p0 + direction * np.arange(1, n + 1)
         crossings = (positions - 0.5 * direction) * self.q  # θ where the count changes
-        frac = (crossings - theta0) / (self.theta - theta0)
+        frac = (crossings - theta0) / (theta1 - theta0)
         cycles = cycle0 + np.minimum(np.floor(frac * self.step_cycles),
                                      self.step_cycles - 1).astype(np.uint64)
         gray = np.asarray(GRAY, dtype=np.uint8)
