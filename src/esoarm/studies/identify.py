@@ -198,7 +198,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     t_start = time.perf_counter()
     for key in fix:
         if key not in FREE_KEYS:
-            raise ScenarioError(f"--fix {key}: not a fitted key (one of {', '.join(FREE_KEYS)})")
+            raise ScenarioError(f"fix {key}: not a fitted key (one of {', '.join(FREE_KEYS)})")
     ts = logs[0].ts
     for log in [*logs, *(validation or [])]:
         if abs(log.ts - scn.sample_time) > 1e-9 * scn.sample_time:
