@@ -166,7 +166,9 @@ def test_fault_ends_safe_on_both_sides(elf, tmp_path, fault):
     assert hil.finish() == 0, hil.lines
     # host: exit 1, one line naming the cause, every row kept
     assert res.returncode == 1, res.stderr
-    lines = res.stderr.strip().splitlines()
+    # (a 4 s run warns that the scenario's second move, at 10 s, is never reached)
+    lines = [ln for ln in res.stderr.strip().splitlines()
+             if not ln.startswith("esoarm: warning:")]
     assert len(lines) == 1 and cause in lines[0], res.stderr
     rows = len(log.read_text().splitlines()) - 1
     at = float(fault.split("@")[1])
