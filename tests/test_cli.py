@@ -164,7 +164,7 @@ def test_bad_scenario_file(run_cli, tmp_path, command, body, fragments):
         (["simulate", "sub/missing-dir/x.toml"], ["'sub/missing-dir/x.toml'", "no such file"]),
         (["show", "test-3"], ["unknown scenario 'test-3'", "did you mean", "test-1"]),
         (["simulate", "nonsense"],
-         ["unknown scenario 'nonsense'", "test-1, test-1-urdf, test-2, two-link"]),
+         ["unknown scenario 'nonsense'", "test-1, test-1-urdf, test-2, two-link, uno-rig"]),
         (["simulate", "test-1", "--out", "run.txt"], ["--out", "run.txt", ".csv"]),
         (["simulate", "test-1", "--plot", "fig.jpg"], ["--plot", "fig.jpg", ".png"]),
         (["simulat", "test-1"], ["unknown command 'simulat'", "did you mean 'simulate'"]),
@@ -271,7 +271,8 @@ def test_scenarios_lists_builtins(run_cli):
     res = run_cli("scenarios")
     assert res.exit_code == 0
     names = [line.split()[0] for line in res.stdout.strip().splitlines()]
-    assert names == builtin_names() == ["test-1", "test-1-urdf", "test-2", "two-link"]
+    assert names == builtin_names() == ["test-1", "test-1-urdf", "test-2", "two-link",
+                                        "uno-rig"]
 
 
 @pytest.mark.parametrize("name", builtin_names())
