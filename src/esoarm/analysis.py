@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from esoarm.frequency import ControlLoop, to_control
 from esoarm.model import gravity_coefficient, gravity_torque, input_gain
 from esoarm.observer import (
     DISCRETIZATIONS,
@@ -53,6 +54,7 @@ from esoarm.observer import (
 
 __all__ = [
     "CONTINUOUS",
+    "ControlLoop",
     "ObserverAnalysis",
     "analyze_observer",
     "characteristic_polynomial",
@@ -65,6 +67,7 @@ __all__ = [
     "theorem1_bound",
     "theorem2_bound",
     "tracking_l1_gain",
+    "to_control",
 ]
 
 #: The continuous observer of eq. 8 (Theorem 1), besides SPEC §2's discretizations.

@@ -28,6 +28,7 @@ COMMANDS: dict[str, str] = {
     "emulate": "esoarm.cli.rig:emulate",
     "run": "esoarm.cli.rig:run",
     "replay": "esoarm.cli.rig:replay",
+    "analyze": "esoarm.cli.analyze:analyze",
 }
 
 
