@@ -30,7 +30,7 @@ import numpy as np
 
 from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.emulator import Twin
-from esoarm.observer import DISCRETIZATIONS
+from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -7,7 +7,7 @@
  * Inputs (written by run.py, little-endian binary):
  *   points.f64  P × 41 doubles per grid point:
  *               theta0, sigma, q, h, ts, b0 | rig[8] | obs[21] | ctl[6]
- *               (the packed vectors of esoarm.rig / observer / controller)
+ *               (the packed vectors of esoarm.plants.lever_arm / observer / controller)
  *   ipoints.i64 P × 4 int64: n, nsub, delay, reference index
  *   refs.f64    M × 3 × NMAX doubles: theta_ref, omega_ref, accel_ref
  *   noises.f64  S × NMAX doubles: standard-normal draws of each seed

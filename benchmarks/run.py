@@ -69,14 +69,14 @@ def timed(cmd: list[str], env: dict[str, str] | None = None) -> float:
 
 def canonical_grid():  # type: ignore[no-untyped-def]
     from esoarm.scenario import load_scenario
-    from esoarm.sweep import build_grid
+    from esoarm.studies.sweep import build_grid
 
     return build_grid(load_scenario("test-1"), ["observer.eps=geom:0.03:0.3:100"], seeds=20)
 
 
 def bench_c(grid, work: Path) -> dict[str, float]:  # type: ignore[no-untyped-def]
     """Build loop.c, feed it the canonical workload, time it, compare its metrics."""
-    from esoarm import batch
+    from esoarm.engines import batch
 
     exe = work / "loop"
     subprocess.run(["gcc", "-O3", "-o", str(exe), str(HERE / "loop.c"), "-lm"], check=True)
@@ -128,7 +128,7 @@ def bench_sweep_cli(work: Path) -> dict[str, float]:
 
 def bench_inprocess(grid) -> dict[str, float]:  # type: ignore[no-untyped-def]
     """Kernel throughput in this process: all threads and one thread; one run alone."""
-    from esoarm import batch
+    from esoarm.engines import batch
     from esoarm.scenario import load_scenario
 
     batch.run_metrics(grid.points[:1], seeds=[0])  # warm (cached) kernel
@@ -158,7 +158,7 @@ def bench_inprocess(grid) -> dict[str, float]:  # type: ignore[no-untyped-def]
 
 def bench_python(grid, n: int = 10) -> dict[str, float]:  # type: ignore[no-untyped-def]
     """(a) the plain-Python reference loop on n runs, extrapolated to the sweep."""
-    from esoarm.simulation import prepare, run_reference
+    from esoarm.engines.simulation import prepare, run_reference
 
     idx = np.linspace(0, len(grid.points) - 1, n).astype(int)
     t0 = time.perf_counter()
@@ -177,11 +177,11 @@ def _continuous_loop(scn):  # type: ignore[no-untyped-def]
     """
     import control as ct
 
-    from esoarm.controller import FLCParams, flc_control
-    from esoarm.model import input_gain
-    from esoarm.observer import continuous_gains, eso_rhs
+    from esoarm.controllers.flc import FLCParams, flc_control
+    from esoarm.observers.linear import continuous_gains, eso_rhs
+    from esoarm.plants.lever_arm import RigParams, rig_acceleration
+    from esoarm.plants.model import input_gain
     from esoarm.reference import evaluate_reference
-    from esoarm.rig import RigParams, rig_acceleration
 
     rig = RigParams.from_scenario(scn).vector
     ctl = FLCParams.from_scenario(scn).vector
@@ -225,7 +225,7 @@ def bench_control(grid, n: int = 3) -> dict[str, float]:  # type: ignore[no-unty
 def bench_tune() -> list[dict]:  # type: ignore[type-arg]
     """What ``esoarm tune`` finds for ε on the twin, for several prices w of control."""
     from esoarm.scenario import load_scenario
-    from esoarm.tune import DEFAULT_OBJECTIVE, Objective, parse_bound, tune
+    from esoarm.studies.tune import DEFAULT_OBJECTIVE, Objective, parse_bound, tune
 
     out = []
     cases = [("test-1", 0.1, ()), ("test-1", 1.0, ()), ("test-1", 10.0, ()), ("test-2", 1.0, ()),

@@ -87,7 +87,7 @@ _REPRODUCTION: list = []
 def reproduction():  # type: ignore[no-untyped-def]
     """One reproduction per build (cached): the numbers and figures of the results pages."""
     if not _REPRODUCTION:
-        from esoarm.reproduce import run_reproduction
+        from esoarm.studies.reproduce import run_reproduction
 
         _REPRODUCTION.append(run_reproduction())
     return _REPRODUCTION[0]
@@ -101,15 +101,15 @@ def _md_table(head: list[str], rows: list[list[str]]) -> str:
 
 def _results_markdown(name: str) -> str:
     """Markdown for one results placeholder (see the module docstring)."""
-    from esoarm.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
+    from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
 
     if name == "pole-table":
         ts = 0.02
         return "\n".join(f"| {e:g} | {ts / e:.3g} | {1 - ts / e:.4f} | {math.exp(-ts / e):.4f} |"
                          for e in (0.01, 0.015, 0.02, 0.03, 0.05, 0.09, 0.2)) + "\n"
     if name == "assumptions":
-        from esoarm.report import assumption_rows
-        from esoarm.reproduce import experiment_set
+        from esoarm.studies.report import assumption_rows
+        from esoarm.studies.reproduce import experiment_set
 
         return _md_table(["key", "value", "unit", "why it is an assumption"],
                          [[f"`{k}`", f"`{v}`", u, w]
@@ -140,11 +140,11 @@ def _results_markdown(name: str) -> str:
                 "|f − z3| [rad/s²]; Theorem 2: max |e| [rad] against μ/k2.\n\n"
                 + _md_table(["theorem", "run", "measured", "bound", "verdict"], rows))
     if name == "summary":
-        from esoarm.report import summary_text
+        from esoarm.studies.report import summary_text
 
         return summary_text(rep) + "\n"
     if name == "findings":
-        from esoarm.reproduce import discretization_findings
+        from esoarm.studies.reproduce import discretization_findings
 
         return "\n".join(f"- {s}" for s in discretization_findings(rep)) + "\n"
     raise DocsError(f"unknown placeholder esoarm:{name}")
@@ -157,7 +157,7 @@ _RESULTS = re.compile(
 def generated_figures() -> dict[str, bytes]:
     """PNG bytes of the reproduction's figures, by stem (fig4 … fig7, theorem2, ...)."""
     from esoarm.plotting import figure_bytes
-    from esoarm.reproduce import figure_specs
+    from esoarm.studies.reproduce import figure_specs
 
     return {stem: figure_bytes(draw(), "png", dpi=100)
             for stem, _caption, draw in figure_specs(reproduction())}

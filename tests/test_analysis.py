@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 from scipy import integrate, signal
 
-from esoarm.analysis import (
+from esoarm.engines.simulation import SimulationDiverged, simulate
+from esoarm.observers.linear import DISCRETIZATIONS, design_observer
+from esoarm.scenario import load_scenario, scenario_warnings
+from esoarm.studies.analysis import (
     analyze_observer,
     characteristic_polynomial,
     error_matrix,
@@ -22,9 +25,6 @@ from esoarm.analysis import (
     theorem2_bound,
     tracking_l1_gain,
 )
-from esoarm.observer import DISCRETIZATIONS, design_observer
-from esoarm.scenario import load_scenario, scenario_warnings
-from esoarm.simulation import SimulationDiverged, simulate
 
 TS = 0.02  # the paper's 50 Hz
 

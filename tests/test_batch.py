@@ -15,10 +15,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from esoarm import batch
+from esoarm.engines import batch
+from esoarm.engines.simulation import SimulationDiverged, prepare, run_reference
 from esoarm.result import compute_metrics
 from esoarm.scenario import builtin_names, load_scenario
-from esoarm.simulation import SimulationDiverged, prepare, run_reference
 
 RTOL = 1e-12
 ATOL = 1e-12

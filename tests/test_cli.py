@@ -303,7 +303,7 @@ def test_show_round_trip_with_overrides(run_cli, tmp_path):
 
 
 def test_simulate_json_matches_api(run_cli):
-    from esoarm.simulation import simulate
+    from esoarm.engines.simulation import simulate
 
     res = run_cli("simulate", "test-1", "--set", "duration=4", "--json")
     assert res.exit_code == 0, res.stderr
@@ -315,7 +315,7 @@ def test_simulate_json_matches_api(run_cli):
 
 
 def test_simulate_writes_csv(run_cli, tmp_path):
-    from esoarm.simulation import simulate
+    from esoarm.engines.simulation import simulate
 
     out = tmp_path / "deep" / "run.csv"
     res = run_cli("simulate", "test-2", "--set", "duration=2", "--set",

@@ -21,9 +21,9 @@ from click.testing import CliRunner
 
 pytest.importorskip("distributed", reason="the 'cluster' extra (dask[distributed]) is needed")
 
-from esoarm import sweep  # noqa: E402
 from esoarm.cli import cli  # noqa: E402
 from esoarm.scenario import load_scenario  # noqa: E402
+from esoarm.studies import sweep  # noqa: E402
 
 START_TIMEOUT = 60.0
 

@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from esoarm.controller import FLCParams, flc_control, saturate
-from esoarm.model import gravity_coefficient
-from esoarm.rig import RigParams, rig_acceleration
+from esoarm.controllers.flc import FLCParams, flc_control, saturate
+from esoarm.plants.lever_arm import RigParams, rig_acceleration
+from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import load_scenario
 
 I0 = 0.0225

@@ -116,17 +116,17 @@ def test_examples_are_included_verbatim(site):
 
 def test_reference_check_can_fail():
     hooks = _hooks()
-    hooks.check_reference("esoarm.observer.design_observer")
-    hooks.check_reference("esoarm.analysis.theorem2_bound")
+    hooks.check_reference("esoarm.observers.linear.design_observer")
+    hooks.check_reference("esoarm.studies.analysis.theorem2_bound")
     with pytest.raises(hooks.DocsError, match="no_such_function"):
-        hooks.check_reference("esoarm.observer.no_such_function")
+        hooks.check_reference("esoarm.observers.linear.no_such_function")
     with pytest.raises(hooks.DocsError):
         hooks.check_reference("esoarm.no_such_module.f")
 
 
 @pytest.mark.parametrize("body, expected", [
     ("See [the missing page](missing.md).", "missing.md"),
-    ("The ESO step is `esoarm.observer.eso_stepp`.", "eso_stepp"),
+    ("The ESO step is `esoarm.observers.linear.eso_stepp`.", "eso_stepp"),
     ("<!-- esoarm:example no_such_example.py -->", "no_such_example.py"),
 ])
 def test_strict_build_fails_on_broken_docs(tmp_path, body, expected):

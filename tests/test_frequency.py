@@ -19,12 +19,13 @@ import numpy as np
 import pytest
 
 import esoarm
-from esoarm import frequency as F
-from esoarm.controller import flc_control
-from esoarm.observer import DISCRETIZATIONS, eso_advance, eso_estimate
-from esoarm.rig import RigParams, rig_advance
+from esoarm.controllers.flc import flc_control
+from esoarm.engines.simulation import prepare
+from esoarm.observers.linear import DISCRETIZATIONS, eso_advance, eso_estimate
+from esoarm.plants.lever_arm import RigParams, rig_advance
 from esoarm.scenario import builtin_names, load_scenario
-from esoarm.simulation import prepare
+from esoarm.studies import frequency as F
+from esoarm.studies import linearization as L
 
 control = pytest.importorskip("control")
 
@@ -46,9 +47,9 @@ def _cases() -> list[tuple[str, dict]]:
 @pytest.mark.parametrize("disc, over", _cases())
 def test_margins_against_python_control_and_direct_tests(disc: str, over: dict) -> None:
     scn = load_scenario("test-1", over)
-    lin = F.linearize(scn, theta0=0.3)
+    lin = L.linearize(scn, theta0=0.3)
     m = F.margins(lin)
-    sys = F.to_control(scn, theta0=0.3)
+    sys = L.to_control(scn, theta0=0.3)
     with _quiet():
         gm, pm, _sm, wpc, wgc, _ = control.stability_margins(sys.loop)
     assert m.gain_margin == pytest.approx(gm, rel=1e-6)
@@ -56,14 +57,14 @@ def test_margins_against_python_control_and_direct_tests(disc: str, over: dict) 
     assert m.phase_crossover == pytest.approx(wpc, rel=1e-6)
     assert m.gain_crossover == pytest.approx(wgc, rel=1e-6)
     # direct test 1: the loop gain scaled by the gain margin is marginally stable
-    assert F.closed_loop_radius(lin.plant, lin.controller) < 1.0
-    assert F.closed_loop_radius(lin.plant, lin.controller, m.gain_margin) == pytest.approx(
+    assert L.closed_loop_radius(lin.plant, lin.controller) < 1.0
+    assert L.closed_loop_radius(lin.plant, lin.controller, m.gain_margin) == pytest.approx(
         1.0, abs=1e-6)
     # direct test 2: the delay margin added as a true (fractional) input delay of the
     # sampled-data loop makes it marginally stable, to 1 %
-    crit = F.critical_delay(scn, 0.3)
+    crit = L.critical_delay(scn, 0.3)
     assert crit == pytest.approx(m.delay_margin, rel=0.01)
-    radius = F.closed_loop_radius(F.sampled_plant(scn, 0.3, "viscous", m.delay_margin),
+    radius = L.closed_loop_radius(L.sampled_plant(scn, 0.3, "viscous", m.delay_margin),
                                   lin.controller)
     assert radius == pytest.approx(1.0, abs=0.01)
 
@@ -85,13 +86,13 @@ class _quiet:
 @pytest.mark.parametrize("name", builtin_names())
 def test_to_control_objects(name: str) -> None:
     scn = load_scenario(name)
-    sys = F.to_control(name)
+    sys = L.to_control(name)
     for part in (sys.plant, sys.controller, sys.loop, sys.observer):
         assert isinstance(part, control.StateSpace)
         assert part.dt == scn.sample_time
     cl = control.feedback(sys.loop, 1)
-    lin = F.linearize(name)
-    want = np.sort_complex(np.linalg.eigvals(F.closed_loop_matrix(lin.plant, lin.controller)))
+    lin = L.linearize(name)
+    want = np.sort_complex(np.linalg.eigvals(L.closed_loop_matrix(lin.plant, lin.controller)))
     got = np.sort_complex(cl.poles())
     # closed-loop poles of a multiple eigenvalue agree only to ~cube root of round-off
     assert np.max(np.abs(np.abs(got) - np.abs(want))) < 1e-4
@@ -115,7 +116,7 @@ def test_plant_matches_the_rig_step(lag: float, friction: str) -> None:
     theta0 = 0.7
     rig = RigParams.from_scenario(scn).vector
     u0 = rig[1] * math.cos(theta0)  # gravity torque: an equilibrium
-    ad, bd, _, _ = F.sampled_plant(scn, theta0, friction)
+    ad, bd, _, _ = L.sampled_plant(scn, theta0, friction)
     n = ad.shape[0]
     x0 = np.array([theta0, 0.0, u0][:n])
 
@@ -144,7 +145,7 @@ def test_controller_matches_the_step_functions(disc: str, comp: str) -> None:
                                    "controller.compensation": comp,
                                    "actuator.torque_limit": 1e9})
     inp = prepare(scn)
-    ak, bk, ck, dk = F.controller_matrices(scn, theta0)
+    ak, bk, ck, dk = L.controller_matrices(scn, theta0)
     rng = np.random.default_rng(1)
     dy = 1e-3 * rng.standard_normal(60)
     # operating point: the nonlinear controller's own equilibrium for y ≡ θ0 (observer at rest)
@@ -185,12 +186,12 @@ def test_eso_transfer_functions_against_theorem1(disc: str, eps: float) -> None:
         b0 = 1.0 / scn.plant.inertia
         w = np.array([0.01, 0.1, 1.0])
         z = np.exp(1j * w * ts)
-        closed = F.eso_closed_forms(eps, b0, 1j * w)
-        a, b, c, d = F.observer_system(scn)
+        closed = L.eso_closed_forms(eps, b0, 1j * w)
+        a, b, c, d = L.observer_system(scn)
         bound = 1.5 * w * ts
         for i in range(3):
             for j, inp in enumerate("yu"):
-                got = F.freqresp((a, b[:, j:j + 1], c[i:i + 1], d[i:i + 1, j:j + 1]), z)
+                got = L.freqresp((a, b[:, j:j + 1], c[i:i + 1], d[i:i + 1, j:j + 1]), z)
                 ref = closed[f"z{i + 1}_{inp}"]
                 rel = np.abs(got - ref) / np.abs(ref)
                 if inp == "u" and disc != "euler" and i < 2:
@@ -199,7 +200,7 @@ def test_eso_transfer_functions_against_theorem1(disc: str, eps: float) -> None:
                     assert np.all(rel < bound + 2 * ts / eps), (i, inp, rel)
                 else:
                     assert np.all(rel < bound), (i, inp, rel)
-        got = F.freqresp(F.perturbation_estimate(scn), z)
+        got = L.freqresp(L.perturbation_estimate(scn), z)
         assert np.all(np.abs(got - closed["f"]) / np.abs(closed["f"]) < bound)
 
 
@@ -238,7 +239,7 @@ def test_cli_json(run_cli) -> None:  # type: ignore[no-untyped-def]
     res = run_cli("analyze", "test-1", "--json")
     assert res.exit_code == 0, res.stderr
     out = json.loads(res.stdout)
-    lin = F.linearize("test-1")
+    lin = L.linearize("test-1")
     m = F.margins(lin)
     assert out["gain_margin"] == pytest.approx(m.gain_margin)
     assert out["phase_margin"] == pytest.approx(m.phase_margin)
@@ -273,3 +274,14 @@ def test_cli_bad_input(run_esoarm, args, word, tmp_path) -> None:  # type: ignor
     assert word in res.stderr and "Traceback" not in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
     assert not list(tmp_path.iterdir())
+
+
+def test_docstring_examples() -> None:
+    import doctest
+
+    import esoarm.analysis
+    from esoarm.studies import linearization
+
+    for mod in (esoarm.analysis, linearization):
+        res = doctest.testmod(mod, raise_on_error=False)
+        assert res.attempted > 0 and res.failed == 0, mod.__name__

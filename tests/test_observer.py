@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from pyadrc import StateSpace
 
-from esoarm.analysis import characteristic_polynomial
-from esoarm.observer import (
+from esoarm.engines.simulation import prepare, simulate
+from esoarm.observers.linear import (
     DISCRETIZATIONS,
     ExtendedStateObserver,
     continuous_error_matrix,
@@ -21,9 +21,9 @@ from esoarm.observer import (
     eso_estimate,
     extended_plant,
 )
+from esoarm.plants.sensor import measure
 from esoarm.scenario import load_scenario
-from esoarm.sensor import measure
-from esoarm.simulation import prepare, simulate
+from esoarm.studies.analysis import characteristic_polynomial
 
 EPS = [0.05, 0.09, 0.2, 0.013, 1.0]
 TS = [0.02, 0.001, 0.005]

@@ -6,8 +6,8 @@ import matplotlib.colors as mcolors
 import pytest
 
 from esoarm import plotting
-from esoarm.reproduce import EPS_SET
-from esoarm.simulation import simulate
+from esoarm.engines.simulation import simulate
+from esoarm.studies.reproduce import EPS_SET
 
 
 @pytest.fixture(scope="module")

@@ -24,8 +24,8 @@ from pathlib import Path
 import pytest
 
 from esoarm import __version__
-from esoarm.report import ASSUMPTIONS, assumption_rows
-from esoarm.reproduce import EPS_SET, PAPER_TABLES, run_reproduction, write_outputs
+from esoarm.studies.report import ASSUMPTIONS, assumption_rows
+from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, run_reproduction, write_outputs
 
 ROOT = Path(__file__).resolve().parents[1]
 ARTIFACTS = ROOT / "test-artifacts"
@@ -232,8 +232,8 @@ def test_checker_catches_a_broken_image(tmp_path: Path) -> None:
 
 
 def test_summary_is_computed_from_the_runs(outputs):
-    from esoarm.report import summary_text
-    from esoarm.reproduce import TABLE_NAMES
+    from esoarm.studies.report import summary_text
+    from esoarm.studies.reproduce import TABLE_NAMES
 
     rep = outputs[0]
     text = summary_text(rep)

@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from esoarm.observer import DISCRETIZATIONS
-from esoarm.reproduce import (
+from esoarm.observers.linear import DISCRETIZATIONS
+from esoarm.result import SimResult
+from esoarm.studies.reproduce import (
     EPS_SET,
     SWEEP_EPS,
     Reproduction,
@@ -24,7 +25,6 @@ from esoarm.reproduce import (
     run_metrics,
     run_reproduction,
 )
-from esoarm.result import SimResult
 
 # -- the plan ------------------------------------------------------------------
 
@@ -137,7 +137,7 @@ def test_bound_checks_follow_the_theorems(paper_runs):
         res = paper_runs.runs[c.run]
         scn = res.scenario
         win = res.t >= 2.0
-        # κ of eq. 17 written out independently of esoarm.analysis
+        # κ of eq. 17 written out independently of esoarm.studies.analysis
         kappa = (res.f_true - res.z[:, 2]) + scn.controller.k1 * (res.omega - res.z[:, 1]) \
             + scn.controller.k2 * (res.theta - res.z[:, 0])
         mu = np.max(np.abs(kappa[win & (np.abs(res.u) < scn.actuator.torque_limit)]))
@@ -211,8 +211,8 @@ def test_run_ids():
 
 
 def test_cli_reproduce_diverged_run_is_exit_1_and_writes_nothing(run_cli, tmp_path, monkeypatch):
-    from esoarm import reproduce
-    from esoarm.simulation import SimulationDiverged
+    from esoarm.engines.simulation import SimulationDiverged
+    from esoarm.studies import reproduce
 
     def diverge(scenarios, progress):
         raise SimulationDiverged("simulation of 'test-1' diverged at t = 0.1 s", None)

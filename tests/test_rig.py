@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from esoarm.model import gravity_coefficient
-from esoarm.rig import (
+from esoarm.plants.lever_arm import (
     RigParams,
     applied_torque,
     rig_acceleration,
@@ -17,6 +16,7 @@ from esoarm.rig import (
     rig_derivative,
     rig_rk4_step,
 )
+from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import load_scenario
 
 

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from esoarm.sensor import measure, noise_sequence, quantize
+from esoarm.plants.sensor import measure, noise_sequence, quantize
 
 angles = st.floats(min_value=-100.0, max_value=100.0, allow_nan=False)
 steps = st.floats(min_value=1e-6, max_value=1.0, allow_nan=False)

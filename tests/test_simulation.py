@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import reference_impl
-from esoarm.observer import DISCRETIZATIONS
+from esoarm.engines.simulation import SimulationDiverged, prepare, simulate
+from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.scenario import builtin_names, load_scenario
-from esoarm.simulation import SimulationDiverged, prepare, simulate
 
 RTOL = 1e-9
 
@@ -157,7 +157,7 @@ def test_log_semantics():
     assert res.theta[0] == scn.rig.theta0 and res.omega[0] == 0.0
     # f_true = θ̈(t_k) − b0 u_k, with the torque applied from t_k on (here u_{k-2}, 0 at first)
     b0 = 1.0 / scn.plant.inertia
-    from esoarm.rig import RigParams, rig_acceleration
+    from esoarm.plants.lever_arm import RigParams, rig_acceleration
 
     rig = RigParams.from_scenario(scn).vector
     applied = np.concatenate([[0.0, 0.0], res.u[:-2]])

@@ -15,10 +15,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from esoarm import batch, sweep
 from esoarm.cli import cli
+from esoarm.engines import batch
+from esoarm.engines.simulation import prepare, run_reference
 from esoarm.scenario import ScenarioError, load_scenario
-from esoarm.simulation import prepare, run_reference
+from esoarm.studies import sweep
 
 SHORT = ["--set", "duration=2.0"]
 

@@ -12,11 +12,11 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from esoarm import batch
 from esoarm.cli import cli
+from esoarm.engines import batch
 from esoarm.scenario import ScenarioError, load_scenario
-from esoarm.sweep_plots import pareto_mask
-from esoarm.tune import DIVERGED_PENALTY, Bound, Objective, parse_bound, tune
+from esoarm.studies.sweep_plots import pareto_mask
+from esoarm.studies.tune import DIVERGED_PENALTY, Bound, Objective, parse_bound, tune
 
 FAST = {"maxiter": 8, "popsize": 6}
 

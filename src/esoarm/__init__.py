@@ -8,9 +8,9 @@ Quick start::
     result.plot("run.png")
 """
 
+from esoarm.engines.simulation import SimulationDiverged, simulate
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario, ScenarioError, builtin_names, load_scenario
-from esoarm.simulation import SimulationDiverged, simulate
 
 __version__ = "0.1.0"
 

@@ -191,7 +191,7 @@ class Motor(_Section):
     Without a ``[motor]`` table the actuator is an ideal torque source (SPEC §2).
     With one, the real-time loop sends a duty computed from the torque and the
     estimated rate (back-EMF), and the emulator models the same motor (see
-    :mod:`esoarm.hardware.motor`).  Torque and back-EMF constants are equal in
+    :mod:`esoarm.plants.motor`).  Torque and back-EMF constants are equal in
     SI units.
     """
 
@@ -519,9 +519,9 @@ def scenario_warnings(scn: Scenario) -> list[str]:
 
     Currently: a discrete observer whose error poles are unstable or poorly
     damped at this sample rate, or faster than the samples support (see
-    :func:`esoarm.analysis.observer_warnings`).
+    :func:`esoarm.studies.analysis.observer_warnings`).
     """
-    from esoarm.analysis import observer_warnings
+    from esoarm.studies.analysis import observer_warnings
 
     return observer_warnings(scn.observer.eps, scn.sample_time, scn.observer.discretization)
 

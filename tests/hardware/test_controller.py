@@ -1,7 +1,7 @@
 """Deployment controller and device-side twin against the reference simulator.
 
 The host's DeploymentController fed by the emulator's Twin (encoder counts,
-device-side noise) must reproduce esoarm.simulation.run_reference bit for bit:
+device-side noise) must reproduce esoarm.engines.simulation.run_reference bit for bit:
 u_k, ẑ_k and the measured angle.
 """
 
@@ -12,12 +12,12 @@ import math
 import numpy as np
 import pytest
 
+from esoarm.engines.simulation import prepare, run_reference
 from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.emulator import NoiseStream, Twin
-from esoarm.observer import DISCRETIZATIONS
+from esoarm.observers.linear import DISCRETIZATIONS
+from esoarm.plants.sensor import measure, noise_sequence
 from esoarm.scenario import builtin_names, load_scenario
-from esoarm.sensor import measure, noise_sequence
-from esoarm.simulation import prepare, run_reference
 
 VARIANTS = {
     "plain": [],

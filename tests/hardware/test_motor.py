@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from esoarm.hardware.motor import MotorParams, twin_rig_vector
-from esoarm.rig import RigParams, rig_acceleration
+from esoarm.plants.lever_arm import RigParams, rig_acceleration
+from esoarm.plants.motor import MotorParams, twin_rig_vector
 from esoarm.scenario import ScenarioError, load_scenario
 
 

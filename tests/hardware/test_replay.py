@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from esoarm.engines.simulation import prepare, simulate
 from esoarm.hardware.replay import read_log, replay
-from esoarm.observer import DISCRETIZATIONS
+from esoarm.observers.linear import DISCRETIZATIONS
+from esoarm.plants.sensor import measure
 from esoarm.scenario import ScenarioError, load_scenario
-from esoarm.sensor import measure
-from esoarm.simulation import prepare, simulate
 
 from .rig_helpers import esoarm
 

@@ -16,8 +16,8 @@ import time
 import numpy as np
 import pytest
 
+from esoarm.engines.simulation import simulate
 from esoarm.hardware.loop import LOG_COLUMNS
-from esoarm.simulation import simulate
 
 from .rig_helpers import CLI, emulator, esoarm, needs_pty
 

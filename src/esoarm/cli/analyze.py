@@ -62,7 +62,7 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
     except ImportError:
         raise BadInput("esoarm analyze needs python-control: pip install 'esoarm[analyze]'"
                        ) from None
-    from esoarm.frequency import analyze as run_analysis
+    from esoarm.studies.frequency import analyze as run_analysis
 
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     if theta0 is not None and not math.isfinite(theta0):
@@ -71,7 +71,7 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
     if vary is None:
         res = run_analysis(scn, theta0=theta0, friction=friction)
         if plot_path is not None:
-            from esoarm.frequency_plots import figure_frequency
+            from esoarm.studies.frequency_plots import figure_frequency
 
             figure_frequency(res, plot_path)
         if as_json:
@@ -82,7 +82,7 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
                 click.echo(f"figure: {plot_path}")
         return
     from esoarm.scenario import ScenarioError
-    from esoarm.sweep import parse_vary
+    from esoarm.studies.sweep import parse_vary
 
     spec = parse_vary(vary, scn)
     points = []
@@ -93,7 +93,7 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
             raise BadInput(f"--vary {spec.key}={value!r}: {exc}") from None
         points.append(run_analysis(point, theta0=theta0, friction=friction))
     if plot_path is not None:
-        from esoarm.frequency_plots import figure_vary
+        from esoarm.studies.frequency_plots import figure_vary
 
         figure_vary(spec.key, spec.values, points, plot_path)
     if as_json:

@@ -31,8 +31,8 @@ def reproduce(out_dir: str, fmt: str) -> None:
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from esoarm.reproduce import figure_specs, plan_runs, run_reproduction, write_outputs
-    from esoarm.simulation import SimulationDiverged
+    from esoarm.engines.simulation import SimulationDiverged
+    from esoarm.studies.reproduce import figure_specs, plan_runs, run_reproduction, write_outputs
 
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
@@ -59,7 +59,7 @@ def _print(rep, out: Path, fmt: str) -> None:  # type: ignore[no-untyped-def]
     from rich.markup import escape
     from rich.table import Table
 
-    from esoarm.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
+    from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
 
     console = Console()
     for test, table_name in TABLE_NAMES.items():

@@ -36,8 +36,8 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
     and prints the metrics: RMS tracking error [rad], RMS control [N·m] and
     max |error| [rad].
     """
-    from esoarm.simulation import SimulationDiverged
-    from esoarm.simulation import simulate as run
+    from esoarm.engines.simulation import SimulationDiverged
+    from esoarm.engines.simulation import simulate as run
 
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)

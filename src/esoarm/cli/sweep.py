@@ -116,7 +116,7 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
       esoarm sweep test-1 --vary observer.eps=geom:0.03:0.3:100 --seeds 20 --out eps.csv
     """
     from esoarm.scenario import load_scenario
-    from esoarm.sweep import ClusterError, SweepResult, build_grid, run_sweep
+    from esoarm.studies.sweep import ClusterError, SweepResult, build_grid, run_sweep
 
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
@@ -147,7 +147,7 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
     if out_path is not None:
         result.write_csv(out_path)
     if plot_path is not None:
-        from esoarm.sweep_plots import figure_sweep
+        from esoarm.studies.sweep_plots import figure_sweep
 
         figure_sweep(result, plot_path)
     diverged = int(result.values[:, -1].sum())
@@ -274,8 +274,8 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
       esoarm tune test-1 --vary observer.eps=0.02:0.3 --robust rig.inertia_scale=0.8:1.2
     """
     from esoarm.scenario import load_scenario
-    from esoarm.tune import DEFAULT_OBJECTIVE, DEFAULT_WEIGHT, Objective, parse_bound
-    from esoarm.tune import tune as run_tune
+    from esoarm.studies.tune import DEFAULT_OBJECTIVE, DEFAULT_WEIGHT, Objective, parse_bound
+    from esoarm.studies.tune import tune as run_tune
 
     out_path = output_path(out, "--out", (".csv",))
     plot_path = None if no_plot else output_path(plot, "--plot", PLOT_SUFFIXES)
@@ -305,7 +305,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
         raise click.exceptions.Exit(INTERRUPTED) from None
 
     if out_path is not None:
-        from esoarm.sweep import write_rows_atomic
+        from esoarm.studies.sweep import write_rows_atomic
 
         header = list(res.evaluations[0]) if res.evaluations else list(res.keys)
         write_rows_atomic(out_path, header, iter([list(r.values()) for r in res.evaluations]))
@@ -336,7 +336,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
 
 
 def _plot_tune(res: Any, name: str, objective: str, w: float, path: Path) -> None:
-    from esoarm.sweep_plots import figure_pareto
+    from esoarm.studies.sweep_plots import figure_pareto
 
     ev = [r for r in res.evaluations if r["diverged_runs"] == 0]
     first = res.keys[0]

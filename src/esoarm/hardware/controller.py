@@ -1,7 +1,7 @@
 """The deployment controller: the paper's ESO + FLC stepped one sample at a time.
 
-It is :class:`esoarm.observer.ExtendedStateObserver` and
-:func:`esoarm.controller.flc_control` -- the very functions the simulators call
+It is :class:`esoarm.observers.linear.ExtendedStateObserver` and
+:func:`esoarm.controllers.flc.flc_control` -- the very functions the simulators call
 -- driven from measured angles (SPEC §2 steps 2-5):
 
     ẑ_k = estimate(y_k)                 (eq. 8, discretized; SPEC §2 step 5)
@@ -9,7 +9,7 @@ It is :class:`esoarm.observer.ExtendedStateObserver` and
     update(u_k)                         (z_{k+1})
 
 so a run fed the simulator's measurements reproduces
-:func:`esoarm.simulation.run_reference` bit for bit (tested).  For the
+:func:`esoarm.engines.simulation.run_reference` bit for bit (tested).  For the
 interpreter hot path the packed parameter vectors are held as tuples of Python
 floats (the same IEEE doubles as the NumPy vectors, without NumPy scalar
 boxing), and the reference is precomputed for all N samples with the same
@@ -21,10 +21,10 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from esoarm.controller import flc_control
-from esoarm.observer import ExtendedStateObserver
+from esoarm.controllers.flc import flc_control
+from esoarm.engines.simulation import prepare
+from esoarm.observers.linear import ExtendedStateObserver
 from esoarm.scenario import Scenario
-from esoarm.simulation import prepare
 
 __all__ = ["DeploymentController"]
 
@@ -59,7 +59,7 @@ class DeploymentController:
                  "torque_limit", "ts", "zhat")
 
     def __init__(self, scn: Scenario) -> None:
-        from esoarm.observer import design_observer
+        from esoarm.observers.linear import design_observer
 
         inp = prepare(scn)
         design = design_observer(scn.observer.eps, scn.sample_time, inp.b0,

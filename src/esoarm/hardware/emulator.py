@@ -2,15 +2,15 @@
 
 The emulator speaks the protocol of :mod:`esoarm.hardware.protocol` exactly as
 the firmware does, so the host loop cannot tell it from a rig.  Its physics is
-the simulators' (:func:`esoarm.rig.rig_advance`, SPEC §2 step 6, with
+the simulators' (:func:`esoarm.plants.lever_arm.rig_advance`, SPEC §2 step 6, with
 actuator lag and transport delay), and the measurement leaves the device as
 an encoder count
 
     count_k = floor((θ(t_k) + σ n_k)/q + 1/2),   q = radians(resolution_deg)
 
 so that the host's q·count_k is exactly ``quantize(θ + σ n_k, q)`` of
-:mod:`esoarm.sensor`; the noise n_k is drawn on the device side exactly as
-:func:`esoarm.sensor.noise_sequence` (one ``default_rng(seed)`` stream).
+:mod:`esoarm.plants.sensor`; the noise n_k is drawn on the device side exactly as
+:func:`esoarm.plants.sensor.noise_sequence` (one ``default_rng(seed)`` stream).
 
 Timing.  ``lockstep``: sample k+1 is integrated and sent when the command
 answering sample k arrives, so a run over the link commands the same u
@@ -40,8 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from esoarm.hardware import protocol as P
-from esoarm.hardware.motor import MotorParams, twin_rig_vector
-from esoarm.rig import RigParams, rig_advance
+from esoarm.plants.lever_arm import RigParams, rig_advance
+from esoarm.plants.motor import MotorParams, twin_rig_vector
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["FAULT_KINDS", "Emulator", "FaultSpec", "NoiseStream", "Twin", "parse_fault",
@@ -102,7 +102,7 @@ def encoder_counts_per_rev(scn: Scenario) -> int:
 class NoiseStream:
     """n_0, n_1, … of ``default_rng(seed).standard_normal`` drawn in blocks.
 
-    The first N values equal :func:`esoarm.sensor.noise_sequence` (seed, N)
+    The first N values equal :func:`esoarm.plants.sensor.noise_sequence` (seed, N)
     (tested); the stream continues past N if a host runs longer.
     """
 
@@ -170,7 +170,7 @@ class Twin:
         return math.floor(x / self.q + 0.5) + self.glitch_offset
 
     def torque_of_duty(self, duty: int) -> float:
-        """Rate-independent torque [N·m] of a duty (see :mod:`esoarm.hardware.motor`)."""
+        """Rate-independent torque [N·m] of a duty (see :mod:`esoarm.plants.motor`)."""
         if self.motor is not None:
             return self.motor.source_torque(duty)
         return self.scn.actuator.torque_limit * max(-1.0, min(1.0, duty / self.pwm_max))

@@ -7,7 +7,7 @@ SPEC §2 steps 1-5 with :class:`~esoarm.hardware.controller.DeploymentController
 1. y_k = q · count_k   (q = radians(sensor.resolution_deg); exact, see emulator)
 2.-3. ẑ_k, u_k = sat(FLC(ẑ_k, reference at t_k))
    send u_k: float64 TORQUE to an ideal-torque device, else a DUTY from
-   :meth:`~esoarm.hardware.motor.MotorParams.torque_to_duty` with the rate ẑ2
+   :meth:`~esoarm.plants.motor.MotorParams.torque_to_duty` with the rate ẑ2
 4. log row k (streamed to disk, one line per sample, flushed)
 5. ESO update with the torque applied from t_k on
 
@@ -41,7 +41,7 @@ import numpy as np
 from esoarm.hardware import protocol as P
 from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.link import LinkError, SerialLink
-from esoarm.hardware.motor import MotorParams
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",

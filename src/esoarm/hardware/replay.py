@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from esoarm.model import input_gain
-from esoarm.observer import ExtendedStateObserver, design_observer
+from esoarm.observers.linear import ExtendedStateObserver, design_observer
+from esoarm.plants.model import input_gain
 from esoarm.result import write_csv_atomic
 from esoarm.scenario import Scenario, ScenarioError
 

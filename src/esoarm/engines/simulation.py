@@ -21,14 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from esoarm._jit import jitable
-from esoarm.controller import FLCParams, flc_control
-from esoarm.model import input_gain
-from esoarm.observer import design_observer, eso_advance, eso_estimate
+from esoarm.controllers.flc import FLCParams, flc_control
+from esoarm.observers.linear import design_observer, eso_advance, eso_estimate
+from esoarm.plants.lever_arm import RigParams, applied_torque, rig_acceleration, rig_advance
+from esoarm.plants.model import input_gain
+from esoarm.plants.sensor import measure, noise_sequence
 from esoarm.reference import evaluate_reference
 from esoarm.result import SimResult
-from esoarm.rig import RigParams, applied_torque, rig_acceleration, rig_advance
 from esoarm.scenario import Scenario, ScenarioWarning, load_scenario, scenario_warnings
-from esoarm.sensor import measure, noise_sequence
 
 __all__ = [
     "DIVERGENCE_LIMIT",
@@ -102,7 +102,7 @@ def prepare(scn: Scenario, *, draw_noise: bool = True) -> RunInputs:
     """Resolve a scenario into the arrays and vectors every engine consumes.
 
     ``draw_noise=False`` leaves ``noise`` empty, for engines that draw the
-    noise of each seed once for many runs (:mod:`esoarm.batch`).
+    noise of each seed once for many runs (:mod:`esoarm.engines.batch`).
     """
     n = scn.n_samples
     ts = scn.sample_time

@@ -1,4 +1,4 @@
-"""Figures of the frequency-domain analysis (:mod:`esoarm.frequency`).
+"""Figures of the frequency-domain analysis (:mod:`esoarm.studies.frequency`).
 
 Kept apart from the numerics, like :mod:`esoarm.plotting` (whose colour per ε
 and file handling they share): a Bode diagram of the loop transfer with its
@@ -19,7 +19,7 @@ from matplotlib.ticker import FormatStrFormatter, NullFormatter
 from esoarm.plotting import eps_color, finish_figure
 
 if TYPE_CHECKING:
-    from esoarm.frequency import FrequencyAnalysis
+    from esoarm.studies.frequency import FrequencyAnalysis
 
 __all__ = ["figure_frequency", "figure_vary"]
 

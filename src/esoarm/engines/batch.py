@@ -1,13 +1,14 @@
 """Compiled batch engine: many closed-loop runs at once, SPEC §2 semantics exactly.
 
-The per-sample loop here is the loop of :func:`esoarm.simulation.run_reference`,
+The per-sample loop here is the loop of :func:`esoarm.engines.simulation.run_reference`,
 compiled with numba and run in parallel over runs (``prange``) on all cores.  It
-calls the same plain physics functions -- :func:`~esoarm.sensor.measure`,
-:func:`~esoarm.observer.eso_estimate` and :func:`~esoarm.observer.eso_advance`
-(eq. 8), :func:`~esoarm.controller.flc_control` (eq. 14-16),
-:func:`~esoarm.rig.rig_acceleration`, :func:`~esoarm.rig.applied_torque` and
-:func:`~esoarm.rig.rig_advance` (RK4 of the rig) -- and the same divergence
-rule (:data:`esoarm.simulation.DIVERGENCE_LIMIT`), so both engines give the
+calls the same plain physics functions -- :func:`~esoarm.plants.sensor.measure`,
+:func:`~esoarm.observers.linear.eso_estimate` and :func:`~esoarm.observers.linear.eso_advance`
+(eq. 8), :func:`~esoarm.controllers.flc.flc_control` (eq. 14-16),
+:func:`~esoarm.plants.lever_arm.rig_acceleration`,
+:func:`~esoarm.plants.lever_arm.applied_torque` and
+:func:`~esoarm.plants.lever_arm.rig_advance` (RK4 of the rig) -- and the same divergence
+rule (:data:`esoarm.engines.simulation.DIVERGENCE_LIMIT`), so both engines give the
 same numbers (the tests require bit-for-bit equality on every discretization,
 noise, quantization, lag, delay, saturation and compensation setting).
 
@@ -43,21 +44,21 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from esoarm import controller as _controller
-from esoarm import observer as _observer
-from esoarm import rig as _rig
-from esoarm.controller import flc_control
-from esoarm.observer import eso_advance, eso_estimate
-from esoarm.result import SimResult
-from esoarm.rig import applied_torque, rig_acceleration, rig_advance
-from esoarm.scenario import Scenario
-from esoarm.sensor import measure, noise_sequence
-from esoarm.simulation import (
+from esoarm.controllers import flc as _controller
+from esoarm.controllers.flc import flc_control
+from esoarm.engines.simulation import (
     SimulationDiverged,
     diverged_message,
     prepare,
     within_limits,
 )
+from esoarm.observers import linear as _observer
+from esoarm.observers.linear import eso_advance, eso_estimate
+from esoarm.plants import lever_arm as _rig
+from esoarm.plants.lever_arm import applied_torque, rig_acceleration, rig_advance
+from esoarm.plants.sensor import measure, noise_sequence
+from esoarm.result import SimResult
+from esoarm.scenario import Scenario
 
 __all__ = [
     "METRICS",
@@ -75,7 +76,7 @@ __all__ = [
 #: ``samples`` the number of samples logged (N, or fewer for a diverged run);
 #: ``diverged`` 1.0 if the run left the finite range (metrics then cover the
 #: samples logged up to and including the one that diverged, exactly like the
-#: partial result of :class:`~esoarm.simulation.SimulationDiverged`), else 0.0.
+#: partial result of :class:`~esoarm.engines.simulation.SimulationDiverged`), else 0.0.
 METRICS: tuple[str, ...] = (
     "rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error", "samples", "diverged",
 )
@@ -90,8 +91,8 @@ _N, _NSUB, _DELAY, _REFIDX = range(4)
 # _closed_loop unpacks the parameter vectors into tuples of these lengths
 if (_rig.VECTOR_SIZE, _observer.VECTOR_SIZE, _controller.VECTOR_SIZE) != (8, 21, 6):
     raise ImportError(  # pragma: no cover - guards a core change
-        "esoarm.batch: the packed rig/observer/controller vectors changed size; "
-        "update the tuple unpacking in esoarm.batch._closed_loop"
+        "esoarm.engines.batch: the packed rig/observer/controller vectors changed size; "
+        "update the tuple unpacking in esoarm.engines.batch._closed_loop"
     )
 
 #: Runs per chunk in metrics mode (bounds memory; one progress tick per chunk).
@@ -101,12 +102,12 @@ DEFAULT_CHUNK = 2048
 # ---------------------------------------------------------------------------
 # cache keyed on the physics sources as well as this file
 
-_PHYSICS_MODULES = ("batch", "controller", "observer", "rig", "sensor", "model", "simulation",
-                    "_jit")
+_PHYSICS_MODULES = ("engines/batch", "controllers/flc", "observers/linear", "plants/lever_arm",
+                    "plants/sensor", "plants/model", "engines/simulation", "_jit")
 
 
 def _physics_stamp() -> str:
-    root = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parent.parent
     digest = hashlib.sha256()
     for name in _PHYSICS_MODULES:
         digest.update((root / f"{name}.py").read_bytes())
@@ -173,7 +174,7 @@ def _closed_loop(log, n, theta0, noise, sigma, q, tref, dref, ddref, rig, obs, c
     Returns the number of rows logged, negated if the run diverged (the last
     row logged is then the sample at which it left the finite range).
 
-    Line for line the loop of :func:`esoarm.simulation.run_reference`; the
+    Line for line the loop of :func:`esoarm.engines.simulation.run_reference`; the
     history of u_k for the transport delay is row ``_U`` of the log itself.
     """
     # the packed parameter vectors as tuples: the physics functions index them
@@ -545,7 +546,7 @@ def simulate_many(
 ) -> list[SimResult]:
     """Simulate scenarios with the compiled engine and keep their time series.
 
-    The fast counterpart of calling :func:`esoarm.simulation.simulate` on each
+    The fast counterpart of calling :func:`esoarm.engines.simulation.simulate` on each
     scenario (no warnings are emitted here): same semantics, same numbers.
 
     Parameters

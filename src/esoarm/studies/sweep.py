@@ -9,7 +9,7 @@ each grid point with ``sensor.seed`` = 0 … K−1 (seed fastest).  SPEC is
 * ``lin:START:STOP:NUM`` -- ``numpy.linspace(START, STOP, NUM)``,
 * ``geom:START:STOP:NUM`` -- ``numpy.geomspace(START, STOP, NUM)``.
 
-Only metrics are kept (:data:`esoarm.batch.METRICS`), so memory does not grow
+Only metrics are kept (:data:`esoarm.engines.batch.METRICS`), so memory does not grow
 with runs × samples.  The work is cut into chunks of whole grid points; chunks
 run in this process on all cores (numba threads) or, given a scheduler
 address, as tasks on a Dask distributed cluster.  Every run is independent and
@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from esoarm._io import atomic_path
-from esoarm.batch import METRICS, _NoiseCache, run_metrics
+from esoarm.engines.batch import METRICS, _NoiseCache, run_metrics
 from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
 
 __all__ = [

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esoarm.rig import VISC
+from esoarm.plants.lever_arm import VISC
 
 __all__ = ["MotorParams", "twin_rig_vector"]
 
@@ -114,7 +114,7 @@ class MotorParams:
 def twin_rig_vector(rig: np.ndarray, motor: MotorParams | None) -> np.ndarray:
     """Rig parameter vector with the motor's back-EMF damping added to viscous friction.
 
-    With this vector, :func:`esoarm.rig.rig_advance` driven by
+    With this vector, :func:`esoarm.plants.lever_arm.rig_advance` driven by
     :meth:`MotorParams.source_torque` integrates exactly the motor law of the
     module docstring.
     """

@@ -1,6 +1,6 @@
 """The reproduction report: one self-contained HTML page (``report.html``).
 
-:func:`render_report` turns a :class:`esoarm.reproduce.Reproduction` and its
+:func:`render_report` turns a :class:`esoarm.studies.reproduce.Reproduction` and its
 figures (PNG bytes) into a single HTML document with inline CSS and figures
 embedded as base64 ``data:`` URIs: no scripts, no network, no other files.
 It shows
@@ -16,7 +16,7 @@ It shows
 - the esoarm version and the resolved scenarios.
 
 Every number on the page comes from the :class:`Reproduction` (the paper's
-values from :data:`esoarm.reproduce.PAPER_TABLES`, quoted).
+values from :data:`esoarm.studies.reproduce.PAPER_TABLES`, quoted).
 """
 
 from __future__ import annotations
@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING, Any
 from esoarm import __version__
 
 if TYPE_CHECKING:
-    from esoarm.reproduce import Reproduction
     from esoarm.scenario import Scenario
+    from esoarm.studies.reproduce import Reproduction
 
 __all__ = ["ASSUMPTIONS", "assumption_rows", "render_report", "summary_text"]
 
@@ -179,7 +179,7 @@ def summary_text(rep: Reproduction) -> str:
     The ratio of the paper's RMS control to the twin's, the ε with the lowest
     RMS tracking error per test, and the claims reproduced and not.
     """
-    from esoarm.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
+    from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
 
     ratios = [PAPER_TABLES[t][e][1] / rep.metric(t, e, "rms_u")
               for t in TABLE_NAMES for e in EPS_SET]
@@ -206,7 +206,7 @@ def _img(pngs: Mapping[str, bytes], stem: str, caption: str) -> str:
 
 
 def _tables_section(rep: Reproduction) -> str:
-    from esoarm.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
+    from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
 
     parts = ['<div class="pair">']
     for test, name in TABLE_NAMES.items():
@@ -296,7 +296,7 @@ def _theorem_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
 
 
 def _discretization_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
-    from esoarm.reproduce import discretization_findings, run_metrics
+    from esoarm.studies.reproduce import discretization_findings, run_metrics
 
     if not rep.comparison:
         return "<p>Not run (reproduction without comparisons).</p>"
@@ -362,9 +362,9 @@ def render_report(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
     Parameters
     ----------
     rep : Reproduction
-        From :func:`esoarm.reproduce.run_reproduction`.
+        From :func:`esoarm.studies.reproduce.run_reproduction`.
     pngs : mapping stem -> PNG bytes
-        Figures from :func:`esoarm.reproduce.figure_specs` (``fig4`` … ``fig7``,
+        Figures from :func:`esoarm.studies.reproduce.figure_specs` (``fig4`` … ``fig7``,
         ``theorem2``, ``discretizations``); missing ones are left out.
 
     Returns
@@ -372,7 +372,7 @@ def render_report(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
     str
         HTML5 text (UTF-8), no external resources.
     """
-    from esoarm.reproduce import figure_specs
+    from esoarm.studies.reproduce import figure_specs
 
     captions = {stem: caption for stem, caption, _ in figure_specs(rep)}
     n_ok = sum(c.reproduced for c in rep.claims)

@@ -7,7 +7,7 @@ proposed method) or β̂ = −G(ẑ1)/I0 (``"model"``: the initial model without
 perturbation estimate, the baseline of Fig. 7).  The result is saturated to
 ±torque_limit.  With perfect estimates the tracking error e = θ − θd obeys
 ë + k1 ė + k2 e = κ (eq. 17), κ the estimation error; Theorem 2 bounds the
-steady-state error by μ/k2 for |κ| ≤ μ (see :mod:`esoarm.analysis`).
+steady-state error by μ/k2 for |κ| ≤ μ (see :mod:`esoarm.studies.analysis`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from functools import cached_property
 import numpy as np
 
 from esoarm._jit import jitable
-from esoarm.model import gravity_coefficient, gravity_torque
+from esoarm.plants.model import gravity_coefficient, gravity_torque
 
 __all__ = ["FLCParams", "flc_control", "saturate"]
 

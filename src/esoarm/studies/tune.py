@@ -6,7 +6,7 @@ that minimize an objective over the run metrics.
 
 Objective
     An arithmetic expression over the metric names of
-    :data:`esoarm.batch.METRICS` -- ``rms_error`` [rad], ``rms_u`` [N·m],
+    :data:`esoarm.engines.batch.METRICS` -- ``rms_error`` [rad], ``rms_u`` [N·m],
     ``max_abs_error`` [rad], ``max_abs_u`` [N·m], ``rms_f_error`` [rad/s²] --
     the weight ``w`` (``--weight``, default :data:`DEFAULT_WEIGHT` rad/(N·m)),
     numbers, ``+ - * / **``, parentheses and ``abs, sqrt, log, exp, min, max``.
@@ -47,9 +47,9 @@ from typing import Any
 
 import numpy as np
 
-from esoarm.batch import METRICS, run_metrics
+from esoarm.engines.batch import METRICS, run_metrics
 from esoarm.scenario import Scenario, ScenarioError
-from esoarm.sweep import _apply, _lookup
+from esoarm.studies.sweep import _apply, _lookup
 
 __all__ = [
     "DEFAULT_OBJECTIVE",

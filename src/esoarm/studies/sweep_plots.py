@@ -25,7 +25,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 from esoarm.plotting import finish_figure
 
 if TYPE_CHECKING:
-    from esoarm.sweep import SweepResult
+    from esoarm.studies.sweep import SweepResult
 
 __all__ = ["figure_pareto", "figure_sweep", "pareto_mask"]
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from esoarm import __version__
 from esoarm._io import atomic_path
-from esoarm.observer import DISCRETIZATIONS
+from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario, load_scenario
 
@@ -225,12 +225,12 @@ def _run_all(scenarios: dict[str, Scenario],
              progress: Callable[[str], None] | None) -> dict[str, SimResult]:
     """Simulate every scenario (the single place a reproduction runs simulations).
 
-    Runs go through the compiled batch engine (:func:`esoarm.batch.simulate_many`,
+    Runs go through the compiled batch engine (:func:`esoarm.engines.batch.simulate_many`,
     the same numbers as the reference engine) a few at a time, so progress is
     reported as they finish; a diverged run raises
-    :class:`~esoarm.simulation.SimulationDiverged` as before.
+    :class:`~esoarm.engines.simulation.SimulationDiverged` as before.
     """
-    from esoarm.batch import simulate_many
+    from esoarm.engines.batch import simulate_many
 
     keys = list(scenarios)
     runs: dict[str, SimResult] = {}
@@ -364,7 +364,7 @@ def observer_checks(eps_values: tuple[float, ...], ts: float) -> list[ObserverCh
     ts : float
         Sample period Ts [s].
     """
-    from esoarm.analysis import (
+    from esoarm.studies.analysis import (
         analyze_observer,
         characteristic_polynomial,
         error_matrix,
@@ -396,16 +396,16 @@ def bound_checks(runs: dict[str, SimResult], t_from: float = CHECK_FROM) -> list
     """Theorem 1 and Theorem 2 bounds against the errors measured on each ESO run.
 
     Theorem 1 (eq. 11-12): |z̃_i| ≤ sup|γ| · (ε³, 3ε², 3ε) for the continuous
-    observer (:func:`esoarm.analysis.theorem1_bound`), γ = ḟ estimated by the
+    observer (:func:`esoarm.studies.analysis.theorem1_bound`), γ = ḟ estimated by the
     difference quotient of the true perturbation f over one sample.
     Theorem 2 (eq. 17-20): |e| ≤ μ · ‖h‖₁ (= μ/k2 for k1² ≥ 4 k2), μ = sup|κ|
-    with κ from :func:`esoarm.analysis.estimation_error`, over the samples
+    with κ from :func:`esoarm.studies.analysis.estimation_error`, over the samples
     where u is not saturated.  The theorems are stated for the continuous
     loop with exact measurements; the runs are sampled at 50 Hz with
     quantization and noise, so a violation is possible and is reported as
     such.
     """
-    from esoarm.analysis import estimation_error, theorem1_bound, tracking_l1_gain
+    from esoarm.studies.analysis import estimation_error, theorem1_bound, tracking_l1_gain
 
     out: list[BoundCheck] = []
     for key, res in runs.items():
@@ -633,7 +633,7 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
     fmt : {"png", "pdf", "svg"}
         File format of the figures; the report always embeds PNG.
     report : bool
-        Write ``report.html`` (see :mod:`esoarm.report`).
+        Write ``report.html`` (see :mod:`esoarm.studies.report`).
 
     Returns the written paths.
     """
@@ -673,7 +673,7 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
         if progress:
             progress(path.name)
     if report:
-        from esoarm.report import render_report
+        from esoarm.studies.report import render_report
 
         html_path = out / "report.html"
         _write_text(html_path, render_report(rep, pngs))

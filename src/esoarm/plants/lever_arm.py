@@ -18,7 +18,7 @@ from functools import cached_property
 import numpy as np
 
 from esoarm._jit import jitable
-from esoarm.model import gravity_coefficient, gravity_torque
+from esoarm.plants.model import gravity_coefficient, gravity_torque
 
 __all__ = ["RigParams", "rig_acceleration", "rig_advance", "rig_derivative", "rig_rk4_step"]
 

@@ -1,0 +1,7 @@
+"""Plants: the true system the loop drives (the lever-arm twin, its encoder and motor).
+
+``model``       the paper's nominal lever-arm model (eq. 4-5), known to the controller
+``lever_arm``   the lever-arm rig: true dynamics, RK4 integration
+``sensor``      the encoder: noise and quantization
+``motor``       the optional DC motor and driver (``[motor]``)
+"""
