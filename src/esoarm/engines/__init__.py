@@ -2,4 +2,5 @@
 
 ``simulation``   the readable reference engine (plain Python, one run)
 ``batch``        the compiled engine (numba, many runs in parallel), bit-identical to it
+``arm_loop``     the same loop on a URDF arm (vectors per joint, Pinocchio)
 """

@@ -4,4 +4,6 @@
 ``lever_arm``   the lever-arm rig: true dynamics, RK4 integration
 ``sensor``      the encoder: noise and quantization
 ``motor``       the optional DC motor and driver (``[motor]``)
+``urdf``        a serial arm from a URDF file: nominal and true models (Pinocchio)
+``urdf_twin``   the URDF arm's twin: friction, disturbance, lag, RK4 around Pinocchio's ABA
 """
