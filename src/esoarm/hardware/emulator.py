@@ -156,6 +156,7 @@ class Twin:
         self.theta, self.omega, self.tau = self.scn.rig.theta0, 0.0, 0.0
         self.noise = NoiseStream(self.scn.sensor.seed, self.scn.sensor.noise_deg)
         self.history: list[float] = []
+        self.applied = 0.0  # torque command acting over the last interval [N·m]
         self.glitch_offset = 0
         self.motor_on = True
 
@@ -182,6 +183,7 @@ class Twin:
         self.history.append(u)
         k = self.k
         applied = self.history[k - self.delay] if k >= self.delay else 0.0
+        self.applied = applied
         self.theta, self.omega, self.tau = rig_advance(
             self.theta, self.omega, self.tau, applied, k * self.ts, self.h, self.nsub, self.rig)
         self.k = k + 1
@@ -231,6 +233,8 @@ class Emulator:
         self._t0 = 0.0
         self._watchdog_tripped = False
         self._next_tick = 0.0
+        #: optional sink for each sample sent: (t, θ true, θ encoder, θ̇, u applied) (live scope)
+        self.monitor: Callable[[tuple[float, ...]], None] | None = None
 
     # -- output --------------------------------------------------------------
     def _send(self, kind: int, *fields: int | float) -> None:
@@ -256,7 +260,10 @@ class Emulator:
             t_us = round(twin.k * self.period_us)
         else:
             t_us = round((time.perf_counter() - self._t0) * 1e6)
-        self._send(P.SAMPLE, twin.k & 0xFFFFFFFF, t_us & 0xFFFFFFFF, twin.count())
+        count = twin.count()
+        self._send(P.SAMPLE, twin.k & 0xFFFFFFFF, t_us & 0xFFFFFFFF, count)
+        if self.monitor is not None:
+            self.monitor((twin.time, twin.theta, twin.q * count, twin.omega, twin.applied))
 
     def _apply_faults(self) -> None:
         t = self.twin.time

@@ -136,8 +136,9 @@ def check_device(info: P.Info, scn: Scenario) -> float:
 class _LogWriter:
     """CSV rows streamed to disk, one flushed line per sample."""
 
-    def __init__(self, path: Path | None) -> None:
+    def __init__(self, path: Path | None, tee: Callable[[str], None] | None = None) -> None:
         self.path = path
+        self.tee = tee  # e.g. the live scope: gets every row as written
         self.rows = 0
         self._fh = None
         if path is not None:
@@ -149,6 +150,8 @@ class _LogWriter:
         self.rows += 1
         if self._fh is not None:
             self._fh.write(line)
+        if self.tee is not None:
+            self.tee(line)
 
     def close(self) -> None:
         if self._fh is not None:
@@ -185,7 +188,8 @@ class _Stop(Exception):
 
 def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             limits: SafetyLimits | None = None,
-            status: Callable[[dict], None] | None = None) -> RunSummary:
+            status: Callable[[dict], None] | None = None,
+            monitor: Callable[[str], None] | None = None) -> RunSummary:
     """Drive the device on ``link`` through one run of ``scn``.
 
     Parameters
@@ -201,6 +205,9 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     status : callable, optional
         Called about ten times a second with a dict (t, theta, error, u,
         deadline_misses) for a live display.
+    monitor : callable, optional
+        Receives every log row (the CSV line of :data:`LOG_COLUMNS`) as it is
+        written, e.g. :meth:`esoarm.hardware.scope.Scope.push`; it must not block.
 
     Returns
     -------
@@ -234,7 +241,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             f"±{info.pwm_max}")
     ctl = DeploymentController(scn)
     n, ts = ctl.n_samples, ctl.ts
-    log = _LogWriter(log_path)
+    log = _LogWriter(log_path, monitor)
     summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
                          log=str(log_path) if log_path else "")
     acc = {"e2": 0.0, "u2": 0.0, "emax": 0.0, "m": 0}

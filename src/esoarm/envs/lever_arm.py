@@ -1,0 +1,215 @@
+"""The digital twin as a Gymnasium environment, stepped at the sensor rate.
+
+One ``step`` is one sample period Ts of the sampled-data loop that
+``esoarm simulate`` runs, in the same order and with the same plain functions
+(:mod:`esoarm.engines.simulation`), so that the environment driven by the
+ESO-FLC gives the simulator's trajectory bit for bit (tested):
+
+``reset``
+    θ(0) = ``rig.theta0`` at rest; y_0 = Q(θ + σ n_0); ESO state z_0 = (y_0, 0, 0);
+    the estimate ẑ_0 and the reference at t_0 go into the first observation.
+``step(action)`` at sample k
+    u_k = sat(action) (``action_mode="torque"``) or sat(FLC(ẑ_k) + action)
+    (``"residual"``, a correction on top of the ESO-FLC); the reward is
+    r_k = −(e_k² + effort_weight · u_k²) with e_k = θ(t_k) − θd(t_k) the
+    true tracking error at the sample the action is taken (like Gymnasium's
+    Pendulum, the cost of the state the action sees), so that with
+    effort_weight = 0, −Σ r_k / N is ``rms_error``² of the run; the ESO
+    advances with (y_k, u_k); the rig integrates [t_k, t_{k+1}) with RK4 under
+    u_{k−delay}; then y_{k+1}, ẑ_{k+1} and the next observation.
+
+The observation is (y_k, θd, θ̇d, θ̈d) and, with ``observe_estimates=True``,
+(ẑ1, ẑ2, ẑ3) appended [rad, rad, rad/s, rad/s², rad, rad/s, rad/s²].  ``info``
+holds the simulator's log row of the step (t, theta, theta_ref, error, u, z1,
+z2, z3, f_true).  An episode is truncated after N = duration · rate_hz steps
+and terminated if the state leaves the finite range (the simulators'
+divergence rule).
+
+Seeding: the encoder noise of an episode is ``default_rng(s).standard_normal(N)``,
+exactly as the simulator draws it for ``sensor.seed = s``.  ``reset(seed=s)``
+uses s; the first ``reset()`` without a seed uses the scenario's
+``sensor.seed``; later unseeded resets draw s from the environment's seeded
+generator (``self.np_random``).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from esoarm.controllers.flc import LIMIT, flc_control, saturate
+from esoarm.engines.simulation import prepare, within_limits
+from esoarm.observers.linear import eso_advance, eso_estimate
+from esoarm.plants.lever_arm import applied_torque, rig_acceleration, rig_advance
+from esoarm.plants.sensor import measure, noise_sequence
+from esoarm.scenario import Scenario, load_scenario
+
+__all__ = ["ACTION_MODES", "EsoFlcPolicy", "LeverArmEnv"]
+
+ACTION_MODES = ("torque", "residual")
+INFO_KEYS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3", "f_true")
+
+
+class LeverArmEnv(gym.Env):
+    """The lever arm of a scenario as an environment (see the module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario, str or Path
+        A scenario, a built-in name or a TOML path (default "test-1").
+    overrides : dict or list of str, optional
+        Dotted-key overrides, e.g. ``{"observer.eps": 0.05}``.
+    action_mode : {"torque", "residual"}
+        The action is the torque u [N·m], or a correction [N·m] added to the
+        ESO-FLC's command; saturated to ±torque_limit either way.
+    observe_estimates : bool
+        Append the ESO estimate ẑ = (ẑ1, ẑ2, ẑ3) to the observation.
+    effort_weight : float
+        Weight λ of the control effort in the reward −(e² + λ u²) [1/(N·m)²·rad²].
+    render_mode : {None, "rgb_array"}
+        "rgb_array": :meth:`render` returns an image of the arm (H × W × 3 uint8).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+
+    def __init__(self, scenario: Scenario | str | Path = "test-1",
+                 overrides: dict | list[str] | None = None, *, action_mode: str = "torque",
+                 observe_estimates: bool = False, effort_weight: float = 0.0,
+                 render_mode: str | None = None) -> None:
+        if action_mode not in ACTION_MODES:
+            raise ValueError(f"action_mode must be one of {', '.join(ACTION_MODES)}; "
+                             f"got {action_mode!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array'; got {render_mode!r}")
+        if not (math.isfinite(effort_weight) and effort_weight >= 0):
+            raise ValueError(f"effort_weight must be a finite number >= 0; got {effort_weight!r}")
+        scn = scenario if isinstance(scenario, Scenario) and not overrides else \
+            load_scenario(scenario, overrides)
+        self.scenario = scn
+        self.action_mode = action_mode
+        self.observe_estimates = observe_estimates
+        self.effort_weight = float(effort_weight)
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": scn.sensor.rate_hz}
+        self._inp = prepare(scn, draw_noise=False)
+        self.n_steps = len(self._inp.t)
+        limit = scn.actuator.torque_limit
+        self.action_space = spaces.Box(-limit, limit, shape=(1,), dtype=np.float64)
+        size = 7 if observe_estimates else 4
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float64)
+        self._seeded_once = False
+        self._noise = np.zeros(self.n_steps)
+        self._k = 0
+        self._state = (0.0, 0.0, 0.0)
+        self._z = (0.0, 0.0, 0.0)
+        self._zhat = (0.0, 0.0, 0.0)
+        self._y = 0.0
+        self._u_hist = np.zeros(self.n_steps)
+
+    # -- the loop ------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode; see the module docstring for the noise seed."""
+        super().reset(seed=seed)
+        if seed is not None:
+            noise_seed = int(seed)
+        elif not self._seeded_once:
+            noise_seed = self.scenario.sensor.seed
+        else:
+            noise_seed = int(self.np_random.integers(0, 2**31 - 1))
+        self._seeded_once = True
+        self.noise_seed = noise_seed
+        inp = self._inp
+        self._noise = noise_sequence(noise_seed, self.n_steps, self.scenario.sensor.noise_deg)
+        self._k = 0
+        self._u_hist = np.zeros(self.n_steps)
+        self._state = (inp.theta0, 0.0, 0.0)
+        z1 = measure(inp.theta0, self._noise[0], inp.sigma, inp.q) if self.n_steps else 0.0
+        self._z = (z1, 0.0, 0.0)
+        self._measure()
+        return self._observation(), {"t": 0.0, "noise_seed": noise_seed}
+
+    def _measure(self) -> None:
+        """y_k and the estimate ẑ_k at the current sample (steps 1 and 3)."""
+        inp, k = self._inp, self._k
+        self._y = measure(self._state[0], self._noise[k], inp.sigma, inp.q)
+        self._zhat = eso_estimate(*self._z, self._y, inp.obs)
+
+    def _observation(self) -> np.ndarray:
+        inp, k = self._inp, min(self._k, self.n_steps - 1)
+        head = (self._y, inp.theta_ref[k], inp.omega_ref[k], inp.accel_ref[k])
+        if self.observe_estimates:
+            return np.array((*head, *self._zhat), dtype=np.float64)
+        return np.array(head, dtype=np.float64)
+
+    def flc_command(self) -> float:
+        """The ESO-FLC's command u_k [N·m] for the current sample (saturated)."""
+        inp, k = self._inp, self._k
+        return float(flc_control(*self._zhat, inp.theta_ref[k], inp.omega_ref[k],
+                                 inp.accel_ref[k], inp.ctl))
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Apply the action over one sample period Ts; see the module docstring."""
+        if self._k >= self.n_steps:
+            raise RuntimeError("the episode is over (truncated): call reset()")
+        inp, k = self._inp, self._k
+        a = float(np.asarray(action, dtype=np.float64).reshape(-1)[0])
+        limit = inp.ctl[LIMIT]
+        if self.action_mode == "torque":
+            u = saturate(a, limit)
+        else:
+            u = saturate(self.flc_command() + a, limit)
+        theta, omega, tau = self._state
+        h1, h2, h3 = self._zhat
+        ref = inp.theta_ref[k]
+        self._u_hist[k] = u
+        u_applied = self._u_hist[k - inp.delay] if k >= inp.delay else 0.0
+        tk = inp.t[k]
+        acc = rig_acceleration(theta, omega, applied_torque(tau, u_applied, inp.rig), tk, inp.rig)
+        error = theta - ref
+        info = dict(zip(INFO_KEYS, (float(tk), theta, ref, error, u, h1, h2, h3,
+                                    acc - inp.b0 * u), strict=True))
+        reward = -(error * error + self.effort_weight * u * u)
+        if not within_limits(theta, h1, h2, h3, u):
+            return self._observation(), float(reward), True, False, info
+        self._z = eso_advance(*self._z, h1, h2, h3, self._y, u, inp.obs)
+        self._state = rig_advance(theta, omega, tau, u_applied, tk, inp.h, inp.nsub, inp.rig)
+        self._k = k + 1
+        truncated = self._k >= self.n_steps
+        if not truncated:
+            self._measure()
+        return self._observation(), float(reward), False, truncated, info
+
+    # -- drawing -----------------------------------------------------------------------
+    def render(self) -> np.ndarray | None:  # type: ignore[override]
+        """An image of the arm (grey), its reference (dashed red) and the torque (bar)."""
+        if self.render_mode != "rgb_array":
+            return None
+        from esoarm.envs.render import draw_arm
+
+        k = min(self._k, self.n_steps - 1)
+        return draw_arm(self._state[0], float(self._inp.theta_ref[k]),
+                        float(self._u_hist[max(self._k - 1, 0)]) / self._inp.ctl[LIMIT])
+
+
+class EsoFlcPolicy:
+    """The paper's ESO-FLC as a fixed policy for ``action_mode="torque"``.
+
+    Needs ``observe_estimates=True``: the action is flc_control(ẑ, θd, θ̇d, θ̈d),
+    the command ``esoarm simulate`` computes from the same numbers.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        base = env.unwrapped
+        if not isinstance(base, LeverArmEnv) or not base.observe_estimates:
+            raise ValueError("EsoFlcPolicy needs a LeverArmEnv with observe_estimates=True")
+        self._ctl = base._inp.ctl
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        _, ref, dref, ddref, z1, z2, z3 = (float(v) for v in obs)
+        return np.array([flc_control(z1, z2, z3, ref, dref, ddref, self._ctl)])
