@@ -29,6 +29,8 @@ COMMANDS: dict[str, str] = {
     "run": "esoarm.cli.rig:run",
     "replay": "esoarm.cli.rig:replay",
     "analyze": "esoarm.cli.analyze:analyze",
+    "excite": "esoarm.cli.identify:excite",
+    "identify": "esoarm.cli.identify:identify",
 }
 
 

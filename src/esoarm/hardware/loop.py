@@ -136,7 +136,8 @@ def check_device(info: P.Info, scn: Scenario) -> float:
 class _LogWriter:
     """CSV rows streamed to disk, one flushed line per sample."""
 
-    def __init__(self, path: Path | None, tee: Callable[[str], None] | None = None) -> None:
+    def __init__(self, path: Path | None, columns: tuple[str, ...] = LOG_COLUMNS,
+                 tee: Callable[[str], None] | None = None) -> None:
         self.path = path
         self.tee = tee  # e.g. the live scope: gets every row as written
         self.rows = 0
@@ -144,7 +145,7 @@ class _LogWriter:
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
-            self._fh.write(",".join(LOG_COLUMNS) + "\n")
+            self._fh.write(",".join(columns) + "\n")
 
     def write(self, line: str) -> None:
         self.rows += 1
@@ -189,6 +190,7 @@ class _Stop(Exception):
 def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             limits: SafetyLimits | None = None,
             status: Callable[[dict], None] | None = None,
+            controller: DeploymentController | None = None,
             monitor: Callable[[str], None] | None = None) -> RunSummary:
     """Drive the device on ``link`` through one run of ``scn``.
 
@@ -205,6 +207,11 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     status : callable, optional
         Called about ten times a second with a dict (t, theta, error, u,
         deadline_misses) for a live display.
+    controller : optional
+        What computes u_k from y_k (``step``, ``commit``, ``predict``, ``zhat``,
+        ``reference``, ``t``, ``n_samples``, ``ts``, ``torque_limit``); default the
+        scenario's ESO + FLC.  The identification experiment passes its
+        :class:`~esoarm.studies.excitation.ExcitationController`.
     monitor : callable, optional
         Receives every log row (the CSV line of :data:`LOG_COLUMNS`) as it is
         written, e.g. :meth:`esoarm.hardware.scope.Scope.push`; it must not block.
@@ -239,9 +246,9 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
         raise ScenarioError(
             f"motor.pwm_max = {motor.pwm_max} does not match the device's PWM range "
             f"±{info.pwm_max}")
-    ctl = DeploymentController(scn)
+    ctl = controller if controller is not None else DeploymentController(scn)
     n, ts = ctl.n_samples, ctl.ts
-    log = _LogWriter(log_path, monitor)
+    log = _LogWriter(log_path, tee=monitor)
     summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
                          log=str(log_path) if log_path else "")
     acc = {"e2": 0.0, "u2": 0.0, "emax": 0.0, "m": 0}

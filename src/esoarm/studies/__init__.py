@@ -1,3 +1,4 @@
 """Studies built on the engines: the paper's reproduction and its report, sweeps,
-tuning, and the observer/controller analysis (poles, Theorem 1 and 2 bounds).
+tuning, the observer/controller analysis (poles, Theorem 1 and 2 bounds), and
+the identification of a rig from its logs (experiments and grey-box fits).
 """

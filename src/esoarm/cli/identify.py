@@ -1,0 +1,255 @@
+"""``esoarm excite`` and ``esoarm identify``: record an identification experiment, fit the rig."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import click
+
+from esoarm.cli._common import (
+    PLOT_SUFFIXES,
+    BadInput,
+    RunFailure,
+    bad_input_guard,
+    output_path,
+    resolve_scenario,
+    scenario_argument,
+    set_option,
+    stderr_is_tty,
+)
+
+
+@click.command()
+@scenario_argument
+@set_option
+@click.option("--port", metavar="PATH", help="Serial device of the rig (or the path printed "
+              "by 'esoarm emulate').")
+@click.option("--twin", is_flag=True, help="Run the experiment on the scenario's digital twin "
+              "(seeded: sensor.seed for the noise, --seed for the tone phases).")
+@click.option("--log", "log", metavar="FILE.csv", help="Stream the log here, one flushed row "
+              "per sample: the columns of 'esoarm run' (theta measured [rad], u applied [N·m], "
+              "duty [counts]); on the twin also theta_true [rad].")
+@click.option("--plan", "plan_only", is_flag=True, help="Print the signal and its spectrum "
+              "(and what it does on the twin) and exit; nothing moves.")
+@click.option("--duration", type=float, default=60.0, show_default=True, metavar="S",
+              help="Length of the experiment [s].")
+@click.option("--amplitude", type=float, default=0.2, show_default=True, metavar="N·M",
+              help="RMS of the multisine torque [N·m].")
+@click.option("--f-min", "f_min", type=float, default=0.1, show_default=True, metavar="HZ",
+              help="Lowest tone [Hz] (slow reversals: Coulomb and viscous friction).")
+@click.option("--f-max", "f_max", type=float, default=5.0, show_default=True, metavar="HZ",
+              help="Highest tone [Hz] (inertia, lag, delay); below half the sample rate.")
+@click.option("--tones", type=int, default=24, show_default=True, metavar="N",
+              help="Number of log-spaced tones.")
+@click.option("--sweep", type=float, default=0.6, show_default=True, metavar="RAD",
+              help="Amplitude of the slow setpoint sweep [rad] (gravity: cos θ must vary).")
+@click.option("--sweep-period", type=float, default=20.0, show_default=True, metavar="S",
+              help="Period of the setpoint sweep [s].")
+@click.option("--kp", type=float, default=1.0, show_default=True, metavar="N·M/RAD",
+              help="Guard-loop proportional gain [N·m/rad] (keeps the arm near the setpoint).")
+@click.option("--kd", type=float, default=0.05, show_default=True, metavar="N·M·S/RAD",
+              help="Guard-loop rate gain [N·m·s/rad] (rate from the scenario's ESO).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the tone phases.")
+@click.option("--angle-limit", type=float, default=math.pi, show_default=True, metavar="RAD",
+              help="Stop when |measured angle| exceeds this [rad].")
+@click.option("--max-jump", type=float, default=0.5, show_default=True, metavar="RAD",
+              help="Stop when the measured angle changes more than this in one sample [rad].")
+@click.option("--watchdog", type=float, default=0.25, show_default=True, metavar="SECONDS",
+              help="Stop when no sample arrives for this long [s] (rig only).")
+@click.option("--baud", type=int, default=115200, show_default=True, metavar="BITS/S",
+              help="Serial line rate [bit/s] (rig only).")
+@bad_input_guard
+def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bool,
+           log: str | None, plan_only: bool, duration: float, amplitude: float, f_min: float,
+           f_max: float, tones: int, sweep: float, sweep_period: float, kp: float, kd: float,
+           seed: int, angle_limit: float, max_jump: float, watchdog: float, baud: int) -> None:
+    """Record an identification experiment on the rig at PORT or on the twin of SCENARIO.
+
+    The torque is a multisine (RMS --amplitude [N·m], tones from --f-min to
+    --f-max [Hz]) added to a weak guard loop u = e(t) − kp (y − θc) − kd ẑ2
+    that keeps the nearly neutrally stable arm near a slow setpoint sweep θc.
+    On a rig it runs through the safety layer of 'esoarm run' (torque limit
+    actuator.torque_limit [N·m], angle limit, encoder-jump check, watchdog,
+    stop on any fault, every row logged and flushed). Feed the log to
+    'esoarm identify'.
+    """
+    from esoarm.hardware.loop import SafetyLimits
+    from esoarm.studies.excitation import ExcitationPlan, plan_text
+
+    plan = ExcitationPlan(duration=duration, amplitude=amplitude, f_min=f_min, f_max=f_max,
+                          n_tones=tones, sweep=sweep, sweep_period=sweep_period, kp=kp, kd=kd,
+                          seed=seed)
+    for name, value in (("--angle-limit", angle_limit), ("--max-jump", max_jump),
+                        ("--watchdog", watchdog)):
+        if not (math.isfinite(value) and value > 0):
+            raise BadInput(f"{name} {value:g}: must be a finite number > 0")
+    scn = resolve_scenario(scenario, overrides)
+    plan.check(scn.sample_time)
+    limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog)
+    if plan_only:
+        from esoarm.hardware.excite import ExcitationFault, excite_twin
+
+        try:
+            _summary, preview = excite_twin(scn, plan, None, limits)
+        except ExcitationFault as exc:
+            preview = None
+            click.echo(f"on the twin: stops early: {exc}")
+        click.echo(plan_text(plan, scn, preview))
+        return
+    if twin == (port is not None):
+        raise BadInput("give exactly one of --port PATH (a rig) or --twin (the digital twin), "
+                       "or --plan to only print the experiment")
+    log_path = output_path(log, "--log", (".csv",))
+    if log_path is None:
+        raise BadInput("--log FILE.csv is required (the experiment is only useful logged)")
+    if twin:
+        _excite_twin(scn, plan, log_path, limits)
+    else:
+        _excite_rig(scn, plan, port, log_path, limits, baud)  # type: ignore[arg-type]
+
+
+def _excite_twin(scn, plan, log_path: Path, limits) -> None:  # type: ignore[no-untyped-def]
+    from esoarm.hardware.excite import ExcitationFault, excite_twin
+
+    try:
+        summary, preview = excite_twin(scn, plan, log_path, limits)
+    except ExcitationFault as exc:
+        raise RunFailure(str(exc)) from None
+    click.echo(f"twin of '{scn.name}': {summary.samples} samples, RMS u {preview['rms_u']:.4g} "
+               f"N·m, |θ| up to {preview['max_abs_theta']:.3g} rad")
+    click.echo(f"log: {log_path}")
+
+
+def _excite_rig(scn, plan, port: str, log_path: Path, limits, baud: int) -> None:  # type: ignore[no-untyped-def]
+    from esoarm.cli.rig import Interrupted
+    from esoarm.hardware.link import LinkError, SerialLink
+    from esoarm.hardware.loop import RigFault, RigInterrupted, run_rig
+    from esoarm.studies.excitation import ExcitationController
+
+    ctl = ExcitationController(scn, plan)
+    try:
+        link = SerialLink(port, baudrate=baud)
+    except LinkError as exc:
+        raise RunFailure(str(exc)) from None
+    try:
+        summary = run_rig(scn, link, log_path, limits, controller=ctl)
+    except RigFault as exc:
+        raise RunFailure(str(exc)) from None
+    except RigInterrupted as exc:
+        raise Interrupted(str(exc)) from None
+    except LinkError as exc:
+        raise RunFailure(str(exc)) from None
+    except KeyboardInterrupt:
+        link.stop()
+        raise Interrupted("before the experiment started: stop sent, nothing logged") from None
+    finally:
+        link.close()
+    click.echo(f"rig ({summary.mode}): {summary.samples} samples, RMS u {summary.rms_u:.4g} N·m, "
+               f"{summary.lost_samples} lost, {summary.deadline_misses} deadline misses")
+    click.echo(f"log: {log_path}")
+
+
+@click.command()
+@click.argument("logs", nargs=-1, required=True, metavar="LOG.csv [LOG2.csv ...]")
+@click.option("--scenario", "scenario", default="test-1", show_default=True,
+              metavar="NAME|PATH", help="Scenario with the nominal values (the starting point "
+              "and the parameters held) and the optional [motor] table.")
+@set_option
+@click.option("--validate", "validate", multiple=True, metavar="LOG.csv",
+              help="A log used only for validation (repeatable). Default: the last of several "
+              "logs, or the last --validate-fraction of a single one.")
+@click.option("--validate-fraction", type=float, default=0.25, show_default=True,
+              metavar="FRACTION", help="Share of a single log kept for validation (0 to 0.5).")
+@click.option("--segment", type=float, default=2.0, show_default=True, metavar="S",
+              help="Simulation horizon of one segment [s]; each segment's initial angle and "
+              "rate are estimated.")
+@click.option("--max-delay", type=int, default=2, show_default=True, metavar="SAMPLES",
+              help="Largest transport delay tried [samples].")
+@click.option("--fix", "fix", multiple=True, metavar="KEY",
+              help="Hold a parameter at the scenario's value (repeatable), e.g. --fix "
+              "actuator.lag --fix plant.m2.")
+@click.option("--out", "out", metavar="FILE.toml", help="Write a scenario with the fitted rig "
+              "as the twin and the plant (the controller's model) updated to the fit.")
+@click.option("--plot", "plot", metavar="FILE.png", help="Draw measured against fitted angle, "
+              "residual and its autocorrelation (.png, .pdf or .svg).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object: parameters "
+              "{scenario key: {value, ci95}}, fit and validation quality.")
+@bad_input_guard
+def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
+             validate: tuple[str, ...], validate_fraction: float, segment: float,
+             max_delay: int, fix: tuple[str, ...], out: str | None, plot: str | None,
+             as_json: bool) -> None:
+    """Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output error).
+
+    Fits the true inertia (rig.inertia_scale), gravity (plant.m2), Coulomb and
+    viscous friction [N·m, N·m·s/rad], actuator lag [s], transport delay
+    [samples] and encoder noise [deg] (and motor.torque_constant [N·m/A] with a
+    [motor] table), each with a 95 % interval, flags what the log does not
+    determine, and validates on data not used for fitting (fit %, residual
+    whiteness). Closed-loop logs work: the fit uses the torque actually logged.
+    """
+    from esoarm.studies.identify import FitFailed
+    from esoarm.studies.identify import identify as run_fit
+    from esoarm.studies.identify_data import read_ident_log
+
+    out_path = output_path(out, "--out", (".toml",))
+    plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
+    if not (0.0 <= validate_fraction <= 0.5):
+        raise BadInput(f"--validate-fraction {validate_fraction:g}: must be in [0, 0.5]")
+    if not (math.isfinite(segment) and segment > 0):
+        raise BadInput(f"--segment {segment:g}: must be a finite number of seconds > 0")
+    if not 0 <= max_delay <= 20:
+        raise BadInput(f"--max-delay {max_delay}: must be in 0 … 20 samples")
+    scn = resolve_scenario(scenario, overrides)
+    limit = scn.actuator.torque_limit
+    motor = scn.motor is not None
+    fit_logs = [read_ident_log(p, limit, motor) for p in logs]
+    val_logs = [read_ident_log(p, limit, motor) for p in validate]
+    say = _progress() if stderr_is_tty() and not as_json else None
+    try:
+        res = run_fit(scn, fit_logs, validation=val_logs or None,
+                      validate_fraction=validate_fraction, segment=segment, max_delay=max_delay,
+                      fix=fix, progress=say)
+    except FitFailed as exc:
+        raise RunFailure(str(exc)) from None
+    finally:
+        if say is not None:
+            say.close()
+    fitted = res.fitted_scenario()
+    if plot_path is not None:
+        from esoarm.studies.identify_plots import figure_identification
+
+        figure_identification(res, plot_path)
+    if out_path is not None:
+        from esoarm._io import atomic_path
+        from esoarm.studies.identify_report import scenario_toml
+
+        with atomic_path(out_path) as tmp:
+            tmp.write_text(scenario_toml(res, fitted), encoding="utf-8")
+    if as_json:
+        click.echo(json.dumps(res.to_json()))
+        return
+    from esoarm.studies.identify_report import result_text
+
+    click.echo(result_text(res))
+    for label, path in (("scenario", out_path), ("figure", plot_path)):
+        if path is not None:
+            click.echo(f"{label}: {path}")
+
+
+class _progress:  # noqa: N801 - used like a function
+    """One transient status line on stderr."""
+
+    def __init__(self) -> None:
+        from rich.console import Console
+
+        self._status = Console(stderr=True).status("identifying")
+        self._status.start()
+
+    def __call__(self, message: str) -> None:
+        self._status.update(message)
+
+    def close(self) -> None:
+        self._status.stop()

@@ -1,0 +1,378 @@
+"""Grey-box identification of the rig from logs (``esoarm identify``).
+
+The model is the twin's rig (:mod:`esoarm.plants.lever_arm`), its parameters read as
+scenario keys:
+
+=========================  =======================================  ============
+key                        meaning                                  unit
+=========================  =======================================  ============
+``rig.inertia_scale``      I / plant.inertia                        1
+``plant.m2``               sets the gravity coefficient             kg
+                           (m1 l1 − m2 l2) g, m1, l1, l2, g held
+``rig.coulomb_friction``   Fc                                       N·m
+``rig.viscous_friction``   b                                        N·m·s/rad
+``actuator.lag``           first-order torque lag T                 s
+``actuator.delay_samples`` transport delay                          samples
+``motor.torque_constant``  Kt (with a ``[motor]`` table; R, Vs, N   N·m/A
+                           held: only N·Kt/R and the total damping
+                           b + (N·Kt)²/R are identifiable)
+``sensor.noise_deg``       encoder noise σ (from the residual)      deg
+=========================  =======================================  ============
+
+Held at the scenario's values: ``rig.friction_velocity`` (the tanh smoothing
+is far below what 50 Hz data resolves), the disturbance d(t) (taken as known,
+as in the paper's eq. 6), the motor's other constants.
+
+Fit: least squares on the measured angle, y_k − θ̂(t_k), over segments of the
+log with each segment's initial angle and rate estimated
+(:mod:`esoarm.studies.identify_data`); scipy's trust-region reflective solver
+with a finite-difference Jacobian that costs one simulation per rig parameter
+plus two for all initial states.  The delay (integer) is chosen by the cost
+over 0 … ``max_delay``; the lag by a likelihood-ratio test of T > 0 against
+T = 0.  95 % intervals: ±1.96 standard errors from σ̂² (JᵀJ)⁻¹ (rig parameters,
+the initial states profiled out); for the delay, every delay whose cost is
+within the χ²₁ 95 % threshold of the best.  The intervals assume the model
+structure is right and the residual is white: the validation's whiteness test
+says whether that holds.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from esoarm.plants.model import gravity_coefficient
+from esoarm.scenario import Scenario, ScenarioError
+from esoarm.studies.identify_data import IdentLog
+from esoarm.studies.identify_fit import PARAMS, Problem
+
+__all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
+
+DELAY_KEY = "actuator.delay_samples"
+NOISE_KEY = "sensor.noise_deg"
+FREE_KEYS = (*PARAMS, DELAY_KEY)
+#: Why the inertia is held by default with a ``[motor]`` table.
+MOTOR_SCALE_NOTE = (
+    "held: with a [motor] table the angle determines only ratios to the inertia (stall torque, "
+    "friction and gravity scale with it; the known disturbance alone anchors the scale); give "
+    "the inertia, or --fix motor.torque_constant to fit the inertia instead")
+#: χ²₁ 95 % quantile (likelihood-ratio tests of the delay and the lag).
+CHI2_95 = 3.841458820694124
+#: A parameter is flagged poorly identifiable beyond this relative 95 % half-width.
+POOR_REL = 0.25
+
+
+class FitFailed(RuntimeError):
+    """The fit did not converge (nothing is written)."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One fitted parameter: value, 95 % interval, and whether the log determines it."""
+
+    key: str
+    value: float
+    ci95: tuple[float, float]
+    unit: str
+    label: str
+    fitted: bool = True
+    identifiable: bool = True
+    advice: str = ""
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        return {"value": self.value, "ci95": list(self.ci95), "unit": self.unit,
+                "fitted": self.fitted, "identifiable": self.identifiable,
+                **({"advice": self.advice} if self.advice else {})}
+
+
+@dataclass
+class IdentResult:
+    """What :func:`identify` found (see the module docstring for the method)."""
+
+    scenario: Scenario
+    estimates: dict[str, Estimate]
+    gravity: Estimate
+    fit_percent: float
+    validation: dict
+    residual_rms: float
+    cost_by_delay: dict[int, float]
+    n_fit: int
+    segment_seconds: float
+    elapsed: float
+    iterations: int
+    fit_logs: list[str]
+    validation_logs: list[str]
+    curves: dict = field(default_factory=dict, repr=False)
+
+    def value(self, key: str) -> float:
+        """Fitted value of a scenario key."""
+        return self.estimates[key].value
+
+    def to_json(self) -> dict:
+        """One JSON object: parameters by scenario key, then the fit quality."""
+        return {
+            "scenario": self.scenario.name,
+            "parameters": {k: e.to_dict() for k, e in self.estimates.items()},
+            "gravity_coefficient": self.gravity.to_dict(),
+            "fit": {"fit_percent": self.fit_percent, "residual_rms_rad": self.residual_rms,
+                    "samples": self.n_fit, "segment_s": self.segment_seconds,
+                    "cost_by_delay": {str(d): c for d, c in self.cost_by_delay.items()},
+                    "iterations": self.iterations, "elapsed_s": self.elapsed,
+                    "logs": self.fit_logs},
+            "validation": {**self.validation, "logs": self.validation_logs},
+            "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
+        }
+
+    def fitted_scenario(self) -> Scenario:
+        """The scenario with the fitted rig as the twin and the plant updated to the fit.
+
+        plant.inertia = Î (so rig.inertia_scale = 1), plant.m2 from the gravity
+        fit (twin and model share G), friction, lag, delay, noise and Kt fitted.
+        """
+        scn = self.scenario
+        over: dict[str, object] = {"name": f"{scn.name}-fitted",
+                                   "plant.inertia": self.value("rig.inertia_scale")
+                                   * scn.plant.inertia,
+                                   "rig.inertia_scale": 1.0}
+        for key, est in self.estimates.items():
+            if key != "rig.inertia_scale" and (scn.motor is not None
+                                               or not key.startswith("motor.")):
+                over[key] = int(est.value) if key == DELAY_KEY else float(est.value)
+        return scn.with_overrides(over)
+
+
+def _values(scn: Scenario) -> dict[str, float]:
+    """The scenario's values of every fittable key (the starting point of the fit)."""
+    motor = scn.motor
+    return {"rig.inertia_scale": scn.rig.inertia_scale, "plant.m2": scn.plant.m2,
+            "rig.coulomb_friction": scn.rig.coulomb_friction,
+            "rig.viscous_friction": scn.rig.viscous_friction, "actuator.lag": scn.actuator.lag,
+            "motor.torque_constant": motor.torque_constant if motor else 0.0}
+
+
+def _split(logs: list[IdentLog], validation: list[IdentLog] | None,
+           fraction: float) -> tuple[list[IdentLog], list[IdentLog]]:
+    if validation:
+        return logs, validation
+    if len(logs) > 1:
+        return logs[:-1], logs[-1:]
+    log = logs[0]
+    cut = int(round(log.n * (1.0 - fraction)))
+    return [log.part(0, cut)], ([log.part(cut, log.n)] if fraction > 0 else [])
+
+
+def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] | None = None,
+             validate_fraction: float = 0.25, segment: float = 2.0, max_delay: int = 2,
+             fix: tuple[str, ...] = (), progress=None) -> IdentResult:  # type: ignore[no-untyped-def]
+    """Fit the rig model of ``scn`` to logs (see the module docstring).
+
+    Parameters
+    ----------
+    scn : Scenario
+        Nominal values (the starting point and the held parameters), the motor.
+    logs : list of IdentLog
+        Logs to fit; with one log and no ``validation``, its last
+        ``validate_fraction`` is kept for validation; with several, the last one.
+    validation : list of IdentLog, optional
+        Logs used only for validation.
+    segment : float
+        Simulation horizon of one segment [s].
+    max_delay : int
+        Largest transport delay tried [samples].
+    fix : tuple of str
+        Keys held at the scenario's values.
+    progress : callable, optional
+        Called with a one-line description before each fit.
+
+    Raises
+    ------
+    ScenarioError
+        Bad input (unknown key to fix, a log at another rate, too short a part).
+    FitFailed
+        The solver did not converge.
+    """
+    t_start = time.perf_counter()
+    for key in fix:
+        if key not in FREE_KEYS:
+            raise ScenarioError(f"--fix {key}: not a fitted key (one of {', '.join(FREE_KEYS)})")
+    ts = logs[0].ts
+    for log in [*logs, *(validation or [])]:
+        if abs(log.ts - scn.sample_time) > 1e-9 * scn.sample_time:
+            raise ScenarioError(f"log '{log.path}': sampled every {log.ts:g} s but "
+                                f"sensor.rate_hz = {scn.sensor.rate_hz:g}; use --set "
+                                f"sensor.rate_hz={1.0 / log.ts:g}")
+    if scn.motor is not None and not {"rig.inertia_scale", "motor.torque_constant"} & set(fix):
+        fix = (*fix, "rig.inertia_scale")  # see MOTOR_SCALE_NOTE
+    fit_logs, val_logs = _split(logs, validation, validate_fraction)
+    seg_samples = max(5, int(round(segment / ts)))
+    if min(log.n for log in fit_logs) < max_delay + seg_samples:
+        raise ScenarioError(f"log '{fit_logs[0].path}': the part used for fitting is shorter "
+                            f"than one segment ({segment:g} s); use a longer log or --segment")
+    free = [k for k in PARAMS if k not in fix and (scn.motor is not None
+                                                   or k != "motor.torque_constant")]
+    fit_lag = "actuator.lag" in free
+    nominal = _values(scn)
+    delays = [scn.actuator.delay_samples] if DELAY_KEY in fix else list(range(max_delay + 1))
+    start = max(delays)
+    say = progress or (lambda _msg: None)
+
+    def fit(delay: int, names: list[str], fixed: dict[str, float], x_phys: list[float],
+            x_states: np.ndarray | None, max_iter: int = 60):  # type: ignore[no-untyped-def]
+        prob = Problem(scn, fit_logs, seg_samples, delay, start, names, fixed)
+        states = prob.initial_states() if x_states is None else x_states
+        return prob, prob.solve(np.concatenate([x_phys, states]), max_iter)
+
+    base_free = [k for k in free if k != "actuator.lag"]
+    fixed0 = {**nominal, **({"actuator.lag": 0.0} if fit_lag else {})}
+    # 1. the scenario's delay, from the scenario's values
+    d_nom = scn.actuator.delay_samples if scn.actuator.delay_samples in delays else delays[0]
+    say(f"fitting {', '.join(base_free)} with delay {d_nom} sample(s)")
+    prob, sol = fit(d_nom, base_free, fixed0, [nominal[k] for k in base_free], None)
+    cost = {d_nom: 2.0 * sol.cost}
+    # 2. the other delays, warm-started from that fit (a few iterations: an upper bound)
+    for d in delays:
+        if d != d_nom:
+            say(f"trying delay {d} sample(s)")
+            cost[d] = 2.0 * fit(d, base_free, fixed0, list(sol.x[: prob.n_phys]),
+                                sol.x[prob.n_phys:], max_iter=4)[1].cost
+    d_best = min(cost, key=lambda d: cost[d])
+    if d_best != d_nom:
+        say(f"fitting with delay {d_best} sample(s)")
+        prob, sol = fit(d_best, base_free, fixed0, list(sol.x[: prob.n_phys]),
+                        sol.x[prob.n_phys:])
+        cost[d_best] = 2.0 * sol.cost
+    m = int(prob.mask.sum())
+    # 3. the actuator lag: T > 0 kept only if it lowers the cost significantly (χ²₁ test)
+    if fit_lag:
+        names = [*base_free, "actuator.lag"]
+        lag_lo = 2.0 * prob.h
+        best_lag = None
+        lag_rejected = None
+        for d in [dd for dd in (d_best, d_best - 1) if dd in cost]:
+            say(f"fitting the actuator lag with delay {d} sample(s)")
+            x_phys = [*sol.x[: prob.n_phys], max(ts / 2.0, 3.0 * lag_lo)]
+            pl, sl = fit(d, names, nominal, x_phys, sol.x[prob.n_phys:], max_iter=8)
+            if best_lag is None or sl.cost < best_lag[1].cost:
+                best_lag = (pl, sl, d)
+        if best_lag is not None and best_lag[1].x[len(base_free)] > 1.05 * lag_lo and \
+                m * math.log(2.0 * sol.cost / max(2.0 * best_lag[1].cost, 1e-300)) > CHI2_95:
+            prob, sol, d_best = best_lag
+            if not sol.converged:
+                prob, sol = fit(d_best, names, nominal, list(sol.x[: prob.n_phys]),
+                                sol.x[prob.n_phys:])
+            cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
+        elif best_lag is not None:
+            lag_rejected = float(best_lag[1].x[len(base_free)])
+    else:
+        lag_rejected = None
+    if not (sol.converged and np.isfinite(sol.cost)) or np.any(sol.fun >= 1e3):
+        raise FitFailed(f"the fit did not converge ({sol.message} after {sol.iterations} "
+                        "iterations); try other starting values (--set) or a longer, richer "
+                        "log (esoarm excite)")
+    estimates, gravity, resid_s = _estimates(scn, prob, sol, m, cost, d_best, delays,
+                                             lag_rejected)
+    val = _validate(scn, prob.phys(sol.x), val_logs, seg_samples, d_best, start) if val_logs else {}
+    y_fit = prob.predict(sol.x)
+    mask = prob.mask
+    fit_pct = _fit_percent(prob.y[mask], y_fit[mask])
+    curves = {"fit": (prob.t, prob.y, np.where(mask, y_fit, np.nan))}
+    if val:
+        curves["validation"] = val.pop("_curves")
+    return IdentResult(
+        scenario=scn, estimates=estimates, gravity=gravity, fit_percent=fit_pct,
+        validation=val, residual_rms=resid_s, cost_by_delay=cost, n_fit=m,
+        segment_seconds=seg_samples * ts, elapsed=time.perf_counter() - t_start,
+        iterations=int(sol.iterations), fit_logs=sorted({lg.path for lg in fit_logs}),
+        validation_logs=sorted({lg.path for lg in val_logs}), curves=curves)
+
+
+def _fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:
+    """100·(1 − ‖y − ŷ‖/‖y − ȳ‖) [%]."""
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / np.linalg.norm(y - np.mean(y))))
+
+
+def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: ignore[no-untyped-def]
+    jac = sol.jac
+    p = jac.shape[1]
+    dof = max(m - p, 1)
+    s2 = 2.0 * sol.cost / dof
+    cov = s2 * np.linalg.pinv(jac.T @ jac)
+    se = np.sqrt(np.maximum(np.diag(cov)[: prob.n_phys], 0.0))
+    corr = cov[: prob.n_phys, : prob.n_phys] / np.maximum(np.outer(se, se), 1e-300)
+    out: dict[str, Estimate] = {}
+    for i, key in enumerate(prob.free):
+        label, unit, scale, _b, advice = PARAMS[key]
+        v = float(sol.x[i])
+        half = 1.96 * float(se[i])
+        others = [prob.free[j] for j in range(prob.n_phys) if j != i and abs(corr[i, j]) > 0.98]
+        poor = not half <= POOR_REL * max(abs(v), 0.1 * scale) or bool(others)
+        if key == "rig.viscous_friction" and scn.motor is not None:
+            advice = ("with a [motor] table b adds to the back-EMF damping (N·Kt)²/R; only "
+                      "their sum is well determined")
+        note = advice + (f"; strongly correlated with {', '.join(others)}" if others else "")
+        out[key] = Estimate(key, v, (v - half, v + half), unit, label, True, not poor,
+                            note if poor else "")
+    for key in PARAMS:
+        if key not in out and (scn.motor is not None or key != "motor.torque_constant"):
+            label, unit, *_ = PARAMS[key]
+            v = prob.fixed[key]
+            note = MOTOR_SCALE_NOTE if key == "rig.inertia_scale" and scn.motor else \
+                "held at the scenario's value"
+            out[key] = Estimate(key, v, (v, v), unit, label, False, True, note)
+    if lag_rejected is not None:  # fitted, and T = 0 won the likelihood-ratio test
+        out["actuator.lag"] = Estimate(
+            "actuator.lag", 0.0, (0.0, lag_rejected), "s", PARAMS["actuator.lag"][0], True, True,
+            "")
+    best = cost[d_best] if d_best in cost else min(cost.values())
+    inside = [d for d in delays if m * math.log(cost[d] / best) <= CHI2_95] or [d_best]
+    out[DELAY_KEY] = Estimate(DELAY_KEY, float(d_best), (float(min(inside)), float(max(inside))),
+                              "samples", "transport delay", len(delays) > 1,
+                              len(inside) == 1 or len(delays) == 1,
+                              "" if len(inside) == 1 or len(delays) == 1 else
+                              "more high-frequency torque (raise --f-max)")
+    q = math.radians(scn.sensor.resolution_deg)
+    s = math.sqrt(s2)
+    lo, hi = s * (1 - 1.96 / math.sqrt(2 * dof)), s * (1 + 1.96 / math.sqrt(2 * dof))
+
+    def sigma_deg(x: float) -> float:
+        return math.degrees(math.sqrt(max(x * x - q * q / 12.0, 0.0)))
+
+    out[NOISE_KEY] = Estimate(NOISE_KEY, sigma_deg(s), (sigma_deg(lo), sigma_deg(hi)), "deg",
+                              "encoder noise σ (residual, quantization removed)")
+    pl = scn.plant
+    m2 = out["plant.m2"]
+    g_of = lambda mass: gravity_coefficient(pl.m1, mass, pl.l1, pl.l2, pl.g)  # noqa: E731
+    gvals = sorted((g_of(m2.ci95[0]), g_of(m2.ci95[1])))
+    gravity = Estimate("gravity_coefficient", g_of(m2.value), (gvals[0], gvals[1]), "N·m",
+                       "gravity coefficient (m1 l1 − m2 l2) g", m2.fitted, m2.identifiable,
+                       m2.advice)
+    return out, gravity, s
+
+
+def _validate(scn, values, logs, seg_samples, delay, start):  # type: ignore[no-untyped-def]
+    """The fitted rig on logs not used for fitting; only the segments' initial states are fitted.
+
+    Returns fit % of the measured angle, the residual RMS [rad] and a whiteness
+    test: the residual's autocorrelation at lags 1 … 20 against ±1.96/√M.
+    """
+    prob = Problem(scn, logs, seg_samples, delay, start, [], values)
+    sol = prob.solve(prob.initial_states())
+    yhat = prob.predict(sol.x)
+    mask = prob.mask
+    r = (prob.y - yhat)[mask]
+    m = len(r)
+    lags = np.arange(1, 21)
+    denom = float(np.dot(r, r)) or 1.0
+    rho = np.array([float(np.dot(r[:-k], r[k:])) / denom for k in lags])
+    band = 1.96 / math.sqrt(m)
+    outside = int(np.sum(np.abs(rho) > band))
+    return {"fit_percent": _fit_percent(prob.y[mask], yhat[mask]),
+            "residual_rms_rad": float(np.sqrt(np.mean(r**2))), "samples": m,
+            "whiteness": {"lags": len(lags), "band": band, "outside": outside,
+                          "max_abs_autocorrelation": float(np.max(np.abs(rho))),
+                          "white": outside <= 2},
+            "_curves": (prob.t, prob.y, np.where(mask, yhat, np.nan), lags, rho, band)}

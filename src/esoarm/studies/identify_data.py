@@ -1,0 +1,191 @@
+"""Logs for identification: reading, checking, and the segment simulator of the fit.
+
+A log is a CSV with at least ``t`` [s, uniform], ``theta`` [rad, measured] and
+``u`` [N·m, the torque applied from that row on] -- the logs of ``esoarm
+excite``, ``esoarm run`` and ``esoarm simulate --out`` all qualify.  With a
+``[motor]`` table the column ``duty`` [counts] is used instead of ``u``.  A row
+whose ``theta`` is ``nan`` is a sample lost on the link (``esoarm run`` logs
+them); it is left out of the residuals.  Any other non-finite value is bad input.
+
+The fit simulates the rig over *segments* of the log (output error with the
+initial state of each segment estimated, a multiple-shooting variant without
+continuity constraints): the arm is nearly neutrally stable, so one open-loop
+simulation over a whole minute would drift away from the data for any error
+in the friction, while a horizon of a few seconds keeps the problem well
+conditioned and still sees every parameter.  The simulator is
+:func:`esoarm.plants.lever_arm.rig_advance` -- the twin's own RK4 integration of the rig --
+compiled with numba, one sample at a time with the input held (SPEC-style
+zero-order hold, transport delay applied to the input sequence).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from esoarm.plants.lever_arm import rig_advance
+from esoarm.scenario import ScenarioError
+
+__all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "read_ident_log", "simulate_segments"]
+
+#: Shortest log accepted [s] and fewest samples.
+MIN_DURATION = 4.0
+MIN_SAMPLES = 150
+#: Largest share of samples with |u| at the torque limit (a saturated log is bad input).
+MAX_SATURATED = 0.25
+#: Largest share of lost samples (theta = nan).
+MAX_LOST = 0.05
+
+
+@dataclass(frozen=True)
+class IdentLog:
+    """One checked log.
+
+    Attributes
+    ----------
+    path : str
+        Where it came from.
+    t, y, u : ndarray (N,)
+        Time [s], measured angle [rad] (nan for a lost sample), torque [N·m].
+    duty : ndarray (N,) or None
+        PWM duty [counts] when the log has a finite ``duty`` column.
+    ts : float
+        Sample period [s].
+    """
+
+    path: str
+    t: np.ndarray
+    y: np.ndarray
+    u: np.ndarray
+    duty: np.ndarray | None
+    ts: float
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return len(self.t)
+
+    def part(self, start: int, stop: int) -> IdentLog:
+        """Rows start … stop−1 as a log of its own."""
+        duty = None if self.duty is None else self.duty[start:stop]
+        return IdentLog(self.path, self.t[start:stop], self.y[start:stop], self.u[start:stop],
+                        duty, self.ts)
+
+
+def read_ident_log(path: str | Path, torque_limit: float, need_duty: bool = False) -> IdentLog:
+    """Read and check one log; raise :class:`ScenarioError` with one line naming the file.
+
+    Checks: the file exists and parses, has columns t, theta, u (and duty when
+    ``need_duty``), no non-finite t or u, a uniform time column, at most
+    :data:`MAX_LOST` lost samples, at least :data:`MIN_DURATION` s and
+    :data:`MIN_SAMPLES` rows, some excitation, and at most :data:`MAX_SATURATED`
+    of the samples at ±``torque_limit`` [N·m].
+    """
+    src = f"log '{path}'"
+    want = ["t", "theta", "u"] + (["duty"] if need_duty else [])
+    try:
+        with open(path, encoding="utf-8", newline="") as fh:
+            reader = csv.reader(fh)
+            header = [h.strip() for h in next(reader, [])]
+            if not header:
+                raise ScenarioError(f"{src}: empty file")
+            missing = [c for c in want if c not in header]
+            if missing:
+                raise ScenarioError(
+                    f"{src}: missing column(s) {', '.join(missing)}; need t [s], theta [rad], "
+                    "u [N·m]" + (" and duty [counts] (the scenario has a [motor] table)"
+                                 if "duty" in missing else ""))
+            cols = [header.index(c) for c in want]
+            rows = []
+            for line_no, row in enumerate(reader, start=2):
+                if not row:
+                    continue
+                try:
+                    rows.append([float(row[i]) for i in cols])
+                except (ValueError, IndexError):
+                    raise ScenarioError(f"{src}: line {line_no}: expected numbers in columns "
+                                        f"{', '.join(want)}") from None
+    except FileNotFoundError:
+        raise ScenarioError(f"{src}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{src}: cannot read: {exc}") from None
+    data = np.array(rows, dtype=float).reshape(-1, len(want))
+    t, y, u = data[:, 0], data[:, 1], data[:, 2]
+    duty = data[:, 3] if need_duty else None
+    bad = ~(np.isfinite(t) & np.isfinite(u) & ~np.isinf(y))
+    if duty is not None:
+        bad |= ~np.isfinite(duty)
+    if bad.any():
+        line = int(np.argmax(bad)) + 2
+        raise ScenarioError(f"{src}: line {line}: non-finite value in t, u" +
+                            (", duty" if need_duty else "") + " (only theta may be nan, "
+                            "for a lost sample)")
+    n = len(t)
+    if n < 2:
+        raise ScenarioError(f"{src}: too short ({n} rows); identification needs at least "
+                            f"{MIN_DURATION:g} s and {MIN_SAMPLES} samples")
+    ts = float(t[1] - t[0])
+    dt = np.diff(t)
+    if not ts > 0 or np.max(np.abs(dt - ts)) > 1e-6 * ts + 1e-12:
+        raise ScenarioError(f"{src}: column t must be uniformly spaced and increasing "
+                            f"(steps from {dt.min():g} to {dt.max():g} s)")
+    if n < MIN_SAMPLES or n * ts < MIN_DURATION:
+        raise ScenarioError(f"{src}: too short ({n} samples, {n * ts:.3g} s); identification "
+                            f"needs at least {MIN_DURATION:g} s and {MIN_SAMPLES} samples")
+    lost = np.isnan(y)
+    if lost[0] or lost.mean() > MAX_LOST:
+        raise ScenarioError(f"{src}: {int(lost.sum())} rows with theta = nan "
+                            f"(at most {MAX_LOST:.0%} lost samples, not the first row)")
+    excitation = duty if duty is not None else u
+    if np.std(excitation) < 1e-9 + 1e-3 * (np.max(np.abs(excitation)) if duty is None else 1):
+        raise ScenarioError(f"{src}: not exciting enough: the input is (nearly) constant; "
+                            "record an experiment with 'esoarm excite'")
+    if np.nanmax(y) - np.nanmin(y) < 1e-3:
+        raise ScenarioError(f"{src}: not exciting enough: the angle moved less than 1e-3 rad; "
+                            "raise the excitation amplitude ('esoarm excite --amplitude')")
+    if duty is None:
+        sat = np.mean(np.abs(u) >= 0.999 * torque_limit)
+        if sat > MAX_SATURATED:
+            raise ScenarioError(
+                f"{src}: saturated: {sat:.0%} of the samples at the torque limit "
+                f"±{torque_limit:g} N·m (at most {MAX_SATURATED:.0%}); lower the excitation "
+                "amplitude")
+    return IdentLog(str(path), t, y, u, duty, ts)
+
+
+def segments(n: int, length: int, start: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Split samples start … n−1 into consecutive segments of ``length`` (last one longer)."""
+    count = max(1, (n - start) // length)
+    starts = start + length * np.arange(count)
+    lens = np.full(count, length)
+    lens[-1] = n - starts[-1]
+    return starts.astype(np.int64), lens.astype(np.int64)
+
+
+@njit(cache=True)
+def simulate_segments(out, rig, src, t, seg_start, seg_len, x0, h, nsub):  # pragma: no cover
+    """Simulated angle θ(t_k) [rad] into ``out`` for every segment.
+
+    Segment s starts at sample ``seg_start[s]`` from θ = x0[2s], θ̇ = x0[2s+1]
+    (the lag state τ from the previous applied torque), and holds the applied
+    torque ``src[k]`` [N·m] over [t_k, t_k + nsub·h) -- the twin's
+    :func:`esoarm.plants.lever_arm.rig_advance`.
+    """
+    for s in range(len(seg_start)):
+        k0 = seg_start[s]
+        theta = x0[2 * s]
+        omega = x0[2 * s + 1]
+        tau = src[k0 - 1] if k0 > 0 else 0.0
+        for j in range(seg_len[s]):
+            k = k0 + j
+            out[k] = theta
+            theta, omega, tau = rig_advance(theta, omega, tau, src[k], t[k], h, nsub, rig)
+            if not math.isfinite(theta):
+                for m in range(k + 1, k0 + seg_len[s]):
+                    out[m] = math.inf
+                break

@@ -1,0 +1,234 @@
+"""The least-squares problem of an identification and its solver.
+
+:class:`Problem` holds one model structure (free parameters, delay) over a
+set of logs: residuals y_k − θ̂(t_k) of the segment simulation
+(:func:`~esoarm.studies.identify_data.simulate_segments`), a finite-difference
+Jacobian, bounds and scales.  :func:`levenberg_marquardt` minimizes it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from esoarm.plants.lever_arm import DAMP, DFREQ, FC, GCOEF, INERTIA, LAG, VECTOR_SIZE, VISC, VS
+from esoarm.plants.model import gravity_coefficient
+from esoarm.scenario import Scenario
+from esoarm.studies.identify_data import IdentLog, segments, simulate_segments
+
+__all__ = ["PARAMS", "Problem", "Solution", "levenberg_marquardt"]
+
+#: Parameters that can be fitted, in order: scenario key -> (label, unit, scale, bounds, advice).
+PARAMS: dict[str, tuple[str, str, float, tuple[float, float], str]] = {
+    "rig.inertia_scale": ("true inertia / plant.inertia", "1", 1.0, (0.02, 50.0),
+                          "more high-frequency torque (raise --f-max or --amplitude)"),
+    "plant.m2": ("lumped mass 2 (gravity coefficient)", "kg", 0.05, (0.0, 50.0),
+                 "a larger, slower angle sweep so that cos θ varies (raise --sweep)"),
+    "rig.coulomb_friction": ("Coulomb friction Fc", "N·m", 0.05, (0.0, 10.0),
+                             "more slow reversals of the rate (lower --f-min, more tones)"),
+    "rig.viscous_friction": ("viscous friction b", "N·m·s/rad", 0.01, (0.0, 10.0),
+                             "a wider range of speeds (raise --amplitude at low frequencies)"),
+    "actuator.lag": ("actuator lag T", "s", 0.01, (0.0, 1.0),
+                     "tones near and above 1/(2πT) (raise --f-max)"),
+    "motor.torque_constant": ("motor torque constant Kt", "N·m/A", 0.02, (1e-6, 10.0),
+                              "more torque amplitude (raise --amplitude)"),
+}
+
+
+class Problem:
+    """Residuals and Jacobian of the segment output-error problem for one structure."""
+
+    def __init__(self, scn: Scenario, logs: list[IdentLog], seg_samples: int, delay: int,
+                 start: int, free: list[str], fixed: dict[str, float]) -> None:
+        self.scn, self.free, self.fixed = scn, free, fixed
+        self.motor = scn.motor
+        ts = logs[0].ts
+        self.h = scn.rig.step
+        self.nsub = max(1, int(round(ts / self.h)))
+        self.h = ts / self.nsub
+        base, ts_all, ys, starts, lens = [], [], [], [], []
+        offset = 0
+        for log in logs:
+            if self.motor is not None:
+                from esoarm.plants.motor import MotorParams
+
+                mp = MotorParams.from_scenario(scn)
+                raw = np.array([mp.effective_fraction(int(d)) for d in log.duty])  # type: ignore
+            else:
+                raw = log.u
+            shifted = np.zeros(log.n)
+            shifted[delay:] = raw[: log.n - delay] if delay else raw
+            base.append(shifted)
+            ts_all.append(log.t)
+            ys.append(log.y)
+            s, ln = segments(log.n, seg_samples, start)
+            starts.append(s + offset)
+            lens.append(ln)
+            offset += log.n
+        self.base = np.concatenate(base)
+        self.t = np.concatenate(ts_all)
+        self.y = np.concatenate(ys)
+        self.seg_start = np.concatenate(starts)
+        self.seg_len = np.concatenate(lens)
+        rows = np.zeros(len(self.y), dtype=bool)
+        for s, ln in zip(self.seg_start, self.seg_len, strict=True):
+            rows[s:s + ln] = True
+        self.mask = rows & np.isfinite(self.y)
+        self.n_phys = len(free)
+        self.n_seg = len(self.seg_start)
+        self._out = np.empty(len(self.y))
+
+    # -- parameters ----------------------------------------------------------
+    def phys(self, x: np.ndarray) -> dict[str, float]:
+        values = dict(self.fixed)
+        values.update(zip(self.free, x[: self.n_phys].tolist(), strict=True))
+        return values
+
+    def rig_and_source(self, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        scn = self.scn
+        p, r = scn.plant, scn.rig
+        rig = np.empty(VECTOR_SIZE)
+        rig[INERTIA] = values["rig.inertia_scale"] * p.inertia
+        rig[GCOEF] = gravity_coefficient(p.m1, values["plant.m2"], p.l1, p.l2, p.g)
+        rig[FC] = values["rig.coulomb_friction"]
+        rig[VS] = r.friction_velocity
+        rig[VISC] = values["rig.viscous_friction"]
+        rig[DAMP] = r.disturbance.amplitude
+        rig[DFREQ] = r.disturbance.frequency
+        rig[LAG] = values["actuator.lag"]
+        src = self.base
+        if self.motor is not None:
+            m = self.motor
+            nkt = m.gear_ratio * values["motor.torque_constant"]
+            src = self.base * (nkt * m.supply_voltage / m.resistance)
+            rig[VISC] += nkt * nkt / m.resistance
+        return rig, src
+
+    def initial_states(self) -> np.ndarray:
+        x0 = np.empty(2 * self.n_seg)
+        y, ts = self.y, self.t[1] - self.t[0]
+        for s, k0 in enumerate(self.seg_start):
+            window = y[k0:k0 + 5]
+            good = np.isfinite(window)
+            x0[2 * s] = window[good][0] if good.any() else 0.0
+            x0[2 * s + 1] = (np.polyfit(np.arange(5)[good] * ts, window[good], 1)[0]
+                             if good.sum() >= 2 else 0.0)
+        return x0
+
+    # -- model ---------------------------------------------------------------
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        rig, src = self.rig_and_source(self.phys(x))
+        out = self._out
+        simulate_segments(out, rig, src, self.t, self.seg_start, self.seg_len,
+                          np.ascontiguousarray(x[self.n_phys:]), self.h, self.nsub)
+        return out.copy()
+
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        r = (self.predict(x) - self.y)[self.mask]
+        return np.where(np.isfinite(r), r, 1e3)
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        base = self.predict(x)
+        cols = np.zeros((len(self.y), len(x)))
+        scales = self.scales()
+        for i in range(self.n_phys):
+            step = 1e-6 * max(abs(x[i]), scales[i])
+            if x[i] + step > PARAMS[self.free[i]][3][1]:
+                step = -step
+            xp = x.copy()
+            xp[i] += step
+            cols[:, i] = (self.predict(xp) - base) / step
+        seg_of = np.repeat(np.arange(self.n_seg), self.seg_len)
+        rows = np.concatenate([np.arange(s, s + n) for s, n in zip(self.seg_start, self.seg_len,
+                                                                   strict=True)])
+        for j, step in ((0, 1e-6), (1, 1e-5)):
+            xp = x.copy()
+            xp[self.n_phys + j::2] += step
+            diff = (self.predict(xp) - base) / step
+            cols[rows, self.n_phys + 2 * seg_of + j] = diff[rows]
+        jac = cols[self.mask]
+        return np.where(np.isfinite(jac), jac, 0.0)
+
+    def scales(self) -> np.ndarray:
+        phys = [PARAMS[k][2] for k in self.free]
+        return np.array(phys + [0.1, 1.0] * self.n_seg)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = [PARAMS[k][3][0] for k in self.free] + [-np.inf] * (2 * self.n_seg)
+        hi = [PARAMS[k][3][1] for k in self.free] + [np.inf] * (2 * self.n_seg)
+        if "actuator.lag" in self.free:
+            lo[self.free.index("actuator.lag")] = 2.0 * self.h  # RK4 needs T ≳ 2h
+        return np.array(lo), np.array(hi)
+
+    def solve(self, x_start: np.ndarray, max_iter: int = 60) -> Solution:
+        """Projected Levenberg-Marquardt from ``x_start`` (see :func:`levenberg_marquardt`)."""
+        lo, hi = self.bounds()
+        return levenberg_marquardt(self.residual, self.jacobian, np.clip(x_start, lo, hi), lo,
+                                    hi, max_iter)
+
+
+@dataclass
+class Solution:
+    x: np.ndarray
+    fun: np.ndarray
+    jac: np.ndarray
+    cost: float  # ½‖r‖²
+    converged: bool
+    iterations: int
+    message: str
+
+
+def levenberg_marquardt(fun, jac, x, lo, hi, max_iter):  # type: ignore[no-untyped-def]
+    """Levenberg-Marquardt with Marquardt's diagonal scaling, steps projected on the bounds.
+
+    Written out (instead of scipy's trust-region solvers) because the problem is
+    small in columns and long in rows: the normal equations are formed once per
+    iteration in O(M P²), with no SVD of the M × P Jacobian.  Stops when an
+    iteration moves every parameter by less than 1 % of its standard error
+    (or lowers the cost by less than 1e-12 relative), or when no damping gives
+    a decrease.
+    """
+    r = fun(x)
+    cost = float(r @ r)
+    lam = 1e-3
+    it = 0
+    message = "iteration limit reached"
+    converged = False
+    for it in range(1, max_iter + 1):  # noqa: B007
+        J = jac(x)
+        A = J.T @ J
+        g = J.T @ r
+        d = np.maximum(np.diag(A), 1e-12 * max(float(np.max(np.diag(A))), 1e-300))
+        while True:
+            try:
+                step = np.linalg.solve(A + lam * np.diag(d), -g)
+            except np.linalg.LinAlgError:
+                step = np.full_like(x, np.nan)
+            xn = np.clip(x + step, lo, hi)
+            rn = fun(xn) if np.all(np.isfinite(xn)) else np.full_like(r, np.inf)
+            cn = float(rn @ rn)
+            if np.isfinite(cn) and cn <= cost:
+                break
+            lam *= 4.0
+            if lam > 1e12:
+                break
+        if not (np.isfinite(cn) and cn <= cost):
+            converged = True  # no damping lowers the cost: a (local) minimum
+            message = "no further decrease"
+            break
+        # stop when the step is a hundredth of a standard error (its statistical size)
+        s2 = cn / max(len(r) - len(x), 1)
+        try:
+            se = np.sqrt(np.maximum(s2 * np.diag(np.linalg.inv(A)), 0.0))
+        except np.linalg.LinAlgError:
+            se = np.abs(x) + 1e-8
+        small_step = bool(np.all(np.abs(xn - x) <= 1e-2 * se + 1e-14))
+        small_drop = cost - cn <= 1e-12 * cost
+        x, r, cost = xn, rn, cn
+        lam = max(lam / 3.0, 1e-9)
+        if small_step or small_drop:
+            converged = True
+            message = "converged"
+            break
+    return Solution(x, r, jac(x), 0.5 * cost, converged, it, message)
