@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import click
@@ -16,6 +18,7 @@ from esoarm.cli._common import (
     resolve_scenario,
     scenario_argument,
     set_option,
+    stderr_is_tty,
 )
 
 
@@ -85,13 +88,17 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
     from esoarm.studies.sweep import parse_vary
 
     spec = parse_vary(vary, scn)
-    points = []
-    for value in spec.values:
+    scenarios = []
+    for value in spec.values:  # validate every point before any work
         try:
-            point = scn.with_overrides({spec.key: value})
+            scenarios.append(scn.with_overrides({spec.key: value}))
         except ScenarioError as exc:
             raise BadInput(f"--vary {spec.key}={value!r}: {exc}") from None
-        points.append(run_analysis(point, theta0=theta0, friction=friction))
+    points = []
+    with _progress(len(scenarios)) as advance:
+        for point in scenarios:
+            points.append(run_analysis(point, theta0=theta0, friction=friction))
+            advance()
     if plot_path is not None:
         from esoarm.studies.frequency_plots import figure_vary
 
@@ -103,6 +110,21 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
     _print_vary(spec.key, spec.values, points)
     if plot_path is not None:
         click.echo(f"figure: {plot_path}")
+
+
+@contextmanager
+def _progress(total: int) -> Iterator[Callable[[], None]]:
+    """A progress bar on stderr when it is a terminal; silent otherwise."""
+    if not stderr_is_tty():
+        yield lambda: None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+    with Progress(TextColumn("analyzing"), BarColumn(), MofNCompleteColumn(),
+                  console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task("", total=total)
+        yield lambda: bar.advance(task)
 
 
 def _f(v: float, spec: str) -> str:
