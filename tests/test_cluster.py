@@ -89,9 +89,10 @@ def test_dask_rows_identical_to_in_process(scheduler: str) -> None:
     np.testing.assert_array_equal(remote2.values, local.values)
 
 
-def test_cli_scheduler_same_csv(scheduler: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize("engine", ["exact", "fast"])
+def test_cli_scheduler_same_csv(scheduler: str, tmp_path: Path, engine: str) -> None:
     args = ["sweep", "test-2", "--vary", "observer.eps=0.05,0.09,0.2", "--seeds", "4",
-            "--set", "duration=2.0"]
+            "--set", "duration=2.0", "--engine", engine]
     here, there = tmp_path / "here.csv", tmp_path / "there.csv"
     r1 = CliRunner().invoke(cli, [*args, "--out", str(here)])
     r2 = CliRunner().invoke(cli, [*args, "--out", str(there), "--scheduler", scheduler,

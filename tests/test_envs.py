@@ -20,6 +20,7 @@ SIMULATED = [
     ("test-2", {"observer.discretization": "current", "controller.compensation": "model",
                 "actuator.lag": 0.02, "actuator.delay_samples": 2}),
     ("test-1", {"actuator.torque_limit": 0.3, "duration": 6.0}),  # saturating
+    ("test-2", {"rig.stiction": 0.05, "duration": 8.0}),  # Stribeck friction
 ]
 
 

@@ -8,11 +8,42 @@ Quick start::
     result.plot("run.png")
 """
 
-from esoarm.engines.simulation import SimulationDiverged, simulate
-from esoarm.result import SimResult
-from esoarm.scenario import Scenario, ScenarioError, builtin_names, load_scenario
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from esoarm.engines.simulation import SimulationDiverged, simulate
+    from esoarm.result import SimResult
+    from esoarm.scenario import Scenario, ScenarioError, builtin_names, load_scenario
 
 __version__ = "0.1.0"
+
+# Imported on first use (PEP 562), so that ``import esoarm`` -- and every
+# ``esoarm`` command -- starts without loading NumPy, pydantic or numba.
+_LAZY = {
+    "SimulationDiverged": "esoarm.engines.simulation",
+    "simulate": "esoarm.engines.simulation",
+    "SimResult": "esoarm.result",
+    "Scenario": "esoarm.scenario",
+    "ScenarioError": "esoarm.scenario",
+    "builtin_names": "esoarm.scenario",
+    "load_scenario": "esoarm.scenario",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'esoarm' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_LAZY])
 
 __all__ = [
     "Scenario",

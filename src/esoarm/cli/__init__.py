@@ -34,11 +34,51 @@ COMMANDS: dict[str, str] = {
 }
 
 
+# name -> the command's one-line summary, shown by `esoarm --help` without
+# importing the command (tests/test_cli_startup.py checks they match the
+# commands' own help). A command missing here is imported to ask it.
+SUMMARIES: dict[str, str] = {
+    "analyze": "Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.",
+    "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",
+    "excite": "Record an identification experiment on the rig at PORT or on the twin of "
+              "SCENARIO.",
+    "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "
+                "error).",
+    "replay": "Run the ESO offline over LOG.csv to recover velocity and perturbation estimates.",
+    "reproduce": "Run the paper's experiments on the digital twin and compare with its tables.",
+    "run": "Drive the rig on PORT through SCENARIO at its rate for its duration.",
+    "scenarios": "List the built-in scenarios.",
+    "show": "Print the fully resolved SCENARIO as TOML (every key, defaults filled in).",
+    "simulate": "Simulate SCENARIO (a built-in name or a TOML file) on the digital twin.",
+    "sweep": "Sweep SCENARIO over a grid of parameters × noise seeds (compiled engine).",
+    "tune": "Tune keys of SCENARIO to minimize an objective (SciPy differential evolution).",
+}
+
+
 class LazyGroup(click.Group):
     """A click group that imports each subcommand's module on first use."""
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(COMMANDS)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The command list of ``--help`` from :data:`SUMMARIES` (no subcommand imported)."""
+        names = self.list_commands(ctx)
+        if not names:
+            return
+        limit = formatter.width - 6 - max(len(n) for n in names)
+        rows = []
+        for name in names:
+            summary = SUMMARIES.get(name)
+            if summary is None:
+                cmd = self.get_command(ctx, name)
+                if cmd is None or cmd.hidden:
+                    continue
+                rows.append((name, cmd.get_short_help_str(limit)))
+            else:
+                rows.append((name, click.utils.make_default_short_help(summary, limit)))
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         target = COMMANDS.get(cmd_name)

@@ -7,11 +7,12 @@ import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from esoarm.scenario import Scenario, ScenarioError, ScenarioWarning, load_scenario
+if TYPE_CHECKING:  # imported where used: `esoarm --help` must not load pydantic
+    from esoarm.scenario import Scenario
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -38,6 +39,8 @@ class RunFailure(click.ClickException):
 
 def show_warning(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
     """Print warnings as one line on stderr (ScenarioWarning without a location)."""
+    from esoarm.scenario import ScenarioWarning
+
     if issubclass(category, ScenarioWarning):
         click.echo(f"esoarm: warning: {message}", err=True)
     else:
@@ -49,6 +52,8 @@ def bad_input_guard(func: F) -> F:
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
+        from esoarm.scenario import ScenarioError
+
         try:
             return func(*args, **kwargs)
         except ScenarioError as exc:
@@ -76,8 +81,9 @@ def scenario_argument(func: F) -> F:
 
 def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scenario:
     """Load a scenario with overrides and print its warnings (one line each)."""
+    from esoarm.scenario import ScenarioWarning, load_scenario, scenario_warnings
+
     scn = load_scenario(name, list(overrides))
-    from esoarm.scenario import scenario_warnings
 
     for msg in scenario_warnings(scn):
         warnings.warn(msg, ScenarioWarning, stacklevel=2)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -51,16 +52,38 @@ def _progress(total: int, label: str, unit: str) -> Iterator[Callable[[int], Non
         BarColumn,
         MofNCompleteColumn,
         Progress,
+        ProgressColumn,
         TextColumn,
         TimeElapsedColumn,
         TimeRemainingColumn,
     )
+    from rich.text import Text
+
+    class Rate(ProgressColumn):
+        """Runs (generations) per second so far."""
+
+        def render(self, task: Any) -> Text:
+            speed = task.finished_speed or task.speed
+            return Text(f"{speed:,.0f} {unit}/s" if speed else f"- {unit}/s")
 
     with Progress(TextColumn(f"{label}"), BarColumn(), MofNCompleteColumn(),
-                  TextColumn(unit), TimeElapsedColumn(), TimeRemainingColumn(),
+                  TextColumn(unit), Rate(), TimeElapsedColumn(), TextColumn("ETA"),
+                  TimeRemainingColumn(),
                   console=Console(stderr=True), transient=True) as bar:
         task = bar.add_task(label, total=total)
         yield lambda n: bar.advance(task, n)
+
+
+def _check_engine(engine: str, scn: Any) -> None:
+    """--engine fast on a scenario it does not model is bad input (one line)."""
+    if engine != "fast":
+        return
+    from esoarm.engines.fast import unsupported
+
+    why = unsupported(scn)
+    if why is not None:
+        raise BadInput(f"--engine fast: scenario '{scn.name}' has {why}, which the fast engine "
+                       "does not model; use --engine exact")
 
 
 def _fmt(value: Any) -> str:
@@ -88,9 +111,15 @@ def _fmt(value: Any) -> str:
               "max_abs_error [rad], max_abs_u [N·m], rms_f_error [rad/s²], samples, diverged.")
 @click.option("--plot", "plot", metavar="FILE.png",
               help="Draw RMS error [rad] and RMS control [N·m] against the varied key with the "
-              "spread over seeds, or heat maps for two varied keys (.png, .pdf or .svg).")
+              "spread over seeds, or heat maps for two varied keys (.png, .pdf or .svg). "
+              "Keeps every row in memory.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print a JSON summary: runs, seconds, best grid points (seed means).")
+@click.option("--engine", "engine", type=click.Choice(["exact", "fast"]), default="exact",
+              show_default=True,
+              help="exact: bit-identical to `esoarm simulate`. fast: vectorized C kernel built on "
+              "first use with the system C compiler, agrees to relative 1e-9 (see the "
+              "benchmarks page); falls back to exact with a warning where no compiler works.")
 @click.option("--workers", "workers", type=int, default=None, metavar="N",
               help="Threads (cores) in this process [default: all]; with --scheduler, numba "
               "threads per Dask task [default: 1].")
@@ -104,19 +133,22 @@ def _fmt(value: Any) -> str:
               "Does not change the results.")
 @bad_input_guard
 def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seeds: int,
-          out: str | None, plot: str | None, as_json: bool, workers: int | None,
+          out: str | None, plot: str | None, as_json: bool, engine: str, workers: int | None,
           scheduler: str | None, chunk: int | None) -> None:
     """Sweep SCENARIO over a grid of parameters × noise seeds (compiled engine).
 
-    Every run follows the SPEC §2 closed loop exactly (same numbers as
-    `esoarm simulate`); only metrics are kept. Ctrl-C stops the sweep and keeps
+    Every run follows the sampled-data closed loop exactly (same numbers as
+    `esoarm simulate`; --engine fast: to round-off); only metrics are kept.
+    Rows reach --out as chunks finish, so memory does not grow with the number
+    of runs (except with --plot). Ctrl-C (or SIGTERM) stops the sweep and keeps
     the finished rows in --out. Example:
 
     \b
       esoarm sweep test-1 --vary observer.eps=geom:0.03:0.3:100 --seeds 20 --out eps.csv
     """
     from esoarm.scenario import load_scenario
-    from esoarm.studies.sweep import ClusterError, SweepResult, build_grid, run_sweep
+    from esoarm.studies import sweep as sweep_mod
+    from esoarm.studies.sweep import ClusterError, SweepResult, SweepWriter, build_grid
 
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
@@ -129,45 +161,77 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
     if plot_path is not None and len(grid.vary) > 2:
         raise BadInput(f"--plot draws one or two varied keys; this sweep varies {len(grid.vary)}")
     _warn_grid(grid.warnings())
+    _check_engine(engine, grid.points[0] if len(grid.points) else base)
 
-    result = SweepResult.empty(grid)
+    # rows go to --out as chunks finish, so memory does not grow with the runs
+    # (only --plot keeps every row: it draws them all)
+    writer = SweepWriter(grid, out_path)
+    kept = SweepResult.empty(grid) if plot_path is not None else None
+    start = time.perf_counter()
     try:
-        with _progress(grid.n_runs, "sweep", "runs") as advance:
-            run_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk, progress=advance,
-                      result=result)
+        with _progress(grid.n_runs, "sweep", "runs") as advance, _sigterm_as_interrupt():
+            for first, values in sweep_mod.iter_sweep(grid, workers=workers,
+                                                      scheduler=scheduler, chunk=chunk,
+                                                      engine=engine):
+                writer.add(first, values)
+                if kept is not None:
+                    kept.add(first, values)
+                advance(len(values))
     except KeyboardInterrupt:
-        kept = _keep_partial(result, out_path)
-        click.echo(f"esoarm: interrupted: {result.n_done} of {grid.n_runs} runs finished{kept}",
-                   err=True)
+        click.echo(f"esoarm: interrupted: {writer.n_done} of {grid.n_runs} runs finished"
+                   f"{_keep_partial(writer, out_path)}", err=True)
         raise click.exceptions.Exit(INTERRUPTED) from None
     except ClusterError as exc:
-        kept = _keep_partial(result, out_path)
-        raise RunFailure(f"{exc}{kept}") from None
-
-    if out_path is not None:
-        result.write_csv(out_path)
-    if plot_path is not None:
+        raise RunFailure(f"{exc}{_keep_partial(writer, out_path)}") from None
+    except ValueError as exc:  # e.g. a grid point the fast engine does not model
+        writer.discard()
+        raise BadInput(str(exc)) from None
+    except BaseException:
+        writer.discard()
+        raise
+    writer.seconds = time.perf_counter() - start
+    writer.close()
+    if plot_path is not None and kept is not None:
         from esoarm.studies.sweep_plots import figure_sweep
 
-        figure_sweep(result, plot_path)
-    diverged = int(result.values[:, -1].sum())
-    if diverged:
-        click.echo(f"esoarm: warning: {diverged} of {grid.n_runs} runs diverged "
+        figure_sweep(kept, plot_path)
+    if writer.diverged:
+        click.echo(f"esoarm: warning: {writer.diverged} of {grid.n_runs} runs diverged "
                    "(diverged = 1 in the CSV; their metrics cover the samples up to divergence)",
                    err=True)
     if as_json:
-        click.echo(json.dumps(_summary(result, out_path, plot_path, diverged)))
+        click.echo(json.dumps(_summary(writer, out_path, plot_path, writer.diverged)))
         return
-    _print_sweep(result, diverged)
+    _print_sweep(writer, writer.diverged)
     for label, path in (("table", out_path), ("figure", plot_path)):
         if path is not None:
             click.echo(f"{label}: {path}")
 
 
-def _keep_partial(result: Any, out_path: Path | None) -> str:
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (kill, a batch scheduler's time limit) stops a sweep like Ctrl-C does."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    saved = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, saved)
+
+
+def _keep_partial(writer: Any, out_path: Path | None) -> str:
     if out_path is None:
         return " (no --out given, nothing kept)"
-    rows = result.write_csv(out_path)
+    rows = writer.close(complete=False)
     return f"; the {rows} finished rows are in {out_path}"
 
 
@@ -248,6 +312,11 @@ def _print_sweep(result: Any, diverged: int) -> None:
               help="Differential-evolution generations at most.")
 @click.option("--popsize", "popsize", type=int, default=10, show_default=True,
               help="Population per tuned key.")
+@click.option("--engine", "engine", type=click.Choice(["exact", "fast"]), default="exact",
+              show_default=True,
+              help="exact: bit-identical to `esoarm simulate`. fast: vectorized C kernel built on "
+              "first use with the system C compiler, agrees to relative 1e-9 (see the "
+              "benchmarks page); falls back to exact with a warning where no compiler works.")
 @click.option("--workers", "workers", type=int, default=None, metavar="N",
               help="Threads (cores) [default: all].")
 @click.option("--out", "out", metavar="FILE.csv",
@@ -261,7 +330,7 @@ def _print_sweep(result: Any, diverged: int) -> None:
 @bad_input_guard
 def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
          objective: str | None, weight: float | None, seeds: int, robust: tuple[str, ...],
-         samples: int, seed: int, maxiter: int, popsize: int, workers: int | None,
+         samples: int, seed: int, maxiter: int, popsize: int, engine: str, workers: int | None,
          out: str | None, plot: str, no_plot: bool, as_json: bool) -> None:
     """Tune keys of SCENARIO to minimize an objective (SciPy differential evolution).
 
@@ -295,17 +364,18 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     if not bounds:
         raise BadInput("--vary: give at least one KEY=LOW:HIGH to tune, "
                        "e.g. --vary observer.eps=0.02:0.3")
+    _check_engine(engine, base)
     try:
         with _progress(maxiter, "tune", "generations") as advance:
             res = run_tune(base, bounds, objective=obj, seeds=seeds, robust=rob,
                            samples=samples, seed=seed, maxiter=maxiter, popsize=popsize,
-                           workers=workers, progress=advance)
+                           workers=workers, progress=advance, engine=engine)
     except KeyboardInterrupt:
         click.echo("esoarm: interrupted: tuning stopped, nothing written", err=True)
         raise click.exceptions.Exit(INTERRUPTED) from None
 
     if out_path is not None:
-        from esoarm.studies.sweep import write_rows_atomic
+        from esoarm.studies.sweep_output import write_rows_atomic
 
         header = list(res.evaluations[0]) if res.evaluations else list(res.keys)
         write_rows_atomic(out_path, header, iter([list(r.values()) for r in res.evaluations]))

@@ -44,8 +44,10 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from esoarm import _jit
 from esoarm.controllers import flc as _controller
 from esoarm.controllers.flc import flc_control
+from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache
 from esoarm.engines.simulation import (
     SimulationDiverged,
     diverged_message,
@@ -56,9 +58,11 @@ from esoarm.observers import linear as _observer
 from esoarm.observers.linear import eso_advance, eso_estimate
 from esoarm.plants import lever_arm as _rig
 from esoarm.plants.lever_arm import applied_torque, rig_acceleration, rig_advance
-from esoarm.plants.sensor import measure, noise_sequence
+from esoarm.plants.sensor import measure
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario
+
+_jit.register_all()  # the physics above becomes callable from the kernels below
 
 __all__ = [
     "METRICS",
@@ -68,18 +72,6 @@ __all__ = [
     "simulate_many",
 ]
 
-#: Metric columns of :func:`run_metrics`, in order.
-#:
-#: ``rms_error`` [rad], ``rms_u`` [N·m], ``max_abs_error`` [rad] as SPEC §2;
-#: ``max_abs_u`` [N·m] the largest |u_k|; ``rms_f_error`` [rad/s²] the RMS
-#: error of the ESO's perturbation estimate, sqrt(mean((ẑ3_k − f_k)²));
-#: ``samples`` the number of samples logged (N, or fewer for a diverged run);
-#: ``diverged`` 1.0 if the run left the finite range (metrics then cover the
-#: samples logged up to and including the one that diverged, exactly like the
-#: partial result of :class:`~esoarm.engines.simulation.SimulationDiverged`), else 0.0.
-METRICS: tuple[str, ...] = (
-    "rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error", "samples", "diverged",
-)
 _NMETRIC = len(METRICS)
 
 # rows of the (9, N) log: theta, theta_ref, error, u, z1, z2, z3, f_true, omega
@@ -89,7 +81,7 @@ _THETA0, _SIGMA, _Q, _H, _TS, _B0 = range(6)
 _N, _NSUB, _DELAY, _REFIDX = range(4)
 
 # _closed_loop unpacks the parameter vectors into tuples of these lengths
-if (_rig.VECTOR_SIZE, _observer.VECTOR_SIZE, _controller.VECTOR_SIZE) != (8, 21, 6):
+if (_rig.VECTOR_SIZE, _observer.VECTOR_SIZE, _controller.VECTOR_SIZE) != (10, 21, 6):
     raise ImportError(  # pragma: no cover - guards a core change
         "esoarm.engines.batch: the packed rig/observer/controller vectors changed size; "
         "update the tuple unpacking in esoarm.engines.batch._closed_loop"
@@ -112,6 +104,20 @@ def _physics_stamp() -> str:
     for name in _PHYSICS_MODULES:
         digest.update((root / f"{name}.py").read_bytes())
     return digest.hexdigest()
+
+
+#: Source files whose numba kernels are cached under the physics stamp (this one, and any
+#: module that calls :func:`cover_with_physics_stamp`).
+_COVERED_FILES: set[str] = {os.path.realpath(__file__)}
+
+
+def cover_with_physics_stamp(path: str) -> None:
+    """Key the on-disk cache of the numba kernels defined in ``path`` on the physics too.
+
+    For modules outside the engines whose kernels call the physics functions
+    (e.g. the identification's segment simulator); call before the first use.
+    """
+    _COVERED_FILES.add(os.path.realpath(path))
 
 
 def _install_cache_locator() -> None:
@@ -137,7 +143,6 @@ def _install_cache_locator() -> None:
              first("UserWideCacheLocator", "_UserWideCacheLocator")]
     if impl is None or None in bases or not hasattr(impl, "_locator_classes"):
         return  # pragma: no cover
-    this_file = os.path.realpath(__file__)
     stamp = _physics_stamp()
 
     def make(base: type) -> type:
@@ -147,7 +152,7 @@ def _install_cache_locator() -> None:
 
             @classmethod
             def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
-                if os.path.realpath(py_file) != this_file:
+                if os.path.realpath(py_file) not in _COVERED_FILES:
                     return None
                 return super().from_function(py_func, py_file)
 
@@ -179,7 +184,7 @@ def _closed_loop(log, n, theta0, noise, sigma, q, tref, dref, ddref, rig, obs, c
     """
     # the packed parameter vectors as tuples: the physics functions index them
     # exactly like arrays, but tuples live in registers (no reference counting)
-    rig = (rig[0], rig[1], rig[2], rig[3], rig[4], rig[5], rig[6], rig[7])
+    rig = (rig[0], rig[1], rig[2], rig[3], rig[4], rig[5], rig[6], rig[7], rig[8], rig[9])
     ctl = (ctl[0], ctl[1], ctl[2], ctl[3], ctl[4], ctl[5])
     obs = (obs[0], obs[1], obs[2], obs[3], obs[4], obs[5], obs[6], obs[7], obs[8], obs[9],
            obs[10], obs[11], obs[12], obs[13], obs[14], obs[15], obs[16], obs[17], obs[18],
@@ -376,22 +381,9 @@ class _Pack:
                 self.ctl, self.refs, self.noises)
 
 
-class _NoiseCache:
-    """Standard-normal sequences, drawn once per (seed, N) (SPEC §2 noise)."""
-
-    def __init__(self) -> None:
-        self._store: dict[tuple[int, int], np.ndarray] = {}
-
-    def get(self, seed: int, n: int, noise_deg: float) -> tuple[tuple[int, int], np.ndarray]:
-        key = (seed, n) if noise_deg > 0 else (-1, n)
-        if key not in self._store:
-            self._store[key] = noise_sequence(seed, n, noise_deg)
-        return key, self._store[key]
-
-
 def _point_arrays(scn: Scenario) -> tuple[np.ndarray, ...]:
     """(fpar, ipar-without-ref, rig, obs, ctl, ref arrays) of one scenario via prepare()."""
-    inp = prepare(scn, draw_noise=False)  # noise is drawn once per seed (_NoiseCache)
+    inp = prepare(scn, draw_noise=False)  # noise is drawn once per seed (NoiseCache)
     fpar = np.array([inp.theta0, inp.sigma, inp.q, inp.h, scn.sample_time, inp.b0])
     ipar = np.array([len(inp.t), inp.nsub, inp.delay], dtype=np.int64)
     return fpar, ipar, inp.rig, inp.obs, inp.ctl, np.stack(
@@ -399,9 +391,9 @@ def _point_arrays(scn: Scenario) -> tuple[np.ndarray, ...]:
 
 
 def _pack(points: Sequence[Scenario], runs: Sequence[tuple[int, int]],
-          noise_cache: _NoiseCache | None = None) -> _Pack:
+          noise_cache: NoiseCache | None = None) -> _Pack:
     """Pack ``points`` and ``runs`` = [(point index, seed), ...] for the kernels."""
-    noise_cache = noise_cache or _NoiseCache()
+    noise_cache = noise_cache or NoiseCache()
     p = len(points)
     fpar = np.empty((p, 6))
     ipar = np.empty((p, 4), dtype=np.int64)
@@ -462,30 +454,6 @@ class _threads:
 # public API
 
 
-@dataclass(frozen=True)
-class MetricsTable:
-    """Metrics of many runs: ``values[i]`` is run i, columns :data:`METRICS`.
-
-    Attributes
-    ----------
-    values : ndarray, shape (R, len(METRICS))
-        One row per run, in run order.
-    """
-
-    values: np.ndarray
-
-    def column(self, name: str) -> np.ndarray:
-        """One metric for every run (see :data:`METRICS` for names and units)."""
-        return self.values[:, METRICS.index(name)]
-
-    def row(self, i: int) -> dict[str, float]:
-        """Metrics of run ``i`` as a dict."""
-        return {name: float(v) for name, v in zip(METRICS, self.values[i], strict=True)}
-
-    def __len__(self) -> int:
-        return int(self.values.shape[0])
-
-
 def run_metrics(
     points: Sequence[Scenario],
     seeds: Sequence[int] | None = None,
@@ -493,7 +461,7 @@ def run_metrics(
     workers: int | None = None,
     chunk: int = DEFAULT_CHUNK,
     progress: Callable[[int], None] | None = None,
-    _noise_cache: _NoiseCache | None = None,
+    _noise_cache: NoiseCache | None = None,
 ) -> MetricsTable:
     """Run every point (× every seed) and keep only the metrics of each run.
 
@@ -522,7 +490,7 @@ def run_metrics(
     else:
         runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
     out = np.empty((len(runs), _NMETRIC))
-    noise_cache = _noise_cache or _NoiseCache()
+    noise_cache = _noise_cache or NoiseCache()
     with _threads(workers):
         for start in range(0, len(runs), chunk):
             part = runs[start : start + chunk]
@@ -570,7 +538,7 @@ def simulate_many(
         result and the reference engine's message.
     """
     results: list[SimResult] = []
-    noise_cache = _NoiseCache()
+    noise_cache = NoiseCache()
     scenarios = list(scenarios)
     with _threads(workers):
         for start in range(0, len(scenarios), chunk):

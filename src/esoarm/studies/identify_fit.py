@@ -8,11 +8,24 @@ Jacobian, bounds and scales.  :func:`levenberg_marquardt` minimizes it.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
 
-from esoarm.plants.lever_arm import DAMP, DFREQ, FC, GCOEF, INERTIA, LAG, VECTOR_SIZE, VISC, VS
+from esoarm.plants.lever_arm import (
+    DAMP,
+    DFREQ,
+    FC,
+    FST,
+    GCOEF,
+    INERTIA,
+    LAG,
+    VECTOR_SIZE,
+    VISC,
+    VS,
+    VST,
+)
 from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario
 from esoarm.studies.identify_data import IdentLog, segments, simulate_segments
@@ -79,6 +92,13 @@ class Problem:
         self.n_seg = len(self.seg_start)
         self._out = np.empty(len(self.y))
 
+    def with_fixed(self, changes: dict[str, float]) -> Problem:
+        """The same problem (data, segments, delay) with some held values changed."""
+        other = copy.copy(self)
+        other.fixed = {**self.fixed, **changes}
+        other._out = np.empty(len(self.y))
+        return other
+
     # -- parameters ----------------------------------------------------------
     def phys(self, x: np.ndarray) -> dict[str, float]:
         values = dict(self.fixed)
@@ -97,6 +117,8 @@ class Problem:
         rig[DAMP] = r.disturbance.amplitude
         rig[DFREQ] = r.disturbance.frequency
         rig[LAG] = values["actuator.lag"]
+        rig[FST] = r.stiction  # held at the scenario's value
+        rig[VST] = r.stribeck_velocity
         src = self.base
         if self.motor is not None:
             m = self.motor

@@ -19,8 +19,9 @@ Plant (sample-to-sample, exact)
       moves (|θ̇| ≫ vs) the Coulomb torque is a bounded input disturbance that
       the ESO estimates, not a damping; this is the least damped, conservative
       model.
-    - ``"slope"``: c = b + Fc/vs, the tanh slope at zero speed (small motions
-      about rest; with the defaults c = 5.01 N·m·s/rad, a strongly damped arm).
+    - ``"slope"``: c = b + (Fc + Fst)/vs, the slope of the friction curve
+      (Fc + Fst e^{−(θ̇/vst)²}) tanh(θ̇/vs) at zero speed (small motions about
+      rest; with the defaults c = 5.01 N·m·s/rad, a strongly damped arm).
     - ``"none"``: c = 0, a frictionless arm.
 
     The actuator lag T adds the state τ (τ̇ = (u − τ)/T); the command is held
@@ -112,7 +113,8 @@ def continuous_plant(scn: Scenario, theta0: float, friction: str = "viscous"
     gcoef = gravity_coefficient(p.m1, p.m2, p.l1, p.l2, p.g)
     spring = gcoef * math.sin(theta0)  # −∂G/∂θ at θ0 [N·m/rad]
     damping = {"viscous": r.viscous_friction,
-               "slope": r.viscous_friction + r.coulomb_friction / r.friction_velocity,
+               "slope": r.viscous_friction
+               + (r.coulomb_friction + r.stiction) / r.friction_velocity,
                "none": 0.0}[friction]
     lag = scn.actuator.lag
     if lag > 0:

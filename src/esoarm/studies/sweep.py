@@ -9,7 +9,7 @@ each grid point with ``sensor.seed`` = 0 … K−1 (seed fastest).  SPEC is
 * ``lin:START:STOP:NUM`` -- ``numpy.linspace(START, STOP, NUM)``,
 * ``geom:START:STOP:NUM`` -- ``numpy.geomspace(START, STOP, NUM)``.
 
-Only metrics are kept (:data:`esoarm.engines.batch.METRICS`), so memory does not grow
+Only metrics are kept (:data:`esoarm.engines.metrics.METRICS`), so memory does not grow
 with runs × samples.  The work is cut into chunks of whole grid points; chunks
 run in this process on all cores (numba threads) or, given a scheduler
 address, as tasks on a Dask distributed cluster.  Every run is independent and
@@ -19,25 +19,25 @@ chunking and the number of workers.
 
 from __future__ import annotations
 
-import csv
 import itertools
 import math
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from esoarm._io import atomic_path
-from esoarm.engines.batch import METRICS, _NoiseCache, run_metrics
+from esoarm.engines.metrics import MetricsTable, NoiseCache, reference_metrics
 from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
+from esoarm.studies.sweep_output import SweepResult, SweepWriter
 
 __all__ = [
+    "ENGINES",
     "SweepGrid",
     "SweepResult",
+    "SweepWriter",
     "VarySpec",
     "build_grid",
     "iter_sweep",
@@ -291,9 +291,45 @@ def _chunks(grid: SweepGrid, chunk_runs: int) -> list[tuple[int, int]]:
 
 _CHUNK_LOCK = threading.Lock()
 
+#: Engines a sweep (or a tuning run) can use: "exact" (the default, bit-identical
+#: to the reference engine) and "fast" (vectorized, agrees to round-off; see
+#: :mod:`esoarm.engines.fast`).
+ENGINES: tuple[str, ...] = ("exact", "fast")
+
+
+#: Up to this many runs the exact engine runs on the reference loop (same
+#: numbers): loading numba and the compiled kernels costs more than the runs.
+REFERENCE_RUNS = 3
+
+
+def _run_exact(points: Sequence[Scenario], seeds: Sequence[int] | None = None,
+               **kwargs: Any) -> MetricsTable:
+    runs = len(points) * (len(seeds) if seeds is not None else 1)
+    if runs <= REFERENCE_RUNS:
+        return reference_metrics(points, seeds, progress=kwargs.get("progress"))
+    from esoarm.engines.batch import run_metrics
+
+    return run_metrics(points, seeds, **kwargs)
+
+
+def metrics_runner(engine: str = "exact") -> Callable[..., MetricsTable]:
+    """The ``run_metrics`` function of an engine (``"exact"`` or ``"fast"``).
+
+    "exact" is :func:`esoarm.engines.batch.run_metrics`, except that a call of
+    at most :data:`REFERENCE_RUNS` runs uses the reference engine (identical
+    numbers, no compiled kernel to load).
+    """
+    if engine == "exact":
+        return _run_exact
+    if engine == "fast":
+        from esoarm.engines.fast import run_metrics as run_fast
+
+        return run_fast
+    raise ValueError(f"engine must be one of {', '.join(ENGINES)}; got {engine!r}")
+
 
 def _run_chunk(points: Sequence[Scenario], seeds: Sequence[int] | None,
-               threads: int | None) -> np.ndarray:
+               threads: int | None, engine: str = "exact") -> np.ndarray:
     """One chunk's metrics: the Dask task.
 
     A worker process runs one chunk at a time (on ``threads`` numba threads):
@@ -302,7 +338,7 @@ def _run_chunk(points: Sequence[Scenario], seeds: Sequence[int] | None,
     one process per core, or fewer processes and ``--workers N``.
     """
     with _CHUNK_LOCK:
-        return run_metrics(points, seeds if seeds else None, workers=threads).values
+        return metrics_runner(engine)(points, seeds if seeds else None, workers=threads).values
 
 
 def iter_sweep(
@@ -311,6 +347,7 @@ def iter_sweep(
     workers: int | None = None,
     scheduler: str | None = None,
     chunk: int | None = None,
+    engine: str = "exact",
 ) -> Iterator[tuple[int, np.ndarray]]:
     """Run the sweep chunk by chunk; yield (first run index, metrics rows).
 
@@ -331,18 +368,21 @@ def iter_sweep(
     chunk : int, optional
         Runs per chunk (rounded to whole grid points); default
         :data:`LOCAL_CHUNK` or :data:`DASK_CHUNK`.
+    engine : {"exact", "fast"}
+        :data:`ENGINES`; "fast" agrees with "exact" to round-off (:mod:`esoarm.engines.fast`).
     """
+    run_metrics = metrics_runner(engine)
     per_point = max(len(grid.seeds), 1)
     seeds = list(grid.seeds) or None
     if scheduler is None:
         ranges = _chunks(grid, chunk or LOCAL_CHUNK)
-        noise_cache = _NoiseCache()  # each seed's noise drawn once for the whole sweep
+        noise_cache = NoiseCache()  # each seed's noise drawn once for the whole sweep
         for lo, hi in ranges:
             table = run_metrics(grid.points[lo:hi], seeds, workers=workers,
                                 _noise_cache=noise_cache)
             yield lo * per_point, table.values
         return
-    yield from _iter_dask(grid, scheduler, workers or 1, chunk or DASK_CHUNK)
+    yield from _iter_dask(grid, scheduler, workers or 1, chunk or DASK_CHUNK, engine)
 
 
 class ClusterError(RuntimeError):
@@ -350,7 +390,7 @@ class ClusterError(RuntimeError):
 
 
 def _iter_dask(grid: SweepGrid, address: str, threads: int,
-               chunk: int) -> Iterator[tuple[int, np.ndarray]]:
+               chunk: int, engine: str = "exact") -> Iterator[tuple[int, np.ndarray]]:
     try:
         from distributed import Client, as_completed
     except ImportError:
@@ -363,130 +403,42 @@ def _iter_dask(grid: SweepGrid, address: str, threads: int,
         client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
-    futures = {}
+    ranges = iter(_chunks(grid, chunk))
+    futures: dict[Any, int] = {}
+
+    def submit() -> Any:
+        # chunks are submitted as others finish, a few per worker thread, so
+        # the scenarios in flight (and in memory) do not grow with the sweep
+        lo, hi = next(ranges)
+        fut = client.submit(_run_chunk, grid.points[lo:hi], seeds, threads, engine, pure=False)
+        futures[fut] = lo
+        return fut
+
     try:
-        for lo, hi in _chunks(grid, chunk):
-            fut = client.submit(_run_chunk, grid.points[lo:hi], seeds, threads, pure=False)
-            futures[fut] = lo
-        for fut in as_completed(list(futures), loop=client.loop):
+        slots = max(2, 2 * sum(client.nthreads().values()))
+        first = []
+        for _ in range(slots):
+            try:
+                first.append(submit())
+            except StopIteration:
+                break
+        pending = as_completed(first, loop=client.loop)
+        for fut in pending:
             try:
                 values = fut.result()
             except Exception as exc:  # a worker died or the task failed
                 raise ClusterError(f"a sweep chunk failed on the cluster: {exc}") from None
-            yield futures[fut] * per_point, values
+            lo = futures.pop(fut)
+            try:
+                pending.add(submit())
+            except StopIteration:
+                pass
+            yield lo * per_point, values
     finally:
         for fut in futures:
             if not fut.done():
                 fut.cancel()
         client.close()
-
-
-@dataclass
-class SweepResult:
-    """Metrics of a (possibly partial) sweep, one row per run in grid order.
-
-    Attributes
-    ----------
-    grid : SweepGrid
-    values : ndarray, shape (runs, len(METRICS))
-        Metric rows; rows of unfinished runs are NaN.
-    done : ndarray of bool, shape (runs,)
-        Which runs finished.
-    seconds : float
-        Wall time of the runs [s].
-    """
-
-    grid: SweepGrid
-    values: np.ndarray
-    done: np.ndarray
-    seconds: float = 0.0
-
-    @classmethod
-    def empty(cls, grid: SweepGrid) -> SweepResult:
-        """A result with no run finished yet."""
-        return cls(grid, np.full((grid.n_runs, len(METRICS)), np.nan),
-                   np.zeros(grid.n_runs, dtype=bool))
-
-    def add(self, start: int, values: np.ndarray) -> None:
-        """Store the rows of one finished chunk."""
-        self.values[start : start + len(values)] = values
-        self.done[start : start + len(values)] = True
-
-    @property
-    def complete(self) -> bool:
-        """Every run finished."""
-        return bool(self.done.all())
-
-    @property
-    def n_done(self) -> int:
-        """Runs finished."""
-        return int(self.done.sum())
-
-    def header(self) -> list[str]:
-        """CSV columns: varied keys, ``seed``, then :data:`METRICS`."""
-        return [*self.grid.keys, "seed", *METRICS]
-
-    def rows(self, finished_only: bool = True) -> Iterator[list[Any]]:
-        """Rows in grid order: varied values, seed, metrics (counts as int)."""
-        n_float = len(METRICS) - 2  # samples, diverged are counts
-        i = 0
-        for values, seeds in zip(self.grid.point_values(), self.grid.point_seeds(), strict=True):
-            for seed in seeds:
-                if self.done[i] or not finished_only:
-                    m = self.values[i]
-                    counts = [int(v) if np.isfinite(v) else v for v in m[n_float:]]
-                    yield [*values, seed, *m[:n_float], *counts]
-                i += 1
-
-    def point_metric(self, name: str) -> np.ndarray:
-        """Metric ``name`` as an array (points, seeds) (NaN where unfinished)."""
-        per_point = max(len(self.grid.seeds), 1)
-        return self.values[:, METRICS.index(name)].reshape(len(self.grid.points), per_point)
-
-    def best(self, n: int = 5, by: str = "rms_error") -> list[dict[str, Any]]:
-        """The ``n`` grid points with the lowest seed-mean ``by``, with their mean metrics."""
-        means = {m: _nanmean_rows(self.point_metric(m)) for m in METRICS}
-        order = [i for i in np.argsort(means[by], kind="stable") if np.isfinite(means[by][i])]
-        out = []
-        values = list(self.grid.point_values())
-        for i in order[:n]:
-            row: dict[str, Any] = dict(zip(self.grid.keys, values[i], strict=True))
-            row.update({m: float(means[m][i]) for m in METRICS if m not in ("samples",)})
-            out.append(row)
-        return out
-
-    def write_csv(self, path: str | Path) -> int:
-        """Write the finished rows (atomic: the file appears only complete); returns rows."""
-        return write_rows_atomic(path, self.header(), self.rows())
-
-
-def _nanmean_rows(a: np.ndarray) -> np.ndarray:
-    out = np.full(a.shape[0], np.nan)
-    ok = np.isfinite(a).any(axis=1)
-    out[ok] = np.array([np.mean(r[np.isfinite(r)]) for r in a[ok]])
-    return out
-
-
-def _cell(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float | np.floating):
-        return repr(float(value))
-    if isinstance(value, list | tuple):
-        return repr(list(value))
-    return str(value)
-
-
-def write_rows_atomic(path: str | Path, header: Sequence[str], rows: Iterator[list[Any]]) -> int:
-    """Write a CSV table; the file appears only once complete.  Returns rows written."""
-    count = 0
-    with atomic_path(path) as tmp, tmp.open("w", encoding="utf-8", newline="") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(header)
-        for row in rows:
-            writer.writerow([_cell(v) for v in row])
-            count += 1
-    return count
 
 
 def run_sweep(
@@ -497,6 +449,7 @@ def run_sweep(
     chunk: int | None = None,
     progress: Callable[[int], None] | None = None,
     result: SweepResult | None = None,
+    engine: str = "exact",
 ) -> SweepResult:
     """Run a whole sweep and collect it (see :func:`iter_sweep` for the options).
 
@@ -506,7 +459,8 @@ def run_sweep(
     result = result if result is not None else SweepResult.empty(grid)
     start = time.perf_counter()
     try:
-        for first, values in iter_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk):
+        for first, values in iter_sweep(grid, workers=workers, scheduler=scheduler, chunk=chunk,
+                                        engine=engine):
             result.add(first, values)
             if progress is not None:
                 progress(len(values))

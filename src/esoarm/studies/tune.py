@@ -6,7 +6,7 @@ that minimize an objective over the run metrics.
 
 Objective
     An arithmetic expression over the metric names of
-    :data:`esoarm.engines.batch.METRICS` -- ``rms_error`` [rad], ``rms_u`` [N·m],
+    :data:`esoarm.engines.metrics.METRICS` -- ``rms_error`` [rad], ``rms_u`` [N·m],
     ``max_abs_error`` [rad], ``max_abs_u`` [N·m], ``rms_f_error`` [rad/s²] --
     the weight ``w`` (``--weight``, default :data:`DEFAULT_WEIGHT` rad/(N·m)),
     numbers, ``+ - * / **``, parentheses and ``abs, sqrt, log, exp, min, max``.
@@ -47,9 +47,9 @@ from typing import Any
 
 import numpy as np
 
-from esoarm.engines.batch import METRICS, run_metrics
+from esoarm.engines.metrics import METRICS
 from esoarm.scenario import Scenario, ScenarioError
-from esoarm.studies.sweep import _apply, _lookup
+from esoarm.studies.sweep import _apply, _lookup, metrics_runner
 
 __all__ = [
     "DEFAULT_OBJECTIVE",
@@ -267,6 +267,7 @@ def tune(
     popsize: int = 10,
     workers: int | None = None,
     progress: Callable[[int], None] | None = None,
+    engine: str = "exact",
 ) -> TuneResult:
     """Minimize the objective over ``bounds`` with differential evolution.
 
@@ -292,9 +293,12 @@ def tune(
         Threads (cores); default all.
     progress : callable, optional
         Called with 1 after each generation.
+    engine : {"exact", "fast"}
+        The engine that scores candidates (:data:`esoarm.studies.sweep.ENGINES`).
     """
     from scipy.optimize import differential_evolution
 
+    run_metrics = metrics_runner(engine)
     if not bounds:
         raise ScenarioError("--vary: give at least one KEY=LOW:HIGH to tune")
     keys = tuple(b.key for b in bounds)

@@ -1,0 +1,250 @@
+/*
+ * esoarm fast engine: the sampled-data closed loop of esoarm.engines.simulation for a
+ * block of LANES runs advanced together, runs as the innermost loop.
+ *
+ * Built at run time by esoarm.engines.fast with the system C compiler:
+ *     cc -O3 -march=native -ffast-math -fopenmp-simd -fPIC -c   (then linked without
+ *     -ffast-math, so the library does not switch the process to flush-to-zero)
+ * Under -ffast-math glibc declares tanh, cos and sin as SIMD functions and the
+ * lane loops call libmvec's vector versions (AVX-512: 8 runs per call).  The
+ * results agree with the exact engine to round-off (relative 1e-9 is the
+ * documented and tested tolerance), not bit for bit: vector transcendentals
+ * and re-associated arithmetic differ from libm in the last bits.
+ *
+ * Semantics per sample k and run (see esoarm.engines.simulation.run_reference):
+ *   y = Q(theta + sigma n_k); zhat from the ESO; u = sat(FLC(zhat, ref_k));
+ *   metrics of e = theta - ref, u, zhat3 - f; ESO update; rig RK4 over Ts with
+ *   u_{k-delay} held, d(t) = damp sin(dfreq t) at each stage time.
+ * Everything that is shared by the block (N, substeps, step, Ts, delay,
+ * discretization, compensation, lag on/off, disturbance) is a scalar argument;
+ * everything else is one value per lane in par[NPAR][LANES].
+ *
+ * Divergence (a value not finite, |theta| or |z1| >= limit) is detected with
+ * bit tests, which -ffinite-math-only cannot optimise away.  The metrics of a
+ * diverged lane are not trusted: esoarm.engines.fast re-runs such runs on the exact
+ * engine.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+#define LANES 64
+
+enum {
+    P_THETA0, P_SIGMA, P_Q, P_B0,
+    P_INERTIA, P_GCOEF, P_FC, P_VS, P_VISC, P_LAG,
+    P_BETA1, P_BETA2, P_BETA3,
+    P_PHI, P_GAMMA = P_PHI + 9, P_GAIN = P_GAMMA + 3,
+    P_K1 = P_GAIN + 3, P_K2, P_I0, P_CGCOEF, P_LIMIT,
+    NPAR
+};
+enum { KIND_EULER, KIND_ZOH, KIND_CURRENT };
+enum { M_SE, M_SU, M_ME, M_MU, M_SF, M_ROWS, M_DIV, NOUT };
+
+int esoarm_fast_lanes(void) { return LANES; }
+int esoarm_fast_npar(void) { return NPAR; }
+
+static inline int finite_bits(double x) {
+    uint64_t b;
+    memcpy(&b, &x, sizeof b);
+    return ((b >> 52) & 0x7ff) != 0x7ff;
+}
+
+static inline double lt_limit(double x, double lim) {
+    /* |x| < lim, false for NaN, written with the bits of |x| so that it stays
+       correct under -ffinite-math-only */
+    uint64_t b, l;
+    memcpy(&b, &x, sizeof b);
+    memcpy(&l, &lim, sizeof l);
+    return (b & 0x7fffffffffffffffULL) < l;
+}
+
+/*
+ * Run one block.
+ *   n, nsub, delay       samples, RK4 steps per sample, transport delay [samples]
+ *   kind, comp, lag_on   discretization (0 euler, 1 zoh, 2 current), compensation
+ *                        (0 eso, 1 model), actuator lag present (0/1)
+ *   h, ts, damp, dfreq   RK4 step [s], sample period [s], disturbance amplitude and
+ *                        frequency
+ *   limit                divergence limit on |theta|, |z1|
+ *   par                  NPAR x LANES per-lane parameters
+ *   refs                 reference rows; lane l uses refs[ref_off[l] + k] (theta_ref),
+ *                        + stride (omega_ref), + 2 stride (accel_ref)
+ *   noise                lane l uses noise[noise_off[l] + k]
+ *   uhist                scratch, (delay + 1) x LANES doubles (used when delay > 0)
+ *   out                  NOUT x LANES: sums of e^2, u^2, max|e|, max|u|, sum (z3-f)^2,
+ *                        rows, diverged
+ */
+void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int lag_on,
+                       double h, double ts, double damp, double dfreq, double limit,
+                       const double *restrict par, const double *restrict refs,
+                       long stride, const int64_t *restrict ref_off,
+                       const double *restrict noise, const int64_t *restrict noise_off,
+                       double *restrict uhist, double *restrict out) {
+    double th[LANES], om[LANES], ta[LANES], z1[LANES], z2[LANES], z3[LANES];
+    double ua[LANES], alive[LANES];
+    double se[LANES], su[LANES], sf[LANES], me[LANES], mu[LANES], rows[LANES];
+    double ref[LANES], dref[LANES], ddref[LANES], nz[LANES];
+    double ivs[LANES], iin[LANES], ilag[LANES], iq[LANES];
+#define P(i) (par + (i) * LANES)
+    const double *theta0 = P(P_THETA0), *sigma = P(P_SIGMA), *q = P(P_Q), *b0 = P(P_B0);
+    const double *inertia = P(P_INERTIA), *gcoef = P(P_GCOEF), *fc = P(P_FC), *vs = P(P_VS);
+    const double *visc = P(P_VISC), *lag = P(P_LAG);
+    const double *beta1 = P(P_BETA1), *beta2 = P(P_BETA2), *beta3 = P(P_BETA3);
+    const double *k1 = P(P_K1), *k2 = P(P_K2), *i0 = P(P_I0), *cg = P(P_CGCOEF);
+    const double *lim = P(P_LIMIT);
+    const double *phi[9], *gam[3], *gain[3];
+    for (int i = 0; i < 9; i++) phi[i] = P(P_PHI + i);
+    for (int i = 0; i < 3; i++) { gam[i] = P(P_GAMMA + i); gain[i] = P(P_GAIN + i); }
+#undef P
+    for (int l = 0; l < LANES; l++) {
+        th[l] = theta0[l]; om[l] = 0.0; ta[l] = 0.0;
+        double x = theta0[l] + sigma[l] * noise[noise_off[l]];
+        z1[l] = q[l] > 0.0 ? q[l] * floor(x / q[l] + 0.5) : x;
+        z2[l] = 0.0; z3[l] = 0.0;
+        se[l] = su[l] = sf[l] = me[l] = mu[l] = 0.0;
+        rows[l] = (double)n; alive[l] = 1.0;
+        ivs[l] = 1.0 / vs[l]; iin[l] = 1.0 / inertia[l];
+        ilag[l] = lag[l] > 0.0 ? 1.0 / lag[l] : 0.0;
+        iq[l] = q[l] > 0.0 ? 1.0 / q[l] : 1.0;
+    }
+    const double half = 0.5 * h, sixth = h / 6.0;
+    for (long k = 0; k < n; k++) {
+        const double tk = k * ts;
+        const double dk = damp * sin(dfreq * tk);
+        for (int l = 0; l < LANES; l++) {
+            ref[l] = refs[ref_off[l] + k];
+            dref[l] = refs[ref_off[l] + stride + k];
+            ddref[l] = refs[ref_off[l] + 2 * stride + k];
+            nz[l] = noise[noise_off[l] + k];
+        }
+        double *urow = delay > 0 ? uhist + (k % (delay + 1)) * LANES : ua;
+        const double *uold = delay > 0 ? uhist + ((k + 1) % (delay + 1)) * LANES : ua;
+        int any_dead = 0;
+#pragma omp simd reduction(| : any_dead)
+        for (int l = 0; l < LANES; l++) {
+            double x = th[l] + sigma[l] * nz[l];
+            double y = q[l] > 0.0 ? q[l] * floor(x * iq[l] + 0.5) : x;
+            double e = y - z1[l];
+            double h1 = z1[l], h2 = z2[l], h3 = z3[l];
+            if (kind == KIND_CURRENT) {
+                h1 += gain[0][l] * e; h2 += gain[1][l] * e; h3 += gain[2][l] * e;
+            }
+            double alpha = ddref[l] - k1[l] * (h2 - dref[l]) - k2[l] * (h1 - ref[l]);
+            double bh = comp == 0 ? h3 : -(cg[l] * cos(h1)) / i0[l];
+            double u = i0[l] * (alpha - bh);
+            u = u > lim[l] ? lim[l] : (u < -lim[l] ? -lim[l] : u);
+            double uap;
+            if (delay > 0) {
+                urow[l] = u;
+                uap = k >= delay ? uold[l] : 0.0;
+            } else {
+                uap = u;
+            }
+            ua[l] = uap;
+            double tq = lag_on ? ta[l] : uap;
+            double acc = (tq - gcoef[l] * cos(th[l]) - (fc[l] * tanh(om[l] * ivs[l]) +
+                          visc[l] * om[l])) * iin[l] + dk;
+            double f = acc - b0[l] * u;
+            double err = th[l] - ref[l];
+            double a = alive[l];
+            se[l] += a * err * err; su[l] += a * u * u; sf[l] += a * (h3 - f) * (h3 - f);
+            double ae = fabs(err) * a, au = fabs(u) * a;
+            me[l] = ae > me[l] ? ae : me[l];
+            mu[l] = au > mu[l] ? au : mu[l];
+            int ok = finite_bits(th[l] + h2 + h3 + u) && lt_limit(th[l], limit) &&
+                     lt_limit(h1, limit);
+            if (!ok && a != 0.0) { rows[l] = (double)(k + 1); }
+            double na = ok ? a : 0.0;
+            alive[l] = na;
+            any_dead |= !ok;
+            /* ESO update */
+            double n1, n2, n3;
+            if (kind == KIND_EULER) {
+                n1 = z1[l] + ts * (z2[l] + beta1[l] * e);
+                n2 = z2[l] + ts * (z3[l] + b0[l] * u + beta2[l] * e);
+                n3 = z3[l] + ts * (beta3[l] * e);
+            } else {
+                double a1 = kind == KIND_ZOH ? z1[l] : h1;
+                double a2 = kind == KIND_ZOH ? z2[l] : h2;
+                double a3 = kind == KIND_ZOH ? z3[l] : h3;
+                n1 = phi[0][l] * a1 + phi[1][l] * a2 + phi[2][l] * a3 + gam[0][l] * u;
+                n2 = phi[3][l] * a1 + phi[4][l] * a2 + phi[5][l] * a3 + gam[1][l] * u;
+                n3 = phi[6][l] * a1 + phi[7][l] * a2 + phi[8][l] * a3 + gam[2][l] * u;
+                if (kind == KIND_ZOH) {
+                    n1 += gain[0][l] * e; n2 += gain[1][l] * e; n3 += gain[2][l] * e;
+                }
+            }
+            /* a dead lane is parked at rest so it cannot produce inf/NaN work */
+            z1[l] = na != 0.0 ? n1 : 0.0;
+            z2[l] = na != 0.0 ? n2 : 0.0;
+            z3[l] = na != 0.0 ? n3 : 0.0;
+            th[l] = na != 0.0 ? th[l] : 0.0;
+            om[l] = na != 0.0 ? om[l] : 0.0;
+            ta[l] = na != 0.0 ? ta[l] : 0.0;
+            ua[l] = na != 0.0 ? uap : 0.0;
+        }
+        (void)any_dead;
+        /* rig: nsub RK4 steps, u held; d(t) shared by the block */
+        for (long j = 0; j < nsub; j++) {
+            const double t = tk + j * h;
+            const double d1 = j == 0 ? dk : damp * sin(dfreq * t);
+            const double d2 = damp * sin(dfreq * (t + half));
+            const double d4 = damp * sin(dfreq * (t + h));
+            if (lag_on) {
+#pragma omp simd
+                for (int l = 0; l < LANES; l++) {
+                    double x0 = th[l], v0 = om[l], q0 = ta[l], uu = ua[l];
+                    double gc = gcoef[l], f0 = fc[l], iv = ivs[l], vi = visc[l], ii = iin[l];
+                    double il = ilag[l];
+                    double a1 = v0;
+                    double b1 = (q0 - gc * cos(x0) - (f0 * tanh(v0 * iv) + vi * v0)) * ii + d1;
+                    double c1 = (uu - q0) * il;
+                    double x2 = x0 + half * a1, v2 = v0 + half * b1, q2 = q0 + half * c1;
+                    double a2 = v2;
+                    double b2 = (q2 - gc * cos(x2) - (f0 * tanh(v2 * iv) + vi * v2)) * ii + d2;
+                    double c2 = (uu - q2) * il;
+                    double x3 = x0 + half * a2, v3 = v0 + half * b2, q3 = q0 + half * c2;
+                    double a3 = v3;
+                    double b3 = (q3 - gc * cos(x3) - (f0 * tanh(v3 * iv) + vi * v3)) * ii + d2;
+                    double c3 = (uu - q3) * il;
+                    double x4 = x0 + h * a3, v4 = v0 + h * b3, q4 = q0 + h * c3;
+                    double a4 = v4;
+                    double b4 = (q4 - gc * cos(x4) - (f0 * tanh(v4 * iv) + vi * v4)) * ii + d4;
+                    double c4 = (uu - q4) * il;
+                    th[l] = x0 + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+                    om[l] = v0 + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
+                    ta[l] = q0 + sixth * (c1 + 2.0 * c2 + 2.0 * c3 + c4);
+                }
+            } else {
+#pragma omp simd
+                for (int l = 0; l < LANES; l++) {
+                    double x0 = th[l], v0 = om[l], uu = ua[l];
+                    double gc = gcoef[l], f0 = fc[l], iv = ivs[l], vi = visc[l], ii = iin[l];
+                    double a1 = v0;
+                    double b1 = (uu - gc * cos(x0) - (f0 * tanh(v0 * iv) + vi * v0)) * ii + d1;
+                    double x2 = x0 + half * a1, v2 = v0 + half * b1;
+                    double a2 = v2;
+                    double b2 = (uu - gc * cos(x2) - (f0 * tanh(v2 * iv) + vi * v2)) * ii + d2;
+                    double x3 = x0 + half * a2, v3 = v0 + half * b2;
+                    double a3 = v3;
+                    double b3 = (uu - gc * cos(x3) - (f0 * tanh(v3 * iv) + vi * v3)) * ii + d2;
+                    double x4 = x0 + h * a3, v4 = v0 + h * b3;
+                    double a4 = v4;
+                    double b4 = (uu - gc * cos(x4) - (f0 * tanh(v4 * iv) + vi * v4)) * ii + d4;
+                    th[l] = x0 + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+                    om[l] = v0 + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
+                }
+            }
+        }
+    }
+    for (int l = 0; l < LANES; l++) {
+        out[M_SE * LANES + l] = se[l];
+        out[M_SU * LANES + l] = su[l];
+        out[M_ME * LANES + l] = me[l];
+        out[M_MU * LANES + l] = mu[l];
+        out[M_SF * LANES + l] = sf[l];
+        out[M_ROWS * LANES + l] = rows[l];
+        out[M_DIV * LANES + l] = alive[l] != 0.0 ? 0.0 : 1.0;
+    }
+}

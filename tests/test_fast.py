@@ -1,0 +1,131 @@
+"""The opt-in fast engine against the exact engine.
+
+Contract (docs/benchmarks.md, ``esoarm.engines.fast``): relative difference ≤ 1e-9 on
+every metric wherever no quantization boundary is crossed (checked with
+``sensor.resolution_deg = 0`` over every discretization and setting); with a
+quantizing encoder, a run may differ when a measurement lands on the other
+side of a quantization step -- how often, and by how much, is measured here
+and must stay rare and small.  Diverged runs are the exact engine's.
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+import pytest
+
+from esoarm.engines import batch, fast
+from esoarm.scenario import builtin_names, load_scenario
+
+pytestmark = pytest.mark.skipif(not fast.available(),
+                                reason="the fast engine's C kernel does not build here")
+
+RTOL = 1e-9
+SEEDS = range(4)
+# every setting the loop distinguishes (short runs keep the exact engine quick)
+SETTINGS = {
+    "default": {},
+    "no-noise": {"sensor.noise_deg": 0.0},
+    "lag": {"actuator.lag": 0.03},
+    "delay": {"actuator.delay_samples": 3},
+    "lag+delay": {"actuator.lag": 0.01, "actuator.delay_samples": 1},
+    "saturation": {"actuator.torque_limit": 0.3},
+    "model-compensation": {"controller.compensation": "model"},
+    "theta0": {"rig.theta0": 0.3},
+    "fine-step": {"rig.step": 0.0005, "sensor.rate_hz": 100.0},
+    "no-disturbance": {"rig.disturbance.amplitude": 0.0},
+}
+DISCRETIZATIONS = ("euler", "zoh", "current")
+
+
+def _points(name: str, disc: str, resolution: float) -> list:  # type: ignore[type-arg]
+    return [load_scenario(name, {"duration": 6.0, "observer.discretization": disc,
+                                 "sensor.resolution_deg": resolution, "observer.eps": eps,
+                                 **extra})
+            for extra in SETTINGS.values() for eps in (0.03, 0.09, 0.25)]
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.abs(a - b) / np.maximum(np.abs(b), 1e-300)
+
+
+@pytest.mark.parametrize("name", builtin_names())
+@pytest.mark.parametrize("disc", DISCRETIZATIONS)
+def test_agrees_without_quantization(name: str, disc: str) -> None:
+    pts = _points(name, disc, 0.0)
+    exact = batch.run_metrics(pts, seeds=SEEDS).values
+    quick = fast.run_metrics(pts, seeds=SEEDS).values
+    assert not exact[:, -1].any()
+    np.testing.assert_array_equal(quick[:, 5:], exact[:, 5:])  # samples, diverged
+    np.testing.assert_allclose(quick, exact, rtol=RTOL, atol=0)
+
+
+@pytest.mark.parametrize("disc", DISCRETIZATIONS)
+def test_quantization_boundaries_are_rare_and_small(disc: str) -> None:
+    """With the default 0.05° encoder: at most 2 % of runs beyond 1e-9, none beyond 1e-3."""
+    pts = _points("test-1", disc, 0.05)
+    exact = batch.run_metrics(pts, seeds=SEEDS).values
+    quick = fast.run_metrics(pts, seeds=SEEDS).values
+    rel = _rel(quick[:, :5], exact[:, :5])
+    differing = (rel > RTOL).any(axis=1)
+    assert differing.mean() <= 0.02, differing.mean()
+    assert rel.max() < 1e-3, rel.max()
+
+
+def test_diverged_runs_are_the_exact_engines() -> None:
+    # Ts/eps = 2.5 > 2: the Euler observer is unstable and the run leaves the range
+    pts = [load_scenario("test-1", {"duration": 4.0, "observer.eps": eps})
+           for eps in (0.008, 0.09)]
+    exact = batch.run_metrics(pts, seeds=SEEDS).values
+    quick = fast.run_metrics(pts, seeds=SEEDS).values
+    assert exact[:4, -1].all() and not exact[4:, -1].any()
+    np.testing.assert_array_equal(quick[:4], exact[:4])
+    np.testing.assert_allclose(quick[4:], exact[4:], rtol=1e-6)
+
+
+def test_deterministic_whatever_the_threads_and_chunks() -> None:
+    pts = [load_scenario("test-1", {"duration": 3.0, "observer.eps": e})
+           for e in np.geomspace(0.03, 0.3, 7)]
+    one = fast.run_metrics(pts, seeds=range(10), workers=1).values
+    two = fast.run_metrics(pts, seeds=range(10), workers=2, chunk=13).values
+    np.testing.assert_array_equal(one, two)
+
+
+def test_mixed_structures_in_one_call() -> None:
+    """Runs that cannot share a block (other N, step, disturbance) come back in order."""
+    pts = [load_scenario("test-1", {"duration": 2.0}),
+           load_scenario("test-2", {"duration": 3.0, "rig.step": 0.0005}),
+           load_scenario("test-1", {"duration": 2.0, "rig.disturbance.frequency": 2.0}),
+           load_scenario("test-1", {"duration": 2.0, "actuator.delay_samples": 2})]
+    exact = batch.run_metrics(pts, seeds=range(3)).values
+    quick = fast.run_metrics(pts, seeds=range(3)).values
+    np.testing.assert_allclose(quick, exact, rtol=1e-9)
+
+
+def test_loading_the_kernel_keeps_subnormals() -> None:
+    """Built with -ffast-math but not linked with it: no process-wide flush-to-zero."""
+    fast.load_kernel()
+    tiny = np.array([5e-324])
+    assert (tiny * 1.0)[0] != 0.0
+    assert ctypes.c_double(5e-324).value * 1.0 != 0.0
+
+
+def test_scenario_that_needs_the_exact_engine() -> None:
+    scn = load_scenario("test-1", {"motor.gear_ratio": 50.0})
+    with pytest.raises(ValueError, match=r"\[motor\].*--engine exact"):
+        fast.run_metrics([scn])
+    scn = load_scenario("test-1", {"rig.stiction": 0.1})
+    with pytest.raises(ValueError, match=r"rig.stiction.*--engine exact"):
+        fast.run_metrics([scn])
+
+
+def test_without_a_compiler_it_falls_back(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(fast, "_LIB", None)
+    monkeypatch.setattr(fast, "_LIB_ERROR", None)
+    monkeypatch.setattr(fast, "_warned", False)
+    monkeypatch.setattr(fast, "_compiler", lambda: None)
+    scn = load_scenario("test-1", {"duration": 1.0})
+    with pytest.warns(fast.FastEngineWarning, match="needs a C compiler"):
+        got = fast.run_metrics([scn]).values
+    np.testing.assert_array_equal(got, batch.run_metrics([scn]).values)
