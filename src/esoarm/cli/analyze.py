@@ -35,8 +35,8 @@ from esoarm.cli._common import (
 @click.option("--friction", type=click.Choice(["viscous", "slope", "none"]), default="viscous",
               show_default=True,
               help="Friction in the linear plant: viscous b only (Coulomb friction as a "
-              "disturbance, the least damped model), slope (b + (Fc + Fst)/vs, the friction slope at rest), "
-              "or none.")
+              "disturbance, the least damped model), slope (b + (Fc + Fst)/vs, the friction "
+              "slope at rest), or none.")
 @click.option("--plot", "plot", metavar="FILE.png",
               help="Bode diagram of the loop with its margins, |S| and |T|, and the disturbance "
               "transfer; with --vary, the margins against the key (.png, .pdf or .svg).")
