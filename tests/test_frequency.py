@@ -267,14 +267,20 @@ def test_cli_vary_and_plot(run_cli, tmp_path) -> None:  # type: ignore[no-untype
     (("--vary", "observer.epz=1"), "observer.epz"),
     (("--plot", "x.txt"), "--plot"),
     (("--theta0", "nan"), "--theta0"),
-    (("--friction", "dry"), "--friction"),
 ])
-def test_cli_bad_input(run_esoarm, args, word, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    res = run_esoarm("analyze", "test-1", *args, cwd=tmp_path)
+def test_cli_bad_input(run_cli, args, word, tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.chdir(tmp_path)
+    res = run_cli("analyze", "test-1", *args)
     assert res.exit_code == 2
     assert word in res.stderr and "Traceback" not in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
     assert not list(tmp_path.iterdir())
+
+
+def test_cli_usage_error_is_one_line(run_esoarm, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    res = run_esoarm("analyze", "test-1", "--friction", "dry", cwd=tmp_path)
+    assert res.exit_code == 2 and "--friction" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
 
 
 def test_docstring_examples() -> None:
@@ -286,3 +292,22 @@ def test_docstring_examples() -> None:
     for mod in (esoarm.analysis, linearization):
         res = doctest.testmod(mod, raise_on_error=False)
         assert res.attempted > 0 and res.failed == 0, mod.__name__
+
+
+def test_report_section_states_the_trade_off_from_the_numbers() -> None:
+    from esoarm.studies.frequency_report import frequency_section
+
+    class Rep:  # the two things the section reads from a reproduction
+        scenarios = {"test-1/eso": load_scenario("test-1")}
+
+        @staticmethod
+        def metric(test: str, eps: float, key: str) -> float:
+            return {0.05: 0.3, 0.2: 0.1}[eps]
+
+    html = frequency_section(Rep(), eps_values=(0.05, 0.2))  # type: ignore[arg-type]
+    lo = F.analyze("test-1", {"observer.eps": 0.05}, over_range=False, n_freq=800)
+    hi = F.analyze("test-1", {"observer.eps": 0.2}, over_range=False, n_freq=800)
+    assert f"{lo.noise_to_control_peak:.3g} to {hi.noise_to_control_peak:.3g}" in html
+    assert f"{lo.disturbance_peak:.3g} to {hi.disturbance_peak:.3g}" in html
+    assert f"<td>{lo.gain_margin:.2f}</td>" in html and "<td>0.3000</td>" in html
+    assert html.count("data:image/png;base64,") == 1

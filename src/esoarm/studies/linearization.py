@@ -340,13 +340,13 @@ def linearize(scenario: Scenario | str | Path, overrides: dict | list[str] | Non
 def freqresp(sys: Matrices, z: np.ndarray) -> np.ndarray:
     """C (zI − A)⁻¹ B + D at the points z (first input, first output)."""
     a, b, c, d = sys
-    z = np.atleast_1d(z)
+    z = np.atleast_1d(np.asarray(z, dtype=complex))
     n = a.shape[0]
-    out = np.empty(z.shape, dtype=complex)
-    eye = np.eye(n)
-    for i, zi in enumerate(z):
-        out[i] = (c[0] @ np.linalg.solve(zi * eye - a, b[:, 0])) + d[0, 0]
-    return out
+    # one batched solve: (z_i I − A) x_i = B for every point at once
+    mats = z.reshape(-1, 1, 1) * np.eye(n) - a
+    rhs = np.broadcast_to(b[:, :1].astype(complex), (z.size, n, 1))
+    x = np.linalg.solve(mats, rhs)[..., 0]
+    return (x @ c[0] + d[0, 0]).reshape(z.shape)
 
 
 # ---------------------------------------------------------------------------
