@@ -17,6 +17,7 @@ OUTPUTS = {
     "compare_compensation.py": ("heavy-disturbance.toml", "compare_compensation.png"),
     "observer_design.py": (),
     "gym_loop.py": ("gym_frame.png",),
+    "identify_twin.py": ("excite.csv", "fitted.toml", "identify.png"),
 }
 
 

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 import esoarm
-from esoarm.controllers.flc import flc_control
 from esoarm.engines.simulation import prepare
-from esoarm.observers.linear import DISCRETIZATIONS, eso_advance, eso_estimate
+from esoarm.observers.linear import DISCRETIZATIONS
+from esoarm.plants.actuator import LIMIT, saturate
 from esoarm.plants.lever_arm import RigParams, rig_advance
 from esoarm.scenario import builtin_names, load_scenario
 from esoarm.studies import frequency as F
@@ -140,34 +140,38 @@ def test_plant_matches_the_rig_step(lag: float, friction: str) -> None:
 @pytest.mark.parametrize("disc", DISCRETIZATIONS)
 @pytest.mark.parametrize("comp", ["eso", "model"])
 def test_controller_matches_the_step_functions(disc: str, comp: str) -> None:
-    """K(z) reproduces eso_estimate / flc_control / eso_advance on a random y sequence."""
+    """K(z) reproduces the observer and controller kinds' step functions on a random y."""
     theta0 = 0.4
     scn = load_scenario("test-1", {"observer.discretization": disc,
                                    "controller.compensation": comp,
                                    "actuator.torque_limit": 1e9})
     inp = prepare(scn)
+    _, observer, controller = inp.kinds
+    op, cp = inp.observer.vector, inp.controller.vector
     ak, bk, ck, dk = L.controller_matrices(scn, theta0)
     rng = np.random.default_rng(1)
     dy = 1e-3 * rng.standard_normal(60)
-    # operating point: the nonlinear controller's own equilibrium for y ≡ θ0 (observer at rest)
-    z = np.array([theta0, 0.0, 0.0])
-    ref = (theta0, 0.0, 0.0)
-    for _ in range(3000):  # settle the observer on y = θ0
-        h = eso_estimate(*z, theta0, inp.obs)
-        u = flc_control(*h, *ref, inp.ctl)
-        z = np.array(eso_advance(*z, *h, theta0, u, inp.obs))
-    z_eq, u_eq = z.copy(), u
+    refs = np.array([[theta0], [0.0], [0.0]])
+    z, zhat, c, u, y = np.zeros(3), np.zeros(3), np.zeros(1), np.zeros(1), np.array([theta0])
+
+    def sample(yk: float) -> float:  # steps 3 and 5 of the loop, with the kinds' functions
+        y[0] = yk
+        observer.estimate(z, y, op, zhat)
+        controller.control(c, zhat, y, refs, 0, cp, u)
+        u[0] = saturate(u[0], inp.actuator[LIMIT])
+        observer.advance(z, zhat, y, u, op)
+        return float(u[0])
+
+    observer.initialize(z, y, op)
+    for _ in range(3000):  # settle the observer on y = θ0: the operating point
+        u_eq = sample(theta0)
     xk = np.zeros(ak.shape[0])
     for k in range(len(dy)):
-        y = theta0 + dy[k]
-        h = eso_estimate(*z, y, inp.obs)
-        u = flc_control(*h, *ref, inp.ctl)
-        z = np.array(eso_advance(*z, *h, y, u, inp.obs))
+        u_k = sample(theta0 + dy[k])
         u_lin = -(ck @ xk + dk[:, 0] * dy[k])[0]
         xk = ak @ xk + bk[:, 0] * dy[k]
         tol = 1e-9 if comp == "eso" else 1e-6  # "model": cos linearized
-        assert u - u_eq == pytest.approx(u_lin, abs=tol)
-    assert np.all(np.isfinite(z_eq))
+        assert u_k - u_eq == pytest.approx(u_lin, abs=tol)
 
 
 @pytest.mark.parametrize("disc", DISCRETIZATIONS)

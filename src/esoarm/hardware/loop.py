@@ -2,7 +2,7 @@
 
 The device is the clock: it sends sample k (device time, encoder count) every
 Ts (or, in lockstep, after each command).  For every sample the host does
-SPEC §2 steps 1-5 with :class:`~esoarm.hardware.controller.DeploymentController`:
+the sampled-data loop, steps 1-5 with :class:`~esoarm.hardware.controller.DeploymentController`:
 
 1. y_k = q · count_k   (q = radians(sensor.resolution_deg); exact, see emulator)
 2.-3. ẑ_k, u_k = sat(FLC(ẑ_k, reference at t_k))
@@ -29,6 +29,7 @@ before t_dev,k + offset + Ts, offset the smallest arrival delay seen
 from __future__ import annotations
 
 import math
+import os
 import signal
 import threading
 import time
@@ -38,18 +39,24 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm._io import OutputError, describe_os_error
+from esoarm.engines.metrics import series_metrics
 from esoarm.hardware import protocol as P
 from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.link import LinkError, SerialLink
+from esoarm.plants.actuator import actuate, actuator_vector
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",
            "check_device", "run_rig"]
 
-#: Columns of the run log: SPEC §4 columns (theta as measured, no f_true), then timing.
+#: Columns of the run log (docs/semantics.md, "Output files and columns"): the time-series
+#: columns, but ``theta`` and ``error`` from the *measured* angle (a rig's true angle is
+#: unknown) and no ``f_true``; then timing, the duty sent, and ``y``, the measured angle
+#: under the name it has in every file (here equal to ``theta``).
 LOG_COLUMNS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3",
-               "k", "t_device", "t_host", "latency", "late", "duty")
+               "k", "t_device", "t_host", "latency", "late", "duty", "y")
 
 
 @dataclass(frozen=True)
@@ -73,7 +80,7 @@ class SafetyLimits:
 
 @dataclass
 class RunSummary:
-    """Metrics of a run over the rows logged (SPEC §2 metrics on the measured angle)."""
+    """Metrics of a run over the samples received, on the measured angle (engines.metrics)."""
 
     samples: int = 0
     lost_samples: int = 0
@@ -134,7 +141,11 @@ def check_device(info: P.Info, scn: Scenario) -> float:
 
 
 class _LogWriter:
-    """CSV rows streamed to disk, one flushed line per sample."""
+    """CSV rows streamed to disk, one flushed line per sample.
+
+    If the disk fills up (or any write fails) the run stops like any other
+    fault, and the file is cut back to its last whole row.
+    """
 
     def __init__(self, path: Path | None, columns: tuple[str, ...] = LOG_COLUMNS,
                  tee: Callable[[str], None] | None = None) -> None:
@@ -142,22 +153,51 @@ class _LogWriter:
         self.tee = tee  # e.g. the live scope: gets every row as written
         self.rows = 0
         self._fh = None
+        self._good = 0  # bytes of whole rows written
         if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
-            self._fh.write(",".join(columns) + "\n")
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
+            except OSError as exc:
+                raise OutputError(path, describe_os_error(exc)) from None
+            self.write(",".join(columns) + "\n", row=False)
 
-    def write(self, line: str) -> None:
-        self.rows += 1
+    def write(self, line: str, row: bool = True) -> None:
         if self._fh is not None:
-            self._fh.write(line)
-        if self.tee is not None:
-            self.tee(line)
+            try:
+                self._fh.write(line)
+            except OSError as exc:
+                self._fail(exc)
+            self._good += len(line)  # ASCII: characters are bytes
+        if row:
+            self.rows += 1
+            if self.tee is not None:
+                self.tee(line)
+
+    def _fail(self, exc: OSError) -> None:
+        fh, self._fh = self._fh, None
+        try:
+            assert fh is not None
+            fh.close()
+        except OSError:
+            pass
+        try:
+            os.truncate(str(self.path), self._good)
+        except OSError:
+            pass
+        raise _Stop(f"cannot write the log '{self.path}': {describe_os_error(exc)} "
+                    f"(log cut back to its last whole row)")
 
     def close(self) -> None:
         if self._fh is not None:
-            self._fh.flush()
-            self._fh.close()
+            try:
+                self._fh.flush()
+                self._fh.close()
+            except OSError:
+                try:
+                    os.truncate(str(self.path), self._good)
+                except OSError:
+                    pass
             self._fh = None
 
 
@@ -251,7 +291,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     log = _LogWriter(log_path, tee=monitor)
     summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
                          log=str(log_path) if log_path else "")
-    acc = {"e2": 0.0, "u2": 0.0, "emax": 0.0, "m": 0}
+    acc: dict[str, list[float]] = {"e": [], "u": []}  # error and u of the samples received
     periods: list[float] = []
     latencies: list[float] = []
     error_message = None
@@ -298,6 +338,7 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
     isfinite = math.isfinite
     perf = time.perf_counter
     limit = ctl.torque_limit
+    act = actuator_vector(scn)
     k_next = 0
     y_prev = nan
     u_last = 0.0
@@ -345,7 +386,7 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
                 z1, z2, z3 = ctl.predict(u_last)
                 log.write(f"{fmt(ctl.t[k_next])},nan,{fmt(ctl.reference(k_next))},nan,"
                           f"{fmt(u_last)},{fmt(z1)},{fmt(z2)},{fmt(z3)},{k_next},nan,nan,nan,0,"
-                          f"nan\n")
+                          f"nan,nan\n")
                 summary.lost_samples += 1
                 k_next += 1
             if k_next >= n:
@@ -365,15 +406,15 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
                 raise _Stop(f"NaN guard: non-finite control or estimate at sample {k}")
             if abs(u) > limit:  # the FLC saturates; a violation is a bug: stop
                 raise _Stop(f"torque limit: u = {u:.4g} N·m at sample {k}")
+            # the actuator of every engine: with a motor, the duty and the torque it gives
+            u_host, _, d = actuate(u, z2, act)
+            u_applied = float(u_host)
             if motor is None:
                 link.send(P.TORQUE, k, u)
                 duty = "nan"
-                u_applied = u
             else:
-                d = motor.torque_to_duty(u, z2)
-                link.send(P.DUTY, k, d)
-                duty = str(d)
-                u_applied = motor.duty_to_torque(d, z2)
+                link.send(P.DUTY, k, int(d))
+                duty = str(int(d))
             t_sent = perf()
             ctl.commit(u_applied)
             latency = t_sent - now
@@ -384,12 +425,9 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             e = y - ref
             log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u_applied)},"
                       f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},{fmt(t_dev)},{fmt(now - t_start)},"
-                      f"{fmt(latency)},{late},{duty}\n")
-            acc["e2"] += e * e
-            acc["u2"] += u_applied * u_applied
-            acc["m"] += 1
-            if abs(e) > acc["emax"]:
-                acc["emax"] = abs(e)
+                      f"{fmt(latency)},{late},{duty},{fmt(y)}\n")
+            acc["e"].append(e)
+            acc["u"].append(u_applied)
             y_prev = y
             u_last = u_applied
             k_next = k + 1
@@ -399,14 +437,14 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
                         "deadline_misses": summary.deadline_misses, "k": k, "n": n})
 
 
-def _finish(summary: RunSummary, acc: dict, periods: list[float], latencies: list[float],
-            rows: int, link: SerialLink, ts: float) -> None:
+def _finish(summary: RunSummary, acc: dict[str, list[float]], periods: list[float],
+            latencies: list[float], rows: int, link: SerialLink, ts: float) -> None:
     summary.samples = rows
-    m = acc["m"]
-    if m:
-        summary.rms_error = math.sqrt(acc["e2"] / m)
-        summary.rms_u = math.sqrt(acc["u2"] / m)
-        summary.max_abs_error = acc["emax"]
+    if acc["e"]:
+        m = series_metrics(np.array(acc["e"]), np.array(acc["u"]))
+        summary.rms_error = m["rms_error"]
+        summary.rms_u = m["rms_u"]
+        summary.max_abs_error = m["max_abs_error"]
     if periods and summary.mode != "lockstep":  # lockstep has no period to jitter around
         jit = np.abs(np.asarray(periods) - ts) * 1e6
         summary.jitter_p50_us = float(np.percentile(jit, 50))

@@ -3,7 +3,7 @@
 Given a log with ``t`` [s, uniform], ``theta`` [rad, measured] and ``u``
 [N·m, applied from that row on], the observer of the scenario (ε,
 discretization, b0 = 1/I0) is run sample by sample exactly as in the loop
-(SPEC §2 step 5): row k holds ẑ_k, the estimate the controller would use at
+(the sampled-data loop, step 5): row k holds ẑ_k, the estimate the controller would use at
 t_k, then the observer is updated with (y_k, u_k).  A row with ``theta = nan``
 (a sample lost on the link, as ``esoarm run`` logs it) is bridged with zero
 innovation, as the loop does.  A log of ``esoarm run`` therefore replays to
@@ -19,8 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from esoarm.observers.linear import ExtendedStateObserver, design_observer
-from esoarm.plants.model import input_gain
+from esoarm.kinds import kinds_of
 from esoarm.result import write_csv_atomic
 from esoarm.scenario import Scenario, ScenarioError
 
@@ -73,11 +72,14 @@ def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, floa
             if header is None:
                 raise ScenarioError(f"{src}: empty file")
             header = [h.strip() for h in header]
-            missing = [c for c in ("t", "theta", "u") if c not in header]
+            # the measured angle: `y` where the file has it (a simulated series' `theta` is
+            # the true angle), else `theta` (a rig log's theta is the measured angle)
+            angle = "y" if "y" in header else "theta"
+            missing = [c for c in ("t", angle, "u") if c not in header]
             if missing:
                 raise ScenarioError(f"{src}: missing column(s) {', '.join(missing)}; "
-                                    "need t [s], theta [rad], u [N·m]")
-            idx = [header.index(c) for c in ("t", "theta", "u")]
+                                    "need t [s], theta or y [rad, measured], u [N·m]")
+            idx = [header.index(c) for c in ("t", angle, "u")]
             rows = []
             for line_no, row in enumerate(reader, start=2):
                 if not row:
@@ -86,7 +88,7 @@ def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, floa
                     rows.append([float(row[i]) for i in idx])
                 except (ValueError, IndexError):
                     raise ScenarioError(f"{src}: line {line_no}: expected numbers in columns "
-                                        "t, theta, u") from None
+                                        f"t, {angle}, u") from None
     except FileNotFoundError:
         raise ScenarioError(f"{src}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -110,16 +112,27 @@ def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, floa
 
 def replay(scn: Scenario, t: np.ndarray, theta: np.ndarray, u: np.ndarray,
            ts: float) -> ReplayResult:
-    """Run the scenario's ESO over (theta, u) sampled every ``ts`` [s]."""
-    design = design_observer(scn.observer.eps, ts, input_gain(scn.plant.inertia),
-                             scn.observer.discretization)
-    y_list, u_list = theta.tolist(), u.tolist()
-    eso = ExtendedStateObserver(design, y_list[0])
-    z = np.empty((len(y_list), 3))
-    for k, (y, uk) in enumerate(zip(y_list, u_list, strict=True)):
-        z[k] = eso.estimate(eso.z[0] if math.isnan(y) else y)
-        eso.update(uk)
-    return ReplayResult(t, theta, u, z, ts)
+    """Run the scenario's observer kind over (theta, u) sampled every ``ts`` [s].
+
+    The observer is designed for the log's sample period (its other settings
+    and b0 from the scenario) and stepped with the functions every engine uses.
+    """
+    kinds = kinds_of(scn)
+    design = kinds.observer.design(scn, kinds.plant.design(scn), ts)
+    obs, p = kinds.observer, design.vector
+    z = np.zeros(max(design.n_state, 1))
+    zhat = np.zeros_like(z)
+    y, uk = np.zeros(1), np.zeros(1)
+    out = np.empty((len(theta), 3))
+    y[0] = theta[0]
+    obs.initialize(z, y, p)
+    for k in range(len(theta)):
+        y[0] = z[0] if math.isnan(theta[k]) else theta[k]  # a lost sample: no innovation
+        obs.estimate(z, y, p, zhat)
+        out[k] = zhat[:3]
+        uk[0] = u[k]
+        obs.advance(z, zhat, y, uk, p)
+    return ReplayResult(t, theta, u, out, ts)
 
 
 def plot_replay(result: ReplayResult, path: str | Path) -> None:

@@ -198,7 +198,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     t_start = time.perf_counter()
     for key in fix:
         if key not in FREE_KEYS:
-            raise ScenarioError(f"--fix {key}: not a fitted key (one of {', '.join(FREE_KEYS)})")
+            raise ScenarioError(f"fix {key}: not a fitted key (one of {', '.join(FREE_KEYS)})")
     ts = logs[0].ts
     for log in [*logs, *(validation or [])]:
         if abs(log.ts - scn.sample_time) > 1e-9 * scn.sample_time:
@@ -221,7 +221,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     say = progress or (lambda _msg: None)
 
     def fit(delay: int, names: list[str], fixed: dict[str, float], x_phys: list[float],
-            x_states: np.ndarray | None, max_iter: int = 60):  # type: ignore[no-untyped-def]
+            x_states: np.ndarray | None, max_iter: int = 200):  # type: ignore[no-untyped-def]
         prob = Problem(scn, fit_logs, seg_samples, delay, start, names, fixed)
         states = prob.initial_states() if x_states is None else x_states
         return prob, prob.solve(np.concatenate([x_phys, states]), max_iter)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from esoarm.plants.lever_arm import (
+    CODE,
     DAMP,
     DFREQ,
     FC,
@@ -142,7 +143,8 @@ class Problem:
     def predict(self, x: np.ndarray) -> np.ndarray:
         rig, src = self.rig_and_source(self.phys(x))
         out = self._out
-        simulate_segments(out, rig, src, self.t, self.seg_start, self.seg_len,
+        plant = np.concatenate([[float(CODE)], rig])  # the lever-arm kind's design vector
+        simulate_segments(out, plant, src, self.t, self.seg_start, self.seg_len,
                           np.ascontiguousarray(x[self.n_phys:]), self.h, self.nsub)
         return out.copy()
 
@@ -183,7 +185,7 @@ class Problem:
             lo[self.free.index("actuator.lag")] = 2.0 * self.h  # RK4 needs T ≳ 2h
         return np.array(lo), np.array(hi)
 
-    def solve(self, x_start: np.ndarray, max_iter: int = 60) -> Solution:
+    def solve(self, x_start: np.ndarray, max_iter: int = 200) -> Solution:
         """Projected Levenberg-Marquardt from ``x_start`` (see :func:`levenberg_marquardt`)."""
         lo, hi = self.bounds()
         return levenberg_marquardt(self.residual, self.jacobian, np.clip(x_start, lo, hi), lo,

@@ -296,13 +296,13 @@ def _theorem_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
 
 
 def _discretization_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
-    from esoarm.studies.reproduce import discretization_findings, run_metrics
+    from esoarm.studies.reproduce import discretization_findings, table_metrics
 
     if not rep.comparison:
         return "<p>Not run (reproduction without comparisons).</p>"
     discs = list(rep.comparison)
     parts = [
-        "<p>The paper's experiments repeated with each ESO discretization of SPEC §2: "
+        "<p>The paper's experiments repeated with each ESO discretization of the loop: "
         "<b>euler</b> (the paper's fixed-step form, z⁺ = z + Ts·eq. 8), <b>zoh</b> (exact "
         "discrete model of the extended plant, predictive form) and <b>current</b> (exact "
         "model, corrected with y<sub>k</sub> before the control is computed). Everything else "
@@ -311,7 +311,7 @@ def _discretization_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str
     for key in rep.comparison[discs[0]]:
         cells = [_e(key)]
         for metric in ("rms_error", "rms_u", "du_rms"):
-            cells += [f"{run_metrics(rep.comparison[d][key])[metric]:.4f}" for d in discs]
+            cells += [f"{table_metrics(rep.comparison[d][key])[metric]:.4f}" for d in discs]
         rows.append(cells)
     head = ["run"]
     for label in ("RMS error [rad]", "RMS u [N·m]", "RMS(Δu) [N·m]"):
@@ -339,7 +339,7 @@ def _assumptions_section(rep: Reproduction) -> str:
     return ("<p>The paper gives the model (Table I), the disturbance (eq. 6), the 10 % inertia "
             "uncertainty, the 50 Hz encoder with 0.05° resolution and the ESO/FLC structure. "
             "The twin needs more; these values come from the resolved scenarios that produced "
-            "this report. The ESO starts at (y<sub>0</sub>, 0, 0) (SPEC §2).</p>"
+            "this report. The ESO starts at (y<sub>0</sub>, 0, 0) (the sampled-data loop).</p>"
             + _table(["key", "value", "unit", "why it is an assumption"], rows, left=4))
 
 
@@ -354,6 +354,12 @@ def _scenarios_section(rep: Reproduction) -> str:
         parts.append(f"<details><summary><code>{_e(key)}</code></summary>"
                      f"<pre>{_e(scn.to_toml())}</pre></details>")
     return "".join(parts)
+
+
+def _frequency_section(rep: Reproduction) -> str:
+    from esoarm.studies.frequency_report import frequency_section
+
+    return frequency_section(rep)
 
 
 def render_report(rep: Reproduction, pngs: Mapping[str, bytes],
@@ -389,6 +395,7 @@ def render_report(rep: Reproduction, pngs: Mapping[str, bytes],
             if s in captions)),
         ("theorems", "Theorem 1 and Theorem 2", _theorem_section(rep, pngs)),
         ("discretizations", "ESO discretizations compared", _discretization_section(rep, pngs)),
+        ("frequency", "The loop in the frequency domain", _frequency_section(rep)),
         ("assumptions", "Assumptions where the paper is silent", _assumptions_section(rep)),
         ("provenance", "Version and resolved scenarios", _scenarios_section(rep)),
     ]
