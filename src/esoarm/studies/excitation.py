@@ -147,6 +147,9 @@ class ExcitationController:
     """
 
     def __init__(self, scn: Scenario, plan: ExcitationPlan) -> None:
+        from esoarm.studies.identify_data import check_supported
+
+        check_supported(scn, "the identification experiment")
         self.ts = scn.sample_time
         plan.check(self.ts)
         self.plan = plan

@@ -13,9 +13,10 @@ continuity constraints): the arm is nearly neutrally stable, so one open-loop
 simulation over a whole minute would drift away from the data for any error
 in the friction, while a horizon of a few seconds keeps the problem well
 conditioned and still sees every parameter.  The simulator is
-:func:`esoarm.plants.lever_arm.advance` -- the lever-arm plant step, the twin's own RK4
-integration of the rig -- compiled with numba, one sample at a time with the input held (SPEC-style
-zero-order hold, transport delay applied to the input sequence).
+:func:`esoarm.plants.lever_arm.advance` -- the lever-arm plant step, the twin's
+own RK4 integration of the rig -- compiled with numba, one sample at a time
+with the input held over the sample (zero-order hold, as in every engine) and
+the transport delay applied to the input sequence.
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ from esoarm.scenario import ScenarioError
 # the compiled segment simulator is cached on disk, keyed on the physics sources too
 cover_with_physics_stamp(__file__)
 
-__all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "read_ident_log", "simulate_segments"]
+__all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "check_supported", "read_ident_log",
+           "simulate_segments"]
 
 #: Shortest log accepted [s] and fewest samples.
 MIN_DURATION = 4.0
@@ -79,6 +81,18 @@ class IdentLog:
         duty = None if self.duty is None else self.duty[start:stop]
         return IdentLog(self.path, self.t[start:stop], self.y[start:stop], self.u[start:stop],
                         duty, self.ts)
+
+
+def check_supported(scn: object, what: str = "identification") -> None:
+    """One-line :class:`ScenarioError` unless the scenario's plant is the lever arm."""
+    kind = getattr(getattr(scn, "plant", None), "kind", "lever-arm")
+    if kind != "lever-arm":
+        raise ScenarioError(f"plant.kind = {kind!r}: {what} supports the lever arm "
+                            "(plant.kind = \"lever-arm\") only")
+    observer = getattr(scn, "observer", None)
+    if not hasattr(observer, "eps"):
+        raise ScenarioError(f"observer.kind = {getattr(observer, 'kind', '?')!r}: {what} "
+                            "needs the linear ESO (observer.eps) for its rate estimate")
 
 
 def read_ident_log(path: str | Path, torque_limit: float, need_duty: bool = False) -> IdentLog:
