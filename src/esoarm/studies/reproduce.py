@@ -39,6 +39,7 @@ from esoarm.studies.reproduce_checks import (
 from esoarm.studies.reproduce_outputs import figure_specs, write_outputs
 from esoarm.studies.reproduction import (
     ABLATION_EPS,
+    BASELINE_CONTROLLER,
     CHECK_FROM,
     EPS_SET,
     METRIC_COLUMNS,
@@ -57,6 +58,7 @@ from esoarm.studies.reproduction import (
 
 __all__ = [
     "ABLATION_EPS",
+    "BASELINE_CONTROLLER",
     "CHECK_FROM",
     "EPS_SET",
     "METRIC_COLUMNS",
@@ -69,6 +71,7 @@ __all__ = [
     "Claim",
     "ObserverCheck",
     "Reproduction",
+    "baseline_set",
     "bound_checks",
     "check_claims",
     "discretization_findings",
@@ -98,6 +101,17 @@ def experiment_set(overrides: list[str] | None = None) -> dict[str, Scenario]:
         "test-2", extra + [f"observer.eps={ABLATION_EPS!r}", "controller.compensation=model"]
     )
     return out
+
+
+def baseline_set(overrides: list[str] | None = None) -> dict[str, Scenario]:
+    """The baseline controller's runs: each test with ``controller.kind`` = the baseline.
+
+    Keyed ``baseline/<test>``; the controller table takes the baseline kind's
+    defaults (for the PID: gains tuned on test-1).
+    """
+    extra = list(overrides or [])
+    return {f"baseline/{test}": load_scenario(
+        test, extra + [f"controller.kind={BASELINE_CONTROLLER}"]) for test in PAPER_TABLES}
 
 
 def _run_all(scenarios: dict[str, Scenario],
@@ -139,6 +153,7 @@ def plan_runs(overrides: list[str] | None = None, compare: bool = True
 def _all_runs(overrides: list[str] | None, compare: bool) -> dict[str, Scenario]:
     extra = list(overrides or [])
     out = dict(experiment_set(extra))
+    out.update(baseline_set(extra))
     if not compare:
         return out
     for disc in DISCRETIZATIONS:
@@ -188,6 +203,14 @@ def _rows(rep: Reproduction) -> list[dict[str, Any]]:
     return rows
 
 
+def _baseline_rows(rep: Reproduction) -> list[dict[str, Any]]:
+    return [{"run": f"{test}_{BASELINE_CONTROLLER}", "table": "baseline", "test": test,
+             "eps": None, "compensation": BASELINE_CONTROLLER,
+             "discretization": None, **table_metrics(res),
+             "paper_rms_error": None, "paper_rms_u": None}
+            for test, res in rep.baselines.items()]
+
+
 def run_reproduction(
     overrides: list[str] | None = None,
     progress: Callable[[str], None] | None = None,
@@ -217,7 +240,8 @@ def run_reproduction(
             rep.sweep[disc] = {e: runs[f"sweep/{disc}/{SWEEP_TEST}_eps{e:g}"] for e in SWEEP_EPS}
             rep.sweep_scenarios[disc] = {e: planned[f"sweep/{disc}/{SWEEP_TEST}_eps{e:g}"]
                                          for e in SWEEP_EPS}
-    rep.rows = _rows(rep)
+    rep.baselines = {key.split("/", 1)[1]: runs[key] for key in baseline_set(overrides)}
+    rep.rows = _rows(rep) + _baseline_rows(rep)
     rep.claims = check_claims(rep)
     rep.observer_checks = observer_checks(EPS_SET, rep.sample_time)
     rep.bound_checks = bound_checks(rep.runs)

@@ -14,6 +14,7 @@ from typing import Any
 from esoarm._io import atomic_path
 from esoarm.studies.reproduction import (
     ABLATION_EPS,
+    BASELINE_CONTROLLER,
     CHECK_FROM,
     EPS_SET,
     METRIC_COLUMNS,
@@ -116,6 +117,8 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
     written: list[Path] = []
     for key, res in rep.runs.items():
         written.append(res.to_csv(out / "runs" / f"{key}.csv"))
+    for test, res in rep.baselines.items():
+        written.append(res.to_csv(out / "runs" / f"{test}_{BASELINE_CONTROLLER}.csv"))
     written.append(_write_table_csv(out / "tables.csv", rep.rows, TABLE_COLUMNS))
     if rep.comparison:
         written.append(_write_table_csv(

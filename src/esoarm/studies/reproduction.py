@@ -17,6 +17,7 @@ from esoarm.scenario import Scenario
 
 __all__ = [
     "ABLATION_EPS",
+    "BASELINE_CONTROLLER",
     "CHECK_FROM",
     "EPS_SET",
     "PAPER_TABLES",
@@ -47,6 +48,8 @@ PAPER_TABLES: dict[str, dict[float, tuple[float, float]]] = {
     "test-2": {0.05: (0.0294, 0.8563), 0.09: (0.0119, 0.2244), 0.2: (0.0751, 0.2733)},
 }
 TABLE_NAMES = {"test-1": "Table II", "test-2": "Table III"}
+#: Baseline controller beside the paper's: ``controller.kind`` of the baseline runs.
+BASELINE_CONTROLLER = "pid"
 ABLATION_EPS = 0.09
 
 
@@ -140,6 +143,9 @@ class Reproduction:
     sweep_scenarios : dict
         discretization -> ε -> Scenario of the sweep (the comparison set's
         scenarios are those of ``scenarios`` with another discretization).
+    baselines : dict
+        test -> SimResult of the baseline controller (:data:`BASELINE_CONTROLLER`,
+        its default gains) on that test, everything else as in the paper's set.
     rows, claims, observer_checks, bound_checks, findings : list
         The tables, the paper's claims checked, Theorem 1 and 2 checks, and what
         the discretization comparison means for choosing ε (sentences).
@@ -157,6 +163,7 @@ class Reproduction:
     observer_checks: list[ObserverCheck] = field(default_factory=list)
     bound_checks: list[BoundCheck] = field(default_factory=list)
     findings: list[str] = field(default_factory=list)
+    baselines: dict[str, SimResult] = field(default_factory=dict)
     n_simulated: int = 0
 
     def metric(self, test: str, eps: float, key: str, compensation: str = "eso") -> float:
