@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from esoarm._io import atomic_path
+from esoarm._io import atomic_path, make_dir
 from esoarm.studies.reproduction import (
     ABLATION_EPS,
     BASELINE_CONTROLLER,
@@ -113,7 +113,7 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
     if fmt not in plotting.FIGURE_FORMATS:
         raise ValueError(f"fmt must be one of {', '.join(plotting.FIGURE_FORMATS)}, got {fmt!r}")
     out = Path(out_dir)
-    (out / "runs").mkdir(parents=True, exist_ok=True)
+    make_dir(out / "runs")
     written: list[Path] = []
     for key, res in rep.runs.items():
         written.append(res.to_csv(out / "runs" / f"{key}.csv"))
