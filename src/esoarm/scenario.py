@@ -308,10 +308,10 @@ def load_scenario(
     >>> scn = load_scenario("test-1", ["observer.eps=0.05", "controller.kind=pid"])
     >>> scn.observer.eps, scn.controller.kind, scn.n_samples
     (0.05, 'pid', 1000)
-    >>> load_scenario("test-1", {"observer.epz": 0.05})
+    >>> load_scenario("test-1", {"obs.eps": 0.05})
     Traceback (most recent call last):
     ...
-    esoarm.scenario.ScenarioError: override: unknown key 'observer.epz'; did you mean 'observer.eps'?
+    esoarm.scenario.ScenarioError: override: unknown key 'obs.eps'; did you mean 'observer.eps'?
     """
     if isinstance(scenario, Scenario):
         return scenario.with_overrides(overrides or {})
