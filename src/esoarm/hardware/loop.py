@@ -37,13 +37,14 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from esoarm._io import OutputError, describe_os_error
 from esoarm.engines.metrics import series_metrics
 from esoarm.hardware import protocol as P
-from esoarm.hardware.controller import DeploymentController
+from esoarm.hardware.controller import DeploymentController, SampleController
 from esoarm.hardware.link import LinkError, SerialLink
 from esoarm.plants.actuator import actuate, actuator_vector
 from esoarm.plants.motor import MotorParams
@@ -213,7 +214,7 @@ class _SigintFlag:
 
     def __init__(self) -> None:
         self.hit = False
-        self._old = None
+        self._old: Any = None
 
     def __enter__(self) -> _SigintFlag:
         if threading.current_thread() is threading.main_thread():
@@ -237,7 +238,7 @@ class _Stop(Exception):
 def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             limits: SafetyLimits | None = None,
             status: Callable[[dict], None] | None = None,
-            controller: DeploymentController | None = None,
+            controller: SampleController | None = None,
             monitor: Callable[[str], None] | None = None) -> RunSummary:
     """Drive the device on ``link`` through one run of ``scn``.
 

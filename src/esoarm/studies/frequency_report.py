@@ -18,7 +18,7 @@ import numpy as np
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
     from esoarm.studies.frequency import FrequencyAnalysis
-    from esoarm.studies.reproduce import Reproduction
+    from esoarm.studies.reproduction import Reproduction
 
 __all__ = ["frequency_rows", "frequency_section"]
 
