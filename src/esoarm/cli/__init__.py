@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import signal
 import sys
+import textwrap
 import warnings
 
 import click
@@ -93,7 +94,7 @@ class LazyGroup(click.Group):
                     continue
                 rows.append((name, cmd.get_short_help_str(limit)))
             else:
-                rows.append((name, click.utils.make_default_short_help(summary, limit)))
+                rows.append((name, textwrap.shorten(summary, limit, placeholder="...")))
         with formatter.section("Commands"):
             formatter.write_dl(rows)
 
