@@ -18,6 +18,7 @@ OUTPUTS = {
     "observer_design.py": (),
     "two_link_arm.py": ("two_link.csv", "two_link.png"),
     "arm_ur5.py": (),  # needs example-robot-data (optional): it says so and stops without it
+    "gym_loop.py": ("gym_frame.png",),
     "identify_twin.py": ("excite.csv", "fitted.toml", "identify.png"),
 }
 

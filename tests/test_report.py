@@ -130,7 +130,7 @@ def test_report_is_self_contained(html_text: str) -> None:
             # only embedded data and in-page anchors: nothing to fetch
             assert value.startswith(("data:", "#")), (tag, name, value[:80])
     imgs = [attrs for tag, attrs in page.tags if tag == "img"]
-    assert len(imgs) == 6  # Fig. 4-7, Theorem 2, discretizations
+    assert len(imgs) == 7  # Fig. 4-7, Theorem 2, discretizations, frequency domain
     for attrs in imgs:
         src = attrs["src"] or ""
         assert src.startswith("data:image/png;base64,")
@@ -190,7 +190,8 @@ def test_report_renders_in_headless_chromium(outputs: tuple[object, Path], html_
                        .replace("&lt;", "<").replace("&gt;", ">"))
     assert check["errors"] == []
     assert console_lines(dom.stderr) == []
-    assert len(check["images"]) == 6
+    assert len(check["images"]) == 7  # Fig. 4-7, Theorem 2, discretizations, frequency domain
+    assert 'id="frequency"' in html_text
     for img in check["images"]:
         assert img["complete"] and img["w"] > 300 and img["h"] > 200, img
     # Screenshot of the whole page (height measured above), kept with the test output.
@@ -243,3 +244,23 @@ def test_summary_is_computed_from_the_runs(outputs):
     for claim in rep.claims:
         part = text.split("Not reproduced:")[1 if not claim.reproduced else 0]
         assert claim.statement in part
+
+
+def test_report_depends_only_on_the_reproduction_data() -> None:
+    """No import cycle: the report reads a Reproduction, it never imports the runner."""
+    import subprocess
+    import sys
+
+    code = ("import sys, esoarm.studies.report as r, esoarm.studies.reproduction; "
+            "import inspect; inspect.getsource(r); "
+            "print(sorted(m for m in sys.modules if m.startswith('esoarm.studies.')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert "esoarm.studies.reproduce'" not in out and "reproduce_outputs" not in out
+    import ast
+
+    tree = ast.parse((ROOT / "src/esoarm/studies/report.py").read_text())
+    imported = {node.module for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom) and node.module}
+    assert {m for m in imported if m.startswith("esoarm.studies")} == {
+        "esoarm.studies.reproduction"}

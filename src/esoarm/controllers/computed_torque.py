@@ -40,7 +40,7 @@ __all__ = ["CODE", "JIT", "KIND", "Params", "check", "control", "design", "initi
            "tracking_acceleration"]
 
 KIND = "computed-torque"
-CODE = 1
+CODE = 2
 JIT = False
 
 _PositiveGain = Annotated[float, Field(gt=0)]

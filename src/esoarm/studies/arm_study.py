@@ -241,7 +241,7 @@ def write_arm_study(study: ArmStudy, out: str | Path, fmt: str = "png") -> list[
         "ablation": figure_arm_ablation(study.runs, f"{study.scenario.name}: with and without "
                                         "perturbation estimation"),
         "run": plot_arm_run(study.runs[VARIANTS[0][0]]),
-        "eps": figure_arm_eps_sweep(study.eps, study.sweep_error, study.sweep_u, study.names,
+        "eps": figure_arm_eps_sweep(list(study.eps), study.sweep_error, study.sweep_u, study.names,
                                     f"{study.scenario.name}: the ε trade-off"),
     }
     pngs = {stem: figure_bytes(fig, "png") for stem, fig in figures.items()}
