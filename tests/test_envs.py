@@ -10,6 +10,8 @@ import pytest
 import esoarm
 from esoarm.scenario import builtin_names
 
+LEVERS = builtin_names(plant="lever-arm")
+
 gym = pytest.importorskip("gymnasium")
 envs = pytest.importorskip("esoarm.envs")
 
@@ -36,14 +38,14 @@ def _episode(env, policy) -> tuple[np.ndarray, list[float], bool]:
 
 
 def test_ids_are_registered_for_every_builtin() -> None:
-    want = {"esoarm/LeverArm-v0", *(f"esoarm/LeverArm-{n}-v0" for n in builtin_names())}
+    want = {"esoarm/LeverArm-v0", *(f"esoarm/LeverArm-{n}-v0" for n in LEVERS)}
     assert set(envs.ENV_IDS) == want
     for env_id in want:
         assert env_id in gym.registry
 
 
 @pytest.mark.parametrize("env_id", ["esoarm/LeverArm-v0",
-                                    *(f"esoarm/LeverArm-{n}-v0" for n in builtin_names())])
+                                    *(f"esoarm/LeverArm-{n}-v0" for n in LEVERS)])
 @pytest.mark.parametrize("kwargs", [{}, {"action_mode": "residual", "observe_estimates": True,
                                          "effort_weight": 0.1, "render_mode": "rgb_array"}])
 def test_passes_gymnasium_env_checker(env_id: str, kwargs: dict) -> None:

@@ -83,7 +83,7 @@ class _quiet:
         self._cm.__exit__(*exc)
 
 
-@pytest.mark.parametrize("name", builtin_names())
+@pytest.mark.parametrize("name", builtin_names(plant="lever-arm"))
 def test_to_control_objects(name: str) -> None:
     scn = load_scenario(name)
     sys = L.to_control(name)

@@ -36,7 +36,8 @@ def register_envs() -> list[str]:
     if ENV_IDS:
         return ENV_IDS
     entries = [("esoarm/LeverArm-v0", "test-1")]
-    entries += [(f"esoarm/LeverArm-{name}-v0", name) for name in builtin_names()]
+    entries += [(f"esoarm/LeverArm-{name}-v0", name)
+                for name in builtin_names(plant="lever-arm")]
     for env_id, scenario in entries:
         if env_id not in gymnasium.registry:
             gymnasium.register(id=env_id, entry_point="esoarm.envs.lever_arm:LeverArmEnv",
