@@ -61,6 +61,8 @@ static inline double lt_limit(double x, double lim) {
 
 /*
  * Run one block.
+ *   nl                   lanes used (1 ... LANES); the loops run over nl rounded up to a
+ *                        multiple of 8 (the extra lanes repeat valid data and are ignored)
  *   n, nsub, delay       samples, RK4 steps per sample, transport delay [samples]
  *   kind, comp, lag_on   discretization (0 euler, 1 zoh, 2 current), compensation
  *                        (0 eso, 1 model), actuator lag present (0/1)
@@ -75,7 +77,7 @@ static inline double lt_limit(double x, double lim) {
  *   out                  NOUT x LANES: sums of e^2, u^2, max|e|, max|u|, sum (z3-f)^2,
  *                        rows, diverged
  */
-void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int lag_on,
+void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp, int lag_on,
                        double h, double ts, double damp, double dfreq, double limit,
                        const double *restrict par, const double *restrict refs,
                        long stride, const int64_t *restrict ref_off,
@@ -97,6 +99,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
     for (int i = 0; i < 9; i++) phi[i] = P(P_PHI + i);
     for (int i = 0; i < 3; i++) { gam[i] = P(P_GAMMA + i); gain[i] = P(P_GAIN + i); }
 #undef P
+    const int nv = nl >= LANES ? LANES : ((nl + 7) / 8) * 8;
     for (int l = 0; l < LANES; l++) {
         th[l] = theta0[l]; om[l] = 0.0; ta[l] = 0.0;
         double x = theta0[l] + sigma[l] * noise[noise_off[l]];
@@ -112,7 +115,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
     for (long k = 0; k < n; k++) {
         const double tk = k * ts;
         const double dk = damp * sin(dfreq * tk);
-        for (int l = 0; l < LANES; l++) {
+        for (int l = 0; l < nv; l++) {
             ref[l] = refs[ref_off[l] + k];
             dref[l] = refs[ref_off[l] + stride + k];
             ddref[l] = refs[ref_off[l] + 2 * stride + k];
@@ -122,7 +125,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
         const double *uold = delay > 0 ? uhist + ((k + 1) % (delay + 1)) * LANES : ua;
         int any_dead = 0;
 #pragma omp simd reduction(| : any_dead)
-        for (int l = 0; l < LANES; l++) {
+        for (int l = 0; l < nv; l++) {
             double x = th[l] + sigma[l] * nz[l];
             double y = q[l] > 0.0 ? q[l] * floor(x * iq[l] + 0.5) : x;
             double e = y - z1[l];
@@ -193,7 +196,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
             const double d4 = damp * sin(dfreq * (t + h));
             if (lag_on) {
 #pragma omp simd
-                for (int l = 0; l < LANES; l++) {
+                for (int l = 0; l < nv; l++) {
                     double x0 = th[l], v0 = om[l], q0 = ta[l], uu = ua[l];
                     double gc = gcoef[l], f0 = fc[l], iv = ivs[l], vi = visc[l], ii = iin[l];
                     double il = ilag[l];
@@ -218,7 +221,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
                 }
             } else {
 #pragma omp simd
-                for (int l = 0; l < LANES; l++) {
+                for (int l = 0; l < nv; l++) {
                     double x0 = th[l], v0 = om[l], uu = ua[l];
                     double gc = gcoef[l], f0 = fc[l], iv = ivs[l], vi = visc[l], ii = iin[l];
                     double a1 = v0;

@@ -152,6 +152,17 @@ def _build(cc: str) -> Path:
     raise FastEngineUnavailable("the fast engine's C kernel did not build: " + "; ".join(errors))
 
 
+def _bind(lib: ctypes.CDLL) -> ctypes.CDLL:
+    """Declare the C signature of ``esoarm_fast_block`` on a loaded kernel."""
+    fn = lib.esoarm_fast_block
+    fn.restype = None
+    i, n, d, p = ctypes.c_int, ctypes.c_long, ctypes.c_double, ctypes.c_void_p
+    fn.argtypes = [i, n, n, n, i, i, i,  # lanes, N, substeps, delay, kind, comp, lag on
+                   d, d, d, d, d,  # h, Ts, disturbance amplitude and frequency, limit
+                   p, p, n, p, p, p, p, p]  # par, refs, stride, offsets, noise, ..., out
+    return lib
+
+
 def load_kernel() -> ctypes.CDLL:
     """Build (first time only) and load the C kernel.
 
@@ -178,13 +189,7 @@ def load_kernel() -> ctypes.CDLL:
         except (FastEngineUnavailable, OSError) as exc:
             _LIB_ERROR = str(exc)
             raise FastEngineUnavailable(_LIB_ERROR) from None
-        fn = lib.esoarm_fast_block
-        fn.restype = None
-        fn.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_int, ctypes.c_int,
-                       ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                       ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
-                       ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
-                       ctypes.c_void_p, ctypes.c_void_p]
+        _bind(lib)
         _LIB = lib
         return lib
 
@@ -262,7 +267,7 @@ def _run_pack(lib: ctypes.CDLL, pack: _batch._Pack, workers: int) -> np.ndarray:
         noise_off = (pack.run_noise[lanes] * nmax).astype(np.int64)
         uhist = np.zeros((delay + 1) * _LANES)
         out = np.empty((_NOUT, _LANES))
-        lib.esoarm_fast_block(n, nsub, delay, kind, comp, lag_on, h, ts, damp, dfreq,
+        lib.esoarm_fast_block(len(runs), n, nsub, delay, kind, comp, lag_on, h, ts, damp, dfreq,
                               DIVERGENCE_LIMIT, par.ctypes.data, refs.ctypes.data, nmax,
                               ref_off.ctypes.data, noises.ctypes.data, noise_off.ctypes.data,
                               uhist.ctypes.data, out.ctypes.data)
