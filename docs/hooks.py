@@ -143,6 +143,10 @@ def _results_markdown(name: str) -> str:
         from esoarm.studies.report import summary_text
 
         return summary_text(rep) + "\n"
+    if name == "twins":
+        from esoarm.studies.twins_report import compared_twins, twins_markdown
+
+        return twins_markdown(compared_twins({"nominal": rep}))
     if name == "findings":
         from esoarm.studies.reproduce import discretization_findings
 
@@ -151,7 +155,8 @@ def _results_markdown(name: str) -> str:
 
 
 _RESULTS = re.compile(
-    r"<!-- esoarm:(paper-tables|claims|summary|theorem2|findings|assumptions|pole-table) -->")
+    r"<!-- esoarm:(paper-tables|claims|summary|theorem2|findings|assumptions|pole-table|twins)"
+    r" -->")
 
 
 def generated_figures() -> dict[str, bytes]:

@@ -110,6 +110,7 @@ def run(scn: dict) -> dict[str, np.ndarray]:
     gc = (plant["m1"] * plant["l1"] - plant["m2"] * plant["l2"]) * plant["g"]
     inertia = rig["inertia_scale"] * i0
     fc, vs, visc = rig["coulomb_friction"], rig["friction_velocity"], rig["viscous_friction"]
+    fst, vst = rig.get("stiction", 0.0), rig.get("stribeck_velocity", 0.1)
     d_amp, d_freq = rig["disturbance"]["amplitude"], rig["disturbance"]["frequency"]
     lag = act["lag"]
     ts = 1.0 / sensor["rate_hz"]
@@ -127,6 +128,8 @@ def run(scn: dict) -> dict[str, np.ndarray]:
     def accel(x: np.ndarray, u_app: float, t: float) -> float:
         torque = x[2] if lag > 0 else u_app
         fric = fc * math.tanh(x[1] / vs) + visc * x[1]
+        if fst:  # Stribeck peak above Coulomb
+            fric += fst * math.exp(-((x[1] / vst) ** 2)) * math.tanh(x[1] / vs)
         return (torque - gc * math.cos(x[0]) - fric) / inertia + d_amp * math.sin(d_freq * t)
 
     def deriv(x: np.ndarray, u_app: float, t: float) -> np.ndarray:

@@ -38,6 +38,7 @@ CASES = {
     "theta0-seed": {"rig.theta0": 0.3, "sensor.seed": 7},
     "fine-step": {"rig.step": 0.0005, "sensor.rate_hz": 100.0},
     "eps-0.05": {"observer.eps": 0.05},
+    "stiction": {"rig.stiction": 0.15, "rig.stribeck_velocity": 0.05},
 }
 DISCRETIZATIONS = ("euler", "zoh", "current")
 

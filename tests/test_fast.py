@@ -115,6 +115,9 @@ def test_scenario_that_needs_the_exact_engine() -> None:
     scn = load_scenario("test-1", {"motor.gear_ratio": 50.0})
     with pytest.raises(ValueError, match=r"\[motor\].*--engine exact"):
         fast.run_metrics([scn])
+    scn = load_scenario("test-1", {"rig.stiction": 0.1})
+    with pytest.raises(ValueError, match=r"rig.stiction.*--engine exact"):
+        fast.run_metrics([scn])
 
 
 def test_without_a_compiler_it_falls_back(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -55,6 +55,9 @@ ENGINE_CASES = {
                                         "rig.coulomb_friction": 0.1, "rig.viscous_friction": 0.05,
                                         "rig.inertia_scale": 0.8, "rig.step": 0.0005,
                                         "duration": 6.0}),
+    "stiction-zoh": ("test-1", {"rig.stiction": 0.15, "rig.stribeck_velocity": 0.05,
+                                "rig.coulomb_friction": 0.1, "observer.discretization": "zoh",
+                                "duration": 6.0}),
 }
 
 

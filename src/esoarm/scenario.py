@@ -94,6 +94,14 @@ class Rig(_Section):
     viscous_friction: float = Field(
         0.01, ge=0, description="viscous friction b", json_schema_extra=_unit("N·m·s/rad")
     )
+    stiction: float = Field(
+        0.0, ge=0, description="breakaway (static) friction above Coulomb, Fst = Fs − Fc",
+        json_schema_extra=_unit("N·m"),
+    )
+    stribeck_velocity: float = Field(
+        0.1, gt=0, description="Stribeck velocity vst over which the stiction decays",
+        json_schema_extra=_unit("rad/s"),
+    )
     step: float = Field(0.001, gt=0, description="RK4 step h", json_schema_extra=_unit("s"))
     theta0: float = Field(0.0, description="initial angle θ(0)", json_schema_extra=_unit("rad"))
     disturbance: Disturbance = Field(default_factory=Disturbance)

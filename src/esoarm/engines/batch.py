@@ -81,7 +81,7 @@ _THETA0, _SIGMA, _Q, _H, _TS, _B0 = range(6)
 _N, _NSUB, _DELAY, _REFIDX = range(4)
 
 # _closed_loop unpacks the parameter vectors into tuples of these lengths
-if (_rig.VECTOR_SIZE, _observer.VECTOR_SIZE, _controller.VECTOR_SIZE) != (8, 21, 6):
+if (_rig.VECTOR_SIZE, _observer.VECTOR_SIZE, _controller.VECTOR_SIZE) != (10, 21, 6):
     raise ImportError(  # pragma: no cover - guards a core change
         "esoarm.engines.batch: the packed rig/observer/controller vectors changed size; "
         "update the tuple unpacking in esoarm.engines.batch._closed_loop"
@@ -171,7 +171,7 @@ def _closed_loop(log, n, theta0, noise, sigma, q, tref, dref, ddref, rig, obs, c
     """
     # the packed parameter vectors as tuples: the physics functions index them
     # exactly like arrays, but tuples live in registers (no reference counting)
-    rig = (rig[0], rig[1], rig[2], rig[3], rig[4], rig[5], rig[6], rig[7])
+    rig = (rig[0], rig[1], rig[2], rig[3], rig[4], rig[5], rig[6], rig[7], rig[8], rig[9])
     ctl = (ctl[0], ctl[1], ctl[2], ctl[3], ctl[4], ctl[5])
     obs = (obs[0], obs[1], obs[2], obs[3], obs[4], obs[5], obs[6], obs[7], obs[8], obs[9],
            obs[10], obs[11], obs[12], obs[13], obs[14], obs[15], obs[16], obs[17], obs[18],

@@ -214,6 +214,8 @@ def unsupported(scn: Scenario) -> str | None:
     kind = getattr(scn.rig.disturbance, "kind", "sine")
     if kind != "sine":
         return f"rig.disturbance.kind = {kind!r}"
+    if getattr(scn.rig, "stiction", 0.0) != 0.0:
+        return "rig.stiction > 0 (Stribeck friction)"
     return None
 
 

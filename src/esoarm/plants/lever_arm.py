@@ -1,8 +1,13 @@
 """The true system: the digital twin of the paper's rig (SPEC §2).
 
-    θ̈ = (τ − G(θ) − Fc tanh(θ̇/vs) − b θ̇) / I + d(t),     I = inertia_scale · I0
+    θ̈ = (τ − G(θ) − F(θ̇)) / I + d(t),     I = inertia_scale · I0
+    F(θ̇) = (Fc + Fst exp(−(θ̇/vst)²)) tanh(θ̇/vs) + b θ̇      (Stribeck friction)
     τ̇ = (u_applied − τ) / T      (actuator lag T > 0; τ = u_applied when T = 0)
     d(t) = amplitude · sin(frequency · t)                  (paper eq. 6)
+
+Fst (``rig.stiction``, default 0) is the breakaway torque above Coulomb
+friction, decaying over the Stribeck velocity vst; with Fst = 0 the friction is
+exactly Fc tanh(θ̇/vs) + b θ̇ (bit for bit: Fc + 0·exp(…) = Fc).
 
 integrated with classical RK4 at a fixed step h, d evaluated at each stage
 time.  The functions take the rig parameters packed in one float vector
@@ -22,8 +27,8 @@ from esoarm.plants.model import gravity_coefficient, gravity_torque
 
 __all__ = ["RigParams", "rig_acceleration", "rig_advance", "rig_derivative", "rig_rk4_step"]
 
-INERTIA, GCOEF, FC, VS, VISC, DAMP, DFREQ, LAG = range(8)
-VECTOR_SIZE = 8
+INERTIA, GCOEF, FC, VS, VISC, DAMP, DFREQ, LAG, FST, VST = range(10)
+VECTOR_SIZE = 10
 
 
 @jitable
@@ -35,7 +40,9 @@ def disturbance(t, rig):  # type: ignore[no-untyped-def]
 @jitable
 def rig_acceleration(theta, omega, tau, t, rig):  # type: ignore[no-untyped-def]
     """True angular acceleration θ̈ [rad/s²] at angle θ, rate θ̇, torque τ, time t."""
-    friction = rig[FC] * math.tanh(omega / rig[VS]) + rig[VISC] * omega
+    x = omega / rig[VST]
+    friction = (rig[FC] + rig[FST] * math.exp(-x * x)) * math.tanh(omega / rig[VS]) \
+        + rig[VISC] * omega
     return (tau - gravity_torque(theta, rig[GCOEF]) - friction) / rig[INERTIA] + disturbance(t, rig)
 
 
@@ -104,6 +111,10 @@ class RigParams:
         [rad/s].
     lag : float
         Actuator time constant T [s]; 0 for none.
+    stiction : float
+        Breakaway torque above Coulomb friction Fst [N·m]; 0 for none.
+    stribeck_velocity : float
+        Stribeck velocity vst [rad/s] over which the stiction decays.
     """
 
     inertia: float
@@ -114,6 +125,8 @@ class RigParams:
     disturbance_amplitude: float
     disturbance_frequency: float
     lag: float
+    stiction: float = 0.0
+    stribeck_velocity: float = 0.1
 
     @classmethod
     def from_scenario(cls, scn) -> RigParams:  # type: ignore[no-untyped-def]
@@ -128,6 +141,8 @@ class RigParams:
             disturbance_amplitude=r.disturbance.amplitude,
             disturbance_frequency=r.disturbance.frequency,
             lag=scn.actuator.lag,
+            stiction=r.stiction,
+            stribeck_velocity=r.stribeck_velocity,
         )
 
     @cached_property
@@ -143,6 +158,8 @@ class RigParams:
                 self.disturbance_amplitude,
                 self.disturbance_frequency,
                 self.lag,
+                self.stiction,
+                self.stribeck_velocity,
             ]
         )
         vec.setflags(write=False)

@@ -12,7 +12,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esoarm.plants.lever_arm import DAMP, DFREQ, FC, GCOEF, INERTIA, LAG, VECTOR_SIZE, VISC, VS
+from esoarm.plants.lever_arm import (
+    DAMP,
+    DFREQ,
+    FC,
+    FST,
+    GCOEF,
+    INERTIA,
+    LAG,
+    VECTOR_SIZE,
+    VISC,
+    VS,
+    VST,
+)
 from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario
 from esoarm.studies.identify_data import IdentLog, segments, simulate_segments
@@ -97,6 +109,8 @@ class Problem:
         rig[DAMP] = r.disturbance.amplitude
         rig[DFREQ] = r.disturbance.frequency
         rig[LAG] = values["actuator.lag"]
+        rig[FST] = r.stiction  # held at the scenario's value
+        rig[VST] = r.stribeck_velocity
         src = self.base
         if self.motor is not None:
             m = self.motor

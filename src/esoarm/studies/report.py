@@ -24,7 +24,7 @@ from __future__ import annotations
 import base64
 import html
 import platform
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from esoarm import __version__
@@ -356,7 +356,8 @@ def _scenarios_section(rep: Reproduction) -> str:
     return "".join(parts)
 
 
-def render_report(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
+def render_report(rep: Reproduction, pngs: Mapping[str, bytes],
+                  extra_sections: Sequence[tuple[str, str, str]] = ()) -> str:
     """The reproduction report as one self-contained HTML document.
 
     Parameters
@@ -366,6 +367,9 @@ def render_report(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
     pngs : mapping stem -> PNG bytes
         Figures from :func:`esoarm.studies.reproduce.figure_specs` (``fig4`` … ``fig7``,
         ``theorem2``, ``discretizations``); missing ones are left out.
+    extra_sections : sequence of (id, title, HTML)
+        Further sections, placed after the claims (e.g. the two twins of
+        :func:`esoarm.studies.twins_report.twins_section`).
 
     Returns
     -------
@@ -379,6 +383,7 @@ def render_report(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
     sections = [
         ("tables", "Tables II and III: paper beside twin", _tables_section(rep)),
         ("claims", "The paper's claims, checked on the twin", _claims_section(rep)),
+        *extra_sections,
         ("figures", "Fig. 4-7 on the twin", "".join(
             _img(pngs, s, captions[s]) for s in ("fig4", "fig5", "fig6", "fig7")
             if s in captions)),

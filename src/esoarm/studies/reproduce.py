@@ -18,7 +18,7 @@ place that simulates; identical scenarios are run once.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -620,7 +620,8 @@ def figure_specs(rep: Reproduction) -> list[tuple[str, str, Callable[[], Any]]]:
 
 def write_outputs(rep: Reproduction, out_dir: str | Path,
                   progress: Callable[[str], None] | None = None,
-                  fmt: str = "png", report: bool = True) -> list[Path]:
+                  fmt: str = "png", report: bool = True,
+                  extra_sections: Sequence[tuple[str, str, str]] = ()) -> list[Path]:
     """Write tables (CSV, JSON), one time-series CSV per run, the figures and report.html.
 
     Parameters
@@ -634,6 +635,8 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
         File format of the figures; the report always embeds PNG.
     report : bool
         Write ``report.html`` (see :mod:`esoarm.studies.report`).
+    extra_sections : sequence of (id, title, HTML)
+        Further report sections (see :func:`esoarm.studies.report.render_report`).
 
     Returns the written paths.
     """
@@ -676,7 +679,7 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
         from esoarm.studies.report import render_report
 
         html_path = out / "report.html"
-        _write_text(html_path, render_report(rep, pngs))
+        _write_text(html_path, render_report(rep, pngs, extra_sections))
         written.append(html_path)
         if progress:
             progress("report.html")
