@@ -106,6 +106,20 @@ def _physics_stamp() -> str:
     return digest.hexdigest()
 
 
+#: Source files whose numba kernels are cached under the physics stamp (this one, and any
+#: module that calls :func:`cover_with_physics_stamp`).
+_COVERED_FILES: set[str] = {os.path.realpath(__file__)}
+
+
+def cover_with_physics_stamp(path: str) -> None:
+    """Key the on-disk cache of the numba kernels defined in ``path`` on the physics too.
+
+    For modules outside the engines whose kernels call the physics functions
+    (e.g. the identification's segment simulator); call before the first use.
+    """
+    _COVERED_FILES.add(os.path.realpath(path))
+
+
 def _install_cache_locator() -> None:
     """Key numba's on-disk cache of this module on every physics source file.
 
@@ -129,7 +143,6 @@ def _install_cache_locator() -> None:
              first("UserWideCacheLocator", "_UserWideCacheLocator")]
     if impl is None or None in bases or not hasattr(impl, "_locator_classes"):
         return  # pragma: no cover
-    this_file = os.path.realpath(__file__)
     stamp = _physics_stamp()
 
     def make(base: type) -> type:
@@ -139,7 +152,7 @@ def _install_cache_locator() -> None:
 
             @classmethod
             def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
-                if os.path.realpath(py_file) != this_file:
+                if os.path.realpath(py_file) not in _COVERED_FILES:
                     return None
                 return super().from_function(py_func, py_file)
 

@@ -252,7 +252,11 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         lag_lo = 2.0 * prob.h
         best_lag = None
         lag_rejected = None
+        probe = ts / 4.0
         for d in [dd for dd in (d_best, d_best - 1) if dd in cost]:
+            if d == d_best and not _lag_lowers_cost(prob, sol, lag_lo, probe):
+                lag_rejected = lag_lo + probe  # screened out: no fit needed
+                continue
             say(f"fitting the actuator lag with delay {d} sample(s)")
             x_phys = [*sol.x[: prob.n_phys], max(ts / 2.0, 3.0 * lag_lo)]
             pl, sl = fit(d, names, nominal, x_phys, sol.x[prob.n_phys:], max_iter=8)
@@ -261,12 +265,13 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         if best_lag is not None and best_lag[1].x[len(base_free)] > 1.05 * lag_lo and \
                 m * math.log(2.0 * sol.cost / max(2.0 * best_lag[1].cost, 1e-300)) > CHI2_95:
             prob, sol, d_best = best_lag
+            lag_rejected = None
             if not sol.converged:
                 prob, sol = fit(d_best, names, nominal, list(sol.x[: prob.n_phys]),
                                 sol.x[prob.n_phys:])
             cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
         elif best_lag is not None:
-            lag_rejected = float(best_lag[1].x[len(base_free)])
+            lag_rejected = max(float(best_lag[1].x[len(base_free)]), lag_rejected or 0.0)
     else:
         lag_rejected = None
     if not (sol.converged and np.isfinite(sol.cost)) or np.any(sol.fun >= 1e3):
@@ -288,6 +293,19 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         segment_seconds=seg_samples * ts, elapsed=time.perf_counter() - t_start,
         iterations=int(sol.iterations), fit_logs=sorted({lg.path for lg in fit_logs}),
         validation_logs=sorted({lg.path for lg in val_logs}), curves=curves)
+
+
+def _lag_lowers_cost(prob: Problem, sol, lag_lo: float, probe: float) -> bool:  # type: ignore[no-untyped-def]
+    """Screen: does a lag of ``lag_lo + probe`` [s] lower the cost of the T = 0 fit?
+
+    Everything else held at the T = 0 fit; if a lag of a quarter sample does not
+    help there, the lag is not worth a fit (T = 0 is kept).
+    """
+    def cost(lag: float) -> float:
+        r = prob.with_fixed({"actuator.lag": lag}).residual(sol.x)
+        return float(r @ r)
+
+    return cost(lag_lo + probe) < cost(lag_lo)
 
 
 def _fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:

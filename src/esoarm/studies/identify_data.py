@@ -28,10 +28,17 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from esoarm.plants.lever_arm import rig_advance
+from esoarm.engines.batch import cover_with_physics_stamp  # registers the physics with numba
+from esoarm.plants.lever_arm import VECTOR_SIZE, rig_advance
 from esoarm.scenario import ScenarioError
 
+# the compiled segment simulator is cached on disk, keyed on the physics sources too
+cover_with_physics_stamp(__file__)
+
 __all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "read_ident_log", "simulate_segments"]
+
+if VECTOR_SIZE != 10:  # simulate_segments unpacks the rig vector into a 10-tuple
+    raise ImportError("esoarm.studies.identify_data: the rig vector changed size")
 
 #: Shortest log accepted [s] and fewest samples.
 MIN_DURATION = 4.0
@@ -176,6 +183,8 @@ def simulate_segments(out, rig, src, t, seg_start, seg_len, x0, h, nsub):  # pra
     torque ``src[k]`` [N·m] over [t_k, t_k + nsub·h) -- the twin's
     :func:`esoarm.plants.lever_arm.rig_advance`.
     """
+    # the parameter vector as a tuple: indexed like the array, but held in registers
+    rig = (rig[0], rig[1], rig[2], rig[3], rig[4], rig[5], rig[6], rig[7], rig[8], rig[9])
     for s in range(len(seg_start)):
         k0 = seg_start[s]
         theta = x0[2 * s]

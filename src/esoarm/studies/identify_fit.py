@@ -8,6 +8,7 @@ Jacobian, bounds and scales.  :func:`levenberg_marquardt` minimizes it.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,6 +91,13 @@ class Problem:
         self.n_phys = len(free)
         self.n_seg = len(self.seg_start)
         self._out = np.empty(len(self.y))
+
+    def with_fixed(self, changes: dict[str, float]) -> Problem:
+        """The same problem (data, segments, delay) with some held values changed."""
+        other = copy.copy(self)
+        other.fixed = {**self.fixed, **changes}
+        other._out = np.empty(len(self.y))
+        return other
 
     # -- parameters ----------------------------------------------------------
     def phys(self, x: np.ndarray) -> dict[str, float]:
