@@ -107,6 +107,19 @@ def _compiler() -> str | None:
     return None
 
 
+def _cpu_flags() -> str:
+    """The CPU's feature flags: a kernel built with -march=native is only reused on a
+    CPU with the same instruction sets (a shared home directory may span machines)."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                if line.startswith(("flags", "Features")):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return ""
+
+
 def cache_dir() -> Path:
     """Where built kernels are kept: ``$ESOARM_CACHE_DIR`` or ``~/.cache/esoarm``."""
     env = os.environ.get("ESOARM_CACHE_DIR")
@@ -123,7 +136,7 @@ def _build(cc: str) -> Path:
     errors = []
     for cflags, libs in _FLAG_SETS:
         stamp = hashlib.sha256(
-            source + repr((version, cflags, libs, os.uname().machine)).encode()
+            source + repr((version, cflags, libs, os.uname().machine, _cpu_flags())).encode()
         ).hexdigest()[:16]
         target = cache_dir() / f"fast-kernel-{stamp}.so"
         if target.exists():
