@@ -109,10 +109,13 @@ class CLoop:
                        check=True)
         self.runs = [(i, s) for i in range(len(grid.points)) for s in grid.seeds]
         pack = batch._pack(list(grid.points), self.runs)
-        pts = np.hstack([pack.fpar, pack.rig, pack.obs, pack.ctl])
+        # loop.c's layout: theta0, sigma, q, h, ts, b0 | rig[8] | obs[21] | ctl[6] (the kinds'
+        # vectors without their CODE in element 0)
+        fpar = np.column_stack([pack.x0[:, 0], pack.fpar, pack.b0[:, 0]])
+        pts = np.hstack([fpar, pack.pp[:, 1:9], pack.op[:, 1:22], pack.cp[:, 1:7]])
         assert pts.shape[1] == 41
         pts.astype("<f8").tofile(work / "points.f64")
-        pack.ipar.astype("<i8").tofile(work / "ipoints.i64")
+        pack.ipar[:, :4].astype("<i8").tofile(work / "ipoints.i64")
         pack.refs.astype("<f8").tofile(work / "refs.f64")
         pack.noises.astype("<f8").tofile(work / "noises.f64")
         self.pairs = np.column_stack([pack.run_point, pack.run_noise]).astype("<i8")

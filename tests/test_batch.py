@@ -16,8 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from esoarm.engines import batch
+from esoarm.engines.metrics import pairwise_sum
 from esoarm.engines.simulation import SimulationDiverged, prepare, run_reference
-from esoarm.result import compute_metrics
 from esoarm.scenario import builtin_names, load_scenario
 
 RTOL = 1e-12
@@ -38,6 +38,8 @@ CASES = {
     "theta0-seed": {"rig.theta0": 0.3, "sensor.seed": 7},
     "fine-step": {"rig.step": 0.0005, "sensor.rate_hz": 100.0},
     "eps-0.05": {"observer.eps": 0.05},
+    "motor": {"motor.pwm_max": 1023, "motor.deadband": 0.05, "actuator.delay_samples": 1},
+    "motor+lag": {"motor.supply_voltage": 6.0, "actuator.lag": 0.02},
     "stiction": {"rig.stiction": 0.15, "rig.stribeck_velocity": 0.05},
 }
 DISCRETIZATIONS = ("euler", "zoh", "current")
@@ -48,7 +50,8 @@ def _scenario(name: str, disc: str, extra: dict) -> object:
 
 
 def _assert_same(fast, ref) -> None:  # type: ignore[no-untyped-def]
-    for attr in ("t", "theta", "theta_ref", "error", "u", "z", "f_true", "omega"):
+    for attr in ("t", "theta", "theta_ref", "error", "u", "z", "f_true", "omega", "y",
+                 "saturated"):
         np.testing.assert_allclose(getattr(fast, attr), getattr(ref, attr), rtol=RTOL, atol=ATOL,
                                    err_msg=attr)
     for key, value in ref.metrics.items():
@@ -73,13 +76,20 @@ def test_metrics_match_reference(name: str) -> None:
     for i, scn in enumerate(scns):
         ref = run_reference(scn, prepare(scn))
         row = table.row(i)
+        # the metrics' definitions, written out here independently of esoarm.engines.metrics
         expected = {
-            **compute_metrics(ref.error, ref.u),
+            "rms_error": float(np.sqrt(np.mean(ref.error**2))),
+            "rms_u": float(np.sqrt(np.mean(ref.u**2))),
+            "max_abs_error": float(np.max(np.abs(ref.error))),
             "max_abs_u": float(np.max(np.abs(ref.u))),
             "rms_f_error": float(np.sqrt(np.mean((ref.z[:, 2] - ref.f_true) ** 2))),
+            "rms_rate_error": float(np.sqrt(np.mean((ref.z[:, 1] - ref.omega) ** 2))),
+            "rms_du": float(np.sqrt(np.mean(np.diff(ref.u) ** 2))),
+            "saturated_fraction": float(np.mean(np.abs(ref.u) == scn.actuator.torque_limit)),
             "samples": float(len(ref.t)),
             "diverged": 0.0,
         }
+        assert ref.metrics == pytest.approx(expected, rel=1e-15, abs=0)
         for key, value in expected.items():
             np.testing.assert_allclose(row[key], value, rtol=RTOL, atol=0, err_msg=key)
 
@@ -90,7 +100,7 @@ def test_bit_identical_builtin(name: str) -> None:
     scn = load_scenario(name)
     ref = run_reference(scn, prepare(scn))
     (fast,) = batch.simulate_many([scn])
-    for attr in ("theta", "u", "z", "f_true", "omega"):
+    for attr in ("theta", "u", "z", "f_true", "omega", "y", "saturated"):
         assert np.array_equal(getattr(fast, attr), getattr(ref, attr)), attr
     assert fast.metrics == ref.metrics
     row = batch.run_metrics([scn]).row(0)
@@ -179,13 +189,26 @@ def test_noise_drawn_once_per_seed() -> None:
 @given(st.lists(st.floats(-1e6, 1e6, allow_nan=False), min_size=1, max_size=700))
 def test_pairwise_sum_is_numpy_order(values: list[float]) -> None:
     x = np.square(np.array(values))
-    assert batch._pairwise_sum(x, len(x)) == np.add.reduce(x)
-    assert math.isclose(batch._pairwise_sum(x, len(x)), math.fsum(x), rel_tol=1e-12)
+    assert pairwise_sum(x, len(x)) == np.add.reduce(x)
+    assert math.isclose(pairwise_sum(x, len(x)), math.fsum(x), rel_tol=1e-12)
 
 
 def test_disk_cache_is_keyed_on_the_physics_sources() -> None:
     """Editing rig.py (or any physics module) must not reuse a stale compiled kernel."""
-    for kernel in (batch._metrics_kernel, batch._series_kernel, batch._closed_loop):
+    for kernel in (batch._metrics_kernel, batch._series_kernel, batch._run):
         locator = kernel._cache._impl.locator
         assert type(locator).__name__.startswith("EsoarmPhysics")
         assert locator.get_source_stamp().endswith(batch._physics_stamp())
+
+
+def test_kinds_that_do_not_compile_run_in_processes(monkeypatch) -> None:
+    """A kind with JIT = False: the batch engine falls back to the reference engine."""
+    from esoarm.controllers import flc
+
+    pts = [load_scenario("test-1", {**SHORT, "observer.eps": e}) for e in (0.05, 0.2)]
+    compiled = batch.run_metrics(pts, seeds=[0, 1])
+    monkeypatch.setattr(flc, "JIT", False)
+    fallback = batch.run_metrics(pts, seeds=[0, 1], workers=2)
+    np.testing.assert_array_equal(fallback.values, compiled.values)
+    (series,) = batch.simulate_many(pts[:1])
+    assert series.metrics == run_reference(pts[0], prepare(pts[0])).metrics

@@ -288,3 +288,17 @@ def test_cli_excite_twin_angle_guard(run_cli, tmp_path):
     assert "angle limit" in res.stderr
     rows = log.read_text().splitlines()
     assert 1 < len(rows) < 1001 and rows[-1].count(",") == len(TWIN_LOG_COLUMNS) - 1
+
+
+def test_closed_loop_log_of_the_flc_is_identified(tmp_path):
+    """A log of the ESO + FLC itself (as 'esoarm run' writes it) identifies too."""
+    from esoarm.hardware.controller import DeploymentController
+
+    truth = load_scenario("test-2", ["rig.inertia_scale=1.25", "rig.coulomb_friction=0.08",
+                                     "duration=30", "sensor.seed=9"])
+    excite_twin(truth, None, tmp_path / "run.csv", controller=DeploymentController(truth))
+    res = identify(load_scenario("test-2"), [read_ident_log(tmp_path / "run.csv", 2.0)],
+                   max_delay=1)
+    for key in ("rig.inertia_scale", "rig.coulomb_friction"):
+        lo, hi = res.estimates[key].ci95
+        assert lo <= _truth_value(truth, key) <= hi, (key, res.estimates[key])

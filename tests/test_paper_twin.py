@@ -74,3 +74,19 @@ def test_twins_section_shows_both_twins():
         assert word in text
     if GAINS_FREE in reps:
         assert "stand in the way" in text
+
+
+def test_cli_reproduce_on_the_paper_twin(run_cli, tmp_path):
+    import json
+
+    out = tmp_path / "res"
+    res = run_cli("reproduce", "--twin", "paper", "--out", str(out))
+    assert res.exit_code == 0, res.stderr
+    assert "esoarm: the paper digital" in res.stdout
+    data = json.loads((out / "tables.json").read_text())
+    rep = run_reproduction(twin_overrides("paper"), compare=False)
+    row = next(r for r in data["tables"] if r["test"] == "test-1" and r["eps"] == 0.09
+               and r["compensation"] == "eso")
+    assert row["rms_u"] == rep.metric("test-1", 0.09, "rms_u")
+    html = (out / "report.html").read_text()
+    assert 'id="twins"' in html and "nominal twin" in html

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from esoarm.engines.metrics import LOG_ROWS
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.result import SimResult
 from esoarm.studies.reproduce import (
@@ -22,8 +23,8 @@ from esoarm.studies.reproduce import (
     observer_checks,
     plan_runs,
     run_id,
-    run_metrics,
     run_reproduction,
+    table_metrics,
 )
 
 # -- the plan ------------------------------------------------------------------
@@ -57,10 +58,10 @@ def _fake(scn, error_rms: float, u_rms: float, rough: float = 0.0) -> SimResult:
     if rough:
         # alternating ±rough/2 around u_rms keeps RMS(Δu) = rough
         u = u_rms + 0.5 * rough * (-1.0) ** np.arange(n)
-    log = np.zeros((n, 8))
-    log[:, 2] = error_rms
-    log[:, 3] = u
-    return SimResult.from_log(scn, t, log, np.zeros(n))
+    log = np.zeros((len(LOG_ROWS), n))
+    log[LOG_ROWS.index("error")] = error_rms
+    log[LOG_ROWS.index("u")] = u
+    return SimResult.from_log(scn, t, log)
 
 
 def _fake_rep(best_eps: float, eso_better: bool) -> Reproduction:
@@ -165,7 +166,7 @@ def test_discretization_findings_quote_the_sweep():
         assert f"ε = {best:g} s for {disc} ({by_eps[best].rms_error:.4f} rad)" in text
     rows = rep.sweep_rows()
     assert len(rows) == 3 * len(SWEEP_EPS)
-    assert rows[0]["rms_error"] == run_metrics(rep.sweep[rows[0]["discretization"]][
+    assert rows[0]["rms_error"] == table_metrics(rep.sweep[rows[0]["discretization"]][
         rows[0]["eps"]])["rms_error"]
 
 
@@ -192,7 +193,11 @@ def test_cli_reproduce_writes_everything(run_cli, tmp_path):
         rows = list(csv.DictReader(fh))
     assert {r["run"] for r in rows} == set(experiment_set())
     assert float(rows[0]["rms_error"]) == pytest.approx(data["tables"][0]["rms_error"])
-    assert '<img src="data:image/png;base64,' in (out / "report.html").read_text()
+    html = (out / "report.html").read_text()
+    assert '<img src="data:image/png;base64,' in html
+    # both twins in the report, whichever one ran
+    assert 'id="twins"' in html and "paper twin" in html and "nominal twin" in html
+    assert "What stands in the way" in html
 
 
 def test_cli_reproduce_bad_out_is_exit_2(run_cli, tmp_path):
@@ -201,6 +206,8 @@ def test_cli_reproduce_bad_out_is_exit_2(run_cli, tmp_path):
     res = run_cli("reproduce", "--out", str(target))
     assert res.exit_code == 2
     assert "not a directory" in res.stderr and "Traceback" not in res.stderr
+    res = run_cli("reproduce", "--twin", "hardware")
+    assert res.exit_code == 2 and "--twin" in res.stderr
     res = run_cli("reproduce", "--format", "jpg")
     assert res.exit_code == 2
 

@@ -274,7 +274,7 @@ def figure_discretizations(sweep: Mapping[str, Mapping[float, Mapping[str, float
     ----------
     sweep : mapping discretization -> ε [s] -> metrics
         Metrics with ``rms_error`` [rad] and ``du_rms`` [N·m] (see
-        :func:`esoarm.studies.reproduce.run_metrics`).
+        :func:`esoarm.studies.reproduce.table_metrics`).
     ts : float
         Sample period Ts [s]; the Euler limits ε = Ts (poles at 0, below it
         negative) and ε = Ts/2 (unstable below) are marked.

@@ -9,25 +9,29 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from esoarm._io import atomic_path
+from esoarm.engines.metrics import (
+    ERR,
+    NROW,
+    OM,
+    REF,
+    SAT,
+    SERIES_COLUMNS,
+    TH,
+    Z1,
+    Z3,
+    F,
+    U,
+    Y,
+    series_metrics,
+)
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CSV_COLUMNS", "SimResult", "compute_metrics", "write_csv_atomic"]
+__all__ = ["CSV_COLUMNS", "SimResult", "write_csv_atomic"]
 
-#: Time-series CSV columns (SPEC §4), SI units.
-CSV_COLUMNS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3", "f_true")
-
-
-def compute_metrics(error: np.ndarray, u: np.ndarray) -> dict[str, float]:
-    """RMS tracking error [rad], RMS control [N·m], max |error| [rad] (SPEC §2)."""
-    if len(error) == 0:
-        return {"rms_error": float("nan"), "rms_u": float("nan"), "max_abs_error": float("nan")}
-    return {
-        "rms_error": float(np.sqrt(np.mean(error**2))),
-        "rms_u": float(np.sqrt(np.mean(u**2))),
-        "max_abs_error": float(np.max(np.abs(error))),
-    }
+#: Time-series CSV columns, SI units (see :data:`esoarm.engines.metrics.SERIES_COLUMNS`).
+CSV_COLUMNS = SERIES_COLUMNS
 
 
 def write_csv_atomic(
@@ -64,6 +68,14 @@ class SimResult:
         True total perturbation θ̈(t_k) − b0 u_k [rad/s²].
     omega : ndarray
         True rate θ̇(t_k) [rad/s].
+    y : ndarray
+        Measured angle y_k [rad] (noise and quantization).
+    saturated : ndarray
+        1.0 where the command hit ±torque_limit, else 0.0.
+    diverged : bool
+        The run left the finite range (the series end at that sample).
+    metrics : dict
+        :data:`esoarm.engines.metrics.METRICS` of the run.
     """
 
     scenario: Scenario
@@ -75,24 +87,34 @@ class SimResult:
     z: np.ndarray
     f_true: np.ndarray
     omega: np.ndarray
+    y: np.ndarray
+    saturated: np.ndarray
+    diverged: bool = False
     metrics: dict[str, float] = field(default_factory=dict)
 
     @classmethod
     def from_log(cls, scenario: Scenario, t: np.ndarray, log: np.ndarray,
-                 omega: np.ndarray) -> SimResult:
-        """Build from the engine log (columns θ, θd, e, u, z1, z2, z3, f_true)."""
+                 diverged: bool = False) -> SimResult:
+        """Build from an engine log (rows :data:`esoarm.engines.metrics.LOG_ROWS`, columns samples).
+
+        A one-joint run; the rows are copied out of ``log``.
+        """
         log = np.asarray(log, dtype=float)
+        if log.shape[0] != NROW:
+            raise ValueError(f"a one-joint log has {NROW} rows, got {log.shape[0]}")
+        rows = {name: np.array(log[i]) for name, i in
+                (("theta", TH), ("theta_ref", REF), ("error", ERR), ("u", U), ("f_true", F),
+                 ("omega", OM), ("y", Y), ("saturated", SAT))}
+        z = np.array(log[Z1 : Z3 + 1].T)
         return cls(
             scenario=scenario,
             t=np.asarray(t, dtype=float),
-            theta=log[:, 0],
-            theta_ref=log[:, 1],
-            error=log[:, 2],
-            u=log[:, 3],
-            z=log[:, 4:7],
-            f_true=log[:, 7],
-            omega=np.asarray(omega, dtype=float),
-            metrics=compute_metrics(log[:, 2], log[:, 3]),
+            z=z,
+            diverged=diverged,
+            metrics=series_metrics(rows["error"], rows["u"], z=z, f_true=rows["f_true"],
+                                   omega=rows["omega"], saturated=rows["saturated"],
+                                   diverged=diverged),
+            **rows,
         )
 
     @property
@@ -111,9 +133,10 @@ class SimResult:
         return self.metrics["max_abs_error"]
 
     def table(self) -> np.ndarray:
-        """The time series as an (N, 9) array in :data:`CSV_COLUMNS` order."""
+        """The time series as an (N, 11) array in :data:`CSV_COLUMNS` order."""
         return np.column_stack(
-            [self.t, self.theta, self.theta_ref, self.error, self.u, self.z, self.f_true]
+            [self.t, self.theta, self.theta_ref, self.error, self.u, self.z, self.f_true, self.y,
+             self.saturated]
         )
 
     def to_csv(self, path: str | Path) -> Path:
@@ -124,14 +147,12 @@ class SimResult:
     def summary(self) -> dict[str, Any]:
         """Metrics plus the identifying settings, JSON-ready."""
         scn = self.scenario
-        return {
-            "scenario": scn.name,
-            "eps": scn.observer.eps,
-            "discretization": scn.observer.discretization,
-            "compensation": scn.controller.compensation,
-            "samples": int(len(self.t)),
-            **self.metrics,
-        }
+        settings = {"scenario": scn.name, "plant": scn.plant.kind, "observer": scn.observer.kind,
+                    "controller": scn.controller.kind}
+        for section in (scn.observer, scn.controller):
+            settings.update({k: v for k, v in section.model_dump().items()
+                             if k != "kind" and isinstance(v, str | int | float)})
+        return {**settings, **self.metrics, "samples": int(len(self.t))}
 
     def plot(self, path: str | Path | None = None, **kwargs: Any):  # type: ignore[no-untyped-def]
         """Plot angle, error, control and estimates; see :func:`esoarm.plotting.plot_run`."""

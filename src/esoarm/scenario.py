@@ -18,10 +18,13 @@ import math
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, TypeAlias
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
-from pydantic.json_schema import JsonDict
+from pydantic import BaseModel, Field, ValidationError
+
+from esoarm import kinds as _kinds
+from esoarm._schema import Section as _Section
+from esoarm._schema import unit as _unit
 
 __all__ = [
     "Scenario",
@@ -47,25 +50,22 @@ class ScenarioWarning(UserWarning):
     """A legal but risky scenario setting (e.g. an observer too fast for Ts)."""
 
 
-def _unit(unit: str) -> JsonDict:
-    return {"unit": unit}
-
-
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
-
-
-class Plant(_Section):
-    """Nominal model known to the controller (paper Table I)."""
-
-    m1: float = Field(0.5, gt=0, description="lumped mass 1", json_schema_extra=_unit("kg"))
-    m2: float = Field(0.55, gt=0, description="lumped mass 2", json_schema_extra=_unit("kg"))
-    l1: float = Field(0.15, gt=0, description="length of arm 1", json_schema_extra=_unit("m"))
-    l2: float = Field(0.14, gt=0, description="length of arm 2", json_schema_extra=_unit("m"))
-    inertia: float = Field(
-        0.0225, gt=0, description="moment of inertia I0", json_schema_extra=_unit("kg·m²")
-    )
-    g: float = Field(9.81, ge=0, description="gravity", json_schema_extra=_unit("m/s²"))
+#: ``[plant]``, ``[observer]``, ``[controller]``: one table per component, its keys
+#: those of the kind named by ``kind`` (the registered kinds, :mod:`esoarm.kinds`).
+#: :data:`KIND_SECTIONS` maps every such table (and ``reference``) to its kinds' models.
+if TYPE_CHECKING:  # statically: any registered kind's Params (each kind narrows its own)
+    Plant: TypeAlias = Any
+    Observer: TypeAlias = Any
+    Controller: TypeAlias = Any
+else:
+    Plant = _kinds.tagged_union(_kinds.PLANTS)
+    Observer = _kinds.tagged_union(_kinds.OBSERVERS)
+    Controller = _kinds.tagged_union(_kinds.CONTROLLERS)
+KIND_SECTIONS: dict[str, tuple[type[BaseModel], ...]] = {
+    "plant": tuple(m.Params for m in _kinds.PLANTS),
+    "observer": tuple(m.Params for m in _kinds.OBSERVERS),
+    "controller": tuple(m.Params for m in _kinds.CONTROLLERS),
+}
 
 
 class Disturbance(_Section):
@@ -138,28 +138,6 @@ class Actuator(_Section):
     )
 
 
-class Observer(_Section):
-    """Extended state observer (paper eq. 8, Theorem 1)."""
-
-    eps: float = Field(
-        0.09, gt=0, description="free parameter ε; observer poles at −1/ε",
-        json_schema_extra=_unit("s"),
-    )
-    discretization: Literal["euler", "zoh", "current"] = Field(
-        "euler", description='"euler" (paper) | "zoh" | "current" (SPEC §2)'
-    )
-
-
-class Controller(_Section):
-    """Feedback-linearization controller (paper eq. 14-17)."""
-
-    k1: float = Field(10.0, gt=0, description="error-rate gain k1", json_schema_extra=_unit("1/s"))
-    k2: float = Field(25.0, gt=0, description="error gain k2", json_schema_extra=_unit("1/s²"))
-    compensation: Literal["eso", "model"] = Field(
-        "eso", description='"eso": β̂ = z3 (proposed) | "model": β̂ = −G(ẑ1)/I0 (Fig. 7 baseline)'
-    )
-
-
 class QuinticSteps(_Section):
     """Rest-to-rest quintic moves, the angle held between moves."""
 
@@ -191,6 +169,7 @@ class Multisine(_Section):
 
 
 Reference = Annotated[QuinticSteps | Multisine, Field(discriminator="kind")]
+KIND_SECTIONS["reference"] = (QuinticSteps, Multisine)
 
 
 class Motor(_Section):
@@ -236,12 +215,12 @@ class Scenario(_Section):
 
     name: str = Field("test-1", description="scenario name")
     duration: float = Field(20.0, gt=0, description="run length", json_schema_extra=_unit("s"))
-    plant: Plant = Field(default_factory=Plant)
+    plant: Plant = Field(default_factory=_kinds.PLANTS[0].Params)
     rig: Rig = Field(default_factory=Rig)
     sensor: Sensor = Field(default_factory=Sensor)
     actuator: Actuator = Field(default_factory=Actuator)
-    observer: Observer = Field(default_factory=Observer)
-    controller: Controller = Field(default_factory=Controller)
+    observer: Observer = Field(default_factory=_kinds.OBSERVERS[0].Params)
+    controller: Controller = Field(default_factory=_kinds.CONTROLLERS[0].Params)
     reference: Reference = Field(default_factory=QuinticSteps)
     motor: Motor | None = Field(
         None, description="DC motor + driver (torque -> PWM duty); absent: ideal torque source"
@@ -357,8 +336,8 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     for key, value in over.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
             old_kind = out[key].get("kind")
-            if key == "reference" and value.get("kind", old_kind) != old_kind:
-                out[key] = copy.deepcopy(value)  # another kind of reference: its own defaults
+            if key in KIND_SECTIONS and value.get("kind", old_kind) != old_kind:
+                out[key] = copy.deepcopy(value)  # another kind: its own defaults
             else:
                 out[key] = _merge(out[key], value)
         else:
@@ -404,15 +383,17 @@ def _valid_keys() -> list[str]:
             ann = field.annotation
             if name == "motor":  # optional section: Motor | None
                 ann = Motor
+            if name in KIND_SECTIONS:
+                continue
             if isinstance(ann, type) and issubclass(ann, BaseModel):
                 walk(ann, prefix + name + ".")
             else:
                 keys.append(prefix + name)
 
     walk(Scenario, "")
-    for ref_model in (QuinticSteps, Multisine):
-        for name in ref_model.model_fields:
-            keys.append("reference." + name)
+    for section, models in KIND_SECTIONS.items():
+        for model in models:
+            keys.extend(f"{section}.{name}" for name in model.model_fields)
     return sorted(set(keys))
 
 
@@ -447,7 +428,10 @@ def _format_validation_error(exc: ValidationError, source: str) -> str:
     err = exc.errors()[0]
     loc = [str(p) for p in err["loc"] if not isinstance(p, int)]
     # drop the discriminator tag pydantic inserts for tagged unions
-    loc = [p for p in loc if p not in ("quintic-steps", "multisine")]
+    section = loc[0] if loc else ""
+    tags = {m.model_fields["kind"].default: m for m in KIND_SECTIONS.get(section, ())}
+    tag_in_loc = [p for p in loc[1:2] if p in tags]
+    loc = [p for i, p in enumerate(loc) if not (i == 1 and p in tags)]
     idx = [p for p in err["loc"] if isinstance(p, int)]
     key = ".".join(loc)
     more = len(exc.errors()) - 1
@@ -455,11 +439,10 @@ def _format_validation_error(exc: ValidationError, source: str) -> str:
     kind = err["type"]
     if kind == "extra_forbidden":
         valid = _valid_keys()
-        tags = [p for p in err["loc"] if p in ("quintic-steps", "multisine")]
-        if key in valid and tags:  # a key of the other reference kind
-            model = QuinticSteps if tags[0] == "quintic-steps" else Multisine
-            return (f"{source}: key '{key}' does not apply to reference kind '{tags[0]}' "
-                    f"(its keys: {', '.join(model.model_fields)}){tail}")
+        if key in valid and tag_in_loc:  # a key of another kind of this section
+            model = tags[tag_in_loc[0]]
+            return (f"{source}: key '{key}' does not apply to {section} kind "
+                    f"'{tag_in_loc[0]}' (its keys: {', '.join(model.model_fields)}){tail}")
         close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
         hint = f"; did you mean '{close[0]}'?" if close else ""
         return f"{source}: unknown key '{key}'{hint}{tail}"
@@ -470,8 +453,9 @@ def _format_validation_error(exc: ValidationError, source: str) -> str:
         msg = "must be a finite number (no NaN or inf)"
     elif kind.startswith(("float", "int", "string", "list", "bool", "model")):
         msg = f"{msg.lower()}"
-    if kind == "union_tag_invalid":
-        return f"{source}: key '{key}.kind' must be one of 'quintic-steps', 'multisine'{tail}"
+    if kind in ("union_tag_invalid", "union_tag_not_found"):
+        allowed = ", ".join(f"'{t}'" for t in tags)
+        return f"{source}: key '{key}.kind' must be one of {allowed}{tail}"
     shown = repr(value) if not isinstance(value, dict) else "a table"
     return f"{source}: key '{where}' = {shown}: {msg}{tail}"
 
@@ -531,7 +515,11 @@ def scenario_warnings(scn: Scenario) -> list[str]:
     """
     from esoarm.studies.analysis import observer_warnings
 
-    return observer_warnings(scn.observer.eps, scn.sample_time, scn.observer.discretization)
+    obs = scn.observer
+    eps, disc = getattr(obs, "eps", None), getattr(obs, "discretization", None)
+    if eps is None or disc is None:
+        return []
+    return observer_warnings(eps, scn.sample_time, disc)
 
 
 # ---------------------------------------------------------------------------

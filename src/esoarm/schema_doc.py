@@ -11,7 +11,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from esoarm.scenario import Multisine, QuinticSteps, Scenario
+from esoarm.scenario import Scenario
 
 __all__ = ["scenario_keys", "scenario_keys_markdown"]
 
@@ -22,17 +22,47 @@ def _fmt(value: Any) -> str:
     return f"`{value!r}`"
 
 
+def _unit_of(field: Any) -> str:
+    extra = field.json_schema_extra if isinstance(field.json_schema_extra, dict) else {}
+    return str(extra.get("unit", ""))
+
+
+def _kind_rows(section: str, models: tuple[type[BaseModel], ...]) -> list[tuple[str, ...]]:
+    """Rows of a section whose keys depend on its ``kind`` (the default kind first)."""
+    rows: list[tuple[str, ...]] = []
+    names = [m.model_fields["kind"].default for m in models]
+    several = len(models) > 1
+    kinds_text = " or ".join(f"`{n}`" + (" (default)" if i == 0 and several else "")
+                             for i, n in enumerate(names))
+    rows.append((f"{section}.kind", _fmt(names[0]), "",
+                 f"{kinds_text}" + ("; the keys below belong to one kind each" if several
+                                    else "")))
+    for model in models:
+        inst = model()
+        tag = model.model_fields["kind"].default
+        for name, field in model.model_fields.items():
+            if name == "kind":
+                continue
+            desc = field.description or ""
+            rows.append((f"{section}.{name}", _fmt(getattr(inst, name)), _unit_of(field),
+                         f"({tag}) {desc}" if several else desc))
+    return rows
+
+
 def scenario_keys() -> list[tuple[str, str, str, str]]:
     """(dotted key, default, unit, description) for every scenario key."""
+    from esoarm.scenario import KIND_SECTIONS
+
     rows: list[tuple[str, str, str, str]] = []
 
     def walk(model: type[BaseModel], instance: BaseModel, prefix: str) -> None:
         for name, field in model.model_fields.items():
             value = getattr(instance, name)
-            if isinstance(value, BaseModel) and not isinstance(value, QuinticSteps | Multisine):
-                walk(type(value), value, prefix + name + ".")
+            if not prefix and name in KIND_SECTIONS:
+                rows.extend(_kind_rows(name, KIND_SECTIONS[name]))  # type: ignore[arg-type]
                 continue
-            if isinstance(value, QuinticSteps | Multisine):
+            if isinstance(value, BaseModel):
+                walk(type(value), value, prefix + name + ".")
                 continue
             if value is None and name == "motor":  # optional table, absent by default
                 from esoarm.scenario import Motor
@@ -41,24 +71,9 @@ def scenario_keys() -> list[tuple[str, str, str, str]]:
                              + "; give a `[motor]` table to enable it, with these defaults:"))
                 walk(Motor, Motor(), "motor.")
                 continue
-            extra = field.json_schema_extra if isinstance(field.json_schema_extra, dict) else {}
-            rows.append((prefix + name, _fmt(value), str(extra.get("unit", "")),
-                         field.description or ""))
+            rows.append((prefix + name, _fmt(value), _unit_of(field), field.description or ""))
 
     walk(Scenario, Scenario(), "")
-    for ref in (QuinticSteps(), Multisine()):
-        for name, field in type(ref).model_fields.items():
-            extra = field.json_schema_extra if isinstance(field.json_schema_extra, dict) else {}
-            desc = field.description or ""
-            if name == "kind":
-                if isinstance(ref, Multisine):
-                    continue
-                rows.append(("reference.kind", _fmt(ref.kind), "",
-                             "`quintic-steps` (default) or `multisine`; the keys below"
-                             " belong to one kind each"))
-                continue
-            rows.append((f"reference.{name}", _fmt(getattr(ref, name)),
-                         str(extra.get("unit", "")), f"({ref.kind}) {desc}"))
     return rows
 
 

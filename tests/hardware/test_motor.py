@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from esoarm.plants import lever_arm
 from esoarm.plants.lever_arm import RigParams, rig_acceleration
-from esoarm.plants.motor import MotorParams, twin_rig_vector
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import ScenarioError, load_scenario
 
 
@@ -40,8 +41,9 @@ def test_deadband_is_compensated(motor):
 
 
 def test_twin_law_is_the_motor_equation(motor):
-    scn = load_scenario("test-1")
-    rig = twin_rig_vector(RigParams.from_scenario(scn).vector, motor)
+    scn = load_scenario("test-1", {"motor.pwm_max": 1023, "motor.deadband": 0.08})
+    assert MotorParams.from_scenario(scn) == motor
+    rig = lever_arm.design(scn).vector[1:]  # the plant with the motor's back-EMF damping
     plain = RigParams.from_scenario(scn).vector
     duty, omega, theta, t = 300, 0.7, 0.2, 1.3
     # i = (Vs d − N Kt ω)/R, τ = N Kt i  (independent statement of the law)

@@ -45,6 +45,10 @@ LOCKSTEP_CASES = {
         "actuator.lag=0.02", "actuator.delay_samples=1"]),
     "test-1-zoh-1kHz": ("test-1", ["duration=1", "sensor.rate_hz=1000",
                                    "observer.discretization=zoh", "observer.eps=0.02"]),
+    # with a [motor] table simulate applies the motor exactly as the emulated device does
+    "test-1-motor-lag-delay": ("test-1", ["duration=2", "motor.pwm_max=1023",
+                                          "motor.deadband=0.05", "actuator.lag=0.01",
+                                          "actuator.delay_samples=1"]),
 }
 
 

@@ -1,5 +1,5 @@
 """Controllers: the control law from the estimate and the reference.
 
-``flc``               the paper's feedback-linearization controller (eq. 14-17)
+``flc``               controller kind "flc": feedback linearization (paper eq. 14-17)
 ``computed_torque``   its n-joint form: one ESO per joint, computed torque on the nominal model
 """

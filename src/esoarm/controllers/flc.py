@@ -1,4 +1,4 @@
-"""Feedback-linearization controller (FLC) of the paper, eq. 14-17.
+"""Controller kind ``"flc"``: the paper's feedback-linearization controller, eq. 14-17.
 
     u = I0 (α − β̂),    α = θ̈d − k1 (ẑ2 − θ̇d) − k2 (ẑ1 − θd)
 
@@ -8,19 +8,48 @@ perturbation estimate, the baseline of Fig. 7).  The result is saturated to
 ±torque_limit.  With perfect estimates the tracking error e = θ − θd obeys
 ë + k1 ė + k2 e = κ (eq. 17), κ the estimation error; Theorem 2 bounds the
 steady-state error by μ/k2 for |κ| ≤ μ (see :mod:`esoarm.studies.analysis`).
+
+As a kind (see :mod:`esoarm.contract`): :class:`Params` is the ``[controller]``
+table, :func:`design` gives (CODE, :attr:`FLCParams.vector`) and :func:`control`
+is the array-valued step function (the raw command; the actuator saturates).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
+from pydantic import Field
 
 from esoarm._jit import jitable
+from esoarm._schema import Section, unit
+from esoarm.contract import ComponentDesign, PlantDesign, read_only
+from esoarm.plants.actuator import saturate
 from esoarm.plants.model import gravity_coefficient, gravity_torque
 
-__all__ = ["FLCParams", "flc_control", "saturate"]
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
+
+__all__ = ["CODE", "JIT", "KIND", "FLCParams", "Params", "control", "design", "flc_command",
+           "flc_control", "initialize", "saturate"]
+
+KIND = "flc"
+CODE = 0
+JIT = True
+
+
+class Params(Section):
+    """``[controller]`` of kind "flc": feedback linearization (paper eq. 14-17)."""
+
+    kind: Literal["flc"] = Field(
+        "flc", description="controller kind (the registered kinds: esoarm.kinds)")
+    k1: float = Field(10.0, gt=0, description="error-rate gain k1", json_schema_extra=unit("1/s"))
+    k2: float = Field(25.0, gt=0, description="error gain k2", json_schema_extra=unit("1/s²"))
+    compensation: Literal["eso", "model"] = Field(
+        "eso", description='"eso": β̂ = z3 (proposed) | "model": β̂ = −G(ẑ1)/I0 (Fig. 7 baseline)'
+    )
 
 # Layout of the packed controller vector (FLCParams.vector).
 K1, K2, I0, GCOEF, COMP, LIMIT = 0, 1, 2, 3, 4, 5
@@ -30,18 +59,9 @@ COMPENSATIONS = ("eso", "model")
 
 
 @jitable
-def saturate(u, limit):  # type: ignore[no-untyped-def]
-    """Clip u to ±limit [N·m]; NaN passes through so faults stay visible."""
-    if u > limit:
-        return limit
-    if u < -limit:
-        return -limit
-    return u
-
-
-@jitable
-def flc_control(z1, z2, z3, theta_ref, omega_ref, accel_ref, ctl):  # type: ignore[no-untyped-def]
-    """FLC law (eq. 14-16) from the estimate ẑ = (z1, z2, z3), saturated.
+def flc_command(z1: float, z2: float, z3: float, theta_ref: float, omega_ref: float,
+                accel_ref: float, ctl: np.ndarray) -> float:
+    """FLC law (eq. 14-16) from the estimate ẑ = (z1, z2, z3), before saturation.
 
     Parameters
     ----------
@@ -55,7 +75,7 @@ def flc_control(z1, z2, z3, theta_ref, omega_ref, accel_ref, ctl):  # type: igno
     Returns
     -------
     float
-        Torque command u [N·m], |u| ≤ torque_limit.
+        Torque command u [N·m].
     """
     # α = θ̈d − k1 (ẑ2 − θ̇d) − k2 (ẑ1 − θd)          (eq. 16)
     alpha = accel_ref - ctl[K1] * (z2 - omega_ref) - ctl[K2] * (z1 - theta_ref)
@@ -64,7 +84,14 @@ def flc_control(z1, z2, z3, theta_ref, omega_ref, accel_ref, ctl):  # type: igno
     else:
         beta_hat = -gravity_torque(z1, ctl[GCOEF]) / ctl[I0]  # eq. 15 without d
     # u = I0 (α − β̂)                                    (eq. 14)
-    return saturate(ctl[I0] * (alpha - beta_hat), ctl[LIMIT])
+    return ctl[I0] * (alpha - beta_hat)
+
+
+@jitable
+def flc_control(z1: float, z2: float, z3: float, theta_ref: float, omega_ref: float,
+                accel_ref: float, ctl: np.ndarray) -> float:
+    """FLC law (eq. 14-16), saturated to ±torque_limit [N·m] (:func:`flc_command`)."""
+    return saturate(flc_command(z1, z2, z3, theta_ref, omega_ref, accel_ref, ctl), ctl[LIMIT])
 
 
 @dataclass(frozen=True)
@@ -94,7 +121,7 @@ class FLCParams:
     torque_limit: float
 
     @classmethod
-    def from_scenario(cls, scn) -> FLCParams:  # type: ignore[no-untyped-def]
+    def from_scenario(cls, scn: Scenario) -> FLCParams:
         """Controller parameters of a :class:`~esoarm.scenario.Scenario`."""
         p = scn.plant
         return cls(
@@ -122,3 +149,31 @@ class FLCParams:
         """Torque command [N·m] for estimate ``zhat`` and the reference at t_k."""
         return float(flc_control(zhat[0], zhat[1], zhat[2], theta_ref, omega_ref, accel_ref,
                                  self.vector))
+
+
+# ---------------------------------------------------------------------------
+# the kind: design and array-valued step functions
+
+
+def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
+    """(CODE, :attr:`FLCParams.vector`) of the scenario; no controller state."""
+    if plant.n_joints != 1:
+        raise ValueError("the FLC kind is designed for one joint")
+    return ComponentDesign(
+        read_only(np.concatenate([[float(CODE)], FLCParams.from_scenario(scn).vector])), 1)
+
+
+@jitable
+def initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
+    """The FLC has no state of its own."""
+
+
+@jitable
+def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
+            p: np.ndarray, u: np.ndarray) -> None:
+    """Raw command u_k [N·m] (eq. 14-16) from ẑ_k and the reference at sample k into ``u``.
+
+    ``refs`` holds (θd, θ̇d, θ̈d) of joint j in rows 3j … 3j+2, one column per sample.
+    """
+    ctl = p[1:]
+    u[0] = flc_command(zhat[0], zhat[1], zhat[2], refs[0, k], refs[1, k], refs[2, k], ctl)

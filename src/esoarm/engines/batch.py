@@ -1,16 +1,13 @@
-"""Compiled batch engine: many closed-loop runs at once, SPEC §2 semantics exactly.
+"""Compiled batch engine: many closed-loop runs at once, the reference engine's numbers exactly.
 
-The per-sample loop here is the loop of :func:`esoarm.engines.simulation.run_reference`,
-compiled with numba and run in parallel over runs (``prange``) on all cores.  It
-calls the same plain physics functions -- :func:`~esoarm.plants.sensor.measure`,
-:func:`~esoarm.observers.linear.eso_estimate` and :func:`~esoarm.observers.linear.eso_advance`
-(eq. 8), :func:`~esoarm.controllers.flc.flc_control` (eq. 14-16),
-:func:`~esoarm.plants.lever_arm.rig_acceleration`,
-:func:`~esoarm.plants.lever_arm.applied_torque` and
-:func:`~esoarm.plants.lever_arm.rig_advance` (RK4 of the rig) -- and the same divergence
-rule (:data:`esoarm.engines.simulation.DIVERGENCE_LIMIT`), so both engines give the
-same numbers (the tests require bit-for-bit equality on every discretization,
-noise, quantization, lag, delay, saturation and compensation setting).
+The kernels here run :func:`esoarm.engines.loop.closed_loop` -- the one
+sample loop, also run as plain Python by the reference engine -- compiled
+with numba and in parallel over runs (``prange``) on all cores, with the
+registry's dispatch functions (:mod:`esoarm.kinds`) as step functions.  Both
+engines therefore give the same numbers (the tests require bit-for-bit
+equality on every kind, discretization, noise, quantization, lag, delay,
+motor, saturation and compensation setting).  A point whose kinds do not
+compile (``JIT = False``) is run by the reference engine in worker processes.
 
 Two modes:
 
@@ -18,25 +15,25 @@ Two modes:
   :class:`~esoarm.result.SimResult` objects (used by ``esoarm reproduce``);
 * :func:`run_metrics` keeps only the metrics of each run (one row of
   :data:`METRICS` per run), for sweeps of any size: work is done in chunks of
-  runs, each run keeps one (9, N) scratch log while it runs, and the noise of a
+  runs, each run keeps one scratch log while it runs, and the noise of a
   seed is drawn once and shared by every run that uses it.
 
-Metrics are computed the way :func:`esoarm.result.compute_metrics` computes
-them -- including NumPy's pairwise summation order -- so they are identical to
-the reference engine's, not merely close.
+Metrics come from :func:`esoarm.engines.metrics.log_metrics`, which sums in NumPy's
+pairwise order, so they are identical to the reference engine's
+(:func:`esoarm.engines.metrics.series_metrics`), not merely close.
 
 The kernels are compiled on first use and cached on disk (``cache=True``); the
 cache is keyed on the source of this module *and* of every physics module it
-calls (see :class:`_PhysicsStampLocator`), so editing the physics never leaves
-a stale compiled kernel behind.
+calls (see :func:`_physics_stamp`), so editing the physics never leaves a
+stale compiled kernel behind.
 """
 
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,20 +42,15 @@ import numpy as np
 from numba import njit, prange
 
 from esoarm import _jit
-from esoarm.controllers import flc as _controller
-from esoarm.controllers.flc import flc_control
-from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache
+from esoarm import kinds as _kinds
+from esoarm.engines.loop import closed_loop
+from esoarm.engines.metrics import METRICS, NMETRIC, NROW, MetricsTable, NoiseCache, log_metrics
 from esoarm.engines.simulation import (
     SimulationDiverged,
     diverged_message,
     prepare,
-    within_limits,
+    run_reference,
 )
-from esoarm.observers import linear as _observer
-from esoarm.observers.linear import eso_advance, eso_estimate
-from esoarm.plants import lever_arm as _rig
-from esoarm.plants.lever_arm import applied_torque, rig_acceleration, rig_advance
-from esoarm.plants.sensor import measure
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario
 
@@ -72,20 +64,13 @@ __all__ = [
     "simulate_many",
 ]
 
-_NMETRIC = len(METRICS)
-
-# rows of the (9, N) log: theta, theta_ref, error, u, z1, z2, z3, f_true, omega
-_TH, _REF, _ERR, _U, _Z1, _Z2, _Z3, _F, _OM = range(9)
 # point-parameter columns
-_THETA0, _SIGMA, _Q, _H, _TS, _B0 = range(6)
-_N, _NSUB, _DELAY, _REFIDX = range(4)
+_SIGMA, _Q, _H, _TS = range(4)
+_N, _NSUB, _DELAY, _REFIDX, _NJ, _NZ, _NC = range(7)
 
-# _closed_loop unpacks the parameter vectors into tuples of these lengths
-if (_rig.VECTOR_SIZE, _observer.VECTOR_SIZE, _controller.VECTOR_SIZE) != (10, 21, 6):
-    raise ImportError(  # pragma: no cover - guards a core change
-        "esoarm.engines.batch: the packed rig/observer/controller vectors changed size; "
-        "update the tuple unpacking in esoarm.engines.batch._closed_loop"
-    )
+#: Widths of the plant, observer, controller and actuator vectors in the kernels
+#: (zero-padded; a kind needs its vector to fit).
+VECTOR_WIDTH = (16, 32, 16, 16)
 
 #: Runs per chunk in metrics mode (bounds memory; one progress tick per chunk).
 DEFAULT_CHUNK = 2048
@@ -94,15 +79,20 @@ DEFAULT_CHUNK = 2048
 # ---------------------------------------------------------------------------
 # cache keyed on the physics sources as well as this file
 
-_PHYSICS_MODULES = ("engines/batch", "controllers/flc", "observers/linear", "plants/lever_arm",
-                    "plants/sensor", "plants/model", "engines/simulation", "_jit")
+_PHYSICS_DIRS = ("engines", "plants", "observers", "controllers")
+_PHYSICS_FILES = ("kinds.py", "contract.py", "_jit.py")
 
 
 def _physics_stamp() -> str:
+    """Hash of every source file the kernels may compile (the kinds, the loop, the metrics)."""
     root = Path(__file__).resolve().parent.parent
+    files = [root / name for name in _PHYSICS_FILES]
+    for folder in _PHYSICS_DIRS:
+        files.extend(sorted((root / folder).glob("*.py")))
     digest = hashlib.sha256()
-    for name in _PHYSICS_MODULES:
-        digest.update((root / f"{name}.py").read_bytes())
+    for path in files:
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
     return digest.hexdigest()
 
 
@@ -172,190 +162,58 @@ _install_cache_locator()
 
 
 @njit(cache=True)
-def _closed_loop(log, n, theta0, noise, sigma, q, tref, dref, ddref, rig, obs, ctl, h, nsub,
-                 delay, b0, ts):  # pragma: no cover - compiled
-    """SPEC §2 loop of one run into ``log`` (9, ≥n).
+def _tuple16(a):  # pragma: no cover - compiled
+    return (a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12],
+            a[13], a[14], a[15])
 
-    Returns the number of rows logged, negated if the run diverged (the last
-    row logged is then the sample at which it left the finite range).
 
-    Line for line the loop of :func:`esoarm.engines.simulation.run_reference`; the
-    history of u_k for the transport delay is row ``_U`` of the log itself.
+@njit(cache=True)
+def _tuple32(a):  # pragma: no cover - compiled
+    return (a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12],
+            a[13], a[14], a[15], a[16], a[17], a[18], a[19], a[20], a[21], a[22], a[23], a[24],
+            a[25], a[26], a[27], a[28], a[29], a[30], a[31])
+
+
+@njit(cache=True)
+def _run(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp, ap):  # pragma: no cover - compiled
+    """One run of :func:`closed_loop` with the registry's dispatch functions.
+
+    The parameter vectors are handed over as tuples (the physics indexes them
+    exactly like arrays, but tuples live in registers: no loads, no reference
+    counting in the inner loops).
     """
-    # the packed parameter vectors as tuples: the physics functions index them
-    # exactly like arrays, but tuples live in registers (no reference counting)
-    rig = (rig[0], rig[1], rig[2], rig[3], rig[4], rig[5], rig[6], rig[7], rig[8], rig[9])
-    ctl = (ctl[0], ctl[1], ctl[2], ctl[3], ctl[4], ctl[5])
-    obs = (obs[0], obs[1], obs[2], obs[3], obs[4], obs[5], obs[6], obs[7], obs[8], obs[9],
-           obs[10], obs[11], obs[12], obs[13], obs[14], obs[15], obs[16], obs[17], obs[18],
-           obs[19], obs[20])
-    theta = theta0
-    omega = 0.0
-    tau = 0.0
-    z1 = measure(theta0, noise[0], sigma, q)
-    z2 = 0.0
-    z3 = 0.0
-    for k in range(n):
-        tk = k * ts
-        y = measure(theta, noise[k], sigma, q)
-        ref = tref[k]
-        h1, h2, h3 = eso_estimate(z1, z2, z3, y, obs)
-        u = flc_control(h1, h2, h3, ref, dref[k], ddref[k], ctl)
-        log[_U, k] = u
-        u_applied = log[_U, k - delay] if k >= delay else 0.0
-        acc = rig_acceleration(theta, omega, applied_torque(tau, u_applied, rig), tk, rig)
-        log[_TH, k] = theta
-        log[_REF, k] = ref
-        log[_ERR, k] = theta - ref
-        log[_Z1, k] = h1
-        log[_Z2, k] = h2
-        log[_Z3, k] = h3
-        log[_F, k] = acc - b0 * u
-        log[_OM, k] = omega
-        if not within_limits(theta, h1, h2, h3, u):
-            return -(k + 1)
-        z1, z2, z3 = eso_advance(z1, z2, z3, h1, h2, h3, y, u, obs)
-        theta, omega, tau = rig_advance(theta, omega, tau, u_applied, tk, h, nsub, rig)
-    return n
-
-
-@njit(cache=True)
-def _pairwise_sum(a, n):  # pragma: no cover - compiled
-    """Sum of a[:n] in NumPy's pairwise order (bit-identical to ``np.add.reduce``).
-
-    NumPy splits a block of n > 128 values at n2 = n//2 rounded down to a
-    multiple of 8 and adds the two halves' sums; blocks of ≤ 128 values use 8
-    interleaved accumulators.  Written with an explicit stack (no recursion).
-    """
-    # stack of (lo, n, partial sum of the left half or nan, state) frames
-    los = np.empty(64, dtype=np.int64)
-    ns = np.empty(64, dtype=np.int64)
-    left = np.empty(64)
-    state = np.zeros(64, dtype=np.int64)  # 0: new, 1: left done
-    top = 0
-    los[0] = 0
-    ns[0] = n
-    state[0] = 0
-    result = 0.0
-    while top >= 0:
-        lo = los[top]
-        m = ns[top]
-        if m <= 128:
-            res = _block_sum(a, lo, m)
-            top -= 1
-            # hand the value to the parent frame
-            while top >= 0:
-                if state[top] == 0:
-                    left[top] = res
-                    state[top] = 1
-                    n2 = ns[top] // 2
-                    n2 -= n2 % 8
-                    top += 1
-                    los[top] = los[top - 1] + n2
-                    ns[top] = ns[top - 1] - n2
-                    state[top] = 0
-                    break
-                res = left[top] + res
-                top -= 1
-            else:
-                result = res
-            continue
-        n2 = m // 2
-        n2 -= n2 % 8
-        top += 1
-        los[top] = lo
-        ns[top] = n2
-        state[top] = 0
-    return result
-
-
-@njit(cache=True)
-def _block_sum(a, lo, n):  # pragma: no cover - compiled
-    if n < 8:
-        res = 0.0
-        for i in range(lo, lo + n):
-            res += a[i]
-        return res
-    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
-    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
-    i = 8
-    m = n - n % 8
-    while i < m:
-        j = lo + i
-        r0 += a[j]
-        r1 += a[j + 1]
-        r2 += a[j + 2]
-        r3 += a[j + 3]
-        r4 += a[j + 4]
-        r5 += a[j + 5]
-        r6 += a[j + 6]
-        r7 += a[j + 7]
-        i += 8
-    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < n:
-        res += a[lo + i]
-        i += 1
-    return res
-
-
-@njit(cache=True)
-def _mean_square(x, n, scratch):  # pragma: no cover - compiled
-    for i in range(n):
-        scratch[i] = x[i] * x[i]
-    return _pairwise_sum(scratch, n) / n
-
-
-@njit(cache=True)
-def _max_abs(x, n):  # pragma: no cover - compiled
-    # np.max propagates NaN; so does this
-    m = abs(x[0])
-    for i in range(1, n):
-        v = abs(x[i])
-        if v > m or v != v:
-            m = v
-            if v != v:
-                return v
-    return m
+    x = x0.copy()
+    return closed_loop(log, n, x, noise, fpar[_SIGMA], fpar[_Q], ref, fpar[_TS], fpar[_H],
+                       ipar[_NSUB], ipar[_DELAY], b0, _tuple16(pp), _tuple32(op), _tuple16(cp),
+                       _tuple16(ap), ipar[_NZ], ipar[_NC],
+                       _kinds.plant_advance, _kinds.plant_acceleration,
+                       _kinds.observer_initialize, _kinds.observer_estimate,
+                       _kinds.observer_advance, _kinds.controller_initialize,
+                       _kinds.controller_control)
 
 
 @njit(cache=True, parallel=True)
-def _metrics_kernel(run_point, run_noise, fpar, ipar, rig, obs, ctl, refs, noises,
+def _metrics_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
                     out):  # pragma: no cover - compiled
     nmax = refs.shape[2]
     for r in prange(run_point.shape[0]):
         p = run_point[r]
         n = ipar[p, _N]
-        ri = ipar[p, _REFIDX]
-        log = np.empty((9, nmax))
-        status = _closed_loop(log, n, fpar[p, _THETA0], noises[run_noise[r]], fpar[p, _SIGMA],
-                            fpar[p, _Q], refs[ri, 0], refs[ri, 1], refs[ri, 2], rig[p], obs[p],
-                            ctl[p], fpar[p, _H], ipar[p, _NSUB], ipar[p, _DELAY], fpar[p, _B0],
-                            fpar[p, _TS])
-        rows = abs(status)
-        scratch = np.empty(rows)
-        ferr = np.empty(rows)
-        for k in range(rows):
-            ferr[k] = log[_Z3, k] - log[_F, k]
-        out[r, 0] = math.sqrt(_mean_square(log[_ERR], rows, scratch))
-        out[r, 1] = math.sqrt(_mean_square(log[_U], rows, scratch))
-        out[r, 2] = _max_abs(log[_ERR], rows)
-        out[r, 3] = _max_abs(log[_U], rows)
-        out[r, 4] = math.sqrt(_mean_square(ferr, rows, scratch))
-        out[r, 5] = rows
-        out[r, 6] = 1.0 if status < 0 else 0.0
+        nj = ipar[p, _NJ]
+        log = np.empty((NROW * nj, nmax))
+        status = _run(log, n, x0[p], noises[run_noise[r]], fpar[p], ipar[p],
+                      refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p], cp[p], ap[p])
+        log_metrics(log, abs(status), status < 0, out[r])
 
 
 @njit(cache=True, parallel=True)
-def _series_kernel(run_point, run_noise, fpar, ipar, rig, obs, ctl, refs, noises, logs,
+def _series_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises, logs,
                    rows_out):  # pragma: no cover - compiled
     for r in prange(run_point.shape[0]):
         p = run_point[r]
-        ri = ipar[p, _REFIDX]
-        rows_out[r] = _closed_loop(logs[r], ipar[p, _N], fpar[p, _THETA0],
-                                   noises[run_noise[r]], fpar[p, _SIGMA], fpar[p, _Q],
-                                   refs[ri, 0], refs[ri, 1], refs[ri, 2], rig[p], obs[p], ctl[p],
-                                   fpar[p, _H], ipar[p, _NSUB], ipar[p, _DELAY], fpar[p, _B0],
-                                   fpar[p, _TS])
+        nj = ipar[p, _NJ]
+        rows_out[r] = _run(logs[r], ipar[p, _N], x0[p], noises[run_noise[r]], fpar[p], ipar[p],
+                           refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p], cp[p], ap[p])
 
 
 # ---------------------------------------------------------------------------
@@ -370,24 +228,30 @@ class _Pack:
     run_noise: np.ndarray
     fpar: np.ndarray
     ipar: np.ndarray
-    rig: np.ndarray
-    obs: np.ndarray
-    ctl: np.ndarray
+    x0: np.ndarray
+    b0: np.ndarray
+    pp: np.ndarray
+    op: np.ndarray
+    cp: np.ndarray
+    ap: np.ndarray
     refs: np.ndarray
     noises: np.ndarray
 
     def args(self) -> tuple[np.ndarray, ...]:
-        return (self.run_point, self.run_noise, self.fpar, self.ipar, self.rig, self.obs,
-                self.ctl, self.refs, self.noises)
+        return (self.run_point, self.run_noise, self.fpar, self.ipar, self.x0, self.b0, self.pp,
+                self.op, self.cp, self.ap, self.refs, self.noises)
 
 
-def _point_arrays(scn: Scenario) -> tuple[np.ndarray, ...]:
-    """(fpar, ipar-without-ref, rig, obs, ctl, ref arrays) of one scenario via prepare()."""
-    inp = prepare(scn, draw_noise=False)  # noise is drawn once per seed (NoiseCache)
-    fpar = np.array([inp.theta0, inp.sigma, inp.q, inp.h, scn.sample_time, inp.b0])
-    ipar = np.array([len(inp.t), inp.nsub, inp.delay], dtype=np.int64)
-    return fpar, ipar, inp.rig, inp.obs, inp.ctl, np.stack(
-        [inp.theta_ref, inp.omega_ref, inp.accel_ref])
+def _stack(rows: list[np.ndarray], width: int | None = None) -> np.ndarray:
+    """Rows of different lengths as one zero-padded 2-D array, at least ``width`` wide."""
+    longest = max((len(r) for r in rows), default=1)
+    if width is not None and longest > width:  # pragma: no cover - guards a new kind
+        raise ValueError(f"a parameter vector of {longest} values; the compiled engine takes "
+                         f"at most {width} (see esoarm.engines.batch.VECTOR_WIDTH)")
+    out = np.zeros((len(rows), max(width or longest, 1)))
+    for i, row in enumerate(rows):
+        out[i, : len(row)] = row
+    return out
 
 
 def _pack(points: Sequence[Scenario], runs: Sequence[tuple[int, int]],
@@ -395,41 +259,49 @@ def _pack(points: Sequence[Scenario], runs: Sequence[tuple[int, int]],
     """Pack ``points`` and ``runs`` = [(point index, seed), ...] for the kernels."""
     noise_cache = noise_cache or NoiseCache()
     p = len(points)
-    fpar = np.empty((p, 6))
-    ipar = np.empty((p, 4), dtype=np.int64)
-    rig = np.empty((p, _rig.VECTOR_SIZE))
-    obs = np.empty((p, _observer.VECTOR_SIZE))
-    ctl = np.empty((p, _controller.VECTOR_SIZE))
+    fpar = np.empty((p, 4))
+    ipar = np.empty((p, 7), dtype=np.int64)
+    x0, b0, pp, op, cp, ap = [], [], [], [], [], []
     ref_keys: dict[str, int] = {}
     ref_list: list[np.ndarray] = []
     for i, scn in enumerate(points):
-        f, ip, rg, ob, ct, ref = _point_arrays(scn)
-        fpar[i], ipar[i, :3], rig[i], obs[i], ctl[i] = f, ip, rg, ob, ct
+        inp = prepare(scn, draw_noise=False)  # noise is drawn once per seed (NoiseCache)
+        fpar[i] = (inp.sigma, inp.q, inp.h, inp.ts)
+        ipar[i, :3] = (len(inp.t), inp.nsub, inp.delay)
+        ipar[i, 4:] = (inp.plant.n_joints, inp.observer.n_state, inp.controller.n_state)
+        x0.append(inp.plant.x0)
+        b0.append(inp.plant.b0)
+        pp.append(inp.plant.vector)
+        op.append(inp.observer.vector)
+        cp.append(inp.controller.vector)
+        ap.append(inp.actuator)
         ref_key = f"{scn.sample_time!r}/{scn.n_samples}/{scn.reference.model_dump_json()}"
         if ref_key not in ref_keys:
             ref_keys[ref_key] = len(ref_list)
-            ref_list.append(ref)
+            ref_list.append(inp.refs)
         ipar[i, _REFIDX] = ref_keys[ref_key]
     nmax = int(ipar[:, _N].max()) if p else 1
-    refs = np.zeros((len(ref_list), 3, nmax))
+    nref = max((r.shape[0] for r in ref_list), default=3)
+    refs = np.zeros((len(ref_list), nref, nmax))
     for i, ref in enumerate(ref_list):
-        refs[i, :, : ref.shape[1]] = ref
+        refs[i, : ref.shape[0], : ref.shape[1]] = ref
     noise_rows: dict[tuple[int, int], int] = {}
     noise_list: list[np.ndarray] = []
     run_point = np.empty(len(runs), dtype=np.int64)
     run_noise = np.empty(len(runs), dtype=np.int64)
     for r, (pi, seed) in enumerate(runs):
         scn = points[pi]
-        key, seq = noise_cache.get(seed, scn.n_samples, scn.sensor.noise_deg)
+        length = scn.n_samples * int(ipar[pi, _NJ])
+        key, seq = noise_cache.get(seed, length, scn.sensor.noise_deg)
         if key not in noise_rows:
             noise_rows[key] = len(noise_list)
             noise_list.append(seq)
         run_point[r] = pi
         run_noise[r] = noise_rows[key]
-    noises = np.zeros((max(len(noise_list), 1), nmax))
-    for i, seq in enumerate(noise_list):
-        noises[i, : len(seq)] = seq
-    return _Pack(run_point, run_noise, fpar, ipar, rig, obs, ctl, refs, noises)
+    noises = _stack(noise_list) if noise_list else np.zeros((1, nmax))
+    wp, wo, wc, wa = VECTOR_WIDTH
+    return _Pack(run_point, run_noise, fpar, ipar, _stack(x0), _stack(b0), _stack(pp, wp),
+                 _stack(op, wo), _stack(cp, wc), _stack(ap, wa), refs, noises)
 
 
 class _threads:
@@ -489,21 +361,47 @@ def run_metrics(
         runs = [(i, scn.sensor.seed) for i, scn in enumerate(points)]
     else:
         runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
-    out = np.empty((len(runs), _NMETRIC))
+    out = np.empty((len(runs), NMETRIC))
     noise_cache = _noise_cache or NoiseCache()
+    compiled = [_kinds.kinds_of(scn).jit for scn in points]
     with _threads(workers):
         for start in range(0, len(runs), chunk):
             part = runs[start : start + chunk]
-            used = sorted({pi for pi, _ in part})
-            local = {pi: j for j, pi in enumerate(used)}
-            pack = _pack([points[pi] for pi in used], [(local[pi], s) for pi, s in part],
-                         noise_cache)
-            res = np.empty((len(part), _NMETRIC))
-            _metrics_kernel(*pack.args(), res)  # type: ignore[call-arg]
-            out[start : start + len(part)] = res
+            jit_idx = [i for i, (pi, _) in enumerate(part) if compiled[pi]]
+            py_idx = [i for i, (pi, _) in enumerate(part) if not compiled[pi]]
+            if jit_idx:
+                used = sorted({part[i][0] for i in jit_idx})
+                local = {pi: j for j, pi in enumerate(used)}
+                pack = _pack([points[pi] for pi in used],
+                             [(local[part[i][0]], part[i][1]) for i in jit_idx], noise_cache)
+                res = np.empty((len(jit_idx), NMETRIC))
+                _metrics_kernel(*pack.args(), res)  # type: ignore[call-arg]
+                out[start + np.array(jit_idx)] = res
+            if py_idx:
+                jobs = [points[part[i][0]].with_overrides({"sensor.seed": part[i][1]})
+                        for i in py_idx]
+                out[start + np.array(py_idx)] = _python_metrics(jobs, workers)
             if progress is not None:
                 progress(len(part))
     return MetricsTable(out)
+
+
+def _reference_metrics(scn: Scenario) -> np.ndarray:
+    """:data:`METRICS` of one run by the reference engine (a diverged run does not raise)."""
+    try:
+        result = run_reference(scn, prepare(scn))
+    except SimulationDiverged as exc:
+        result = exc.result
+    return np.array([result.metrics[name] for name in METRICS])
+
+
+def _python_metrics(scenarios: list[Scenario], workers: int | None) -> np.ndarray:
+    """Metrics of runs whose kinds do not compile: the reference engine in worker processes."""
+    procs = workers or os.cpu_count() or 1
+    if procs == 1 or len(scenarios) == 1:
+        return np.array([_reference_metrics(scn) for scn in scenarios])
+    with ProcessPoolExecutor(max_workers=min(procs, len(scenarios))) as pool:
+        return np.array(list(pool.map(_reference_metrics, scenarios)))
 
 
 def simulate_many(
@@ -524,7 +422,7 @@ def simulate_many(
     workers : int, optional
         Threads (cores) to use; default all.
     chunk : int
-        Runs per kernel call (memory ≈ chunk · 9 · N · 8 bytes).
+        Runs per kernel call (memory ≈ chunk · 11 · N · 8 bytes).
 
     Returns
     -------
@@ -543,17 +441,19 @@ def simulate_many(
     with _threads(workers):
         for start in range(0, len(scenarios), chunk):
             part = scenarios[start : start + chunk]
+            if not all(_kinds.kinds_of(scn).jit for scn in part):
+                results.extend(run_reference(scn, prepare(scn)) for scn in part)
+                continue
             pack = _pack(part, [(i, scn.sensor.seed) for i, scn in enumerate(part)], noise_cache)
             nmax = pack.refs.shape[2]
-            logs = np.empty((len(part), 9, nmax))
+            logs = np.empty((len(part), NROW * int(pack.ipar[:, _NJ].max()), nmax))
             rows = np.empty(len(part), dtype=np.int64)  # rows logged, < 0: diverged
             _series_kernel(*pack.args(), logs, rows)  # type: ignore[call-arg]
             for i, scn in enumerate(part):
                 n = scn.n_samples
                 k = abs(int(rows[i]))
                 t = np.arange(n) * scn.sample_time
-                log = logs[i, :8, :k].T.copy()
-                result = SimResult.from_log(scn, t[:k], log, logs[i, _OM, :k].copy())
+                result = SimResult.from_log(scn, t[:k], logs[i, :, :k], diverged=rows[i] < 0)
                 if rows[i] < 0:
                     raise SimulationDiverged(diverged_message(scn.name, float(t[k - 1]), k - 1),
                                              result)

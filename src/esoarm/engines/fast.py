@@ -21,7 +21,10 @@ Agreement with the exact engine
 What it supports
     Every scenario the exact engine runs except those :func:`unsupported`
     names (a run that needs the exact engine is reported, never silently
-    approximated).
+    approximated): the lever arm with the linear ESO and the FLC, no motor.
+    It computes ``rms_error``, ``rms_u``, ``max_abs_error``, ``max_abs_u``,
+    ``rms_f_error``, ``samples`` and ``diverged``; the other metrics of
+    :data:`esoarm.engines.metrics.METRICS` are NaN.
 
 Without a working C compiler the fast engine is unavailable: :func:`run_metrics`
 warns once and runs the exact engine instead (same numbers, slower).
@@ -46,6 +49,7 @@ import numpy as np
 
 from esoarm.controllers import flc as _ctl
 from esoarm.engines import batch as _batch
+from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache
 from esoarm.engines.simulation import DIVERGENCE_LIMIT
 from esoarm.observers import linear as _obs
 from esoarm.plants import lever_arm as _rig
@@ -72,6 +76,9 @@ _PAR_NAMES = (
 )
 _NPAR = len(_PAR_NAMES)
 _NOUT = 7
+#: Columns of :data:`esoarm.engines.metrics.METRICS` this engine computes (the others are NaN).
+COMPUTED: tuple[int, ...] = tuple(METRICS.index(name) for name in (
+    "rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error", "samples", "diverged"))
 
 
 class FastEngineUnavailable(RuntimeError):
@@ -222,6 +229,11 @@ def available() -> bool:
 
 def unsupported(scn: Scenario) -> str | None:
     """Why ``scn`` needs the exact engine, or None if the fast engine runs it."""
+    for section, default in (("plant", "lever-arm"), ("observer", "linear"),
+                             ("controller", "flc")):
+        kind = getattr(scn, section).kind
+        if kind != default:
+            return f"{section}.kind = {kind!r}"
     if getattr(scn, "motor", None) is not None:
         return "a [motor] model"
     kind = getattr(scn.rig.disturbance, "kind", "sine")
@@ -234,8 +246,9 @@ def unsupported(scn: Scenario) -> str | None:
 
 def _point_rows(pack: _batch._Pack) -> np.ndarray:
     """(P, NPAR) per-point parameter rows in the kernel's order."""
-    f, rg, ob, ct = pack.fpar, pack.rig, pack.obs, pack.ctl
-    cols = [f[:, _batch._THETA0], f[:, _batch._SIGMA], f[:, _batch._Q], f[:, _batch._B0],
+    # the kinds' vectors without their CODE in element 0
+    f, rg, ob, ct = pack.fpar, pack.pp[:, 1:], pack.op[:, 1:], pack.cp[:, 1:]
+    cols = [pack.x0[:, 0], f[:, _batch._SIGMA], f[:, _batch._Q], pack.b0[:, 0],
             rg[:, _rig.INERTIA], rg[:, _rig.GCOEF], rg[:, _rig.FC], rg[:, _rig.VS],
             rg[:, _rig.VISC], rg[:, _rig.LAG],
             ob[:, _obs.BETA1], ob[:, _obs.BETA2], ob[:, _obs.BETA3],
@@ -249,9 +262,10 @@ def _point_rows(pack: _batch._Pack) -> np.ndarray:
 
 def _structure(pack: _batch._Pack, p: int) -> tuple:  # type: ignore[type-arg]
     """What a block must share: sizes, steps, discretization, flags, disturbance."""
-    ip, f, rg, ob, ct = pack.ipar[p], pack.fpar[p], pack.rig[p], pack.obs[p], pack.ctl[p]
+    ip, f, rg, ob, ct = (pack.ipar[p], pack.fpar[p], pack.pp[p, 1:], pack.op[p, 1:],
+                         pack.cp[p, 1:])
     return (int(ip[_batch._N]), int(ip[_batch._NSUB]), int(ip[_batch._DELAY]),
-            int(ob[_obs.KIND]), int(ct[_ctl.COMP]), int(rg[_rig.LAG] > 0.0),
+            int(ob[_obs.DISC]), int(ct[_ctl.COMP]), int(rg[_rig.LAG] > 0.0),
             float(f[_batch._H]), float(f[_batch._TS]), float(rg[_rig.DAMP]),
             float(rg[_rig.DFREQ]))
 
@@ -294,15 +308,17 @@ def _run_pack(lib: ctypes.CDLL, pack: _batch._Pack, workers: int) -> np.ndarray:
     else:
         for b in blocks:
             work(b)
-    res = np.empty((nruns, len(_batch.METRICS)))
+    # the kernel computes the metrics of COMPUTED; the others are NaN
+    res = np.full((nruns, len(METRICS)), np.nan)
     n_rows = raw[:, 5]
-    res[:, 0] = np.sqrt(raw[:, 0] / n_rows)
-    res[:, 1] = np.sqrt(raw[:, 1] / n_rows)
-    res[:, 2] = raw[:, 2]
-    res[:, 3] = raw[:, 3]
-    res[:, 4] = np.sqrt(raw[:, 4] / n_rows)
-    res[:, 5] = n_rows
-    res[:, 6] = raw[:, 6]
+    col = METRICS.index
+    res[:, col("rms_error")] = np.sqrt(raw[:, 0] / n_rows)
+    res[:, col("rms_u")] = np.sqrt(raw[:, 1] / n_rows)
+    res[:, col("max_abs_error")] = raw[:, 2]
+    res[:, col("max_abs_u")] = raw[:, 3]
+    res[:, col("rms_f_error")] = np.sqrt(raw[:, 4] / n_rows)
+    res[:, col("samples")] = n_rows
+    res[:, col("diverged")] = raw[:, 6]
     return res
 
 
@@ -323,8 +339,8 @@ def run_metrics(
     workers: int | None = None,
     chunk: int = DEFAULT_CHUNK,
     progress: Callable[[int], None] | None = None,
-    _noise_cache: _batch.NoiseCache | None = None,
-) -> _batch.MetricsTable:
+    _noise_cache: NoiseCache | None = None,
+) -> MetricsTable:
     """Fast counterpart of :func:`esoarm.engines.batch.run_metrics`: same arguments and table.
 
     Parameters
@@ -368,8 +384,8 @@ def run_metrics(
         runs = [(i, scn.sensor.seed) for i, scn in enumerate(points)]
     else:
         runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
-    out = np.empty((len(runs), len(_batch.METRICS)))
-    noise_cache = _noise_cache or _batch.NoiseCache()
+    out = np.empty((len(runs), len(METRICS)))
+    noise_cache = _noise_cache or NoiseCache()
     for start in range(0, len(runs), chunk):
         part = runs[start : start + chunk]
         used = sorted({pi for pi, _ in part})
@@ -377,14 +393,14 @@ def run_metrics(
         chunk_points = [points[pi] for pi in used]
         pack = _batch._pack(chunk_points, [(local[pi], s) for pi, s in part], noise_cache)
         res = _run_pack(lib, pack, nthreads)
-        bad = np.flatnonzero(res[:, 6] != 0.0)
+        bad = np.flatnonzero(res[:, METRICS.index("diverged")] != 0.0)
         if len(bad):  # diverged: the exact engine gives the partial metrics
             again = [points[part[i][0]].with_overrides({"sensor.seed": part[i][1]}) for i in bad]
             res[bad] = _batch.run_metrics(again, workers=workers).values
         out[start : start + len(part)] = res
         if progress is not None:
             progress(len(part))
-    return _batch.MetricsTable(out)
+    return MetricsTable(out)
 
 
 if __name__ == "__main__":  # pragma: no cover - manual check: python -m esoarm.engines.fast

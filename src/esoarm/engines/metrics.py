@@ -1,38 +1,267 @@
-"""Run metrics shared by every engine, and the reference engine run for metrics.
+"""The log of a closed-loop run and every metric computed from it, in one place.
 
-:data:`METRICS` names the columns every engine reports for a run and
-:class:`MetricsTable` holds them for many runs.  This module imports neither
-numba nor the compiled engines, so code that only handles metrics (sweep
-tables, tuning objectives) and small sweeps start quickly:
-:func:`reference_metrics` runs a few runs on the plain-Python reference engine,
-whose numbers the compiled exact engine reproduces bit for bit.
+This module imports neither numba nor the compiled engines, so code that only
+handles metrics (sweep tables, tuning objectives) and small sweeps start
+quickly (:func:`reference_metrics` runs a few runs on the reference engine).
+
+Every engine writes the same log, one block of :data:`LOG_ROWS` per joint and
+one column per sample (:func:`esoarm.engines.loop.closed_loop`); the
+time-series CSV shows :data:`SERIES_COLUMNS`.  Metrics (:data:`METRICS`) are
+defined here once and evaluated two ways that give identical numbers: with
+NumPy on arrays (:func:`series_metrics`: a run's result, the rig loop, the
+reproduction) and compiled inside the batch kernels (:func:`log_metrics`),
+which sums in NumPy's pairwise order so that not even the last bit differs
+(tested).
+
+Metrics over the samples logged (k = 0 … N−1, or up to the sample at which a
+run diverged):
+
+``rms_error`` [rad]        sqrt(mean(e_k²)), e_k = θ(t_k) − θd(t_k)
+``rms_u`` [N·m]            sqrt(mean(u_k²))
+``max_abs_error`` [rad]    max |e_k|
+``max_abs_u`` [N·m]        max |u_k|
+``rms_f_error`` [rad/s²]   sqrt(mean((ẑ3_k − f_k)²)), the perturbation estimate's error
+``rms_rate_error`` [rad/s] sqrt(mean((ẑ2_k − θ̇(t_k))²)), the rate estimate's error
+``rms_du`` [N·m]           sqrt(mean((u_k − u_{k−1})²)), k ≥ 1: control roughness (0 for one sample)
+``saturated_fraction``     share of samples whose command hit ±torque_limit
+``samples``                samples logged
+``diverged``               1.0 if the run left the finite range, else 0.0
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from esoarm._jit import jitable
 from esoarm.plants.sensor import noise_sequence
-from esoarm.scenario import Scenario
 
-__all__ = ["METRICS", "MetricsTable", "NoiseCache", "metrics_row", "reference_metrics"]
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
 
-#: Metric columns of a run, in order.
-#:
-#: ``rms_error`` [rad], ``rms_u`` [N·m], ``max_abs_error`` [rad]: RMS and largest
-#: tracking error, RMS control; ``max_abs_u`` [N·m] the largest |u_k|;
-#: ``rms_f_error`` [rad/s²] the RMS error of the ESO's perturbation estimate,
-#: sqrt(mean((ẑ3_k − f_k)²)); ``samples`` the number of samples logged (N, or
-#: fewer for a diverged run); ``diverged`` 1.0 if the run left the finite range
-#: (metrics then cover the samples logged up to and including the one that
-#: diverged, exactly like the partial result of
-#: :class:`~esoarm.engines.simulation.SimulationDiverged`), else 0.0.
+__all__ = ["LOG_ROWS", "METRICS", "SERIES_COLUMNS", "MetricsTable", "NoiseCache", "log_metrics",
+           "reference_metrics", "series_metrics"]
+
+#: Rows of the engine log per joint (joint j occupies rows j·len(LOG_ROWS) …).
+LOG_ROWS: tuple[str, ...] = ("theta", "theta_ref", "error", "u", "z1", "z2", "z3", "f_true",
+                             "y", "saturated", "omega")
+TH, REF, ERR, U, Z1, Z2, Z3, F, Y, SAT, OM = range(len(LOG_ROWS))
+NROW = len(LOG_ROWS)
+
+#: Time-series CSV columns, SI units: the first nine fixed, then the measured
+#: angle y [rad] and the saturation flag (1: the command hit ±torque_limit).
+SERIES_COLUMNS: tuple[str, ...] = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3",
+                                   "f_true", "y", "saturated")
+
+#: Metric names, in the column order of the batch engine's tables.
 METRICS: tuple[str, ...] = (
-    "rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error", "samples", "diverged",
+    "rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error", "rms_rate_error",
+    "rms_du", "saturated_fraction", "samples", "diverged",
 )
+NMETRIC = len(METRICS)
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2)))
+
+
+def series_metrics(error: np.ndarray, u: np.ndarray, *, z: np.ndarray | None = None,
+                   f_true: np.ndarray | None = None, omega: np.ndarray | None = None,
+                   saturated: np.ndarray | None = None,
+                   diverged: bool = False) -> dict[str, float]:
+    """Every metric of :data:`METRICS` from a run's arrays (NaN where an input is missing).
+
+    Parameters
+    ----------
+    error, u : ndarray (N,)
+        Tracking error [rad] and applied command [N·m] per sample.
+    z : ndarray (N, 3), optional
+        Estimates ẑ_k (angle, rate, perturbation).
+    f_true, omega : ndarray (N,), optional
+        True perturbation [rad/s²] and rate [rad/s].
+    saturated : ndarray (N,), optional
+        1.0 where the command hit the limit.
+    diverged : bool
+        The run left the finite range.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> m = series_metrics(np.array([0.3, -0.4]), np.array([1.0, 1.0]))
+    >>> round(m["rms_error"], 6), m["max_abs_error"], m["rms_du"], m["samples"]
+    (0.353553, 0.4, 0.0, 2.0)
+    """
+    nan = math.nan
+    n = len(error)
+    out = dict.fromkeys(METRICS, nan)
+    out["samples"] = float(n)
+    out["diverged"] = 1.0 if diverged else 0.0
+    if n == 0:
+        return out
+    out["rms_error"] = _rms(error)
+    out["rms_u"] = _rms(u)
+    out["max_abs_error"] = float(np.max(np.abs(error)))
+    out["max_abs_u"] = float(np.max(np.abs(u)))
+    if z is not None and f_true is not None:
+        out["rms_f_error"] = _rms(z[:, 2] - f_true)
+    if z is not None and omega is not None:
+        out["rms_rate_error"] = _rms(z[:, 1] - omega)
+    out["rms_du"] = _rms(np.diff(u)) if n > 1 else 0.0
+    if saturated is not None:
+        out["saturated_fraction"] = float(np.mean(saturated))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# compiled evaluation (batch kernels): the same numbers, bit for bit
+
+
+@jitable
+def _block_sum(a: np.ndarray, lo: int, n: int) -> float:
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    m = n - n % 8
+    while i < m:
+        j = lo + i
+        r0 += a[j]
+        r1 += a[j + 1]
+        r2 += a[j + 2]
+        r3 += a[j + 3]
+        r4 += a[j + 4]
+        r5 += a[j + 5]
+        r6 += a[j + 6]
+        r7 += a[j + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@jitable
+def pairwise_sum(a: np.ndarray, n: int) -> float:
+    """Sum of a[:n] in NumPy's pairwise order (bit-identical to ``np.add.reduce``).
+
+    NumPy splits a block of n > 128 values at n2 = n//2 rounded down to a
+    multiple of 8 and adds the two halves' sums; blocks of ≤ 128 values use 8
+    interleaved accumulators.  Written with an explicit stack (no recursion).
+    """
+    # stack of (lo, n, partial sum of the left half, state) frames
+    los = np.empty(64, dtype=np.int64)
+    ns = np.empty(64, dtype=np.int64)
+    left = np.empty(64)
+    state = np.zeros(64, dtype=np.int64)  # 0: new, 1: left done
+    top = 0
+    los[0] = 0
+    ns[0] = n
+    state[0] = 0
+    result = 0.0
+    while top >= 0:
+        lo = los[top]
+        m = ns[top]
+        if m <= 128:
+            res = _block_sum(a, lo, m)
+            top -= 1
+            # hand the value to the parent frame
+            while top >= 0:
+                if state[top] == 0:
+                    left[top] = res
+                    state[top] = 1
+                    n2 = ns[top] // 2
+                    n2 -= n2 % 8
+                    top += 1
+                    los[top] = los[top - 1] + n2
+                    ns[top] = ns[top - 1] - n2
+                    state[top] = 0
+                    break
+                res = left[top] + res
+                top -= 1
+            else:
+                result = res
+            continue
+        n2 = m // 2
+        n2 -= n2 % 8
+        top += 1
+        los[top] = lo
+        ns[top] = n2
+        state[top] = 0
+    return result
+
+
+@jitable
+def _rms_of(scratch: np.ndarray, n: int) -> float:
+    return math.sqrt(pairwise_sum(scratch, n) / n)
+
+
+@jitable
+def _max_abs(x: np.ndarray, n: int) -> float:
+    # np.max propagates NaN; so does this
+    m = abs(x[0])
+    for i in range(1, n):
+        v = abs(x[i])
+        if v > m or v != v:
+            m = v
+            if v != v:
+                return v
+    return m
+
+
+@jitable
+def log_metrics(log: np.ndarray, rows: int, diverged: bool, out: np.ndarray) -> None:
+    """:data:`METRICS` of joint 0 of an engine log with ``rows`` samples, into ``out``.
+
+    The compiled twin of :func:`series_metrics` (same numbers, bit for bit).
+    """
+    scratch = np.empty(max(rows, 1))
+    e, u = log[ERR], log[U]
+    for k in range(rows):
+        scratch[k] = e[k] * e[k]
+    out[0] = _rms_of(scratch, rows)
+    for k in range(rows):
+        scratch[k] = u[k] * u[k]
+    out[1] = _rms_of(scratch, rows)
+    out[2] = _max_abs(e, rows)
+    out[3] = _max_abs(u, rows)
+    for k in range(rows):
+        d = log[Z3, k] - log[F, k]
+        scratch[k] = d * d
+    out[4] = _rms_of(scratch, rows)
+    for k in range(rows):
+        d = log[Z2, k] - log[OM, k]
+        scratch[k] = d * d
+    out[5] = _rms_of(scratch, rows)
+    if rows > 1:
+        for k in range(rows - 1):
+            d = u[k + 1] - u[k]
+            scratch[k] = d * d
+        out[6] = _rms_of(scratch, rows - 1)
+    else:
+        out[6] = 0.0
+    for k in range(rows):
+        scratch[k] = log[SAT, k]
+    out[7] = pairwise_sum(scratch, rows) / rows
+    out[8] = rows
+    out[9] = 1.0 if diverged else 0.0
+
+
+def metrics_dict(values: np.ndarray) -> dict[str, Any]:
+    """One row of :data:`METRICS` values as a dict."""
+    return {name: float(v) for name, v in zip(METRICS, values, strict=True)}
+
+
+# ---------------------------------------------------------------------------
+# tables of many runs
 
 
 @dataclass(frozen=True)
@@ -73,19 +302,6 @@ class NoiseCache:
         return key, self._store[key]
 
 
-def metrics_row(error: np.ndarray, u: np.ndarray, f_error: np.ndarray,
-                diverged: bool) -> np.ndarray:
-    """One row of :data:`METRICS` from the logged e_k, u_k and ẑ3_k − f_k.
-
-    NumPy's pairwise sums, as the compiled engine computes them: the same bits.
-    """
-    return np.array([
-        np.sqrt(np.mean(error**2)), np.sqrt(np.mean(u**2)), np.max(np.abs(error)),
-        np.max(np.abs(u)), np.sqrt(np.mean(f_error**2)), float(len(error)),
-        1.0 if diverged else 0.0,
-    ])
-
-
 def reference_metrics(
     points: Sequence[Scenario],
     seeds: Sequence[int] | None = None,
@@ -108,12 +324,11 @@ def reference_metrics(
                 for scn in points for s in seeds]
     out = np.empty((len(runs), len(METRICS)))
     for i, scn in enumerate(runs):
-        diverged = False
         try:
             res = run_reference(scn, prepare(scn))
-        except SimulationDiverged as exc:
-            res, diverged = exc.result, True
-        out[i] = metrics_row(res.error, res.u, res.z[:, 2] - res.f_true, diverged)
+        except SimulationDiverged as exc:  # the partial run's metrics, diverged = 1
+            res = exc.result
+        out[i] = [res.metrics[name] for name in METRICS]
         if progress is not None:
             progress(1)
     return MetricsTable(out)

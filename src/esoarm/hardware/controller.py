@@ -1,47 +1,46 @@
-"""The deployment controller: the paper's ESO + FLC stepped one sample at a time.
+"""The deployment controller: the scenario's observer and controller stepped one sample at a time.
 
-It is :class:`esoarm.observers.linear.ExtendedStateObserver` and
-:func:`esoarm.controllers.flc.flc_control` -- the very functions the simulators call
--- driven from measured angles (SPEC §2 steps 2-5):
+It calls the step functions of the scenario's kinds (:mod:`esoarm.kinds`) --
+the very functions every simulation engine calls -- driven from measured
+angles, and the actuator functions of :mod:`esoarm.plants.actuator`:
 
-    ẑ_k = estimate(y_k)                 (eq. 8, discretized; SPEC §2 step 5)
-    u_k = sat(I0 (α_k − β̂_k))           (eq. 14-16)
-    update(u_k)                         (z_{k+1})
+    ẑ_k = estimate(z_k, y_k)                    (observer kind)
+    u_k = sat(control(ẑ_k, y_k, reference_k))   (controller kind, ±torque_limit)
+    u_k, duty_k = actuate(u_k, ẑ2_k)            (motor: torque -> PWM duty)
+    z_{k+1} = advance(z_k, ẑ_k, y_k, u_k)       (observer kind)
 
 so a run fed the simulator's measurements reproduces
-:func:`esoarm.engines.simulation.run_reference` bit for bit (tested).  For the
-interpreter hot path the packed parameter vectors are held as tuples of Python
-floats (the same IEEE doubles as the NumPy vectors, without NumPy scalar
-boxing), and the reference is precomputed for all N samples with the same
-vectorized :func:`esoarm.reference.evaluate_reference` call the simulators use.
+:func:`esoarm.engines.simulation.run_reference` bit for bit (tested).  The
+reference is precomputed for all N samples with the same vectorized
+:func:`esoarm.reference.evaluate_reference` call the simulators use.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
-from esoarm.controllers.flc import flc_control
+import numpy as np
+
 from esoarm.engines.simulation import prepare
-from esoarm.observers.linear import ExtendedStateObserver
+from esoarm.plants.actuator import LIMIT, actuate, saturate
 from esoarm.scenario import Scenario
 
 __all__ = ["DeploymentController"]
 
 
 class DeploymentController:
-    """ESO + FLC for one run of a scenario, stepped per sample.
+    """Observer + controller for one run of a scenario, stepped per sample.
 
-    Per sample k: ``u = step(k, y)`` (estimate, control law), then
-    ``commit(u_applied)`` (observer update with the torque actually applied
-    over [t_k, t_{k+1}); the same u in the ideal-torque case).  A sample that
-    never arrived is bridged with :meth:`predict` (observer update with zero
-    innovation).
+    Per sample k: ``u = step(k, y)`` (estimate, control law, saturation), then
+    ``u_applied, duty = actuate(u)`` (the motor's duty, if any), then
+    ``commit(u_applied)`` (observer update with the torque applied over
+    [t_k, t_{k+1})).  A sample that never arrived is bridged with
+    :meth:`predict` (observer update with zero innovation).
 
     Parameters
     ----------
     scn : Scenario
-        The resolved scenario (plant, observer, controller, reference, rate).
+        The resolved scenario (plant, observer, controller, reference, rate, motor).
 
     Attributes
     ----------
@@ -49,33 +48,36 @@ class DeploymentController:
         N = round(duration · rate_hz).
     ts : float
         Sample period [s].
-    eso : ExtendedStateObserver or None
-        Created at the first sample, z_0 = (y_0, 0, 0) (SPEC §2).
     zhat : tuple of float
-        Estimate ẑ_k used for the latest control [rad, rad/s, rad/s²].
+        Estimate ẑ_k of joint 0 used for the latest control [rad, rad/s, rad/s²].
     """
 
-    __slots__ = ("_accel", "_ctl", "_design", "_omega", "_ref", "eso", "n_samples", "t",
-                 "torque_limit", "ts", "zhat")
+    __slots__ = ("_act", "_c", "_cp", "_op", "_ref", "_refs", "_started", "_u", "_y", "_z",
+                 "_zhat", "kinds", "n_samples", "t", "torque_limit", "ts", "zhat")
 
     def __init__(self, scn: Scenario) -> None:
-        from esoarm.observers.linear import design_observer
-
-        inp = prepare(scn)
-        design = design_observer(scn.observer.eps, scn.sample_time, inp.b0,
-                                 scn.observer.discretization)
-        # same numbers, held as Python floats for the interpreter
-        self._design = dataclasses.replace(design, vector=tuple(design.vector.tolist()))
-        self._ctl = tuple(inp.ctl.tolist())
-        self._ref = inp.theta_ref.tolist()
-        self._omega = inp.omega_ref.tolist()
-        self._accel = inp.accel_ref.tolist()
+        inp = prepare(scn, draw_noise=False)
+        self.kinds = inp.kinds
+        nj = inp.plant.n_joints
+        self._op, self._cp, self._act = inp.observer.vector, inp.controller.vector, inp.actuator
+        self._refs = inp.refs
+        self._ref = inp.refs[0].tolist()
+        self._z = np.zeros(max(inp.observer.n_state, 1))
+        self._zhat = np.zeros(max(inp.observer.n_state, 1))
+        self._c = np.zeros(max(inp.controller.n_state, 1))
+        self._y = np.zeros(nj)
+        self._u = np.zeros(nj)
+        self._started = False
         self.t = inp.t.tolist()
         self.n_samples = len(self.t)
         self.ts = scn.sample_time
-        self.torque_limit = scn.actuator.torque_limit
-        self.eso: ExtendedStateObserver | None = None
+        self.torque_limit = float(inp.actuator[LIMIT])
         self.zhat: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+
+    @property
+    def observer_state(self) -> np.ndarray:
+        """A copy of the observer state z_{k+1} after the latest commit."""
+        return self._z.copy()
 
     def reference(self, k: int) -> float:
         """θd(t_k) [rad]."""
@@ -83,24 +85,37 @@ class DeploymentController:
 
     def step(self, k: int, y: float) -> float:
         """Control u_k [N·m] (saturated) from the measured angle y_k [rad]."""
-        eso = self.eso
-        if eso is None:
-            eso = self.eso = ExtendedStateObserver(self._design, y)  # type: ignore[arg-type]
-        z1, z2, z3 = self.zhat = eso.estimate(y)
-        return flc_control(z1, z2, z3, self._ref[k], self._omega[k], self._accel[k], self._ctl)
+        obs, ctl = self.kinds.observer, self.kinds.controller
+        self._y[0] = y
+        if not self._started:
+            obs.initialize(self._z, self._y, self._op)
+            ctl.initialize(self._c, self._y, self._cp)
+            self._started = True
+        obs.estimate(self._z, self._y, self._op, self._zhat)
+        ctl.control(self._c, self._zhat, self._y, self._refs, k, self._cp, self._u)
+        self.zhat = (float(self._zhat[0]), float(self._zhat[1]), float(self._zhat[2]))
+        return float(saturate(self._u[0], self.torque_limit))
+
+    def actuate(self, u: float) -> tuple[float, float]:
+        """(torque the host applies [N·m], PWM duty [counts] or NaN) for the command u."""
+        u_applied, _, duty = actuate(u, self._zhat[1], self._act)
+        return float(u_applied), float(duty)
 
     def commit(self, u: float) -> None:
         """Advance the observer with the torque u_k [N·m] applied from t_k on."""
-        self.eso.update(u)  # type: ignore[union-attr]
+        self._u[0] = u
+        self.kinds.observer.advance(self._z, self._zhat, self._y, self._u, self._op)
 
     def predict(self, u: float) -> tuple[float, float, float]:
         """Bridge a missing sample: estimate with zero innovation, update with u.
 
         Returns the estimate used for the missing sample.
         """
-        eso = self.eso
-        if eso is None:
+        if not self._started:
             raise RuntimeError("no sample received yet")
-        zhat = eso.estimate(eso.z[0])
-        eso.update(u)
+        obs = self.kinds.observer
+        self._y[0] = self._z[0]  # y = ẑ1: no innovation
+        obs.estimate(self._z, self._y, self._op, self._zhat)
+        zhat = (float(self._zhat[0]), float(self._zhat[1]), float(self._zhat[2]))
+        self.commit(u)
         return zhat

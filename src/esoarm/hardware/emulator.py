@@ -2,9 +2,10 @@
 
 The emulator speaks the protocol of :mod:`esoarm.hardware.protocol` exactly as
 the firmware does, so the host loop cannot tell it from a rig.  Its physics is
-the simulators' (:func:`esoarm.plants.lever_arm.rig_advance`, SPEC §2 step 6, with
-actuator lag and transport delay), and the measurement leaves the device as
-an encoder count
+the simulators': the plant kind's design and ``advance``, with the actuator's
+transport delay (:func:`esoarm.plants.actuator.delayed_input`) and, with a
+``[motor]`` table, the motor's torque (:func:`esoarm.plants.motor.source_torque`),
+and the measurement leaves the device as an encoder count
 
     count_k = floor((θ(t_k) + σ n_k)/q + 1/2),   q = radians(resolution_deg)
 
@@ -40,8 +41,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from esoarm.hardware import protocol as P
-from esoarm.plants.lever_arm import RigParams, rig_advance
-from esoarm.plants.motor import MotorParams, twin_rig_vector
+from esoarm.kinds import kinds_of
+from esoarm.plants.actuator import delayed_input
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["FAULT_KINDS", "Emulator", "FaultSpec", "NoiseStream", "Twin", "parse_fault",
@@ -139,7 +141,8 @@ class Twin:
     def __init__(self, scn: Scenario) -> None:
         self.scn = scn
         self.motor = MotorParams.from_scenario(scn)
-        self.rig = tuple(twin_rig_vector(RigParams.from_scenario(scn).vector, self.motor).tolist())
+        self.plant = kinds_of(scn).plant
+        self.design = self.plant.design(scn)
         self.ts = scn.sample_time
         self.h = scn.rig.step
         self.nsub = scn.substeps
@@ -153,11 +156,18 @@ class Twin:
     def reset(self) -> None:
         """Back to the initial state θ(0) = theta0, at rest, k = 0."""
         self.k = 0
-        self.theta, self.omega, self.tau = self.scn.rig.theta0, 0.0, 0.0
+        self.x = np.array(self.design.x0)
         self.noise = NoiseStream(self.scn.sensor.seed, self.scn.sensor.noise_deg)
-        self.history: list[float] = []
+        self.history = np.zeros(max(self.scn.n_samples, 1))
+        self._drive = np.zeros(1)
+        self._applied = np.zeros(1)
         self.glitch_offset = 0
         self.motor_on = True
+
+    @property
+    def theta(self) -> float:
+        """True angle θ(t_k) [rad]."""
+        return float(self.x[0])
 
     @property
     def time(self) -> float:
@@ -176,14 +186,20 @@ class Twin:
         return self.scn.actuator.torque_limit * max(-1.0, min(1.0, duty / self.pwm_max))
 
     def advance(self, u: float) -> None:
-        """Hold command u over [t_k, t_{k+1}) (SPEC §2 step 6) and integrate."""
+        """Hold the drive torque u [N·m] over [t_k, t_{k+1}) (after the transport delay).
+
+        The plant step of every engine: :func:`esoarm.plants.actuator.delayed_input`,
+        then the plant kind's ``advance``.
+        """
         if not self.motor_on or not math.isfinite(u):
             u = 0.0
-        self.history.append(u)
         k = self.k
-        applied = self.history[k - self.delay] if k >= self.delay else 0.0
-        self.theta, self.omega, self.tau = rig_advance(
-            self.theta, self.omega, self.tau, applied, k * self.ts, self.h, self.nsub, self.rig)
+        if k >= len(self.history):  # a host running past N samples
+            self.history = np.concatenate([self.history, np.zeros(len(self.history))])
+        self._drive[0] = u
+        delayed_input(self.history, k, self.delay, self._drive, self._applied)
+        self.plant.advance(self.x, self._applied, k * self.ts, self.h, self.nsub,
+                           self.design.vector)
         self.k = k + 1
 
 

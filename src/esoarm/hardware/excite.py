@@ -39,20 +39,25 @@ class ExcitationFault(RuntimeError):
         self.summary = summary
 
 
-def excite_twin(scn: Scenario, plan: ExcitationPlan, log_path: Path | None = None,
-                limits: SafetyLimits | None = None) -> tuple[RunSummary, dict[str, float]]:
+def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | None = None,
+                limits: SafetyLimits | None = None, controller: object | None = None,
+                ) -> tuple[RunSummary, dict[str, float]]:
     """Run the experiment on the digital twin of ``scn``.
 
     Parameters
     ----------
     scn : Scenario
         The twin (rig, sensor, actuator, optional motor) and the observer.
-    plan : ExcitationPlan
-        The experiment.
+    plan : ExcitationPlan or None
+        The experiment (None with ``controller``).
     log_path : Path, optional
         CSV log (:data:`TWIN_LOG_COLUMNS`), one flushed row per sample.
     limits : SafetyLimits, optional
         Angle limit [rad] and encoder-jump limit [rad] as on a rig.
+    controller : optional
+        Another per-sample controller with the same interface, e.g. the
+        scenario's ESO + FLC (:class:`~esoarm.hardware.controller.DeploymentController`):
+        the twin then logs a closed-loop run exactly as ``esoarm run`` would.
 
     Returns
     -------
@@ -67,7 +72,7 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan, log_path: Path | None = Non
         The measured angle left ±angle_limit; the log keeps the rows written.
     """
     limits = limits or SafetyLimits()
-    ctl = ExcitationController(scn, plan)
+    ctl = controller if controller is not None else ExcitationController(scn, plan)  # type: ignore[arg-type]
     twin = Twin(scn)
     motor = twin.motor
     log = _LogWriter(log_path, TWIN_LOG_COLUMNS)

@@ -38,9 +38,11 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm.engines.metrics import series_metrics
 from esoarm.hardware import protocol as P
 from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.link import LinkError, SerialLink
+from esoarm.plants.actuator import actuate, actuator_vector
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
@@ -73,7 +75,7 @@ class SafetyLimits:
 
 @dataclass
 class RunSummary:
-    """Metrics of a run over the rows logged (SPEC §2 metrics on the measured angle)."""
+    """Metrics of a run over the samples received, on the measured angle (engines.metrics)."""
 
     samples: int = 0
     lost_samples: int = 0
@@ -243,7 +245,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     log = _LogWriter(log_path)
     summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
                          log=str(log_path) if log_path else "")
-    acc = {"e2": 0.0, "u2": 0.0, "emax": 0.0, "m": 0}
+    acc: dict[str, list[float]] = {"e": [], "u": []}  # error and u of the samples received
     periods: list[float] = []
     latencies: list[float] = []
     error_message = None
@@ -290,6 +292,7 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
     isfinite = math.isfinite
     perf = time.perf_counter
     limit = ctl.torque_limit
+    act = actuator_vector(scn)
     k_next = 0
     y_prev = nan
     u_last = 0.0
@@ -357,15 +360,15 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
                 raise _Stop(f"NaN guard: non-finite control or estimate at sample {k}")
             if abs(u) > limit:  # the FLC saturates; a violation is a bug: stop
                 raise _Stop(f"torque limit: u = {u:.4g} N·m at sample {k}")
+            # the actuator of every engine: with a motor, the duty and the torque it gives
+            u_host, _, d = actuate(u, z2, act)
+            u_applied = float(u_host)
             if motor is None:
                 link.send(P.TORQUE, k, u)
                 duty = "nan"
-                u_applied = u
             else:
-                d = motor.torque_to_duty(u, z2)
-                link.send(P.DUTY, k, d)
-                duty = str(d)
-                u_applied = motor.duty_to_torque(d, z2)
+                link.send(P.DUTY, k, int(d))
+                duty = str(int(d))
             t_sent = perf()
             ctl.commit(u_applied)
             latency = t_sent - now
@@ -377,11 +380,8 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u_applied)},"
                       f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},{fmt(t_dev)},{fmt(now - t_start)},"
                       f"{fmt(latency)},{late},{duty}\n")
-            acc["e2"] += e * e
-            acc["u2"] += u_applied * u_applied
-            acc["m"] += 1
-            if abs(e) > acc["emax"]:
-                acc["emax"] = abs(e)
+            acc["e"].append(e)
+            acc["u"].append(u_applied)
             y_prev = y
             u_last = u_applied
             k_next = k + 1
@@ -391,14 +391,14 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
                         "deadline_misses": summary.deadline_misses, "k": k, "n": n})
 
 
-def _finish(summary: RunSummary, acc: dict, periods: list[float], latencies: list[float],
-            rows: int, link: SerialLink, ts: float) -> None:
+def _finish(summary: RunSummary, acc: dict[str, list[float]], periods: list[float],
+            latencies: list[float], rows: int, link: SerialLink, ts: float) -> None:
     summary.samples = rows
-    m = acc["m"]
-    if m:
-        summary.rms_error = math.sqrt(acc["e2"] / m)
-        summary.rms_u = math.sqrt(acc["u2"] / m)
-        summary.max_abs_error = acc["emax"]
+    if acc["e"]:
+        m = series_metrics(np.array(acc["e"]), np.array(acc["u"]))
+        summary.rms_error = m["rms_error"]
+        summary.rms_u = m["rms_u"]
+        summary.max_abs_error = m["max_abs_error"]
     if periods and summary.mode != "lockstep":  # lockstep has no period to jitter around
         jit = np.abs(np.asarray(periods) - ts) * 1e6
         summary.jitter_p50_us = float(np.percentile(jit, 50))

@@ -19,8 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from esoarm.observers.linear import ExtendedStateObserver, design_observer
-from esoarm.plants.model import input_gain
+from esoarm.kinds import kinds_of
 from esoarm.result import write_csv_atomic
 from esoarm.scenario import Scenario, ScenarioError
 
@@ -110,16 +109,27 @@ def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, floa
 
 def replay(scn: Scenario, t: np.ndarray, theta: np.ndarray, u: np.ndarray,
            ts: float) -> ReplayResult:
-    """Run the scenario's ESO over (theta, u) sampled every ``ts`` [s]."""
-    design = design_observer(scn.observer.eps, ts, input_gain(scn.plant.inertia),
-                             scn.observer.discretization)
-    y_list, u_list = theta.tolist(), u.tolist()
-    eso = ExtendedStateObserver(design, y_list[0])
-    z = np.empty((len(y_list), 3))
-    for k, (y, uk) in enumerate(zip(y_list, u_list, strict=True)):
-        z[k] = eso.estimate(eso.z[0] if math.isnan(y) else y)
-        eso.update(uk)
-    return ReplayResult(t, theta, u, z, ts)
+    """Run the scenario's observer kind over (theta, u) sampled every ``ts`` [s].
+
+    The observer is designed for the log's sample period (its other settings
+    and b0 from the scenario) and stepped with the functions every engine uses.
+    """
+    kinds = kinds_of(scn)
+    design = kinds.observer.design(scn, kinds.plant.design(scn), ts)
+    obs, p = kinds.observer, design.vector
+    z = np.zeros(max(design.n_state, 1))
+    zhat = np.zeros_like(z)
+    y, uk = np.zeros(1), np.zeros(1)
+    out = np.empty((len(theta), 3))
+    y[0] = theta[0]
+    obs.initialize(z, y, p)
+    for k in range(len(theta)):
+        y[0] = z[0] if math.isnan(theta[k]) else theta[k]  # a lost sample: no innovation
+        obs.estimate(z, y, p, zhat)
+        out[k] = zhat[:3]
+        uk[0] = u[k]
+        obs.advance(z, zhat, y, uk, p)
+    return ReplayResult(t, theta, u, out, ts)
 
 
 def plot_replay(result: ReplayResult, path: str | Path) -> None:

@@ -1,4 +1,4 @@
 """Observers: estimate the state and the total perturbation from the measured angle.
 
-``linear``   the paper's linear extended state observer (eq. 8) and its discretizations
+``linear``   observer kind "linear": the paper's ESO (eq. 8) and its discretizations
 """

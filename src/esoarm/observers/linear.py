@@ -1,4 +1,4 @@
-"""Extended state observer (ESO) of the paper, eq. 8, and its discretizations.
+"""Observer kind ``"linear"``: the paper's extended state observer (ESO), eq. 8.
 
 Continuous observer (eq. 8), y = θ measured, b0 = 1/I0:
 
@@ -27,19 +27,38 @@ The per-sample step is split in two plain functions shared by every engine:
 :func:`eso_advance` gives z_{k+1}.  Their parameters are packed in one float
 vector (:attr:`ESODesign.vector`) so that compiled batch kernels can hold one
 row per run.
+
+As a kind (see :mod:`esoarm.contract`): :class:`Params` is the ``[observer]``
+table, :func:`design` gives (CODE, :attr:`ESODesign.vector`), and
+:func:`initialize`, :func:`estimate` and :func:`advance` are the array-valued
+step functions (one 3-state ESO per joint) every engine calls.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
+from pydantic import Field
 
 from esoarm._jit import jitable
+from esoarm._schema import Section, unit
+from esoarm.contract import ComponentDesign, PlantDesign, read_only
+
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
 
 __all__ = [
+    "CODE",
+    "JIT",
+    "KIND",
+    "Params",
+    "advance",
+    "design",
+    "estimate",
+    "initialize",
     "DISCRETIZATIONS",
     "ESODesign",
     "ExtendedStateObserver",
@@ -58,12 +77,30 @@ Discretization = Literal["euler", "zoh", "current"]
 DISCRETIZATIONS: tuple[str, ...] = ("euler", "zoh", "current")
 
 # Layout of the packed observer vector (see ESODesign.vector).
-KIND, TS, B0, BETA1, BETA2, BETA3 = 0, 1, 2, 3, 4, 5
+DISC, TS, B0, BETA1, BETA2, BETA3 = 0, 1, 2, 3, 4, 5
 PHI = 6  # 9 entries, row-major
 GAMMA = 15  # 3 entries
 GAIN = 18  # 3 entries: Lp ("zoh") or Lc ("current"); Ts·β for "euler" (information only)
 VECTOR_SIZE = 21
 EULER, ZOH, CURRENT = 0, 1, 2
+
+KIND = "linear"
+CODE = 0
+JIT = True
+
+
+class Params(Section):
+    """``[observer]`` of kind "linear": the ESO of eq. 8 (Theorem 1 gains)."""
+
+    kind: Literal["linear"] = Field(
+        "linear", description="observer kind (the registered kinds: esoarm.kinds)")
+    eps: float = Field(
+        0.09, gt=0, description="free parameter ε; observer poles at −1/ε",
+        json_schema_extra=unit("s"),
+    )
+    discretization: Literal["euler", "zoh", "current"] = Field(
+        "euler", description='"euler" (paper) | "zoh" | "current"'
+    )
 
 
 def continuous_gains(eps: float) -> tuple[float, float, float]:
@@ -191,7 +228,7 @@ def design_observer(eps: float, ts: float, b0: float, discretization: str = "eul
             gain = _ackermann_observer(phi, c_row @ phi, pole)
             kind = CURRENT
     vec = np.zeros(VECTOR_SIZE)
-    vec[KIND] = kind
+    vec[DISC] = kind
     vec[TS] = ts
     vec[B0] = b0
     vec[BETA1 : BETA3 + 1] = beta
@@ -237,27 +274,30 @@ def discrete_error_poles(eps: float, ts: float, discretization: str) -> np.ndarr
 
 
 @jitable
-def eso_rhs(z1, z2, z3, y, u, b0, beta1, beta2, beta3):  # type: ignore[no-untyped-def]
+def eso_rhs(z1: float, z2: float, z3: float, y: float, u: float, b0: float, beta1: float,
+            beta2: float, beta3: float) -> tuple[float, float, float]:
     """Right side of eq. 8 at (z, y, u): returns (ż1, ż2, ż3)."""
     e = y - z1
     return z2 + beta1 * e, z3 + b0 * u + beta2 * e, beta3 * e
 
 
 @jitable
-def eso_estimate(z1, z2, z3, y, obs):  # type: ignore[no-untyped-def]
+def eso_estimate(z1: float, z2: float, z3: float, y: float,
+                 obs: np.ndarray) -> tuple[float, float, float]:
     """Estimate ẑ_k available to the controller at t_k (SPEC §2 step 5).
 
     For "euler" and "zoh" this is the state itself; for "current" it is the
     prediction corrected with y_k: ẑ = z + Lc (y − z1).
     """
-    if obs[KIND] == CURRENT:
+    if obs[DISC] == CURRENT:
         e = y - z1
         return z1 + obs[GAIN] * e, z2 + obs[GAIN + 1] * e, z3 + obs[GAIN + 2] * e
     return z1, z2, z3
 
 
 @jitable
-def eso_advance(z1, z2, z3, zh1, zh2, zh3, y, u, obs):  # type: ignore[no-untyped-def]
+def eso_advance(z1: float, z2: float, z3: float, zh1: float, zh2: float, zh3: float, y: float,
+                u: float, obs: np.ndarray) -> tuple[float, float, float]:
     """Observer state z_{k+1} from z_k, the estimate ẑ_k, y_k and u_k.
 
     Parameters
@@ -273,7 +313,7 @@ def eso_advance(z1, z2, z3, zh1, zh2, zh3, y, u, obs):  # type: ignore[no-untype
     obs : ndarray, shape (21,)
         :attr:`ESODesign.vector`.
     """
-    kind = obs[KIND]
+    kind = obs[DISC]
     if kind == EULER:
         ts = obs[TS]
         d1, d2, d3 = eso_rhs(z1, z2, z3, y, u, obs[B0], obs[BETA1], obs[BETA2], obs[BETA3])
@@ -290,6 +330,50 @@ def eso_advance(z1, z2, z3, zh1, zh2, zh3, y, u, obs):  # type: ignore[no-untype
     n2 = obs[PHI + 3] * zh1 + obs[PHI + 4] * zh2 + obs[PHI + 5] * zh3 + obs[GAMMA + 1] * u
     n3 = obs[PHI + 6] * zh1 + obs[PHI + 7] * zh2 + obs[PHI + 8] * zh3 + obs[GAMMA + 2] * u
     return n1, n2, n3
+
+
+# ---------------------------------------------------------------------------
+# the kind: design and array-valued step functions (one ESO per joint)
+
+
+def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
+    """(CODE, :attr:`ESODesign.vector`) for the scenario's ε and discretization at Ts [s].
+
+    One joint: b0 from the plant's nominal model.  State: 3 per joint.
+    """
+    if plant.n_joints != 1:
+        raise ValueError("the linear ESO kind is designed for one joint")
+    obs = design_observer(scn.observer.eps, ts, float(plant.b0[0]), scn.observer.discretization)
+    return ComponentDesign(read_only(np.concatenate([[float(CODE)], obs.vector])), 3)
+
+
+@jitable
+def initialize(z: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
+    """Initial state z_0 = (y_0, 0, 0) per joint from the first measurement y_0 [rad]."""
+    for j in range(len(y)):
+        z[3 * j] = y[j]
+        z[3 * j + 1] = 0.0
+        z[3 * j + 2] = 0.0
+
+
+@jitable
+def estimate(z: np.ndarray, y: np.ndarray, p: np.ndarray, zhat: np.ndarray) -> None:
+    """Estimate ẑ_k for the controller from z_k and y_k into ``zhat`` (:func:`eso_estimate`)."""
+    obs = p[1:]
+    for j in range(len(y)):
+        i = 3 * j
+        zhat[i], zhat[i + 1], zhat[i + 2] = eso_estimate(z[i], z[i + 1], z[i + 2], y[j], obs)
+
+
+@jitable
+def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
+            p: np.ndarray) -> None:
+    """z_{k+1} in place from z_k, ẑ_k, y_k and the applied u_k (:func:`eso_advance`)."""
+    obs = p[1:]
+    for j in range(len(y)):
+        i = 3 * j
+        z[i], z[i + 1], z[i + 2] = eso_advance(z[i], z[i + 1], z[i + 2], zhat[i], zhat[i + 1],
+                                               zhat[i + 2], y[j], u[j], obs)
 
 
 class ExtendedStateObserver:

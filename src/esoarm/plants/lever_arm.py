@@ -1,4 +1,4 @@
-"""The true system: the digital twin of the paper's rig (SPEC §2).
+"""Plant kind ``"lever-arm"``: the paper's robotic lever arm and its digital twin.
 
     θ̈ = (τ − G(θ) − F(θ̇)) / I + d(t),     I = inertia_scale · I0
     F(θ̇) = (Fc + Fst exp(−(θ̇/vst)²)) tanh(θ̇/vs) + b θ̇      (Stribeck friction)
@@ -10,8 +10,14 @@ friction, decaying over the Stribeck velocity vst; with Fst = 0 the friction is
 exactly Fc tanh(θ̇/vs) + b θ̇ (bit for bit: Fc + 0·exp(…) = Fc).
 
 integrated with classical RK4 at a fixed step h, d evaluated at each stage
-time.  The functions take the rig parameters packed in one float vector
+time.  The scalar functions take the rig parameters packed in one float vector
 (:attr:`RigParams.vector`) so compiled batch kernels can hold one row per run.
+
+As a kind (see :mod:`esoarm.contract`): :class:`Params` is the ``[plant]``
+table (the nominal model of paper Table I, known to the controller),
+:func:`design` builds the true rig from ``[plant]``, ``[rig]``, ``[actuator]``
+and ``[motor]`` (one joint, state x = (θ, θ̇, τ)), and :func:`advance` and
+:func:`acceleration` are the step functions every engine calls.
 """
 
 from __future__ import annotations
@@ -19,26 +25,54 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
+from pydantic import Field
 
 from esoarm._jit import jitable
-from esoarm.plants.model import gravity_coefficient, gravity_torque
+from esoarm._schema import Section, unit
+from esoarm.contract import PlantDesign, Vector, read_only
+from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
+from esoarm.plants.motor import MotorParams
 
-__all__ = ["RigParams", "rig_acceleration", "rig_advance", "rig_derivative", "rig_rk4_step"]
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
+
+__all__ = ["CODE", "JIT", "KIND", "Params", "RigParams", "acceleration", "advance", "design",
+           "rig_acceleration", "rig_advance", "rig_derivative", "rig_rk4_step"]
+
+KIND = "lever-arm"
+CODE = 0
+JIT = True
+
+
+class Params(Section):
+    """``[plant]``: the nominal lever-arm model known to the controller (paper Table I)."""
+
+    kind: Literal["lever-arm"] = Field(
+        "lever-arm", description='plant kind: "lever-arm" (the paper\'s rig, one joint)')
+    m1: float = Field(0.5, gt=0, description="lumped mass 1", json_schema_extra=unit("kg"))
+    m2: float = Field(0.55, gt=0, description="lumped mass 2", json_schema_extra=unit("kg"))
+    l1: float = Field(0.15, gt=0, description="length of arm 1", json_schema_extra=unit("m"))
+    l2: float = Field(0.14, gt=0, description="length of arm 2", json_schema_extra=unit("m"))
+    inertia: float = Field(
+        0.0225, gt=0, description="moment of inertia I0", json_schema_extra=unit("kg·m²")
+    )
+    g: float = Field(9.81, ge=0, description="gravity", json_schema_extra=unit("m/s²"))
 
 INERTIA, GCOEF, FC, VS, VISC, DAMP, DFREQ, LAG, FST, VST = range(10)
 VECTOR_SIZE = 10
 
 
 @jitable
-def disturbance(t, rig):  # type: ignore[no-untyped-def]
+def disturbance(t: float, rig: Vector) -> float:
     """External disturbance d(t) = amplitude · sin(frequency · t) [rad/s²] (eq. 6)."""
     return rig[DAMP] * math.sin(rig[DFREQ] * t)
 
 
 @jitable
-def rig_acceleration(theta, omega, tau, t, rig):  # type: ignore[no-untyped-def]
+def rig_acceleration(theta: float, omega: float, tau: float, t: float, rig: Vector) -> float:
     """True angular acceleration θ̈ [rad/s²] at angle θ, rate θ̇, torque τ, time t."""
     x = omega / rig[VST]
     friction = (rig[FC] + rig[FST] * math.exp(-x * x)) * math.tanh(omega / rig[VS]) \
@@ -47,7 +81,8 @@ def rig_acceleration(theta, omega, tau, t, rig):  # type: ignore[no-untyped-def]
 
 
 @jitable
-def rig_derivative(theta, omega, tau, u, t, rig):  # type: ignore[no-untyped-def]
+def rig_derivative(theta: float, omega: float, tau: float, u: float, t: float,
+                   rig: Vector) -> tuple[float, float, float]:
     """Time derivative of the rig state (θ, θ̇, τ) under the applied input u [N·m]."""
     lag = rig[LAG]
     if lag > 0.0:
@@ -56,7 +91,8 @@ def rig_derivative(theta, omega, tau, u, t, rig):  # type: ignore[no-untyped-def
 
 
 @jitable
-def rig_rk4_step(theta, omega, tau, u, t, h, rig):  # type: ignore[no-untyped-def]
+def rig_rk4_step(theta: float, omega: float, tau: float, u: float, t: float, h: float,
+                 rig: Vector) -> tuple[float, float, float]:
     """One classical RK4 step of length h [s] from time t with u held."""
     half = 0.5 * h
     a1, b1, c1 = rig_derivative(theta, omega, tau, u, t, rig)
@@ -74,7 +110,8 @@ def rig_rk4_step(theta, omega, tau, u, t, h, rig):  # type: ignore[no-untyped-de
 
 
 @jitable
-def rig_advance(theta, omega, tau, u, t0, h, nsub, rig):  # type: ignore[no-untyped-def]
+def rig_advance(theta: float, omega: float, tau: float, u: float, t0: float, h: float,
+                nsub: int, rig: Vector) -> tuple[float, float, float]:
     """Integrate the rig over one sample: ``nsub`` RK4 steps of h from t0, u held."""
     for j in range(nsub):
         theta, omega, tau = rig_rk4_step(theta, omega, tau, u, t0 + j * h, h, rig)
@@ -82,7 +119,7 @@ def rig_advance(theta, omega, tau, u, t0, h, nsub, rig):  # type: ignore[no-unty
 
 
 @jitable
-def applied_torque(tau, u, rig):  # type: ignore[no-untyped-def]
+def applied_torque(tau: float, u: float, rig: Vector) -> float:
     """Torque acting on the arm: the lag state τ when T > 0, else u itself."""
     if rig[LAG] > 0.0:
         return tau
@@ -129,8 +166,8 @@ class RigParams:
     stribeck_velocity: float = 0.1
 
     @classmethod
-    def from_scenario(cls, scn) -> RigParams:  # type: ignore[no-untyped-def]
-        """Rig parameters of a :class:`~esoarm.scenario.Scenario`."""
+    def from_scenario(cls, scn: Scenario) -> RigParams:
+        """Rig parameters of a :class:`~esoarm.scenario.Scenario` (ideal torque source)."""
         p, r = scn.plant, scn.rig
         return cls(
             inertia=r.inertia_scale * p.inertia,
@@ -164,3 +201,48 @@ class RigParams:
         )
         vec.setflags(write=False)
         return vec
+
+
+# ---------------------------------------------------------------------------
+# the kind: design and array-valued step functions
+
+
+def design(scn: Scenario) -> PlantDesign:
+    """The true rig of ``scn`` for the step functions.
+
+    ``vector`` = (CODE, :attr:`RigParams.vector`); with a ``[motor]`` table the
+    motor's back-EMF damping (N·Kt)²/R is added to the viscous friction, so
+    that driving the rig with the motor's rate-independent torque
+    (:func:`esoarm.plants.motor.source_torque`) integrates the motor law.
+    """
+    rig = np.array(RigParams.from_scenario(scn).vector)
+    motor = MotorParams.from_scenario(scn)
+    if motor is not None:
+        rig[VISC] += motor.damping
+    return PlantDesign(
+        vector=read_only(np.concatenate([[float(CODE)], rig])),
+        x0=read_only(np.array([scn.rig.theta0, 0.0, 0.0])),
+        n_joints=1,
+        b0=read_only(np.array([input_gain(scn.plant.inertia)])),
+    )
+
+
+@jitable
+def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
+            p: np.ndarray) -> None:
+    """Integrate the state x = (θ, θ̇, τ) in place over one sample, input u[0] [N·m] held.
+
+    ``nsub`` RK4 steps of h [s] from t0 [s] (:func:`rig_advance`); ``p`` is
+    :attr:`PlantDesign.vector`.
+    """
+    # the parameters as a tuple: compiled, they live in registers through the RK4 loop
+    rig = (p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10])
+    x[0], x[1], x[2] = rig_advance(x[0], x[1], x[2], u[0], t0, h, nsub, rig)
+
+
+@jitable
+def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
+                 out: np.ndarray) -> None:
+    """True θ̈ [rad/s²] at state x, time t, with input u[0] applied from t on, into out[0]."""
+    rig = p[1:]
+    out[0] = rig_acceleration(x[0], x[1], applied_torque(x[2], u[0], rig), t, rig)

@@ -8,8 +8,9 @@ resistance, Vs the supply, ω the arm rate:
 
 so at the arm the motor is a torque source (N·Kt·Vs/R)·d plus a viscous
 back-EMF damping (N·Kt)²/R.  The host inverts this with the estimated rate ẑ2
-(:func:`torque_to_duty`); the emulator integrates the same law by adding the
-damping to the rig's viscous friction (:func:`twin_rig_vector`).
+(:func:`torque_to_duty`); the plant integrates the same law by adding the
+damping to the rig's viscous friction (see the plant kind's ``design``) and
+applying the rate-independent :func:`source_torque` of the duty.
 
 The driver has a deadband δ (fraction of full duty): a duty fraction d' acts as
 d = sign(d')·max(0, (|d'| − δ)/(1 − δ)); the host pre-compensates with
@@ -21,12 +22,65 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from esoarm.plants.lever_arm import VISC
+from esoarm._jit import jitable
 
-__all__ = ["MotorParams", "twin_rig_vector"]
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
+
+__all__ = ["MotorParams", "duty_to_torque", "effective_fraction", "source_torque",
+           "torque_to_duty"]
+
+# Layout of the motor block of the actuator vector (esoarm.plants.actuator).
+STALL_GAIN, DAMPING, PWM_MAX, DEADBAND = range(4)
+
+
+@jitable
+def torque_to_duty(torque: float, omega: float, m: np.ndarray) -> float:
+    """Duty counts (a whole number) that produce ``torque`` [N·m] at arm rate ``omega`` [rad/s].
+
+    Saturates at ±pwm_max (full supply); includes the deadband
+    pre-compensation; a non-finite request gives 0.  ``m`` is the motor block
+    (stall gain, damping, pwm_max, deadband).
+    """
+    frac = (torque + m[DAMPING] * omega) / m[STALL_GAIN]
+    if not math.isfinite(frac):
+        return 0.0
+    if frac > 1.0:
+        frac = 1.0
+    elif frac < -1.0:
+        frac = -1.0
+    if frac != 0.0:
+        db = m[DEADBAND]
+        frac = math.copysign(db + (1.0 - db) * abs(frac), frac)
+    # round half to even, exactly like Python's round()
+    return float(np.rint(frac * m[PWM_MAX]))
+
+
+@jitable
+def effective_fraction(duty: float, m: np.ndarray) -> float:
+    """Fraction of Vs the driver actually applies for ``duty`` counts (deadband)."""
+    frac = duty / m[PWM_MAX]
+    db = m[DEADBAND]
+    mag = (abs(frac) - db) / (1.0 - db)
+    if mag <= 0.0:
+        return 0.0
+    return math.copysign(min(mag, 1.0), frac)
+
+
+@jitable
+def source_torque(duty: float, m: np.ndarray) -> float:
+    """The rate-independent arm torque N·Kt·Vs·d/R [N·m] of ``duty`` (what drives the twin)."""
+    return m[STALL_GAIN] * effective_fraction(duty, m)
+
+
+@jitable
+def duty_to_torque(duty: float, omega: float, m: np.ndarray) -> float:
+    """Arm torque [N·m] that ``duty`` gives at arm rate ``omega`` [rad/s]."""
+    return source_torque(duty, m) - m[DAMPING] * omega
 
 
 @dataclass(frozen=True)
@@ -57,7 +111,7 @@ class MotorParams:
     deadband: float
 
     @classmethod
-    def from_scenario(cls, scn) -> MotorParams | None:  # type: ignore[no-untyped-def]
+    def from_scenario(cls, scn: Scenario) -> MotorParams | None:
         """The scenario's motor, or None for an ideal torque source."""
         m = scn.motor
         if m is None:
@@ -75,52 +129,23 @@ class MotorParams:
         """Back-EMF damping at the arm, (N·Kt)²/R [N·m·s/rad]."""
         return (self.gear_ratio * self.torque_constant) ** 2 / self.resistance
 
-    def torque_to_duty(self, torque: float, omega: float) -> int:
-        """Duty counts that produce ``torque`` [N·m] at arm rate ``omega`` [rad/s].
+    @property
+    def block(self) -> np.ndarray:
+        """(stall gain, damping, pwm_max, deadband): the argument ``m`` of the functions."""
+        return np.array([self.stall_gain, self.damping, float(self.pwm_max), self.deadband])
 
-        Saturates at ±pwm_max (full supply); includes the deadband
-        pre-compensation.
-        """
-        frac = (torque + self.damping * omega) / self.stall_gain
-        if not math.isfinite(frac):
-            return 0
-        if frac > 1.0:
-            frac = 1.0
-        elif frac < -1.0:
-            frac = -1.0
-        if frac != 0.0:
-            db = self.deadband
-            frac = math.copysign(db + (1.0 - db) * abs(frac), frac)
-        return int(round(frac * self.pwm_max))
+    def torque_to_duty(self, torque: float, omega: float) -> int:
+        """Duty counts that produce ``torque`` [N·m] at arm rate ``omega`` [rad/s]."""
+        return int(torque_to_duty(torque, omega, self.block))
 
     def effective_fraction(self, duty: int) -> float:
         """Fraction of Vs the driver actually applies for ``duty`` counts."""
-        frac = duty / self.pwm_max
-        db = self.deadband
-        mag = (abs(frac) - db) / (1.0 - db)
-        if mag <= 0.0:
-            return 0.0
-        return math.copysign(min(mag, 1.0), frac)
+        return float(effective_fraction(float(duty), self.block))
 
     def duty_to_torque(self, duty: int, omega: float) -> float:
         """Arm torque [N·m] that ``duty`` gives at arm rate ``omega`` [rad/s]."""
-        return self.stall_gain * self.effective_fraction(duty) - self.damping * omega
+        return float(duty_to_torque(float(duty), omega, self.block))
 
     def source_torque(self, duty: int) -> float:
         """The rate-independent part N·Kt·Vs·d/R [N·m] (the twin's applied torque)."""
-        return self.stall_gain * self.effective_fraction(duty)
-
-
-def twin_rig_vector(rig: np.ndarray, motor: MotorParams | None) -> np.ndarray:
-    """Rig parameter vector with the motor's back-EMF damping added to viscous friction.
-
-    With this vector, :func:`esoarm.plants.lever_arm.rig_advance` driven by
-    :meth:`MotorParams.source_torque` integrates exactly the motor law of the
-    module docstring.
-    """
-    if motor is None:
-        return rig
-    vec = np.array(rig, dtype=float)
-    vec[VISC] += motor.damping
-    vec.setflags(write=False)
-    return vec
+        return float(source_torque(float(duty), self.block))

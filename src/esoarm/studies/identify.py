@@ -221,7 +221,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     say = progress or (lambda _msg: None)
 
     def fit(delay: int, names: list[str], fixed: dict[str, float], x_phys: list[float],
-            x_states: np.ndarray | None, max_iter: int = 60):  # type: ignore[no-untyped-def]
+            x_states: np.ndarray | None, max_iter: int = 200):  # type: ignore[no-untyped-def]
         prob = Problem(scn, fit_logs, seg_samples, delay, start, names, fixed)
         states = prob.initial_states() if x_states is None else x_states
         return prob, prob.solve(np.concatenate([x_phys, states]), max_iter)

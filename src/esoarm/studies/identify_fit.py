@@ -183,7 +183,7 @@ class Problem:
             lo[self.free.index("actuator.lag")] = 2.0 * self.h  # RK4 needs T ≳ 2h
         return np.array(lo), np.array(hi)
 
-    def solve(self, x_start: np.ndarray, max_iter: int = 60) -> Solution:
+    def solve(self, x_start: np.ndarray, max_iter: int = 200) -> Solution:
         """Projected Levenberg-Marquardt from ``x_start`` (see :func:`levenberg_marquardt`)."""
         lo, hi = self.bounds()
         return levenberg_marquardt(self.residual, self.jacobian, np.clip(x_start, lo, hi), lo,

@@ -296,7 +296,7 @@ def _theorem_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
 
 
 def _discretization_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
-    from esoarm.studies.reproduce import discretization_findings, run_metrics
+    from esoarm.studies.reproduce import discretization_findings, table_metrics
 
     if not rep.comparison:
         return "<p>Not run (reproduction without comparisons).</p>"
@@ -311,7 +311,7 @@ def _discretization_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str
     for key in rep.comparison[discs[0]]:
         cells = [_e(key)]
         for metric in ("rms_error", "rms_u", "du_rms"):
-            cells += [f"{run_metrics(rep.comparison[d][key])[metric]:.4f}" for d in discs]
+            cells += [f"{table_metrics(rep.comparison[d][key])[metric]:.4f}" for d in discs]
         rows.append(cells)
     head = ["run"]
     for label in ("RMS error [rad]", "RMS u [N·m]", "RMS(Δu) [N·m]"):

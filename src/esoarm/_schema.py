@@ -1,0 +1,24 @@
+"""Base pieces of the scenario schema, shared by the scenario and by every kind module.
+
+A kind module (a plant, an observer, a controller) declares its validated
+parameters as a :class:`Section` with a ``kind`` literal; the scenario puts the
+registered kinds together as a tagged union (see :mod:`esoarm.kinds`).
+"""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict
+from pydantic.json_schema import JsonDict
+
+__all__ = ["Section", "unit"]
+
+
+class Section(BaseModel):
+    """A scenario table: immutable, strict types, no unknown keys, no NaN or inf."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+def unit(symbol: str) -> JsonDict:
+    """``json_schema_extra`` carrying a field's SI unit (shown in the docs)."""
+    return {"unit": symbol}

@@ -1,0 +1,101 @@
+"""The actuator between controller and plant: saturation, optional motor, transport delay.
+
+Shared by every plant kind and every engine (reference, batch, the emulated
+device and the real-time loop), so "what reaches the plant" is written once:
+
+1. the controller's command is saturated to ±torque_limit (:func:`saturate`);
+2. without a ``[motor]`` table the actuator is an ideal torque source: the
+   plant is driven by the command itself.  With one, the host turns the
+   torque into a PWM duty with the estimated rate (back-EMF compensation,
+   :func:`esoarm.plants.motor.torque_to_duty`); the torque the host believes
+   it applies, :func:`esoarm.plants.motor.duty_to_torque`, is what the
+   observer is updated with and what is logged as ``u``; the plant is driven
+   by the duty's rate-independent torque :func:`esoarm.plants.motor.source_torque`
+   (the back-EMF damping is part of the plant, see the plant kind's design);
+3. the drive is delayed by ``delay_samples`` (0 before the first command) and
+   held over [t_k, t_{k+1}) (:func:`delayed_input`); the actuator lag, a plant
+   state, is integrated by the plant kind.
+
+The actuator vector ``a`` is (torque_limit, motor flag, motor block of
+:class:`esoarm.plants.motor.MotorParams`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from esoarm._jit import jitable
+from esoarm.contract import read_only
+from esoarm.plants.motor import MotorParams, duty_to_torque, source_torque, torque_to_duty
+
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
+
+__all__ = ["actuate", "actuator_vector", "delayed_input", "saturate"]
+
+LIMIT, MOTOR, MOTOR_BLOCK = 0, 1, 2
+VECTOR_SIZE = 6
+
+
+def actuator_vector(scn: Scenario) -> np.ndarray:
+    """(torque_limit, 1.0 with a motor else 0.0, motor block or zeros), read-only."""
+    vec = np.zeros(VECTOR_SIZE)
+    vec[LIMIT] = scn.actuator.torque_limit
+    motor = MotorParams.from_scenario(scn)
+    if motor is not None:
+        vec[MOTOR] = 1.0
+        vec[MOTOR_BLOCK:] = motor.block
+    return read_only(vec)
+
+
+@jitable
+def saturate(u: float, limit: float) -> float:
+    """Clip u to ±limit [N·m]; NaN passes through so faults stay visible."""
+    if u > limit:
+        return limit
+    if u < -limit:
+        return -limit
+    return u
+
+
+@jitable
+def actuate(u: float, rate: float, a: np.ndarray) -> tuple[float, float, float]:
+    """The saturated command u [N·m] through the actuator.
+
+    Parameters
+    ----------
+    u : float
+        Saturated torque command [N·m].
+    rate : float
+        Estimated joint rate ẑ2 [rad/s] (for the motor's back-EMF compensation).
+    a : ndarray
+        :func:`actuator_vector`.
+
+    Returns
+    -------
+    (u_host, drive, duty) : (float, float, float)
+        The torque the host applies as far as it knows [N·m] (logged, fed to
+        the observer), the torque driving the plant [N·m], and the PWM duty
+        [counts] (NaN without a motor).
+    """
+    if a[MOTOR] == 0.0:
+        return u, u, np.nan
+    m = a[MOTOR_BLOCK:]
+    duty = torque_to_duty(u, rate, m)
+    return duty_to_torque(duty, rate, m), source_torque(duty, m), duty
+
+
+@jitable
+def delayed_input(hist: np.ndarray, k: int, delay: int, drive: np.ndarray,
+                  applied: np.ndarray) -> None:
+    """Record sample k's drive and select the input applied over [t_k, t_{k+1}).
+
+    ``hist`` holds the drives of samples 0 … k (n per sample); ``applied``
+    receives the drive of sample k − delay, or 0 before the first command.
+    """
+    n = len(drive)
+    for j in range(n):
+        hist[k * n + j] = drive[j]
+        applied[j] = hist[(k - delay) * n + j] if k >= delay else 0.0
