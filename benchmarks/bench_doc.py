@@ -142,6 +142,10 @@ def write_doc(m: dict, machine: dict[str, str]) -> str:  # type: ignore[type-arg
         ("exact engine, one core", inp["exact_cpu_per_run"] * N_RUNS,
          "CPU time per run on 1 thread × 2,000"),
         ("fast engine, one core", inp["fast_cpu_per_run"] * N_RUNS, "same"),
+        ("exact engine unblocked (one run at a time), one core",
+         inp["unblocked_cpu_per_run"] * N_RUNS, "same"),
+        ("C block loop without -ffast-math (scalar libm), one core",
+         inp["scalar_c_cpu_per_run"] * N_RUNS, "same"),
         ("(c) C gcc -O3, single thread (loop only)", c_med,
          f"timer inside the C program, median of {len(can['c'])} rounds"),
         ("(a) plain Python reference loop", py["extrapolated"], f"{py['subset']} runs timed, "
@@ -170,14 +174,18 @@ def write_doc(m: dict, machine: dict[str, str]) -> str:  # type: ignore[type-arg
         "",
         "## Start-up",
         "",
-        "| command (warm caches) | time [s] |",
-        "|---|---:|",
-        f"| `esoarm --help` | {st['help']:.3f} |",
-        f"| `esoarm --version` | {st['version']:.3f} |",
-        f"| `python -c 'import esoarm.cli'` (import only) | {st['import_cli']:.3f} |",
+        "| command (warm caches) | wall time [s] | CPU time [s] |",
+        "|---|---:|---:|",
+        f"| `esoarm --help` | {st['help']:.3f} | {st['help_cpu']:.3f} |",
+        f"| `esoarm --version` | {st['version']:.3f} | {st['version_cpu']:.3f} |",
+        f"| `python -c 'import esoarm.cli'` (import only) | {st['import_cli']:.3f} | |",
         f"| `esoarm sweep test-1 --vary observer.eps=0.09` (one run, exact) | "
-        f"{st['one_exact']:.3f} |",
-        f"| the same with `--engine fast` | {st['one_fast']:.3f} |",
+        f"{st['one_exact']:.3f} | {st['one_exact_cpu']:.3f} |",
+        f"| the same with `--engine fast` | {st['one_fast']:.3f} | {st['one_fast_cpu']:.3f} |",
+        "",
+        "Best of several runs. CPU time (user + system, of the process) is what start-up "
+        "costs on an idle machine; on a loaded one the wall time also holds the waits for a "
+        "core.",
         "",
         "## Throughput against the number of runs",
         "",
@@ -208,6 +216,14 @@ def notes(m: dict) -> list[str]:  # type: ignore[type-arg]
         f"- One core, one run at a time, the C loop spends {per_c * 1e3:.2f} ms per run "
         "(20,000 RK4 steps): almost all of it in libm, 4 `tanh`, 4 `cos` and 4 `sin` "
         "per step, each waiting on the one before.",
+        f"- Blocking alone: the exact engine one run at a time takes "
+        f"{inp['unblocked_cpu_per_run'] * 1e3:.2f} ms per run, blocked "
+        f"{inp['exact_cpu_per_run'] * 1e3:.2f} ms "
+        f"({inp['unblocked_cpu_per_run'] / inp['exact_cpu_per_run']:.2f}×); the same block "
+        f"loop in C with scalar libm (no -ffast-math) {inp['scalar_c_cpu_per_run'] * 1e3:.2f} "
+        f"ms ({per_c / inp['scalar_c_cpu_per_run']:.2f}× the C loop). With scalar libm the "
+        "runs' chains overlap only partly: the libm calls themselves (branchy code, a "
+        "table lookup in `cos`) bound the throughput on this CPU.",
         f"- The exact engine advances a block of runs of one grid point together, runs as "
         f"the innermost loop, calls the same scalar `math.tanh`/`math.cos` as the reference "
         f"engine and reads d(t) from a table made once per grid point: "
