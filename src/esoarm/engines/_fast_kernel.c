@@ -39,7 +39,7 @@ enum {
     NPAR
 };
 enum { KIND_EULER, KIND_ZOH, KIND_CURRENT };
-enum { M_SE, M_SU, M_ME, M_MU, M_SF, M_ROWS, M_DIV, NOUT };
+enum { M_SE, M_SU, M_ME, M_MU, M_SF, M_SR, M_SD, M_SAT, M_ROWS, M_DIV, NOUT };
 
 int esoarm_fast_lanes(void) { return LANES; }
 int esoarm_fast_npar(void) { return NPAR; }
@@ -75,6 +75,7 @@ static inline double lt_limit(double x, double lim) {
  *   noise                lane l uses noise[noise_off[l] + k]
  *   uhist                scratch, (delay + 1) x LANES doubles (used when delay > 0)
  *   out                  NOUT x LANES: sums of e^2, u^2, max|e|, max|u|, sum (z3-f)^2,
+ *                        sum (z2-omega)^2, sum (u_k - u_{k-1})^2, saturated samples,
  *                        rows, diverged
  */
 void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp, int lag_on,
@@ -86,6 +87,7 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
     double th[LANES], om[LANES], ta[LANES], z1[LANES], z2[LANES], z3[LANES];
     double ua[LANES], alive[LANES];
     double se[LANES], su[LANES], sf[LANES], me[LANES], mu[LANES], rows[LANES];
+    double sr[LANES], sd[LANES], ssat[LANES], uprev[LANES];
     double ref[LANES], dref[LANES], ddref[LANES], nz[LANES];
     double ivs[LANES], iin[LANES], ilag[LANES], iq[LANES];
 #define P(i) (par + (i) * LANES)
@@ -106,6 +108,7 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
         z1[l] = q[l] > 0.0 ? q[l] * floor(x / q[l] + 0.5) : x;
         z2[l] = 0.0; z3[l] = 0.0;
         se[l] = su[l] = sf[l] = me[l] = mu[l] = 0.0;
+        sr[l] = sd[l] = ssat[l] = uprev[l] = 0.0;
         rows[l] = (double)n; alive[l] = 1.0;
         ivs[l] = 1.0 / vs[l]; iin[l] = 1.0 / inertia[l];
         ilag[l] = lag[l] > 0.0 ? 1.0 / lag[l] : 0.0;
@@ -135,8 +138,9 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
             }
             double alpha = ddref[l] - k1[l] * (h2 - dref[l]) - k2[l] * (h1 - ref[l]);
             double bh = comp == 0 ? h3 : -(cg[l] * cos(h1)) / i0[l];
-            double u = i0[l] * (alpha - bh);
-            u = u > lim[l] ? lim[l] : (u < -lim[l] ? -lim[l] : u);
+            double raw = i0[l] * (alpha - bh);
+            double sat = raw > lim[l] || raw < -lim[l] ? 1.0 : 0.0;
+            double u = raw > lim[l] ? lim[l] : (raw < -lim[l] ? -lim[l] : raw);
             double uap;
             if (delay > 0) {
                 urow[l] = u;
@@ -152,6 +156,9 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
             double err = th[l] - ref[l];
             double a = alive[l];
             se[l] += a * err * err; su[l] += a * u * u; sf[l] += a * (h3 - f) * (h3 - f);
+            double dr = h2 - om[l], du = k > 0 ? u - uprev[l] : 0.0;
+            sr[l] += a * dr * dr; sd[l] += a * du * du; ssat[l] += a * sat;
+            uprev[l] = u;
             double ae = fabs(err) * a, au = fabs(u) * a;
             me[l] = ae > me[l] ? ae : me[l];
             mu[l] = au > mu[l] ? au : mu[l];
@@ -247,6 +254,9 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
         out[M_ME * LANES + l] = me[l];
         out[M_MU * LANES + l] = mu[l];
         out[M_SF * LANES + l] = sf[l];
+        out[M_SR * LANES + l] = sr[l];
+        out[M_SD * LANES + l] = sd[l];
+        out[M_SAT * LANES + l] = ssat[l];
         out[M_ROWS * LANES + l] = rows[l];
         out[M_DIV * LANES + l] = alive[l] != 0.0 ? 0.0 : 1.0;
     }

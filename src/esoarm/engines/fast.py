@@ -22,9 +22,7 @@ What it supports
     Every scenario the exact engine runs except those :func:`unsupported`
     names (a run that needs the exact engine is reported, never silently
     approximated): the lever arm with the linear ESO and the FLC, no motor.
-    It computes ``rms_error``, ``rms_u``, ``max_abs_error``, ``max_abs_u``,
-    ``rms_f_error``, ``samples`` and ``diverged``; the other metrics of
-    :data:`esoarm.engines.metrics.METRICS` are NaN.
+    It computes every metric of :data:`esoarm.engines.metrics.METRICS`.
 
 Without a working C compiler the fast engine is unavailable: :func:`run_metrics`
 warns once and runs the exact engine instead (same numbers, slower).
@@ -75,10 +73,9 @@ _PAR_NAMES = (
     *(f"gain{i}" for i in range(3)), "k1", "k2", "i0", "cgcoef", "limit",
 )
 _NPAR = len(_PAR_NAMES)
-_NOUT = 7
-#: Columns of :data:`esoarm.engines.metrics.METRICS` this engine computes (the others are NaN).
-COMPUTED: tuple[int, ...] = tuple(METRICS.index(name) for name in (
-    "rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error", "samples", "diverged"))
+_NOUT = 10
+#: Columns of :data:`esoarm.engines.metrics.METRICS` this engine computes (all of them).
+COMPUTED: tuple[int, ...] = tuple(range(len(METRICS)))
 
 
 class FastEngineUnavailable(RuntimeError):
@@ -308,17 +305,20 @@ def _run_pack(lib: ctypes.CDLL, pack: _batch._Pack, workers: int) -> np.ndarray:
     else:
         for b in blocks:
             work(b)
-    # the kernel computes the metrics of COMPUTED; the others are NaN
     res = np.full((nruns, len(METRICS)), np.nan)
-    n_rows = raw[:, 5]
+    n_rows = raw[:, 8]
     col = METRICS.index
     res[:, col("rms_error")] = np.sqrt(raw[:, 0] / n_rows)
     res[:, col("rms_u")] = np.sqrt(raw[:, 1] / n_rows)
     res[:, col("max_abs_error")] = raw[:, 2]
     res[:, col("max_abs_u")] = raw[:, 3]
     res[:, col("rms_f_error")] = np.sqrt(raw[:, 4] / n_rows)
+    res[:, col("rms_rate_error")] = np.sqrt(raw[:, 5] / n_rows)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        res[:, col("rms_du")] = np.where(n_rows > 1, np.sqrt(raw[:, 6] / (n_rows - 1)), 0.0)
+    res[:, col("saturated_fraction")] = raw[:, 7] / n_rows
     res[:, col("samples")] = n_rows
-    res[:, col("diverged")] = raw[:, 6]
+    res[:, col("diverged")] = raw[:, 9]
     return res
 
 
