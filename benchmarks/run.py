@@ -380,13 +380,19 @@ def main() -> None:
                         help="small sizes only: a smoke test of this script (for CI)")
     parser.add_argument("--no-doc", action="store_true", help="do not write docs/benchmarks.md")
     parser.add_argument("--rounds", type=int, default=3, help="rounds of C / exact / fast")
+    parser.add_argument("--max-runs", type=int, default=100_000,
+                        help="largest sweep of the throughput curve (powers of 10 up to it)")
+    parser.add_argument("--big", type=int, default=1_000_000,
+                        help="runs of the large metrics-only sweep (memory)")
     args = parser.parse_args()
     from bench_doc import plot_scaling, write_doc
 
     machine = machine_info()
-    m: dict = {"quick": args.quick}  # type: ignore[type-arg]
+    command = " ".join(["python benchmarks/run.py", *sys.argv[1:]])
+    m: dict = {"quick": args.quick, "command": command}  # type: ignore[type-arg]
     grid = canonical_grid()
-    sizes = [1, 10, 100] if args.quick else [1, 10, 100, 1000, 10_000, 100_000]
+    top = 100 if args.quick else args.max_runs
+    sizes = [10**i for i in range(7) if 10**i <= top]
     steps = [
         ("start-up", lambda: bench_startup(2 if args.quick else 5)),
         ("canonical sweep: C, exact, fast (rounds)",
@@ -398,7 +404,7 @@ def main() -> None:
                                                           else 10_000)),
     ]
     if not args.quick:
-        steps += [("1,000,000-run sweep", lambda: bench_million(work, 1_000_000)),
+        steps += [(f"{args.big:,}-run sweep", lambda: bench_million(work, args.big)),
                   ("tuning study", bench_tune)]
     names = ["startup", "canonical", "inproc", "python", "control", "scaling", "million", "tune"]
     with tempfile.TemporaryDirectory(prefix="esoarm-bench-") as tmp:
