@@ -1,6 +1,6 @@
 /*
  * Benchmark baseline (c): a straightforward single-threaded C implementation of
- * the SPEC §2 sampled-data closed loop, for comparison with esoarm's compiled
+ * the sampled-data closed loop (docs/semantics.md), for comparison with esoarm's compiled
  * batch engine.  Not shipped with the package; built by benchmarks/run.py with
  *     gcc -O3 -o loop loop.c -lm
  *

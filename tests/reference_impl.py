@@ -1,8 +1,9 @@
-"""An independent, deliberately plain implementation of SPEC §2 (test-only).
+"""An independent, deliberately plain implementation of the sampled-data loop (test-only).
 
-Written from the text of SPEC §2-3, not from the esoarm sources: it imports
+Written from docs/semantics.md (the sampled-data loop, the scenario format), not
+from the esoarm sources: it imports
 nothing from ``esoarm`` and takes the scenario as the plain nested dict of
-``Scenario.to_dict()`` (the SPEC §3 keys).  Differences from the package
+``Scenario.to_dict()`` (the keys of the scenario format).  Differences from the package
 engine, on purpose:
 
 * the observer is state-space with NumPy matrices; Φ and Γ come from
@@ -10,10 +11,10 @@ engine, on purpose:
   form), and the discrete gains from matching characteristic-polynomial
   coefficients (affine in L), not from Ackermann's formula;
 * the rig state is a NumPy vector (θ, θ̇, τ) integrated with its own RK4;
-* the reference trajectories and the FLC are typed again from the SPEC.
+* the reference trajectories and the FLC are typed again from docs/semantics.md.
 
 It is the second engine of ``tests/test_simulation.py``: both must agree to
-round-off (SPEC §2: relative 1e-9 on RMS values).
+round-off (the sampled-data loop: relative 1e-9 on RMS values).
 """
 
 from __future__ import annotations
@@ -75,7 +76,7 @@ def observer_matrices(eps: float, ts: float, b0: float, disc: str):
 
 
 def reference(ref: dict, t: float) -> tuple[float, float, float]:
-    """θd, θ̇d, θ̈d at time t (SPEC §3 reference kinds)."""
+    """θd, θ̇d, θ̈d at time t (reference kinds of the scenario format)."""
     if ref["kind"] == "multisine":
         phases = ref.get("phases") or [0.0] * len(ref["amplitudes"])
         p = ref.get("offset", 0.0)

@@ -1,4 +1,4 @@
-"""The compiled batch engine against the reference engine (SPEC §2), run by run.
+"""The compiled batch engine against the reference engine (the sampled-data loop), run by run.
 
 Contract: every time series and metric equal to ``run_reference`` within
 rtol = 1e-12 (atol 1e-12 for values that cross zero); in practice the two
@@ -24,7 +24,7 @@ RTOL = 1e-12
 ATOL = 1e-12
 SHORT = {"duration": 3.0}  # keeps the plain-Python reference quick
 
-# every setting SPEC §2 distinguishes, each on a short run
+# every setting the sampled-data loop distinguishes, each on a short run
 CASES = {
     "default": {},
     "no-noise": {"sensor.noise_deg": 0.0},

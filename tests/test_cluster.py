@@ -114,6 +114,78 @@ def test_unreachable_scheduler_is_a_one_line_failure(tmp_path: Path, monkeypatch
                                    "--set", "duration=1.0", "--scheduler",
                                    f"tcp://127.0.0.1:{port}", "--out", str(out)])
     assert res.exit_code == 1, res.output
-    lines = res.stderr.strip().splitlines()
+    lines = [ln for ln in res.stderr.strip().splitlines() if "warning:" not in ln]
     assert len(lines) == 1 and "cannot reach the Dask scheduler" in lines[0], lines
     assert len(out.read_text().splitlines()) == 1  # the header: no run finished
+
+
+# -- schedulers that do not answer: one line, no traceback after it ------------------
+
+
+def _esoarm(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-c", "import sys; from esoarm.cli import main; main(sys.argv[1:])",
+         *args], capture_output=True, text=True, timeout=120)
+
+
+SWEEP = ("sweep", "test-1", "--vary", "observer.eps=0.05", "--set", "duration=0.2")
+
+
+@pytest.mark.parametrize("address", ["notanaddress", "tcp://host", "tcp://h:0", "ftp://h:1",
+                                     "tcp://h:99999", "tcp://:8786"])
+def test_malformed_scheduler_address_is_bad_input(address: str) -> None:
+    proc = _esoarm(*SWEEP, "--scheduler", address)
+    assert proc.returncode == 2, proc.stderr
+    lines = [ln for ln in proc.stderr.strip().splitlines() if "warning:" not in ln]
+    assert len(lines) == 1 and f"--scheduler '{address}'" in lines[0], proc.stderr
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_nothing_listening_is_one_line_exit_1() -> None:
+    proc = _esoarm(*SWEEP, "--scheduler", f"tcp://127.0.0.1:{_free_port()}")
+    assert proc.returncode == 1, proc.stderr
+    lines = [ln for ln in proc.stderr.strip().splitlines() if "warning:" not in ln]
+    assert len(lines) == 1 and "cannot reach the Dask scheduler" in lines[0], proc.stderr
+    assert "refused" in lines[0]
+
+
+def test_a_server_that_is_not_dask_is_one_line_exit_1() -> None:
+    """Something accepts the connection but does not speak Dask: no __del__ traceback."""
+    import socket
+    import threading
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    stop = threading.Event()
+
+    def serve() -> None:
+        server.settimeout(0.2)
+        while not stop.is_set():
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                continue
+            with conn:
+                conn.sendall(b"HTTP/1.0 400 Bad Request\r\n\r\n" * 4)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        port = server.getsockname()[1]
+        proc = _esoarm(*SWEEP, "--scheduler", f"tcp://127.0.0.1:{port}")
+    finally:
+        stop.set()
+        thread.join(5)
+        server.close()
+    assert proc.returncode == 1, proc.stderr
+    lines = [ln for ln in proc.stderr.strip().splitlines() if "warning:" not in ln]
+    assert len(lines) == 1 and "Dask scheduler at tcp://127.0.0.1:" in lines[0], proc.stderr
+    assert "Exception ignored" not in proc.stderr

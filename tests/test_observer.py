@@ -126,7 +126,7 @@ def test_current_form_matches_pyadrc(eps):
     call with (y_k, u_{k−1}) is our ẑ_k (the estimate the FLC uses at t_k).
     pyadrc's ``eso_init`` is the estimate *before* the first call, x̂_{−1};
     with u_{−1} = 0 its first prediction is Ad x̂_{−1}, and since Ad maps
-    (a, 0, 0) to itself, ``eso_init = z_0 = (y_0, 0, 0)`` lines up with SPEC §2.
+    (a, 0, 0) to itself, ``eso_init = z_0 = (y_0, 0, 0)`` lines up with the sampled-data loop.
     pyadrc's observer poles are at exp(−k_eso·w_cl·Ts), so k_eso·w_cl = 1/ε.
     """
     ts = 0.02

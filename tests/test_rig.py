@@ -1,4 +1,4 @@
-"""The digital twin: rig dynamics (SPEC §2) and its RK4 integration."""
+"""The digital twin: rig dynamics (the sampled-data loop) and its RK4 integration."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Scenario files (SPEC §3): defaults, built-ins, overrides, validation, TOML round trip."""
+"""Scenario files: defaults, built-ins, overrides, validation, TOML round trip."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from esoarm.scenario import (
     to_toml,
 )
 
-# SPEC §3, typed again from the specification.
+# the scenario format, typed again from the specification.
 SPEC_DEFAULTS = {
     "name": "test-1",
     "duration": 20.0,
@@ -229,3 +229,112 @@ def test_parse_override_examples():
     assert isinstance(v, float) and math.isnan(v)
     with pytest.raises(ScenarioError, match="KEY=VALUE"):
         parse_override("observer.eps")
+
+
+# -- messages of the library speak of its own arguments, the CLI of its options -----
+
+
+@pytest.mark.parametrize(
+    ("overrides", "fragments"),
+    [
+        ({"observer.epsilon": 0.05}, ["override", "unknown key 'observer.epsilon'",
+                                      "did you mean 'observer.eps'"]),
+        ({"observer.eps": 0}, ["override", "observer.eps"]),
+        ({"reference.moves": [[2.0, 1.0, 1.0], [1.0, 1.0, 0.0]]}, ["override",
+                                                                   "reference.moves[1]"]),
+        (["observer.eps"], ["override 'observer.eps'", "KEY=VALUE"]),
+        ({1: 2}, ["override 1", "dotted string"]),
+        ("observer.eps=0.05", ["overrides", "dict"]),
+    ],
+    ids=["unknown-key", "out-of-range", "moves-order", "no-equals", "non-string-key", "a-string"],
+)
+def test_api_errors_speak_of_the_override_not_the_cli(overrides, fragments):
+    with pytest.raises(ScenarioError) as info:
+        load_scenario("test-1", overrides)
+    msg = str(info.value)
+    assert "--set" not in msg and "\n" not in msg
+    for fragment in fragments:
+        assert fragment in msg
+
+
+def test_cli_words_the_same_error_for_its_option(run_cli):
+    res = run_cli("show", "test-1", "--set", "observer.epsilon=0.05")
+    assert res.exit_code == 2
+    assert res.stderr.strip() == ("esoarm: error: --set: unknown key 'observer.epsilon'; "
+                                  "did you mean 'observer.eps'?")
+    res = run_cli("show", "test-1", "--set", "observer.eps=0")
+    assert res.stderr.startswith("esoarm: error: --set: key 'observer.eps' = 0")
+
+
+def test_library_study_errors_name_arguments_not_options():
+    from esoarm.studies import sweep, tune
+    from esoarm.studies.sweep import parse_scheduler
+
+    base = load_scenario("test-1")
+    calls = [
+        lambda: sweep.build_grid(base, []),
+        lambda: sweep.build_grid(base, ["observer.eps=0.1"], seeds=0),
+        lambda: sweep.build_grid(base, ["observer.eps=0.1"], max_runs=0),
+        lambda: sweep.parse_vary("observer.eps"),
+        lambda: parse_scheduler("nope"),
+        lambda: tune.Objective("rms_error +", 1.0),
+        lambda: tune.parse_bound("observer.eps=3", base),
+    ]
+    for call in calls:
+        with pytest.raises(ScenarioError) as info:
+            call()
+        assert not str(info.value).startswith("--"), str(info.value)
+
+
+# -- settings that silently do nothing (or less than asked) are warned about -------
+
+
+@pytest.mark.parametrize(
+    ("overrides", "fragment"),
+    [
+        ({"actuator.delay_samples": 1000}, "no command ever reaches the arm"),
+        ({"reference.moves": [[30.0, 1.0, 1.0]]}, "reference.moves[0] starts at 30 s"),
+        ({"duration": 0.03}, "not a whole number of sample periods"),
+    ],
+    ids=["delay-longer-than-run", "move-after-the-end", "duration-rounded"],
+)
+def test_ineffective_settings_warn(overrides, fragment):
+    from esoarm.scenario import scenario_warnings
+
+    msgs = scenario_warnings(load_scenario("test-1", overrides))
+    assert any(fragment in m for m in msgs), msgs
+    assert all("\n" not in m for m in msgs)
+
+
+def test_aliased_multisine_reference_warns():
+    from esoarm.scenario import scenario_warnings
+
+    msgs = scenario_warnings(load_scenario("test-2", {"reference.frequencies": [200.0]}))
+    assert any("reference.frequencies[0]" in m and "Nyquist" in m for m in msgs), msgs
+
+
+@pytest.mark.parametrize("name", builtin_names())
+def test_builtins_have_no_timing_warnings(name):
+    from esoarm.scenario import timing_warnings
+
+    assert timing_warnings(load_scenario(name)) == []
+
+
+@pytest.mark.parametrize(
+    ("overrides", "key"),
+    [({"observer.eps": 1e-110}, "observer.eps"), ({"observer.eps": 1e200}, "observer.eps"),
+     ({"rig.friction_velocity": 1e-320}, "rig.friction_velocity"),
+     ({"actuator.lag": 1e-320}, "actuator.lag"),
+     ({"rig.inertia_scale": 1e-320}, "rig.inertia_scale")],
+    ids=["eps-tiny", "eps-huge", "vs-subnormal", "lag-subnormal", "inertia-underflow"],
+)
+def test_values_whose_derived_quantities_overflow_are_rejected(overrides, key):
+    with pytest.raises(ScenarioError, match=f"key '{key}': out of the range double precision"):
+        load_scenario("test-1", overrides)
+
+
+def test_a_run_of_hours_is_warned_about():
+    from esoarm.scenario import timing_warnings
+
+    msgs = timing_warnings(load_scenario("test-1", {"rig.step": 1e-9, "duration": 2.0}))
+    assert any("20,000,000 RK4 steps per sample" in m for m in msgs), msgs

@@ -1,4 +1,4 @@
-"""Encoder model: quantizer properties (hypothesis), noise sequence (SPEC §2 step 1)."""
+"""Encoder model: quantizer properties (hypothesis), noise sequence (loop step 1)."""
 
 from __future__ import annotations
 

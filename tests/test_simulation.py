@@ -1,7 +1,7 @@
-"""The reference simulator against SPEC §2: a second engine, determinism, bounds.
+"""The reference simulator against docs/semantics.md: a second engine, determinism, bounds.
 
-The second engine is ``tests/reference_impl.py``, written from the SPEC text
-with NumPy matrices, scipy's ``expm`` and its own RK4; SPEC §2 requires
+The second engine is ``tests/reference_impl.py``, written from the text of docs/semantics.md
+with NumPy matrices, scipy's ``expm`` and its own RK4; the semantics require
 agreement to relative 1e-9 on RMS values.
 """
 
@@ -19,7 +19,7 @@ from esoarm.scenario import builtin_names, load_scenario
 
 RTOL = 1e-9
 
-# Every feature of SPEC §2 at least once, every discretization with each
+# Every feature of the sampled-data loop at least once, every discretization with each
 # feature that interacts with it.  Short runs where the feature shows early.
 ENGINE_CASES = {
     "test-1": ("test-1", {}),
@@ -148,7 +148,7 @@ def test_builtin_runs_bounded(name, disc):
 
 
 # ---------------------------------------------------------------------------
-# SPEC §2 details checked directly on the log
+# Details of the sampled-data loop checked directly on the log
 
 
 def test_log_semantics():

@@ -8,7 +8,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -82,7 +81,7 @@ def test_build_grid_rejects_bad_input(base, vary: list[str], needle: str) -> Non
     with pytest.raises(ScenarioError) as exc:
         sweep.build_grid(base, vary, seeds=2)
     assert needle in str(exc.value)
-    assert str(exc.value).startswith("--vary")
+    assert str(exc.value).startswith("vary")  # the library names its argument
 
 
 def test_grid_order_first_key_slowest_seed_fastest(base) -> None:  # type: ignore[no-untyped-def]
@@ -109,7 +108,7 @@ def test_sensor_seed_as_a_grid_key(base, tmp_path: Path) -> None:  # type: ignor
     assert [r[:2] for r in result.rows()] == [[3, 3], [5, 5]]
     one = base.with_overrides({"sensor.seed": 5})
     assert result.values[1, 0] == run_reference(one, prepare(one)).metrics["rms_error"]
-    with pytest.raises(ScenarioError, match="use --seeds"):
+    with pytest.raises(ScenarioError, match="number of noise seeds"):
         sweep.build_grid(base, ["sensor.seed=3,5"], seeds=2)
 
 
@@ -223,20 +222,79 @@ def test_interrupt_keeps_finished_rows(tmp_path: Path, monkeypatch) -> None:  # 
 
 @pytest.mark.skipif(os.name != "posix", reason="SIGINT delivery is POSIX-specific")
 def test_real_ctrl_c_exits_130_with_a_valid_csv(tmp_path: Path) -> None:
+    """Ctrl-C once the first chunk is done (a condition, not a time: robust under load)."""
     out = tmp_path / "sig.csv"
     cmd = [sys.executable, "-c", "from esoarm.cli import main; main()", "sweep", "test-1",
            "--vary", "observer.eps=geom:0.03:0.3:400", "--seeds", "10", "--chunk", "40",
-           "--workers", "1", "--out", str(out)]
+           "--workers", "1", "--out", str(out), "--verbose"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(4.0)
-    proc.send_signal(signal.SIGINT)
+    seen = []
     try:
-        _, err = proc.communicate(timeout=60)
+        assert proc.stderr is not None
+        for line in proc.stderr:  # --verbose: one progress line per finished chunk (≤ 1/s)
+            seen.append(line)
+            if line.startswith("esoarm: sweep: "):
+                break
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=300)
     finally:
         if proc.poll() is None:
             proc.kill()
+    err = "".join(seen) + err
+    assert any(ln.startswith("esoarm: sweep: ") for ln in seen), err
     assert proc.returncode == 130, err
     assert "interrupted:" in err and "finished rows are in" in err
     rows = _read_csv(out)  # header plus whole rows only
-    assert len(rows) < 4000
+    assert 40 <= len(rows) < 4000
     assert all(len(r) == 2 + len(batch.METRICS) and r["diverged"] in ("0", "1") for r in rows)
+
+
+# -- the size of a grid: checked before anything is built -----------------------------
+
+
+def test_grid_over_the_limit_is_refused_before_allocating(base) -> None:  # type: ignore[no-untyped-def]
+    # 10**12 values would not fit in memory: refused from NUM alone
+    with pytest.raises(ScenarioError, match=r"1,000,000,000,000 runs.*--max-runs"):
+        sweep.build_grid(base, ["observer.eps=geom:0.01:0.3:1000000000000"])
+    with pytest.raises(ScenarioError, match=r"this sweep is 12 runs.*limit of 10\b"):
+        sweep.build_grid(base, ["observer.eps=0.05,0.1", "controller.k1=8,12,16"], seeds=2,
+                         max_runs=10)
+    grid = sweep.build_grid(base, ["observer.eps=0.05,0.1", "controller.k1=8,12,16"], seeds=2,
+                            max_runs=12)
+    assert grid.n_runs == 12
+
+
+def test_build_grid_reports_progress(base) -> None:  # type: ignore[no-untyped-def]
+    calls: list[int] = []
+    sweep.build_grid(base, ["observer.eps=geom:0.03:0.3:250"], progress=calls.append)
+    assert sum(calls) == 250 and len(calls) == 3
+
+
+def test_cli_grid_too_large_is_one_line(tmp_path: Path) -> None:
+    out = tmp_path / "big.csv"
+    res = CliRunner().invoke(cli, ["sweep", "test-1", "--vary",
+                                   "observer.eps=geom:0.01:0.3:100000000", "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "100,000,000 runs" in lines[0] and "--max-runs" in lines[0]
+    assert not out.exists()
+    res = CliRunner().invoke(cli, ["sweep", "test-1", "--vary", "observer.eps=0.05,0.1",
+                                   "--seeds", "3", "--max-runs", "5", *SHORT])
+    assert res.exit_code == 2 and "limit of 5" in res.stderr
+    res = CliRunner().invoke(cli, ["sweep", "test-1", "--vary", "observer.eps=0.05,0.1",
+                                   "--seeds", "3", "--max-runs", "6", *SHORT, "--json"])
+    assert res.exit_code == 0 and json.loads(res.stdout)["runs"] == 6
+
+
+def test_verbose_progress_lines_without_a_terminal_and_json_stays_pure() -> None:
+    res = CliRunner().invoke(cli, ["sweep", "test-1", "--vary", "observer.eps=0.004,0.05,0.1",
+                                   *SHORT, "--json", "--verbose"])
+    assert res.exit_code == 0, res.output
+    json.loads(res.stdout)  # nothing but the JSON object on stdout
+    assert "esoarm: checking grid: 3 of 3 points" in res.stderr
+    assert "esoarm: sweep: 3 of 3 runs" in res.stderr
+    assert "warning:" in res.stderr  # eps = 0.004 is unstable with Euler
+    quiet = CliRunner().invoke(cli, ["sweep", "test-1", "--vary", "observer.eps=0.004,0.05",
+                                     *SHORT, "--json", "--quiet"])
+    assert quiet.exit_code == 0 and quiet.stderr == ""
+    assert json.loads(quiet.stdout)["runs"] == 2

@@ -48,7 +48,7 @@ def test_objective_default_and_functions() -> None:
 def test_objective_rejects(text: str, needle: str) -> None:
     with pytest.raises(ScenarioError) as exc:
         Objective(text)
-    assert needle in str(exc.value) and str(exc.value).startswith("--objective")
+    assert needle in str(exc.value) and str(exc.value).startswith("objective")
 
 
 def test_bounds(base) -> None:  # type: ignore[no-untyped-def]

@@ -51,6 +51,35 @@ def register_all() -> None:
     before their kernels are compiled or loaded from the cache.
     """
     global _registered
+    if not _registered:
+        _tolerate_cache_write_errors()
     _registered = True
     while _pending:
         _register(_pending.pop(0))
+
+
+def _tolerate_cache_write_errors() -> None:
+    """A compiled kernel that cannot be saved to numba's disk cache still runs.
+
+    numba writes its cache beside the sources (or in NUMBA_CACHE_DIR); a full
+    disk, a file-size limit or a read-only tree would otherwise end the run
+    with an OSError that has nothing to do with the user's outputs.  The
+    kernel is then simply compiled again next time.
+    """
+    try:
+        from numba.core import caching
+    except ImportError:  # pragma: no cover
+        return
+    cache = getattr(caching, "Cache", None)
+    original = getattr(cache, "save_overload", None)
+    if original is None or getattr(original, "_esoarm_tolerant", False):
+        return  # pragma: no cover - numba's layout changed, or already done
+
+    def save_overload(self, sig, data):  # type: ignore[no-untyped-def]
+        try:
+            original(self, sig, data)
+        except OSError:
+            pass  # not cached; compiled again on the next start
+
+    save_overload._esoarm_tolerant = True  # type: ignore[attr-defined]
+    cache.save_overload = save_overload  # type: ignore[union-attr]

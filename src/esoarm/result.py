@@ -140,7 +140,7 @@ class SimResult:
         )
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the time series (SPEC §4 columns, SI units); atomic."""
+        """Write the time series (output columns, SI units); atomic."""
         write_csv_atomic(path, CSV_COLUMNS, self.table())
         return Path(path)
 

@@ -1,6 +1,6 @@
 """Scenario files: the validated, immutable description of one closed-loop run.
 
-A scenario is a TOML file (SPEC §3).  Every key has a default; a file gives only
+A scenario is a TOML file (the scenario format).  Every key has a default; a file gives only
 what differs.  Built-in scenarios ship in ``esoarm/scenarios/*.toml`` and are
 addressed by name.  Validation happens here, once, at the edge: the numerics
 trust a :class:`Scenario`.
@@ -14,12 +14,15 @@ from __future__ import annotations
 
 import copy
 import difflib
+import functools
 import math
 import tomllib
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal, TypeAlias
 
+import numpy as np
 from pydantic import BaseModel, Field, ValidationError
 
 from esoarm import kinds as _kinds
@@ -38,8 +41,7 @@ __all__ = [
 ]
 
 
-#: Longest run a scenario may ask for, in samples (duration · rate_hz).
-MAX_SAMPLES = 100_000_000
+from esoarm._limits import MAX_RUNS, MAX_SAMPLES  # noqa: E402, F401 - re-exported
 
 
 class ScenarioError(ValueError):
@@ -79,7 +81,7 @@ class Disturbance(_Section):
 
 
 class Rig(_Section):
-    """The true system: the digital twin of the paper's rig (SPEC §2)."""
+    """The true system: the digital twin of the paper's rig (the sampled-data loop)."""
 
     inertia_scale: float = Field(
         1.1, gt=0, description="true inertia / nominal inertia", json_schema_extra=_unit("1")
@@ -175,7 +177,7 @@ KIND_SECTIONS["reference"] = (QuinticSteps, Multisine)
 class Motor(_Section):
     """Optional DC motor and driver model: maps the torque command to a PWM duty.
 
-    Without a ``[motor]`` table the actuator is an ideal torque source (SPEC §2).
+    Without a ``[motor]`` table the actuator is an ideal torque source (the sampled-data loop).
     With one, the real-time loop sends a duty computed from the torque and the
     estimated rate (back-EMF), and the emulator models the same motor (see
     :mod:`esoarm.plants.motor`).  Torque and back-EMF constants are equal in
@@ -207,7 +209,7 @@ class Motor(_Section):
 
 
 class Scenario(_Section):
-    """A complete, validated closed-loop experiment (SPEC §3).
+    """A complete, validated closed-loop experiment (the scenario format).
 
     Build one with :func:`load_scenario`; the object is immutable.  Use
     :meth:`with_overrides` for variations.
@@ -332,7 +334,13 @@ def load_scenario(
 
 
 def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
-    out = copy.deepcopy(base)
+    """``base`` updated by ``over``, table by table; neither is modified.
+
+    The tables along the way are new dicts and the values from ``over`` are
+    copied; untouched values of ``base`` are shared (validation copies them
+    again), which keeps checking a large sweep grid quick.
+    """
+    out = dict(base)
     for key, value in over.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
             old_kind = out[key].get("kind")
@@ -345,19 +353,30 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _defaults() -> dict[str, Any]:
+@functools.cache
+def _defaults_cached() -> dict[str, Any]:
     return Scenario().model_dump()
 
 
+def _defaults() -> dict[str, Any]:
+    return copy.deepcopy(_defaults_cached())
+
+
 def parse_override(item: str) -> tuple[str, Any]:
-    """Parse one ``KEY=VALUE`` override; VALUE as TOML, else as a string."""
+    """Parse one ``KEY=VALUE`` override; VALUE as TOML, else as a string.
+
+    Messages speak of the override (``override 'x': …``); the command line
+    words them for its ``--set`` option.
+    """
+    if not isinstance(item, str):
+        raise ScenarioError(f"override {item!r}: expected a 'KEY=VALUE' string")
     if "=" not in item:
-        raise ScenarioError(f"--set '{item}': expected KEY=VALUE, e.g. observer.eps=0.05")
+        raise ScenarioError(f"override '{item}': expected KEY=VALUE, e.g. observer.eps=0.05")
     key, raw = item.split("=", 1)
     key = key.strip()
     raw = raw.strip()
     if not key:
-        raise ScenarioError(f"--set '{item}': empty key")
+        raise ScenarioError(f"override '{item}': empty key")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
@@ -375,7 +394,16 @@ def _nest(key: str, value: Any) -> dict[str, Any]:
     return out
 
 
+@functools.cache
+def _valid_keys_cached() -> tuple[str, ...]:
+    return tuple(_walk_keys())
+
+
 def _valid_keys() -> list[str]:
+    return list(_valid_keys_cached())
+
+
+def _walk_keys() -> list[str]:
     keys: list[str] = []
 
     def walk(model: type[BaseModel], prefix: str) -> None:
@@ -398,19 +426,29 @@ def _valid_keys() -> list[str]:
 
 
 def _build(data: dict[str, Any], overrides: dict[str, Any] | list[str], source: str) -> Scenario:
-    if isinstance(overrides, list):
+    if isinstance(overrides, list | tuple):
         pairs = [parse_override(item) for item in overrides]
-    else:
+    elif isinstance(overrides, dict):
         pairs = list(overrides.items())
-    merged = _merge(_defaults(), data)
+    else:
+        raise ScenarioError(f"overrides: expected a dict {{'observer.eps': 0.05}} or a list of "
+                            f"'KEY=VALUE' strings, got {type(overrides).__name__}")
+    merged = _merge(_defaults_cached(), data)
     for key, value in pairs:
-        _check_key(key, source="--set")
+        if not isinstance(key, str):
+            raise ScenarioError(f"override {key!r}: a key is a dotted string, e.g. 'observer.eps'")
+        _check_key(key, source="override")
         merged = _merge(merged, _nest(key, value))
+    overridden = {key for key, _ in pairs}
+
+    def origin(key: str) -> str:  # blame the override when it set the offending key
+        return "override" if key.split("[")[0] in overridden else source
+
     try:
         scn = Scenario.model_validate(merged)
     except ValidationError as exc:
-        raise ScenarioError(_format_validation_error(exc, source)) from None
-    _check_consistency(scn, source)
+        raise ScenarioError(_format_validation_error(exc, source, origin)) from None
+    _check_consistency(scn, source, origin)
     return scn
 
 
@@ -418,13 +456,16 @@ def _check_key(key: str, source: str) -> None:
     valid = _valid_keys()
     if key in valid:
         return
+    if not key.strip():
+        raise ScenarioError(f"{source}: empty key; give a dotted key such as 'observer.eps'")
     # a whole table given to --set is not allowed either; suggest a leaf key
     close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
     hint = f"; did you mean '{close[0]}'?" if close else ""
     raise ScenarioError(f"{source}: unknown key '{key}'{hint}")
 
 
-def _format_validation_error(exc: ValidationError, source: str) -> str:
+def _format_validation_error(exc: ValidationError, source: str,
+                             origin: Callable[[str], str] | None = None) -> str:
     err = exc.errors()[0]
     loc = [str(p) for p in err["loc"] if not isinstance(p, int)]
     # drop the discriminator tag pydantic inserts for tagged unions
@@ -437,6 +478,8 @@ def _format_validation_error(exc: ValidationError, source: str) -> str:
     more = len(exc.errors()) - 1
     tail = f" (and {more} more error{'s' if more > 1 else ''})" if more else ""
     kind = err["type"]
+    if origin is not None:
+        source = origin(key if kind != "union_tag_invalid" else key + ".kind")
     if kind == "extra_forbidden":
         valid = _valid_keys()
         if key in valid and tag_in_loc:  # a key of another kind of this section
@@ -460,9 +503,11 @@ def _format_validation_error(exc: ValidationError, source: str) -> str:
     return f"{source}: key '{where}' = {shown}: {msg}{tail}"
 
 
-def _check_consistency(scn: Scenario, source: str) -> None:
+def _check_consistency(scn: Scenario, source: str,
+                       origin: Callable[[str], str] | None = None) -> None:
     def fail(key: str, msg: str) -> None:
-        raise ScenarioError(f"{source}: key '{key}': {msg}")
+        where = origin(key) if origin else source
+        raise ScenarioError(f"{where}: key '{key}': {msg}")
 
     ts = scn.sample_time
     ratio = ts / scn.rig.step
@@ -472,6 +517,7 @@ def _check_consistency(scn: Scenario, source: str) -> None:
             f"{scn.rig.step:g} s must divide the sample period Ts = 1/rate_hz = {ts:g} s "
             "into a whole number of RK4 steps",
         )
+    _check_computable(scn, fail)
     samples = scn.duration * scn.sensor.rate_hz
     if not samples <= MAX_SAMPLES:  # also catches an overflow to inf
         fail("duration", f"{scn.duration:g} s at {scn.sensor.rate_hz:g} Hz is {samples:.3g} "
@@ -506,20 +552,100 @@ def _check_consistency(scn: Scenario, source: str) -> None:
             fail("reference.phases", f"needs one entry per amplitude ({n}) or none")
 
 
+def _check_computable(scn: Scenario, fail: Callable[[str, str], None]) -> None:
+    """Values each legal alone whose derived quantities overflow double precision.
+
+    The input gain 1/I0, the true inertia, the observer gains up to 1/ε³, the
+    gravity torque and the tanh friction slope 1/vs must be finite and the
+    divisors non-zero; otherwise the engines would compute inf or NaN (or fail)
+    from the first sample on.
+    """
+    p, rig, obs, ctl = scn.plant, scn.rig, scn.observer, scn.controller
+    checks: list[tuple[str, Callable[[], float], str, bool]] = [  # key, value, what, divisor
+        ("plant.inertia", lambda: 1.0 / p.inertia, "1/plant.inertia (the input gain b0)", True),
+        ("rig.inertia_scale", lambda: p.inertia * rig.inertia_scale,
+         "plant.inertia · rig.inertia_scale (the true inertia)", True),
+        ("rig.inertia_scale", lambda: 1.0 / (p.inertia * rig.inertia_scale),
+         "1/(plant.inertia · rig.inertia_scale)", True),
+        ("observer.eps", lambda: 1.0 / np.float64(obs.eps) ** 3,
+         "the observer gain β3 = 1/ε³", True),
+        ("plant.g", lambda: (p.m1 * p.l1 - p.m2 * p.l2) * p.g, "the gravity torque amplitude",
+         False),
+        ("rig.friction_velocity", lambda: rig.coulomb_friction / rig.friction_velocity,
+         "the friction slope Fc/vs", False),
+        ("actuator.lag", lambda: 1.0 / scn.actuator.lag if scn.actuator.lag else 0.0,
+         "1/actuator.lag", False),
+        ("controller.k2", lambda: ctl.k2 * p.inertia * 10.0, "the control gain I0 · k2", False),
+    ]
+    for key, compute, what, divisor in checks:
+        try:
+            with np.errstate(all="ignore"):
+                value = float(compute())
+        except AttributeError:  # another plant, observer or controller kind: not its key
+            continue
+        except ZeroDivisionError:
+            value = math.inf
+        if not (math.isfinite(value) and (value != 0 or not divisor)):
+            fail(key, f"out of the range double precision can compute with: {what} "
+                 f"is {value:g}")
+
+
 def scenario_warnings(scn: Scenario) -> list[str]:
     """Legal but risky settings of ``scn``, as one-line messages.
 
-    Currently: a discrete observer whose error poles are unstable or poorly
-    damped at this sample rate, or faster than the samples support (see
-    :func:`esoarm.studies.analysis.observer_warnings`).
+    A discrete observer whose error poles are unstable or poorly damped at
+    this sample rate, or faster than the samples support (see
+    :func:`esoarm.studies.analysis.observer_warnings`); and settings that
+    silently do nothing or less than asked (:func:`timing_warnings`).
     """
     from esoarm.studies.analysis import observer_warnings
 
     obs = scn.observer
     eps, disc = getattr(obs, "eps", None), getattr(obs, "discretization", None)
-    if eps is None or disc is None:
-        return []
-    return observer_warnings(eps, scn.sample_time, disc)
+    observer = [] if eps is None or disc is None else observer_warnings(eps, scn.sample_time, disc)
+    return [*observer, *timing_warnings(scn)]
+
+
+def timing_warnings(scn: Scenario) -> list[str]:
+    """Settings that the run's length or sample rate makes (partly) ineffective.
+
+    A transport delay as long as the run (no command ever acts), a reference
+    move that starts after the run has ended, a multisine tone at or above
+    the Nyquist frequency of the samples, and a duration that is not a whole
+    number of sample periods (the run is rounded to N samples).
+    """
+    out: list[str] = []
+    ts, n = scn.sample_time, scn.n_samples
+    end = n * ts
+    delay = scn.actuator.delay_samples
+    if delay >= n:
+        out.append(f"actuator.delay_samples = {delay} ({delay * ts:g} s) is as long as the run "
+                   f"({n} samples, {end:g} s): no command ever reaches the arm")
+    ref = scn.reference
+    if isinstance(ref, QuinticSteps):
+        late = [i for i, move in enumerate(ref.moves) if len(move) == 3 and move[0] >= end]
+        if late:
+            i = late[0]
+            more = f" (and {len(late) - 1} later moves)" if len(late) > 1 else ""
+            out.append(f"reference.moves[{i}] starts at {ref.moves[i][0]:g} s, when the run has "
+                       f"ended ({end:g} s): it is never tracked{more}; raise duration")
+    else:
+        nyquist = math.pi / ts
+        fast = [i for i, w in enumerate(ref.frequencies) if abs(w) >= nyquist]
+        if fast:
+            i = fast[0]
+            out.append(f"reference.frequencies[{i}] = {ref.frequencies[i]:g} rad/s is at or above "
+                       f"the Nyquist frequency of the samples (π·rate_hz = {nyquist:g} rad/s): "
+                       "the loop sees an aliased reference")
+    steps = n * scn.substeps
+    if scn.substeps > 10_000 or steps > 100_000_000:
+        out.append(f"rig.step = {scn.rig.step:g} s is {scn.substeps:,} RK4 steps per sample, "
+                   f"{steps:,} for the run: that takes hours in esoarm simulate; a step of "
+                   f"about Ts/20 = {ts / 20:g} s is usually enough")
+    if abs(end - scn.duration) > 1e-9 * max(scn.duration, 1.0):
+        out.append(f"duration = {scn.duration:g} s is not a whole number of sample periods "
+                   f"(Ts = {ts:g} s): the run has {n} samples ({end:g} s)")
+    return out
 
 
 # ---------------------------------------------------------------------------

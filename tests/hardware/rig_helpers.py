@@ -58,16 +58,21 @@ def emulator(*args: str) -> Iterator[EmulatorProcess]:
                             stderr=subprocess.STDOUT)
     try:
         fd = proc.stdout.fileno()
-        ready, _, _ = select.select([fd], [], [], 20.0)
-        assert ready, "emulator printed nothing"
-        first = b""
-        while not first.endswith(b"\n"):
-            byte = os.read(fd, 1)
-            assert byte, f"emulator exited: {first!r}"
-            first += byte
-        line = first.decode().strip()
+        before: list[str] = []  # scenario warnings (stderr) may come first
+        while True:
+            ready, _, _ = select.select([fd], [], [], 60.0)
+            assert ready, "emulator printed nothing"
+            first = b""
+            while not first.endswith(b"\n"):
+                byte = os.read(fd, 1)
+                assert byte, f"emulator exited: {first!r}"
+                first += byte
+            line = first.decode().strip()
+            if not line.startswith("esoarm: warning: "):
+                break
+            before.append(line)
         assert line.startswith("device: "), line
-        yield EmulatorProcess(proc, line.split(" ", 1)[1], [line])
+        yield EmulatorProcess(proc, line.split(" ", 1)[1], [*before, line])
     finally:
         if proc.poll() is None:
             proc.terminate()

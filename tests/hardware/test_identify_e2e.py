@@ -43,3 +43,20 @@ def test_excite_identify_simulate_against_the_emulator(tmp_path):
     res = esoarm("simulate", str(fitted), "--json")
     assert res.returncode == 0, res.stderr
     assert np.isfinite(json.loads(res.stdout)["rms_error"])
+
+
+def test_excite_and_identify_a_motor_rig_over_the_link(tmp_path):
+    """With a [motor] table the device takes duties; the fit uses them and finds Kt."""
+    true = ["motor.torque_constant=0.025", "motor.deadband=0.05", "rig.inertia_scale=1.2"]
+    nominal = ["motor.torque_constant=0.02", "motor.deadband=0.05", "rig.inertia_scale=1.2"]
+    log = tmp_path / "excite.csv"
+    with emulator("test-1", "--lockstep", "--once", *_sets(true)) as emu:
+        res = esoarm("excite", "test-1", "--port", emu.path, "--log", str(log),
+                     "--duration", "30", *_sets(nominal), timeout=120)
+        assert res.returncode == 0, res.stderr
+    res = esoarm("identify", str(log), "--json", *_sets(nominal), timeout=180)
+    assert res.returncode == 0, res.stderr
+    params = json.loads(res.stdout)["parameters"]
+    lo, hi = params["motor.torque_constant"]["ci95"]
+    assert lo <= 0.025 <= hi
+    assert params["rig.inertia_scale"]["fitted"] is False  # held with a motor (documented)

@@ -68,3 +68,22 @@ def test_bad_log_cli_is_exit_2(tmp_path):
     r = esoarm("replay", str(tmp_path / "missing.csv"))
     assert r.returncode == 2 and "no such file" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_replay_says_how_many_rows_were_bridged(tmp_path):
+    log = tmp_path / "gaps.csv"
+    log.write_text("t,theta,u\n0,0,0\n0.02,nan,0\n0.04,nan,0.1\n0.06,0.01,0\n", encoding="utf-8")
+    r = esoarm("replay", str(log), "--out", str(tmp_path / "z.csv"))
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "2 of 4 rows" in lines[0] and "bridged" in lines[0]
+    quiet = esoarm("replay", str(log), "--out", str(tmp_path / "z.csv"), "--quiet")
+    assert quiet.returncode == 0 and quiet.stderr == ""
+
+
+def test_replay_reads_the_measured_angle_y_when_the_file_has_it(tmp_path):
+    """A simulated series' theta is the true angle: replay must use its y column."""
+    log = tmp_path / "both.csv"
+    log.write_text("t,theta,u,y\n0,5,0,0\n0.02,5,0,0.01\n0.04,5,0,0.02\n", encoding="utf-8")
+    t, theta, u, ts = read_log(log)
+    assert list(theta) == [0.0, 0.01, 0.02] and ts == pytest.approx(0.02)

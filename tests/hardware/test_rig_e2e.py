@@ -9,6 +9,7 @@ logged row intact.  Scenarios are shortened to 1-2 s.
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import time
@@ -91,9 +92,12 @@ def test_real_time_run(tmp_path):
                      "--json")
         elapsed = time.monotonic() - t0
         assert res.returncode == 0, res.stderr
-        assert "stop received" in emu.output()
+        said = emu.output()
+        assert "stop received" in said
     summary = json.loads(res.stdout)
     data = _read_log(log)
+    held = re.search(r"(\d+) samples ran on an older command", said)
+    assert held is not None, said
     assert summary["mode"] == "real time"
     assert summary["samples"] == len(data) == 75
     assert elapsed >= 1.4  # paced by the device clock, not as fast as possible
@@ -101,8 +105,9 @@ def test_real_time_run(tmp_path):
     assert summary["deadline_misses"] == int(data["late"].sum())
     # device timestamps advance by about Ts
     assert np.median(np.diff(data["t_device"])) == pytest.approx(0.02, abs=2e-3)
-    if summary["deadline_misses"] == 0 and summary["lost_samples"] == 0:
-        # on time, each command acts over its own sample: the simulator's sequence
+    if int(held.group(1)) == 0 and summary["lost_samples"] == 0:
+        # every command reached the device within its own sample (the device says so; on a
+        # loaded machine the host's deadline estimate cannot tell): the simulator's sequence
         assert np.array_equal(data["u"], simulate("test-1", sets, warn=False).u)
 
 
@@ -122,6 +127,11 @@ def test_motor_mode_sends_duties(tmp_path):
     assert json.loads(res.stdout)["rms_error"] < 0.05
 
 
+def _failure_lines(stderr: str) -> list[str]:
+    """stderr without the scenario's warnings: the failure itself must be one line."""
+    return [ln for ln in stderr.strip().splitlines() if not ln.startswith("esoarm: warning: ")]
+
+
 FAULT_MESSAGES = {
     "drop": "watchdog: no sample",
     "corrupt": "watchdog: no sample",
@@ -137,11 +147,20 @@ def test_fault_ends_safe_with_log_intact(kind, mode, tmp_path):
     sets = ["duration=2"]
     log = tmp_path / "fault.csv"
     lock = ["--lockstep"] if mode == "lockstep" else []
-    with emulator("test-1", *lock, "--fault", f"{kind}@0.4", *_sets(sets)) as emu:
-        res = esoarm("run", "test-1", "--port", emu.path, *_sets(sets), "--log", str(log))
-        out = emu.output(wait=0.5)
+    for _attempt in range(4):
+        with emulator("test-1", *lock, "--fault", f"{kind}@0.4", *_sets(sets)) as emu:
+            res = esoarm("run", "test-1", "--port", emu.path, *_sets(sets), "--log", str(log))
+            out = emu.output(wait=0.5)
+        lines = _failure_lines(res.stderr)  # scenario warnings may come first
+        # real time on a starved machine: the host may miss the device's 100 ms command
+        # watchdog before the injected fault; that run tests nothing, so run it again
+        starved = ("command watchdog fault" in res.stderr
+                   and "fault injected" not in out.split("watchdog: no command")[0])
+        if not (mode == "real-time" and starved):
+            break
+    else:
+        pytest.skip("the machine is too loaded for a real-time run before t = 0.4 s")
     assert res.returncode == 1
-    lines = res.stderr.strip().splitlines()
     assert len(lines) == 1, res.stderr
     assert lines[0].startswith("esoarm: failed: ") and FAULT_MESSAGES[kind] in lines[0]
     assert "stop sent" in lines[0] and "Traceback" not in res.stderr
@@ -175,7 +194,8 @@ def test_ctrl_c_stops_and_exits_130(tmp_path):
         _, err = proc.communicate(timeout=20)
         out = emu.output(wait=0.5)
     assert proc.returncode == 130, err
-    assert len(err.strip().splitlines()) == 1 and err.startswith("esoarm: interrupted: ")
+    lines = _failure_lines(err)
+    assert len(lines) == 1 and lines[0].startswith("esoarm: interrupted: "), err
     assert "stop sent, motor off" in err
     data = _read_log(log)
     assert 10 < len(data) < 500

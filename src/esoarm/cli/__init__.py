@@ -1,20 +1,34 @@
-"""The ``esoarm`` command line (SPEC §4).
+"""The ``esoarm`` command line.
 
 Subcommands live in their own modules and are imported only when invoked, so
 ``esoarm --help`` stays fast and optional dependencies stay optional.  Exit
-codes: 0 success, 1 failure at run time, 2 bad input, 130 interrupted.
+codes (docs/semantics.md, "Errors and exit codes"): 0 success, 1 failure at
+run time, 2 bad input, 130 interrupted.  Every failure is one line on stderr;
+``--verbose`` adds the traceback of an unexpected error.
 """
 
 from __future__ import annotations
 
 import importlib
+import signal
 import sys
 import warnings
 
 import click
 
 from esoarm import __version__
-from esoarm.cli._common import BadInput, RunFailure, show_warning
+from esoarm._io import OutputError
+from esoarm.cli._common import (
+    VERBOSE,
+    BadInput,
+    RunFailure,
+    add_verbosity_options,
+    one_line,
+    reset_verbosity,
+    show_warning,
+    verbosity,
+    verbosity_params,
+)
 
 __all__ = ["main"]
 
@@ -83,7 +97,12 @@ class LazyGroup(click.Group):
         if target is None:
             return None
         module, attr = target.split(":")
-        return getattr(importlib.import_module(module), attr)  # type: ignore[no-any-return]
+        # every command gets --quiet/--verbose, whoever wrote it
+        return add_verbosity_options(getattr(importlib.import_module(module), attr))
+
+    def make_context(self, info_name, args, parent=None, **extra):  # type: ignore[no-untyped-def]
+        reset_verbosity()  # each invocation starts at the normal level
+        return super().make_context(info_name, args, parent=parent, **extra)
 
     def resolve_command(self, ctx, args):  # type: ignore[no-untyped-def]
         name = args[0] if args else ""
@@ -106,7 +125,10 @@ def cli() -> None:
 
     Runs the paper's experiments on a built-in digital twin of the rig
     (12 V DC motor, encoder at 50 Hz) and drives real rigs. Angles in rad,
-    torques in N·m, times in s unless a name says otherwise.
+    torques in N·m, times in s unless a name says otherwise. Exit status: 0
+    success, 1 failure at run time, 2 bad input, 130 interrupted; every
+    failure is one line on stderr. The sampled-data loop, the scenario format,
+    the output columns and the error rules: docs/semantics.md.
     """
 
 
@@ -118,6 +140,8 @@ def main(argv: list[str] | None = None) -> None:
     standalone mode would turn Ctrl-C into "Aborted!" with status 1).
     """
     warnings.showwarning = show_warning
+    if hasattr(signal, "SIGXFSZ"):  # a file-size limit: an error on write, not a kill
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     try:
         rv = cli.main(args=argv, prog_name="esoarm", standalone_mode=False)
     except click.exceptions.Abort:
@@ -129,7 +153,8 @@ def main(argv: list[str] | None = None) -> None:
     except click.UsageError as exc:
         # one line, like every other input error, with where to look for help
         where = exc.ctx.command_path if exc.ctx is not None else "esoarm"
-        click.echo(f"esoarm: error: {exc.format_message()} (see '{where} --help')", err=True)
+        click.echo(f"esoarm: error: {one_line(exc.format_message())} (see '{where} --help')",
+                   err=True)
         sys.exit(2)
     except click.ClickException as exc:
         exc.show()
@@ -140,10 +165,25 @@ def main(argv: list[str] | None = None) -> None:
         click.echo("esoarm: failed: out of memory; shorten the run (duration, rate_hz) or "
                    "split the work", err=True)
         sys.exit(1)
+    except OutputError as exc:  # full disk, file-size limit, lost permission, ...
+        click.echo(f"esoarm: failed: {one_line(str(exc))} (no partial file left behind)", err=True)
+        sys.exit(1)
     except BrokenPipeError:  # e.g. `esoarm show test-1 | head`
         sys.stderr.close()
         sys.exit(0)
+    except Exception as exc:  # a bug: still one line, the traceback with --verbose
+        if verbosity() >= VERBOSE:
+            import traceback
+
+            traceback.print_exc()
+        where = f" ({exc.__class__.__module__}.{exc.__class__.__name__})"
+        text = str(exc).strip().splitlines()
+        click.echo(f"esoarm: internal error{where}: {text[0] if text else 'no message'} "
+                   "(rerun with --verbose for the traceback, and please report it)", err=True)
+        sys.exit(1)
     sys.exit(rv if isinstance(rv, int) else 0)
 
+
+cli.params.extend(verbosity_params())  # also accepted before the command: esoarm -q …
 
 __all__ += ["BadInput", "RunFailure", "cli"]

@@ -1,8 +1,17 @@
-"""Shared pieces of the command line: errors, --set, scenario loading, outputs."""
+"""Shared pieces of the command line: errors, verbosity, --set, scenario loading, outputs.
+
+Every command gets these without doing anything: ``--quiet``/``--verbose``
+(added to each command by the group, see :func:`add_verbosity_options`), the
+mapping of library errors to exit codes (in :func:`esoarm.cli.main`), and the
+one-line warnings.  A command that writes files checks its output paths with
+:func:`output_path` / :func:`output_dir` before any work and writes them
+through :func:`esoarm._io.atomic_path`.
+"""
 
 from __future__ import annotations
 
 import functools
+import re
 import sys
 import warnings
 from collections.abc import Callable
@@ -10,6 +19,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
+
+from esoarm._io import OutputError, check_writable
 
 if TYPE_CHECKING:  # imported where used: `esoarm --help` must not load pydantic
     from esoarm.scenario import Scenario
@@ -19,13 +30,23 @@ F = TypeVar("F", bound=Callable[..., Any])
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 
 
+def one_line(text: str) -> str:
+    """``text`` with control characters escaped, so that a message is one line whatever it quotes.
+
+    (A key given as ``'0\\r0'`` must not break the one-line error in two.)
+    """
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 class BadInput(click.ClickException):
     """Bad input from the user: one line on stderr, exit status 2."""
 
     exit_code = 2
 
     def show(self, file: Any = None) -> None:
-        click.echo(f"esoarm: error: {self.format_message()}", err=True)
+        click.echo(f"esoarm: error: {one_line(self.format_message())}", err=True)
 
 
 class RunFailure(click.ClickException):
@@ -34,17 +55,86 @@ class RunFailure(click.ClickException):
     exit_code = 1
 
     def show(self, file: Any = None) -> None:
-        click.echo(f"esoarm: failed: {self.format_message()}", err=True)
+        click.echo(f"esoarm: failed: {one_line(self.format_message())}", err=True)
+
+
+# ---------------------------------------------------------------------------
+# verbosity: 0 quiet, 1 normal, 2 verbose (reset for every invocation)
+
+QUIET, NORMAL, VERBOSE = 0, 1, 2
+_state = {"level": NORMAL, "quiet": False, "verbose": False}
+
+
+def reset_verbosity() -> None:
+    """Back to normal output (called at the start of every invocation)."""
+    _state.update(level=NORMAL, quiet=False, verbose=False)
+
+
+def verbosity() -> int:
+    """The current level: :data:`QUIET`, :data:`NORMAL` or :data:`VERBOSE`."""
+    return int(_state["level"])
+
+
+def _set_level(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    if not value:
+        return
+    assert param.name is not None
+    _state[param.name] = True
+    if _state["quiet"] and _state["verbose"]:
+        raise BadInput("--quiet and --verbose exclude each other; give one")
+    _state["level"] = QUIET if param.name == "quiet" else VERBOSE
+
+
+QUIET_HELP = "Print only the results and errors: no progress, warnings or notes on stderr."
+VERBOSE_HELP = ("Also print what is done, step by step, on stderr (progress lines even when "
+                "stderr is not a terminal, files written, timings).")
+
+
+def verbosity_params() -> list[click.Option]:
+    """Fresh ``-q/--quiet`` and ``-v/--verbose`` options (they only set the level)."""
+    return [
+        click.Option(["-q", "--quiet"], is_flag=True, expose_value=False, is_eager=True,
+                     callback=_set_level, help=QUIET_HELP),
+        click.Option(["-v", "--verbose"], is_flag=True, expose_value=False, is_eager=True,
+                     callback=_set_level, help=VERBOSE_HELP),
+    ]
+
+
+def add_verbosity_options(cmd: click.Command) -> click.Command:
+    """Give ``cmd`` the ``--quiet``/``--verbose`` options (once)."""
+    if not any(p.name in ("quiet", "verbose") for p in cmd.params):
+        cmd.params.extend(verbosity_params())
+    return cmd
+
+
+def note(message: str) -> None:
+    """An informational line on stderr (not shown with --quiet)."""
+    if verbosity() >= NORMAL:
+        click.echo(f"esoarm: {message}", err=True)
+
+
+def detail(message: str) -> None:
+    """A line shown only with --verbose, on stderr."""
+    if verbosity() >= VERBOSE:
+        click.echo(f"esoarm: {message}", err=True)
+
+
+def warn_line(message: str) -> None:
+    """A one-line warning on stderr (not shown with --quiet)."""
+    if verbosity() >= NORMAL:
+        click.echo(f"esoarm: warning: {one_line(message)}", err=True)
 
 
 def show_warning(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
     """Print warnings as one line on stderr (ScenarioWarning without a location)."""
     from esoarm.scenario import ScenarioWarning
 
+    if verbosity() < NORMAL:
+        return
     if issubclass(category, ScenarioWarning):
-        click.echo(f"esoarm: warning: {message}", err=True)
+        click.echo(f"esoarm: warning: {one_line(str(message))}", err=True)
     else:
-        click.echo(f"esoarm: warning: {category.__name__}: {message}", err=True)
+        click.echo(f"esoarm: warning: {category.__name__}: {one_line(str(message))}", err=True)
 
 
 def bad_input_guard(func: F) -> F:
@@ -57,7 +147,7 @@ def bad_input_guard(func: F) -> F:
         try:
             return func(*args, **kwargs)
         except ScenarioError as exc:
-            raise BadInput(str(exc)) from None
+            raise BadInput(cli_wording(str(exc))) from None
 
     return wrapper  # type: ignore[return-value]
 
@@ -79,11 +169,42 @@ def scenario_argument(func: F) -> F:
     return click.argument("scenario", metavar="SCENARIO")(func)
 
 
+#: Library wording of an argument -> the command-line option that carries it, where the
+#: option is not simply ``--`` + the argument's name (those are found on the command).
+CLI_FLAGS = {"override": "--set", "overrides": "--set", "fault": "--fault"}
+_LEAD = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)(?=[ :'])")
+
+
+def cli_wording(message: str) -> str:
+    """A library message, worded for the command line.
+
+    The library names its arguments (``override 'observer.epsilon': unknown
+    key``, ``max_runs 0: …``); the command line names the option that carries
+    them (``--set …``, ``--max-runs 0: …``): :data:`CLI_FLAGS`, else an option
+    of the running command whose parameter has that name.
+    """
+    match = _LEAD.match(message)
+    if match is None:
+        return message
+    word = match.group(1)
+    flag = CLI_FLAGS.get(word)
+    ctx = click.get_current_context(silent=True)
+    if flag is None and ctx is not None:
+        for param in ctx.command.params:
+            if isinstance(param, click.Option) and param.name == word:
+                flag = max(param.opts, key=len)
+                break
+    return flag + message[len(word):] if flag else message
+
+
 def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scenario:
     """Load a scenario with overrides and print its warnings (one line each)."""
     from esoarm.scenario import ScenarioWarning, load_scenario, scenario_warnings
 
     scn = load_scenario(name, list(overrides))
+    detail(f"scenario '{scn.name}': {scn.n_samples} samples at {scn.sensor.rate_hz:g} Hz, "
+           f"{scn.substeps} RK4 steps per sample, ε = {scn.observer.eps:g} s "
+           f"({scn.observer.discretization})")
 
     for msg in scenario_warnings(scn):
         warnings.warn(msg, ScenarioWarning, stacklevel=2)
@@ -91,19 +212,40 @@ def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scena
 
 
 def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Path | None:
-    """Check an output path before any work: allowed suffix, not a directory."""
+    """Check an output file before any work: allowed suffix, a place that can be written.
+
+    Raises :class:`BadInput` (exit status 2) naming the option and the path.
+    """
     if value is None:
         return None
     path = Path(value)
+    if not path.suffix and path.name.lower() in suffixes:  # ".csv": a hidden name, no suffix
+        raise BadInput(f"{option} '{value}': give a file name before the suffix, e.g. "
+                       f"run{path.name.lower()}")
     if path.suffix.lower() not in suffixes:
         raise BadInput(f"{option} '{value}': the file name must end in {' or '.join(suffixes)}")
     if path.is_dir():
         raise BadInput(f"{option} '{value}': is a directory, expected a file name")
     if path.parent.exists() and not path.parent.is_dir():
         raise BadInput(f"{option} '{value}': '{path.parent}' is not a directory")
+    _check(path, option, directory=False)
     return path
 
 
+def output_dir(value: str, option: str) -> Path:
+    """Check an output directory before any work (it may not exist yet)."""
+    path = Path(value)
+    _check(path, option, directory=True)
+    return path
+
+
+def _check(path: Path, option: str, directory: bool) -> None:
+    try:
+        check_writable(path, directory=directory)
+    except OutputError as exc:
+        raise BadInput(f"{option} '{path}': {exc.reason}") from None
+
+
 def stderr_is_tty() -> bool:
-    """Whether progress displays should be drawn."""
-    return sys.stderr.isatty()
+    """Whether live progress displays should be drawn (a terminal, and not --quiet)."""
+    return sys.stderr.isatty() and verbosity() >= NORMAL

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from esoarm.cli._common import BadInput, RunFailure, bad_input_guard
+from esoarm.cli._common import RunFailure, bad_input_guard, detail, output_dir, stderr_is_tty
 
 
 @click.command()
@@ -43,28 +43,31 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
     from esoarm.studies.reproduce import figure_specs, plan_runs, run_reproduction, write_outputs
     from esoarm.studies.twins_report import compared_twins, twins_section
 
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise BadInput(f"--out '{out_dir}': exists and is not a directory")
+    out = output_dir(out_dir, "--out")
     overrides = twin_overrides(twin)
     n_runs = len(plan_runs(overrides)) + 2 * len(plan_runs(compare=False))
     console = Console(stderr=True)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
-    with Progress(*columns, console=console, transient=True) as bar:
+    with Progress(*columns, console=console, transient=True,
+                  disable=not stderr_is_tty()) as bar:  # no bar in logs, pipes or --quiet
         task = bar.add_task("simulating", total=n_runs)
+
+        def step(what: str) -> None:
+            bar.update(task, advance=1, description=what)
+            if bar.disable:  # --verbose without a terminal: one line per step
+                detail(what)
+
         try:
-            step = lambda key: bar.update(task, advance=1,  # noqa: E731
-                                          description=f"simulated {key}")
-            rep = run_reproduction(overrides, progress=step)
-            reps = compared_twins({twin: rep}, progress=step)
+            rep = run_reproduction(overrides, progress=lambda key: step(f"simulated {key}"))
+            reps = compared_twins({twin: rep}, progress=lambda key: step(f"simulated {key}"))
         except SimulationDiverged as exc:  # nothing written yet: no half-complete results
             raise RunFailure(str(exc)) from None
         bar.update(task, total=n_runs + len(figure_specs(rep)) + 2)
         section = ("twins", "Two twins: nominal and calibrated to the paper",
                    twins_section(reps))
-        write_outputs(rep, out, fmt=fmt, progress=lambda what: bar.update(
-            task, advance=1, description=f"wrote {what}"), extra_sections=[section])
+        write_outputs(rep, out, fmt=fmt, progress=lambda what: step(f"wrote {what}"),
+                      extra_sections=[section])
     _print(rep, out, fmt, twin)
 
 

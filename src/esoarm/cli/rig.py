@@ -20,6 +20,7 @@ from esoarm.cli._common import (
     scenario_argument,
     set_option,
     stderr_is_tty,
+    warn_line,
 )
 
 
@@ -95,9 +96,10 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
               "'esoarm emulate'.")
 @set_option
 @click.option("--log", "log", metavar="FILE.csv",
-              help="Stream the log here, one flushed row per sample: t [s], theta (measured), "
-              "theta_ref, error [rad], u [N·m], z1 [rad], z2 [rad/s], z3 [rad/s²], then k, "
-              "t_device, t_host, latency [s], late (0/1), duty [counts].")
+              help="Stream the log here, one flushed row per sample: t [s], theta (the "
+              "measured angle: a rig's true angle is unknown), theta_ref, error [rad], u [N·m], "
+              "z1 [rad], z2 [rad/s], z3 [rad/s²], then k, t_device, t_host, latency [s], late "
+              "(0/1), duty [counts], y (measured angle [rad]). See docs/semantics.md.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the metrics as one JSON object: rms_error [rad, measured angle], "
               "rms_u [N·m], deadline_misses, jitter_p50_us/jitter_p99_us [µs], ...")
@@ -223,10 +225,12 @@ def replay(log_file: str, scenario: str, overrides: tuple[str, ...], out: str | 
            plot: str | None) -> None:
     """Run the ESO offline over LOG.csv to recover velocity and perturbation estimates.
 
-    LOG.csv needs columns t [s, uniform], theta [rad, measured] and u [N·m,
-    applied from that row on]; logs from 'esoarm run' replay directly. Row k of
-    the output holds the estimate the controller would use at t_k (SPEC §2); the
-    sample period comes from the log.
+    LOG.csv needs columns t [s, uniform], the measured angle [rad] as y (used
+    when present: a simulated series' theta is the true angle) or theta, and u
+    [N·m, applied from that row on]; logs from 'esoarm run' replay directly.
+    Row k of the output holds the estimate the controller would use at t_k
+    (docs/semantics.md, the sampled-data loop); the sample period comes from
+    the log.
     """
     from esoarm.hardware.replay import plot_replay, read_log
     from esoarm.hardware.replay import replay as run_replay
@@ -235,6 +239,10 @@ def replay(log_file: str, scenario: str, overrides: tuple[str, ...], out: str | 
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     scn = resolve_scenario(scenario, overrides)
     t, theta, u, ts = read_log(log_file)
+    lost = int(sum(1 for v in theta.tolist() if v != v))  # NaN: a sample lost on the link
+    if lost:
+        warn_line(f"{lost} of {len(t)} rows of '{log_file}' have no measured angle (theta = nan, "
+                  "lost samples): bridged by the observer's prediction with zero innovation")
     result = run_replay(scn, t, theta, u, ts)
     if out_path is None:
         import numpy as np

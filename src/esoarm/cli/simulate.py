@@ -14,6 +14,7 @@ from esoarm.cli._common import (
     resolve_scenario,
     scenario_argument,
     set_option,
+    warn_line,
 )
 
 
@@ -21,18 +22,20 @@ from esoarm.cli._common import (
 @scenario_argument
 @set_option
 @click.option("--out", "out", metavar="FILE.csv",
-              help="Write the time series: t [s], theta, theta_ref, error [rad], u [N·m], "
-              "z1 [rad], z2 [rad/s], z3, f_true [rad/s²].")
+              help="Write the time series: t [s], theta (true angle), theta_ref, error [rad], "
+              "u [N·m], z1 [rad], z2 [rad/s], z3, f_true [rad/s²], then y (measured angle "
+              "[rad]) and saturated (0/1). See docs/semantics.md.")
 @click.option("--plot", "plot", metavar="FILE.png",
               help="Draw angle, error, control and estimates (.png, .pdf or .svg).")
 @click.option("--json", "as_json", is_flag=True,
-              help="Print one JSON object with rms_error [rad], rms_u [N·m], max_abs_error [rad].")
+              help="Print one JSON object with rms_error [rad], rms_u [N·m], max_abs_error [rad], "
+              "saturated_fraction and the other metrics.")
 @bad_input_guard
 def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: str | None,
              as_json: bool) -> None:
     """Simulate SCENARIO (a built-in name or a TOML file) on the digital twin.
 
-    Follows the sampled-data semantics of SPEC §2 with the reference engine
+    Follows the sampled-data semantics (docs/semantics.md) with the reference engine
     and prints the metrics: RMS tracking error [rad], RMS control [N·m] and
     max |error| [rad].
     """
@@ -50,6 +53,12 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
             exc.result.to_csv(out_path)
             kept = f"; the {len(exc.result.t)} rows logged are in {out_path}"
         raise RunFailure(f"{exc}{kept}") from None
+    from esoarm.engines.diagnosis import saturation_warning
+
+    saturated = saturation_warning(result.metrics.get("saturated_fraction", float("nan")),
+                                   scn.actuator.torque_limit)
+    if saturated:
+        warn_line(saturated)
     if out_path is not None:
         result.to_csv(out_path)
     if plot_path is not None:

@@ -13,8 +13,10 @@ from typing import Any
 
 import click
 
+from esoarm._limits import MAX_RUNS
 from esoarm.cli._common import (
     PLOT_SUFFIXES,
+    VERBOSE,
     BadInput,
     RunFailure,
     bad_input_guard,
@@ -22,6 +24,8 @@ from esoarm.cli._common import (
     scenario_argument,
     set_option,
     stderr_is_tty,
+    verbosity,
+    warn_line,
 )
 
 INTERRUPTED = 130
@@ -38,14 +42,20 @@ def _warn_grid(messages: list[str]) -> None:
     more = len(messages) - 1
     tail = f" (and {more} more grid point{'s' if more > 1 else ''} with risky settings)" \
         if more else ""
-    click.echo(f"esoarm: warning: {messages[0]}{tail}", err=True)
+    warn_line(f"{messages[0]}{tail}")
 
 
 @contextmanager
 def _progress(total: int, label: str, unit: str) -> Iterator[Callable[[int], None]]:
-    """A rich progress bar on stderr when it is a terminal; silent otherwise."""
+    """Progress on stderr: a live bar on a terminal; with --verbose, lines elsewhere.
+
+    Nothing with --quiet, nor (without --verbose) when stderr is not a terminal.
+    """
     if not stderr_is_tty():
-        yield lambda n: None
+        if verbosity() < VERBOSE:
+            yield lambda n: None
+            return
+        yield _progress_lines(total, label, unit)
         return
     from rich.console import Console
     from rich.progress import (
@@ -72,6 +82,24 @@ def _progress(total: int, label: str, unit: str) -> Iterator[Callable[[int], Non
                   console=Console(stderr=True), transient=True) as bar:
         task = bar.add_task(label, total=total)
         yield lambda n: bar.advance(task, n)
+
+
+def _progress_lines(total: int, label: str, unit: str) -> Callable[[int], None]:
+    """One line per second at most (and the first and the last), for logs and pipes."""
+    import time
+
+    state = {"done": 0, "last": -math.inf, "start": time.monotonic()}
+
+    def advance(n: int) -> None:
+        state["done"] += n
+        now = time.monotonic()
+        if now - state["last"] >= 1.0 or state["done"] >= total:
+            state["last"] = now
+            rate = state["done"] / max(now - state["start"], 1e-9)
+            click.echo(f"esoarm: {label}: {int(state['done'])} of {total} {unit} "
+                       f"({rate:.0f} {unit}/s)", err=True)
+
+    return advance
 
 
 def _check_engine(engine: str, scn: Any) -> None:
@@ -131,16 +159,20 @@ def _fmt(value: Any) -> str:
 @click.option("--chunk", "chunk", type=int, default=None, metavar="RUNS",
               help="Runs per chunk (whole grid points) [default: 1024 in-process, 256 on Dask]. "
               "Does not change the results.")
+@click.option("--max-runs", "max_runs", type=int, default=MAX_RUNS, show_default=True,
+              metavar="N", help="Refuse sweeps of more runs (grid points × seeds) than this, "
+              "before any work; each run keeps about 80 bytes of results.")
 @bad_input_guard
 def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seeds: int,
           out: str | None, plot: str | None, as_json: bool, engine: str, workers: int | None,
-          scheduler: str | None, chunk: int | None) -> None:
+          scheduler: str | None, chunk: int | None, max_runs: int) -> None:
     """Sweep SCENARIO over a grid of parameters × noise seeds (compiled engine).
 
-    Every run follows the sampled-data closed loop exactly (same numbers as
-    `esoarm simulate`; --engine fast: to round-off); only metrics are kept.
-    Rows reach --out as chunks finish, so memory does not grow with the number
-    of runs (except with --plot). Ctrl-C (or SIGTERM) stops the sweep and keeps
+    Every run follows the sampled-data closed loop (docs/semantics.md) exactly
+    (same numbers as `esoarm simulate`; --engine fast: to round-off); only
+    metrics are kept. Rows reach --out as chunks finish, so memory does not
+    grow with the number of runs (except with --plot). Ctrl-C (or SIGTERM)
+    stops the sweep and keeps
     the finished rows in --out. Example:
 
     \b
@@ -148,16 +180,26 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
     """
     from esoarm.scenario import load_scenario
     from esoarm.studies import sweep as sweep_mod
-    from esoarm.studies.sweep import ClusterError, SweepResult, SweepWriter, build_grid
+    from esoarm.studies.sweep import (
+        ClusterError,
+        SweepResult,
+        SweepWriter,
+        build_grid,
+        parse_scheduler,
+    )
 
+    if scheduler is not None:
+        parse_scheduler(scheduler)
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     _positive(workers, "--workers")
     _positive(chunk, "--chunk")
     if seeds < 1:
         raise BadInput(f"--seeds {seeds}: must be a whole number >= 1")
+    _positive(max_runs, "--max-runs")
     base = load_scenario(scenario, list(overrides))
-    grid = build_grid(base, list(vary), seeds)
+    with _progress(_grid_points(base, vary, max_runs), "checking grid", "points") as advance:
+        grid = build_grid(base, list(vary), seeds, max_runs=max_runs, progress=advance)
     if plot_path is not None and len(grid.vary) > 2:
         raise BadInput(f"--plot draws one or two varied keys; this sweep varies {len(grid.vary)}")
     _warn_grid(grid.warnings())
@@ -196,9 +238,8 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
 
         figure_sweep(kept, plot_path)
     if writer.diverged:
-        click.echo(f"esoarm: warning: {writer.diverged} of {grid.n_runs} runs diverged "
-                   "(diverged = 1 in the CSV; their metrics cover the samples up to divergence)",
-                   err=True)
+        warn_line(f"{writer.diverged} of {grid.n_runs} runs diverged "
+                  "(diverged = 1 in the CSV; their metrics cover the samples up to divergence)")
     if as_json:
         click.echo(json.dumps(_summary(writer, out_path, plot_path, writer.diverged)))
         return
@@ -206,6 +247,17 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
     for label, path in (("table", out_path), ("figure", plot_path)):
         if path is not None:
             click.echo(f"{label}: {path}")
+
+
+def _grid_points(base: Any, vary: tuple[str, ...], max_runs: int) -> int:
+    """Number of grid points (for the checking bar); 0 when the grid is invalid."""
+    from esoarm.scenario import ScenarioError
+    from esoarm.studies.sweep import parse_vary
+
+    try:
+        return math.prod(len(parse_vary(v, base, max_values=max_runs).values) for v in vary)
+    except ScenarioError:
+        return 0  # build_grid says why, in one line
 
 
 @contextmanager
@@ -442,5 +494,5 @@ def _print_tune(res: Any, name: str, objective: str, w: float) -> None:
     if res.robust_samples:
         click.echo(f"averaged over {len(res.robust_samples)} rig variants × seeds")
     if res.best_metrics.get("diverged_runs"):
-        click.echo("esoarm: warning: some runs at the best point diverged", err=True)
+        warn_line("some runs at the best point diverged")
     sys.stdout.flush()

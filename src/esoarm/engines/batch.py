@@ -526,8 +526,8 @@ def simulate_many(
                 t = np.arange(n) * scn.sample_time
                 result = SimResult.from_log(scn, t[:k], logs[i, :, :k], diverged=rows[i] < 0)
                 if rows[i] < 0:
-                    raise SimulationDiverged(diverged_message(scn.name, float(t[k - 1]), k - 1),
-                                             result)
+                    raise SimulationDiverged(
+                        diverged_message(scn.name, float(t[k - 1]), k - 1, result), result)
                 results.append(result)
     return results
 

@@ -150,7 +150,7 @@ def simulate(
     *,
     warn: bool = True,
 ) -> SimResult:
-    """Simulate one closed-loop run with the reference engine (SPEC §2).
+    """Simulate one closed-loop run with the reference engine (the sampled-data loop).
 
     Parameters
     ----------
@@ -186,24 +186,46 @@ def run_reference(scn: Scenario, inp: RunInputs) -> SimResult:
     log = np.full((NROW * nj, n), np.nan)
     x = np.array(inp.plant.x0)
     plant, observer, controller = inp.kinds
-    rows = closed_loop(
-        log, n, x, inp.noise, inp.sigma, inp.q, inp.refs, inp.ts, inp.h, inp.nsub, inp.delay,
-        inp.plant.b0, inp.plant.vector, inp.observer.vector, inp.controller.vector,
-        inp.actuator, inp.observer.n_state, inp.controller.n_state,
-        plant.advance, plant.acceleration, observer.initialize, observer.estimate,
-        observer.advance, controller.initialize, controller.control,
-    )
+    try:
+        rows = closed_loop(
+            log, n, x, inp.noise, inp.sigma, inp.q, inp.refs, inp.ts, inp.h, inp.nsub,
+            inp.delay, inp.plant.b0, inp.plant.vector, inp.observer.vector,
+            inp.controller.vector, inp.actuator, inp.observer.n_state, inp.controller.n_state,
+            plant.advance, plant.acceleration, observer.initialize, observer.estimate,
+            observer.advance, controller.initialize, controller.control,
+        )
+    except (ArithmeticError, ValueError):  # e.g. cos(inf) inside a step: out of range too
+        written = ~np.isnan(log).all(axis=0)
+        rows = -max(int(np.argmin(written)) if not written.all() else n, 1)
     k = abs(rows)
     result = SimResult.from_log(scn, inp.t[:k], log[:, :k], diverged=rows < 0)
     if rows < 0:
-        raise SimulationDiverged(diverged_message(scn.name, float(inp.t[k - 1]), k - 1), result)
+        raise SimulationDiverged(
+            diverged_message(scn.name, float(inp.t[k - 1]), k - 1, result), result)
     return result
 
 
-def diverged_message(name: str, tk: float, k: int) -> str:
-    """The one-line message of a run that left the finite range at sample k (t_k [s])."""
-    return (
-        f"simulation of '{name}' diverged at t = {tk:.4g} s (sample {k}): "
-        f"the state left the finite range (|θ| or |z| > {DIVERGENCE_LIMIT:g} or not finite); "
-        f"check observer.eps against the sample rate"
-    )
+def diverged_message(name: str, tk: float, k: int, result: SimResult | None = None) -> str:
+    """The one-line message of a run that left the finite range at sample k (t_k [s]).
+
+    With the partial ``result`` it says which quantity left the range first
+    and names the likely causes in the scenario (:mod:`esoarm.engines.diagnosis`).
+    """
+    head = f"simulation of '{name}' diverged at t = {tk:.4g} s (sample {k}): "
+    bound = f"|θ|, |ẑ1| < {DIVERGENCE_LIMIT:g} rad, all finite"
+    if result is None or len(result.t) == 0:
+        return (f"{head}the state left the finite range ({bound}); check observer.eps "
+                "against the sample rate")
+    from esoarm.engines.diagnosis import divergence_causes, what_left
+
+    z = np.asarray(result.z).reshape(len(result.t), -1)
+    left = what_left(float(np.ravel(result.theta)[-1]), float(z[-1, 0]), float(z[-1, 1]),
+                     float(z[-1, 2]), float(np.ravel(result.u)[-1]), DIVERGENCE_LIMIT)
+    causes = divergence_causes(result.scenario, DIVERGENCE_LIMIT)
+    if causes:
+        why = "likely cause: " + causes[0] + (f" (also {'; '.join(causes[1:])})"
+                                              if len(causes) > 1 else "")
+    else:
+        why = ("nothing in the scenario stands out; check observer.eps against the sample "
+               "rate, the gains and the disturbance")
+    return f"{head}{left} left the finite range ({bound}); {why}"

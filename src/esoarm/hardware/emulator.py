@@ -69,14 +69,14 @@ def parse_fault(text: str) -> FaultSpec:
     kind, sep, when = text.partition("@")
     if not sep or kind not in FAULT_KINDS:
         raise ScenarioError(
-            f"--fault '{text}': expected KIND@SECONDS with KIND one of {', '.join(FAULT_KINDS)}"
+            f"fault '{text}': expected KIND@SECONDS with KIND one of {', '.join(FAULT_KINDS)}"
         )
     try:
         at = float(when)
     except ValueError:
         at = math.nan
     if not (math.isfinite(at) and at >= 0):
-        raise ScenarioError(f"--fault '{text}': SECONDS must be a finite number >= 0")
+        raise ScenarioError(f"fault '{text}': SECONDS must be a finite number >= 0")
     return FaultSpec(kind, at)
 
 
@@ -243,6 +243,8 @@ class Emulator:
         self.frames_lost = 0  # output buffer full (nobody reading)
         self.bad_commands = 0
         self._u = 0.0
+        self._u_k = -1  # sample index of the newest command (real time)
+        self.held_commands = 0  # samples that ran on an older command (it came too late)
         self._last_cmd = 0.0
         self._t0 = 0.0
         self._watchdog_tripped = False
@@ -299,6 +301,7 @@ class Emulator:
             self._t0 = self._last_cmd = time.perf_counter()
             self._next_tick = self._t0 + self.twin.ts
             self._u = 0.0
+            self._u_k, self.held_commands = -1, 0
             self.echo(f"start: {'lockstep' if self.lockstep else 'real time'}, "
                       f"Ts = {self.twin.ts:g} s")
             self._send_sample()
@@ -324,14 +327,16 @@ class Emulator:
                 self.twin.advance(u)
                 self._send_sample()
             else:
-                self._u = u
+                self._u, self._u_k = u, k
         elif kind == P.STOP:
             self.twin.motor_on = False
             was = self.running
             self.running = False
             self._u = 0.0
+            late = "" if self.lockstep or not was else \
+                f"; {self.held_commands} samples ran on an older command (theirs came late)"
             self.echo(f"stop received at t = {self.twin.time:.4g} s: motor off"
-                      + ("" if was else " (was not running)"))
+                      + ("" if was else " (was not running)") + late)
             self._send(P.STOPPED)
             if self.once:
                 time.sleep(0.2)  # let the host read STOPPED before the port goes away
@@ -346,6 +351,8 @@ class Emulator:
             self.echo(f"watchdog: no command for {DEVICE_WATCHDOG * 1e3:.0f} ms at "
                       f"t = {self.twin.time:.4g} s: motor off")
             self._send(P.FAULT, P.FAULT_WATCHDOG, self.twin.k)
+        if self._u_k != self.twin.k:
+            self.held_commands += 1
         self.twin.advance(self._u)
         self._send_sample()
 

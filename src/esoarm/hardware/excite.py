@@ -108,7 +108,7 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
             theta_max = max(theta_max, abs(theta))
             ref = ctl.reference(k)
             log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(y - ref)},{fmt(u_applied)},"
-                      f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},nan,nan,nan,0,{duty},{fmt(theta)}\n")
+                      f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},nan,nan,nan,0,{duty},{fmt(y)},{fmt(theta)}\n")
     finally:
         log.close()
     rows = log.rows

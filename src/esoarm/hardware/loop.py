@@ -2,7 +2,7 @@
 
 The device is the clock: it sends sample k (device time, encoder count) every
 Ts (or, in lockstep, after each command).  For every sample the host does
-SPEC §2 steps 1-5 with :class:`~esoarm.hardware.controller.DeploymentController`:
+the sampled-data loop, steps 1-5 with :class:`~esoarm.hardware.controller.DeploymentController`:
 
 1. y_k = q · count_k   (q = radians(sensor.resolution_deg); exact, see emulator)
 2.-3. ẑ_k, u_k = sat(FLC(ẑ_k, reference at t_k))
@@ -29,6 +29,7 @@ before t_dev,k + offset + Ts, offset the smallest arrival delay seen
 from __future__ import annotations
 
 import math
+import os
 import signal
 import threading
 import time
@@ -38,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm._io import OutputError, describe_os_error
 from esoarm.engines.metrics import series_metrics
 from esoarm.hardware import protocol as P
 from esoarm.hardware.controller import DeploymentController
@@ -49,9 +51,12 @@ from esoarm.scenario import Scenario, ScenarioError
 __all__ = ["LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",
            "check_device", "run_rig"]
 
-#: Columns of the run log: SPEC §4 columns (theta as measured, no f_true), then timing.
+#: Columns of the run log (docs/semantics.md, "Output files and columns"): the time-series
+#: columns, but ``theta`` and ``error`` from the *measured* angle (a rig's true angle is
+#: unknown) and no ``f_true``; then timing, the duty sent, and ``y``, the measured angle
+#: under the name it has in every file (here equal to ``theta``).
 LOG_COLUMNS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3",
-               "k", "t_device", "t_host", "latency", "late", "duty")
+               "k", "t_device", "t_host", "latency", "late", "duty", "y")
 
 
 @dataclass(frozen=True)
@@ -136,26 +141,59 @@ def check_device(info: P.Info, scn: Scenario) -> float:
 
 
 class _LogWriter:
-    """CSV rows streamed to disk, one flushed line per sample."""
+    """CSV rows streamed to disk, one flushed line per sample.
+
+    If the disk fills up (or any write fails) the run stops like any other
+    fault, and the file is cut back to its last whole row.
+    """
 
     def __init__(self, path: Path | None, columns: tuple[str, ...] = LOG_COLUMNS) -> None:
         self.path = path
         self.rows = 0
         self._fh = None
+        self._good = 0  # bytes of whole rows written
         if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
-            self._fh.write(",".join(columns) + "\n")
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
+            except OSError as exc:
+                raise OutputError(path, describe_os_error(exc)) from None
+            self.write(",".join(columns) + "\n", row=False)
 
-    def write(self, line: str) -> None:
-        self.rows += 1
+    def write(self, line: str, row: bool = True) -> None:
         if self._fh is not None:
-            self._fh.write(line)
+            try:
+                self._fh.write(line)
+            except OSError as exc:
+                self._fail(exc)
+            self._good += len(line)  # ASCII: characters are bytes
+        if row:
+            self.rows += 1
+
+    def _fail(self, exc: OSError) -> None:
+        fh, self._fh = self._fh, None
+        try:
+            assert fh is not None
+            fh.close()
+        except OSError:
+            pass
+        try:
+            os.truncate(str(self.path), self._good)
+        except OSError:
+            pass
+        raise _Stop(f"cannot write the log '{self.path}': {describe_os_error(exc)} "
+                    f"(log cut back to its last whole row)")
 
     def close(self) -> None:
         if self._fh is not None:
-            self._fh.flush()
-            self._fh.close()
+            try:
+                self._fh.flush()
+                self._fh.close()
+            except OSError:
+                try:
+                    os.truncate(str(self.path), self._good)
+                except OSError:
+                    pass
             self._fh = None
 
 
@@ -340,7 +378,7 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
                 z1, z2, z3 = ctl.predict(u_last)
                 log.write(f"{fmt(ctl.t[k_next])},nan,{fmt(ctl.reference(k_next))},nan,"
                           f"{fmt(u_last)},{fmt(z1)},{fmt(z2)},{fmt(z3)},{k_next},nan,nan,nan,0,"
-                          f"nan\n")
+                          f"nan,nan\n")
                 summary.lost_samples += 1
                 k_next += 1
             if k_next >= n:
@@ -379,7 +417,7 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             e = y - ref
             log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u_applied)},"
                       f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},{fmt(t_dev)},{fmt(now - t_start)},"
-                      f"{fmt(latency)},{late},{duty}\n")
+                      f"{fmt(latency)},{late},{duty},{fmt(y)}\n")
             acc["e"].append(e)
             acc["u"].append(u_applied)
             y_prev = y

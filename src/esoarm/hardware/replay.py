@@ -3,7 +3,7 @@
 Given a log with ``t`` [s, uniform], ``theta`` [rad, measured] and ``u``
 [N·m, applied from that row on], the observer of the scenario (ε,
 discretization, b0 = 1/I0) is run sample by sample exactly as in the loop
-(SPEC §2 step 5): row k holds ẑ_k, the estimate the controller would use at
+(the sampled-data loop, step 5): row k holds ẑ_k, the estimate the controller would use at
 t_k, then the observer is updated with (y_k, u_k).  A row with ``theta = nan``
 (a sample lost on the link, as ``esoarm run`` logs it) is bridged with zero
 innovation, as the loop does.  A log of ``esoarm run`` therefore replays to
@@ -72,11 +72,14 @@ def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, floa
             if header is None:
                 raise ScenarioError(f"{src}: empty file")
             header = [h.strip() for h in header]
-            missing = [c for c in ("t", "theta", "u") if c not in header]
+            # the measured angle: `y` where the file has it (a simulated series' `theta` is
+            # the true angle), else `theta` (a rig log's theta is the measured angle)
+            angle = "y" if "y" in header else "theta"
+            missing = [c for c in ("t", angle, "u") if c not in header]
             if missing:
                 raise ScenarioError(f"{src}: missing column(s) {', '.join(missing)}; "
-                                    "need t [s], theta [rad], u [N·m]")
-            idx = [header.index(c) for c in ("t", "theta", "u")]
+                                    "need t [s], theta or y [rad, measured], u [N·m]")
+            idx = [header.index(c) for c in ("t", angle, "u")]
             rows = []
             for line_no, row in enumerate(reader, start=2):
                 if not row:
@@ -85,7 +88,7 @@ def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, floa
                     rows.append([float(row[i]) for i in idx])
                 except (ValueError, IndexError):
                     raise ScenarioError(f"{src}: line {line_no}: expected numbers in columns "
-                                        "t, theta, u") from None
+                                        f"t, {angle}, u") from None
     except FileNotFoundError:
         raise ScenarioError(f"{src}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:

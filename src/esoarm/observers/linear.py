@@ -8,7 +8,7 @@ Continuous observer (eq. 8), y = θ measured, b0 = 1/I0:
 
 Theorem 1: β1 = 3/ε, β2 = 3/ε², β3 = 1/ε³ put all three error poles at −1/ε.
 
-The sampled-data semantics are SPEC §2 step 5.  Three discretizations, selected
+The semantics: step 5 of the sampled-data loop (docs/semantics.md).  Three discretizations, selected
 by name:
 
 ``"euler"``
@@ -201,7 +201,7 @@ def design_observer(eps: float, ts: float, b0: float, discretization: str = "eul
     b0 : float
         Input gain 1/I0 [1/(kg·m²)].
     discretization : {"euler", "zoh", "current"}
-        See the module docstring and SPEC §2 step 5.
+        See the module docstring and the sampled-data loop, step 5.
     """
     if discretization not in DISCRETIZATIONS:
         raise ValueError(
@@ -284,7 +284,7 @@ def eso_rhs(z1: float, z2: float, z3: float, y: float, u: float, b0: float, beta
 @jitable
 def eso_estimate(z1: float, z2: float, z3: float, y: float,
                  obs: np.ndarray) -> tuple[float, float, float]:
-    """Estimate ẑ_k available to the controller at t_k (SPEC §2 step 5).
+    """Estimate ẑ_k available to the controller at t_k (the sampled-data loop, step 5).
 
     For "euler" and "zoh" this is the state itself; for "current" it is the
     prediction corrected with y_k: ẑ = z + Lc (y − z1).
@@ -388,7 +388,7 @@ class ExtendedStateObserver:
     design : ESODesign
         From :func:`design_observer`.
     y0 : float
-        First measurement [rad]; initial state z_0 = (y0, 0, 0) (SPEC §2).
+        First measurement [rad]; initial state z_0 = (y0, 0, 0) (the sampled-data loop).
     """
 
     __slots__ = ("_obs", "_y", "design", "z", "zhat")

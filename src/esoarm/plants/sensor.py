@@ -1,4 +1,4 @@
-"""Encoder model: Gaussian noise then quantization (SPEC §2 step 1).
+"""Encoder model: Gaussian noise then quantization (the sampled-data loop, step 1).
 
     y_k = Q(θ(t_k) + σ n_k),    Q(x) = q · floor(x/q + 1/2)
 
@@ -34,7 +34,7 @@ def measure(theta, noise, sigma, q):  # type: ignore[no-untyped-def]
 def noise_sequence(seed: int, n_samples: int, noise_deg: float) -> np.ndarray:
     """Standard-normal draws n_0 … n_{N−1} of one run (zeros when noise_deg = 0).
 
-    Exactly ``numpy.random.default_rng(seed).standard_normal(N)`` (SPEC §2),
+    Exactly ``numpy.random.default_rng(seed).standard_normal(N)`` (the sampled-data loop),
     so every engine and independent implementation sees the same noise.
     """
     if noise_deg > 0:

@@ -7,7 +7,7 @@ the code it describes.
 Observer (paper eq. 8-10, Theorem 1)
     The continuous ESO with β = (3/ε, 3/ε², 1/ε³) has the estimation-error
     matrix A − βC of eq. 10, characteristic polynomial (s + 1/ε)³.  Each
-    discretization of SPEC §2 step 5 has its own error recursion
+    discretization (step 5 of the sampled-data loop) has its own error recursion
     z̃⁺ = M z̃ (:func:`esoarm.observers.linear.discrete_error_matrix`): "euler" puts
     the triple pole at 1 − Ts/ε, "zoh" and "current" at e^{−Ts/ε}.
 
@@ -67,7 +67,7 @@ __all__ = [
     "tracking_l1_gain",
 ]
 
-#: The continuous observer of eq. 8 (Theorem 1), besides SPEC §2's discretizations.
+#: The continuous observer of eq. 8 (Theorem 1), besides the sampled-data discretizations.
 CONTINUOUS = "continuous"
 
 
@@ -101,7 +101,7 @@ def observer_gains(
         "euler": Ts·β (the update z⁺ = z + Ts·(eq. 8)).  "zoh": Lp of the
         predictive form, poles of Φ − Lp C at e^{−Ts/ε}.  "current": Lc of
         the current-estimator form, poles of Φ − Lc C Φ at e^{−Ts/ε}
-        (SPEC §2 step 5).  The discrete gains are dimensionless, 1/s, 1/s².
+        (the sampled-data loop, step 5).  The discrete gains are dimensionless, 1/s, 1/s².
     b0 : float
         Input gain 1/I0 [1/(kg·m²)]; the gains do not depend on it.
 

@@ -84,23 +84,23 @@ class ExcitationPlan:
     seed: int = 0
 
     def check(self, ts: float) -> None:
-        """Raise :class:`ScenarioError` (one line naming the option) for a bad plan."""
+        """Raise :class:`ScenarioError` (one line naming the argument) for a bad plan."""
         nyquist = 0.5 / ts
         checks = [  # (option, value, ok, allowed)
             ("duration", self.duration, self.duration > 0, "> 0 s"),
             ("amplitude", self.amplitude, self.amplitude >= 0, ">= 0 N·m"),
-            ("f-min", self.f_min, self.f_min > 0, "> 0 Hz"),
-            ("f-max", self.f_max, self.f_min < self.f_max < nyquist,
+            ("f_min", self.f_min, self.f_min > 0, "> 0 Hz"),
+            ("f_max", self.f_max, self.f_min < self.f_max < nyquist,
              f"above f-min and below the Nyquist frequency {nyquist:g} Hz"),
             ("tones", self.n_tones, self.n_tones >= 1, ">= 1"),
             ("sweep", self.sweep, self.sweep >= 0, ">= 0 rad"),
-            ("sweep-period", self.sweep_period, self.sweep_period > 0, "> 0 s"),
+            ("sweep_period", self.sweep_period, self.sweep_period > 0, "> 0 s"),
             ("kp", self.kp, self.kp >= 0, ">= 0 N·m/rad"),
             ("kd", self.kd, self.kd >= 0, ">= 0 N·m·s/rad"),
         ]
         for name, value, ok, allowed in checks:
             if not (ok and math.isfinite(float(value))):
-                raise ScenarioError(f"--{name} {value:g}: must be {allowed}")
+                raise ScenarioError(f"{name} {value:g}: must be {allowed}")
 
     def frequencies(self) -> np.ndarray:
         """Tone frequencies [Hz], log-spaced from f_min to f_max."""
@@ -147,6 +147,9 @@ class ExcitationController:
     """
 
     def __init__(self, scn: Scenario, plan: ExcitationPlan) -> None:
+        from esoarm.studies.identify_data import check_supported
+
+        check_supported(scn, "the identification experiment")
         self.ts = scn.sample_time
         plan.check(self.ts)
         self.plan = plan

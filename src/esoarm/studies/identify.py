@@ -25,15 +25,17 @@ as in the paper's eq. 6), the motor's other constants.
 
 Fit: least squares on the measured angle, y_k − θ̂(t_k), over segments of the
 log with each segment's initial angle and rate estimated
-(:mod:`esoarm.studies.identify_data`); scipy's trust-region reflective solver
-with a finite-difference Jacobian that costs one simulation per rig parameter
-plus two for all initial states.  The delay (integer) is chosen by the cost
-over 0 … ``max_delay``; the lag by a likelihood-ratio test of T > 0 against
-T = 0.  95 % intervals: ±1.96 standard errors from σ̂² (JᵀJ)⁻¹ (rig parameters,
-the initial states profiled out); for the delay, every delay whose cost is
-within the χ²₁ 95 % threshold of the best.  The intervals assume the model
-structure is right and the residual is white: the validation's whiteness test
-says whether that holds.
+(:mod:`esoarm.studies.identify_data`); Levenberg-Marquardt
+(:func:`esoarm.studies.identify_fit.levenberg_marquardt`) with a
+finite-difference Jacobian that costs one simulation per rig parameter plus
+two for all initial states.  The delay (integer) is chosen by the cost over
+0 … ``max_delay``; the lag by a likelihood-ratio test of T > 0 against T = 0,
+after a screen (a quarter-sample lag with everything else held must lower the
+cost, else T = 0 is kept without a fit).  95 % intervals: ±1.96 standard
+errors from σ̂² (JᵀJ)⁻¹ (rig parameters, the initial states profiled out); for
+the delay, every delay whose cost is within the χ²₁ 95 % threshold of the
+best.  The intervals assume the model structure is right and the residual is
+white: the validation's whiteness test says whether that holds.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ import numpy as np
 
 from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario, ScenarioError
-from esoarm.studies.identify_data import IdentLog
+from esoarm.studies.identify_data import IdentLog, check_supported
 from esoarm.studies.identify_fit import PARAMS, Problem
 
 __all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
@@ -196,9 +198,10 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         The solver did not converge.
     """
     t_start = time.perf_counter()
+    check_supported(scn)
     for key in fix:
         if key not in FREE_KEYS:
-            raise ScenarioError(f"--fix {key}: not a fitted key (one of {', '.join(FREE_KEYS)})")
+            raise ScenarioError(f"fix {key}: not a fitted key (one of {', '.join(FREE_KEYS)})")
     ts = logs[0].ts
     for log in [*logs, *(validation or [])]:
         if abs(log.ts - scn.sample_time) > 1e-9 * scn.sample_time:

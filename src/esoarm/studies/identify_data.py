@@ -13,9 +13,10 @@ continuity constraints): the arm is nearly neutrally stable, so one open-loop
 simulation over a whole minute would drift away from the data for any error
 in the friction, while a horizon of a few seconds keeps the problem well
 conditioned and still sees every parameter.  The simulator is
-:func:`esoarm.plants.lever_arm.rig_advance` -- the twin's own RK4 integration of the rig --
-compiled with numba, one sample at a time with the input held (SPEC-style
-zero-order hold, transport delay applied to the input sequence).
+:func:`esoarm.plants.lever_arm.advance` -- the lever-arm plant step, the twin's
+own RK4 integration of the rig -- compiled with numba, one sample at a time
+with the input held over the sample (zero-order hold, as in every engine) and
+the transport delay applied to the input sequence.
 """
 
 from __future__ import annotations
@@ -29,16 +30,14 @@ import numpy as np
 from numba import njit
 
 from esoarm.engines.batch import cover_with_physics_stamp  # registers the physics with numba
-from esoarm.plants.lever_arm import VECTOR_SIZE, rig_advance
+from esoarm.plants.lever_arm import advance
 from esoarm.scenario import ScenarioError
 
 # the compiled segment simulator is cached on disk, keyed on the physics sources too
 cover_with_physics_stamp(__file__)
 
-__all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "read_ident_log", "simulate_segments"]
-
-if VECTOR_SIZE != 10:  # simulate_segments unpacks the rig vector into a 10-tuple
-    raise ImportError("esoarm.studies.identify_data: the rig vector changed size")
+__all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "check_supported", "read_ident_log",
+           "simulate_segments"]
 
 #: Shortest log accepted [s] and fewest samples.
 MIN_DURATION = 4.0
@@ -82,6 +81,18 @@ class IdentLog:
         duty = None if self.duty is None else self.duty[start:stop]
         return IdentLog(self.path, self.t[start:stop], self.y[start:stop], self.u[start:stop],
                         duty, self.ts)
+
+
+def check_supported(scn: object, what: str = "identification") -> None:
+    """One-line :class:`ScenarioError` unless the scenario's plant is the lever arm."""
+    kind = getattr(getattr(scn, "plant", None), "kind", "lever-arm")
+    if kind != "lever-arm":
+        raise ScenarioError(f"plant.kind = {kind!r}: {what} supports the lever arm "
+                            "(plant.kind = \"lever-arm\") only")
+    observer = getattr(scn, "observer", None)
+    if not hasattr(observer, "eps"):
+        raise ScenarioError(f"observer.kind = {getattr(observer, 'kind', '?')!r}: {what} "
+                            "needs the linear ESO (observer.eps) for its rate estimate")
 
 
 def read_ident_log(path: str | Path, torque_limit: float, need_duty: bool = False) -> IdentLog:
@@ -175,26 +186,28 @@ def segments(n: int, length: int, start: int = 0) -> tuple[np.ndarray, np.ndarra
 
 
 @njit(cache=True)
-def simulate_segments(out, rig, src, t, seg_start, seg_len, x0, h, nsub):  # pragma: no cover
+def simulate_segments(out, plant, src, t, seg_start, seg_len, x0, h, nsub):  # pragma: no cover
     """Simulated angle θ(t_k) [rad] into ``out`` for every segment.
 
     Segment s starts at sample ``seg_start[s]`` from θ = x0[2s], θ̇ = x0[2s+1]
     (the lag state τ from the previous applied torque), and holds the applied
-    torque ``src[k]`` [N·m] over [t_k, t_k + nsub·h) -- the twin's
-    :func:`esoarm.plants.lever_arm.rig_advance`.
+    (already delayed) torque ``src[k]`` [N·m] over [t_k, t_k + nsub·h): the
+    plant step of the lever-arm kind, :func:`esoarm.plants.lever_arm.advance`,
+    with ``plant`` its design vector (CODE, rig vector).
     """
-    # the parameter vector as a tuple: indexed like the array, but held in registers
-    rig = (rig[0], rig[1], rig[2], rig[3], rig[4], rig[5], rig[6], rig[7], rig[8], rig[9])
+    x = np.empty(3)
+    u = np.empty(1)
     for s in range(len(seg_start)):
         k0 = seg_start[s]
-        theta = x0[2 * s]
-        omega = x0[2 * s + 1]
-        tau = src[k0 - 1] if k0 > 0 else 0.0
+        x[0] = x0[2 * s]
+        x[1] = x0[2 * s + 1]
+        x[2] = src[k0 - 1] if k0 > 0 else 0.0
         for j in range(seg_len[s]):
             k = k0 + j
-            out[k] = theta
-            theta, omega, tau = rig_advance(theta, omega, tau, src[k], t[k], h, nsub, rig)
-            if not math.isfinite(theta):
+            out[k] = x[0]
+            u[0] = src[k]
+            advance(x, u, t[k], h, nsub, plant)
+            if not math.isfinite(x[0]):
                 for m in range(k + 1, k0 + seg_len[s]):
                     out[m] = math.inf
                 break

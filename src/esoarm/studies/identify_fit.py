@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from esoarm.plants.lever_arm import (
+    CODE,
     DAMP,
     DFREQ,
     FC,
@@ -142,7 +143,8 @@ class Problem:
     def predict(self, x: np.ndarray) -> np.ndarray:
         rig, src = self.rig_and_source(self.phys(x))
         out = self._out
-        simulate_segments(out, rig, src, self.t, self.seg_start, self.seg_len,
+        plant = np.concatenate([[float(CODE)], rig])  # the lever-arm kind's design vector
+        simulate_segments(out, plant, src, self.t, self.seg_start, self.seg_len,
                           np.ascontiguousarray(x[self.n_phys:]), self.h, self.nsub)
         return out.copy()
 

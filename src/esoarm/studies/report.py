@@ -302,7 +302,7 @@ def _discretization_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str
         return "<p>Not run (reproduction without comparisons).</p>"
     discs = list(rep.comparison)
     parts = [
-        "<p>The paper's experiments repeated with each ESO discretization of SPEC §2: "
+        "<p>The paper's experiments repeated with each ESO discretization of the loop: "
         "<b>euler</b> (the paper's fixed-step form, z⁺ = z + Ts·eq. 8), <b>zoh</b> (exact "
         "discrete model of the extended plant, predictive form) and <b>current</b> (exact "
         "model, corrected with y<sub>k</sub> before the control is computed). Everything else "
@@ -339,7 +339,7 @@ def _assumptions_section(rep: Reproduction) -> str:
     return ("<p>The paper gives the model (Table I), the disturbance (eq. 6), the 10 % inertia "
             "uncertainty, the 50 Hz encoder with 0.05° resolution and the ESO/FLC structure. "
             "The twin needs more; these values come from the resolved scenarios that produced "
-            "this report. The ESO starts at (y<sub>0</sub>, 0, 0) (SPEC §2).</p>"
+            "this report. The ESO starts at (y<sub>0</sub>, 0, 0) (the sampled-data loop).</p>"
             + _table(["key", "value", "unit", "why it is an assumption"], rows, left=4))
 
 

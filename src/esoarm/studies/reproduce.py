@@ -1,6 +1,6 @@
 """The paper's experiment set on the digital twin, beside the paper's numbers.
 
-The experiment set (SPEC §3): test-1 and test-2 at ε ∈ {0.05, 0.09, 0.2}
+The experiment set (the scenario format): test-1 and test-2 at ε ∈ {0.05, 0.09, 0.2}
 (Tables II and III, Fig. 4-6), plus the Fig. 7 ablation: test-2 at ε = 0.09
 with ``compensation = "model"`` against ``"eso"``.  The paper's values below
 are quoted from its Tables II and III (hardware); everything else is computed.
@@ -8,7 +8,7 @@ Each qualitative claim of the paper is checked on the twin's numbers and
 marked reproduced or not, with the numbers behind it.
 
 Besides the paper's set, a reproduction repeats the set with every ESO
-discretization (SPEC §2 step 5: the paper's "euler" against the exact "zoh"
+discretization (the sampled-data loop, step 5: the paper's "euler" against the exact "zoh"
 and "current" forms), sweeps ε on test-1 for each discretization, and checks
 Theorem 1 (observer poles, estimation-error bound) and Theorem 2 (tracking
 bound μ/k2) on the runs.  All runs go through :func:`_run_all`, the single
@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from esoarm import __version__
-from esoarm._io import atomic_path
+from esoarm._io import atomic_path, make_dir
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario, load_scenario
@@ -645,7 +645,7 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
     if fmt not in plotting.FIGURE_FORMATS:
         raise ValueError(f"fmt must be one of {', '.join(plotting.FIGURE_FORMATS)}, got {fmt!r}")
     out = Path(out_dir)
-    (out / "runs").mkdir(parents=True, exist_ok=True)
+    make_dir(out / "runs")
     written: list[Path] = []
     for key, res in rep.runs.items():
         written.append(res.to_csv(out / "runs" / f"{key}.csv"))

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from esoarm._limits import MAX_RUNS
 from esoarm.engines.metrics import MetricsTable, NoiseCache, reference_metrics
 from esoarm.scenario import Scenario, ScenarioError, parse_override, scenario_warnings
 from esoarm.studies.sweep_output import SweepResult, SweepWriter
@@ -51,6 +52,13 @@ LOCAL_CHUNK = 1024
 DASK_CHUNK = 256
 #: How long to try reaching a Dask scheduler.
 CONNECT_TIMEOUT = "10s"
+
+
+def _too_many(n: float, max_runs: int, what: str) -> ScenarioError:
+    return ScenarioError(
+        f"{what} {n:,.0f} runs (grid points × seeds), more than the limit of {max_runs:,}: "
+        f"that is about {n * 80 / 1e6:,.0f} MB for the results alone; "
+        f"shrink the grid or raise the limit (--max-runs N, or max_runs=N in Python)")
 
 
 @dataclass(frozen=True)
@@ -76,11 +84,12 @@ def _lookup(data: dict[str, Any], key: str) -> Any:
     return node
 
 
-def parse_vary(item: str, base: Scenario | None = None) -> VarySpec:
+def parse_vary(item: str, base: Scenario | None = None, max_values: int = MAX_RUNS) -> VarySpec:
     """Parse one ``KEY=SPEC`` (see the module docstring).
 
     With ``base``, values of integer keys given as ``lin``/``geom`` are made
-    integers when they are whole numbers.
+    integers when they are whole numbers.  A ``lin``/``geom`` NUM above
+    ``max_values`` is rejected before anything is allocated.
 
     Raises
     ------
@@ -89,33 +98,35 @@ def parse_vary(item: str, base: Scenario | None = None) -> VarySpec:
     """
     if "=" not in item:
         raise ScenarioError(
-            f"--vary '{item}': expected KEY=SPEC, e.g. observer.eps=geom:0.03:0.3:10"
+            f"vary '{item}': expected KEY=SPEC, e.g. observer.eps=geom:0.03:0.3:10"
         )
     key, spec = (s.strip() for s in item.split("=", 1))
     if not key:
-        raise ScenarioError(f"--vary '{item}': empty key")
+        raise ScenarioError(f"vary '{item}': empty key")
     if not spec:
-        raise ScenarioError(f"--vary {key}: empty value list")
+        raise ScenarioError(f"vary {key}: empty value list")
     head = spec.split(":", 1)[0]
     if head in ("lin", "geom") and ":" in spec:
         parts = spec.split(":")
         if len(parts) != 4:
-            raise ScenarioError(f"--vary {key}: '{spec}' must be {head}:START:STOP:NUM")
+            raise ScenarioError(f"vary {key}: '{spec}' must be {head}:START:STOP:NUM")
         try:
             start, stop = float(parts[1]), float(parts[2])
             num = int(parts[3])
         except ValueError:
             raise ScenarioError(
-                f"--vary {key}: '{spec}': START and STOP must be numbers and NUM a whole number"
+                f"vary {key}: '{spec}': START and STOP must be numbers and NUM a whole number"
             ) from None
         if not (math.isfinite(start) and math.isfinite(stop)):
-            raise ScenarioError(f"--vary {key}: '{spec}': START and STOP must be finite")
+            raise ScenarioError(f"vary {key}: '{spec}': START and STOP must be finite")
         if num < 1:
-            raise ScenarioError(f"--vary {key}: '{spec}': NUM must be >= 1")
+            raise ScenarioError(f"vary {key}: '{spec}': NUM must be >= 1")
+        if num > max_values:
+            raise _too_many(num, max_values, f"vary {key}: '{spec}' alone is")
         if head == "geom":
             if start == 0 or stop == 0 or (start < 0) != (stop < 0):
                 raise ScenarioError(
-                    f"--vary {key}: '{spec}': geom needs START and STOP non-zero and of one sign"
+                    f"vary {key}: '{spec}': geom needs START and STOP non-zero and of one sign"
                 )
             arr = np.geomspace(start, stop, num)
         else:
@@ -129,7 +140,7 @@ def parse_vary(item: str, base: Scenario | None = None) -> VarySpec:
         return VarySpec(key, tuple(values), head)
     items = [s.strip() for s in spec.split(",")]
     if any(not s for s in items):
-        raise ScenarioError(f"--vary {key}: '{spec}' has an empty item")
+        raise ScenarioError(f"vary {key}: '{spec}' has an empty item")
     values = [parse_override(f"{key}={s}")[1] for s in items]
     return VarySpec(key, tuple(values), "list")
 
@@ -221,7 +232,9 @@ class SweepGrid:
         return list(self.risky)
 
 
-def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid:
+def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1, *,
+               max_runs: int = MAX_RUNS,
+               progress: Callable[[int], None] | None = None) -> SweepGrid:
     """Parse ``--vary`` items and validate every grid point before any run.
 
     Parameters
@@ -232,23 +245,35 @@ def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid
         ``KEY=SPEC`` items; at least one.
     seeds : int
         K ≥ 1: every point runs with ``sensor.seed`` = 0 … K−1.
+    max_runs : int
+        Refuse grids of more runs (grid points × seeds) than this, before
+        building anything (default :data:`MAX_RUNS`).
+    progress : callable, optional
+        Called with the number of grid points checked since the last call.
 
     Raises
     ------
     ScenarioError
-        Bad SPEC, unknown key, a value out of range (the message names the key).
+        Bad SPEC, unknown key, a value out of range (the message names the key),
+        or more runs than ``max_runs``.
     """
+    if isinstance(max_runs, bool) or not isinstance(max_runs, int) or max_runs < 1:
+        raise ScenarioError(f"max_runs {max_runs!r}: must be a whole number >= 1")
     if not vary:
-        raise ScenarioError("--vary: give at least one KEY=SPEC")
+        raise ScenarioError("vary: give at least one KEY=SPEC")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-        raise ScenarioError(f"--seeds {seeds!r}: must be a whole number >= 1")
-    specs = [parse_vary(item, base) for item in vary]
+        raise ScenarioError(f"seeds {seeds!r}: must be a whole number >= 1")
+    specs = [parse_vary(item, base, max_values=max_runs) for item in vary]
+    n_runs = math.prod(len(s.values) for s in specs) * seeds
+    if n_runs > max_runs:
+        raise _too_many(n_runs, max_runs, "this sweep is")
     keys = [s.key for s in specs]
     for key in keys:
         if keys.count(key) > 1:
-            raise ScenarioError(f"--vary {key}: given more than once")
+            raise ScenarioError(f"vary {key}: given more than once")
         if key == "sensor.seed" and seeds > 1:
-            raise ScenarioError("--vary sensor.seed: use --seeds K instead (or --seeds 1)")
+            raise ScenarioError(
+                "vary sensor.seed: give the number of noise seeds instead (seeds K, or 1)")
     # each value alone first: the message then names the key and value
     # (with one key the grid points are exactly these)
     if len(specs) > 1:
@@ -257,9 +282,16 @@ def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1) -> SweepGrid
                 _apply(base, {spec.key: value}, spec.key)
     points = GridPoints(base, tuple(specs))
     risky: dict[str, None] = {}
+    checked = 0
     for scn in points:  # every point validated (and its warnings noted), none kept
         for msg in scenario_warnings(scn):
             risky.setdefault(msg, None)
+        checked += 1
+        if progress is not None and checked == 100:
+            progress(checked)
+            checked = 0
+    if progress is not None and checked:
+        progress(checked)
     # with sensor.seed as a grid key each point keeps its own seed (seeds = ())
     seed_list = () if "sensor.seed" in keys else tuple(range(seeds))
     return SweepGrid(base, tuple(specs), seed_list, points, tuple(risky))
@@ -270,11 +302,11 @@ def _apply(base: Scenario, over: dict[str, Any], keys: str) -> Scenario:
         return base.with_overrides(over)
     except ScenarioError as exc:
         msg = str(exc)
-        for prefix in ("--set: ", f"scenario '{base.name}': "):
+        for prefix in ("override: ", f"scenario '{base.name}': "):
             if msg.startswith(prefix):
                 msg = msg[len(prefix):]
         shown = ", ".join(f"{k}={v!r}" for k, v in over.items())
-        raise ScenarioError(f"--vary {shown}: {msg}") from None
+        raise ScenarioError(f"vary {shown}: {msg}") from None
 
 
 # ---------------------------------------------------------------------------
@@ -389,20 +421,101 @@ class ClusterError(RuntimeError):
     """The Dask cluster could not be used (unreachable, lost, or not installed)."""
 
 
+#: How long to wait for a TCP answer from the scheduler before giving up [s].
+PROBE_TIMEOUT = 5.0
+
+
+def parse_scheduler(address: str) -> tuple[str, str, int]:
+    """Split ``[tcp://|tls://]HOST:PORT`` into (scheme, host, port).
+
+    Raises
+    ------
+    ScenarioError
+        Not an address of that form (one line, exit status 2 on the command line).
+    """
+    shown = f"scheduler '{address}'"
+    scheme, sep, rest = address.strip().partition("://")
+    if not sep:
+        scheme, rest = "tcp", address.strip()
+    if scheme not in ("tcp", "tls"):
+        raise ScenarioError(f"{shown}: scheme '{scheme}://' is not supported; "
+                            "expected tcp://HOST:PORT or tls://HOST:PORT")
+    host, colon, port_text = rest.rpartition(":")
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    if not colon or not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
+        raise ScenarioError(f"{shown}: expected tcp://HOST:PORT with a port 1-65535, "
+                            "e.g. tcp://127.0.0.1:8786")
+    return scheme, host, int(port_text)
+
+
+def probe_scheduler(address: str, timeout: float = PROBE_TIMEOUT) -> None:
+    """Check within ``timeout`` seconds that something accepts connections at ``address``.
+
+    Done before a Dask client is made: a client that cannot connect takes
+    tens of seconds to give up and complains again when garbage-collected.
+
+    Raises
+    ------
+    ScenarioError
+        The address is malformed.
+    ClusterError
+        The host is unknown or nothing answers there.
+    """
+    import socket
+
+    _, host, port = parse_scheduler(address)
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except socket.gaierror as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: unknown host "
+                           f"'{host}' ({exc.strerror})") from None
+    except TimeoutError:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: no answer within "
+                           f"{timeout:g} s") from None
+    except OSError as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: "
+                           f"{exc.strerror or exc} (is 'dask scheduler' running there?)") from None
+
+
 def _iter_dask(grid: SweepGrid, address: str, threads: int,
                chunk: int, engine: str = "exact") -> Iterator[tuple[int, np.ndarray]]:
     try:
         from distributed import Client, as_completed
     except ImportError:
         raise ClusterError(
-            "--scheduler needs Dask distributed: pip install 'esoarm[cluster]'"
+            "a Dask scheduler needs Dask distributed: pip install 'esoarm[cluster]'"
         ) from None
     per_point = max(len(grid.seeds), 1)
     seeds = list(grid.seeds)
+    probe_scheduler(address)
+
+    class _QuietClient(Client):  # type: ignore[misc, valid-type]
+        """A client that, when its constructor failed, is dropped quietly and at once.
+
+        (distributed's own ``__del__`` would wait twice the connect timeout and
+        print a traceback after the one-line error.)
+        """
+
+        _esoarm_ok = False
+
+        def __del__(self) -> None:
+            if self._esoarm_ok:
+                super().__del__()
+                return
+            try:
+                self.close(timeout=0.5)
+            except BaseException:  # noqa: S110 - best effort on a client that never worked
+                pass
+
     try:
-        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+        client = _QuietClient(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+    except Exception as exc:  # noqa: BLE001 - anything here means: no usable scheduler
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if isinstance(exc, MemoryError):
+            reason = "something answers there, but not a Dask scheduler"
+        raise ClusterError(f"cannot use the Dask scheduler at {address}: {reason}") from None
+    client._esoarm_ok = True
     ranges = iter(_chunks(grid, chunk))
     futures: dict[Any, int] = {}
 

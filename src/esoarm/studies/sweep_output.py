@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from esoarm._io import atomic_path
+from esoarm._io import OutputError, atomic_path, describe_os_error
 from esoarm.engines.metrics import METRICS
 
 if TYPE_CHECKING:
@@ -73,11 +73,14 @@ class SweepWriter:
         self._tmp: Path | None = None
         self._fh: Any = None
         if self.path is not None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
             self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-            self._fh = self._tmp.open("w", encoding="utf-8", newline="")
-            self._csv = csv.writer(self._fh, lineterminator="\n")
-            self._csv.writerow([*grid.keys, "seed", *METRICS])
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._fh = self._tmp.open("w", encoding="utf-8", newline="")
+                self._csv = csv.writer(self._fh, lineterminator="\n")
+                self._csv.writerow([*grid.keys, "seed", *METRICS])
+            except OSError as exc:
+                self._fail(exc)
 
     def add(self, start: int, values: np.ndarray) -> None:
         """Take the metric rows of runs ``start`` … ``start + len(values) − 1``."""
@@ -87,11 +90,19 @@ class SweepWriter:
         if self._fh is None:
             return
         self._pending[start] = values
-        while self._next in self._pending:
-            chunk = self._pending.pop(self._next)
-            self._write(self._next, chunk)
-            self._next += len(chunk)
-        self._fh.flush()
+        try:
+            while self._next in self._pending:
+                chunk = self._pending.pop(self._next)
+                self._write(self._next, chunk)
+                self._next += len(chunk)
+            self._fh.flush()
+        except OSError as exc:  # a full disk, a file-size limit: one clear error, no file
+            self._fail(exc)
+
+    def _fail(self, exc: OSError) -> None:
+        self.discard()
+        assert self.path is not None
+        raise OutputError(self.path, describe_os_error(exc)) from None
 
     def _write(self, start: int, values: np.ndarray) -> None:
         n_float = len(METRICS) - 2  # samples, diverged are counts
@@ -130,21 +141,30 @@ class SweepWriter:
         """
         if self._fh is None:
             return 0
-        for start in sorted(self._pending):
-            self._write(start, self._pending.pop(start))
-        self._fh.close()
-        self._fh = None
-        assert self._tmp is not None and self.path is not None
-        os.replace(self._tmp, self.path)
+        try:
+            for start in sorted(self._pending):
+                self._write(start, self._pending.pop(start))
+            self._fh.close()
+            self._fh = None
+            assert self._tmp is not None and self.path is not None
+            os.replace(self._tmp, self.path)
+        except OSError as exc:
+            self._fail(exc)
         return self.rows_written
 
     def discard(self) -> None:
         """Remove the temporary file (nothing was written worth keeping)."""
         if self._fh is not None:
-            self._fh.close()
+            try:
+                self._fh.close()
+            except OSError:  # its last data could not be flushed: removed below anyway
+                pass
             self._fh = None
         if self._tmp is not None:
-            self._tmp.unlink(missing_ok=True)
+            try:
+                self._tmp.unlink(missing_ok=True)
+            except OSError:  # pragma: no cover
+                pass
 
 
 def _finite_means(a: np.ndarray) -> np.ndarray:

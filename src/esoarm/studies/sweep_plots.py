@@ -56,7 +56,7 @@ def figure_sweep(result: SweepResult, path: str | Path | None = None) -> Figure:
     """
     grid = result.grid
     if len(grid.vary) > MAX_KEYS:
-        raise ValueError(f"--plot draws one or two varied keys, got {len(grid.vary)}")
+        raise ValueError(f"a sweep figure draws one or two varied keys, got {len(grid.vary)}")
     n_seeds = max(len(grid.seeds), 1)
     title = f"{grid.base.name}: {grid.n_runs} runs ({n_seeds} seed{'s' if n_seeds > 1 else ''} " \
             "per point)"

@@ -102,7 +102,7 @@ class Bound:
         return self.to_unit(self.low), self.to_unit(self.high)
 
 
-def parse_bound(item: str, base: Scenario, option: str = "--vary") -> Bound:
+def parse_bound(item: str, base: Scenario, option: str = "vary") -> Bound:
     """Parse ``KEY=LOW:HIGH`` and check both ends on ``base``.
 
     Raises
@@ -133,7 +133,7 @@ def parse_bound(item: str, base: Scenario, option: str = "--vary") -> Bound:
             base.with_overrides({key: v})
         except ScenarioError as exc:
             msg = str(exc)
-            for prefix in ("--set: ", f"scenario '{base.name}': "):
+            for prefix in ("override: ", f"scenario '{base.name}': "):
                 msg = msg.removeprefix(prefix)
             raise ScenarioError(f"{option} {key}={value:g}: {msg}") from None
     return bound
@@ -157,7 +157,7 @@ class Objective:
         try:
             self._tree = ast.parse(text, mode="eval").body
         except SyntaxError:
-            raise ScenarioError(f"--objective '{text}': not a valid expression") from None
+            raise ScenarioError(f"objective '{text}': not a valid expression") from None
         self._check(self._tree)
 
     def _check(self, node: ast.AST) -> None:
@@ -173,7 +173,7 @@ class Objective:
         elif isinstance(node, ast.Name):
             if node.id not in (*_OBJ_METRICS, "w"):
                 raise ScenarioError(
-                    f"--objective '{self.text}': unknown name '{node.id}' "
+                    f"objective '{self.text}': unknown name '{node.id}' "
                     f"(allowed: {allowed}, w)"
                 )
         elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
@@ -182,7 +182,7 @@ class Objective:
                 self._check(arg)
         else:
             raise ScenarioError(
-                f"--objective '{self.text}': only numbers, + - * / **, parentheses, "
+                f"objective '{self.text}': only numbers, + - * / **, parentheses, "
                 f"{', '.join(self._FUNCS)} and the names {allowed}, w are allowed"
             )
 
@@ -300,18 +300,18 @@ def tune(
 
     run_metrics = metrics_runner(engine)
     if not bounds:
-        raise ScenarioError("--vary: give at least one KEY=LOW:HIGH to tune")
+        raise ScenarioError("vary: give at least one KEY=LOW:HIGH to tune")
     keys = tuple(b.key for b in bounds)
     for key in keys:
         if keys.count(key) > 1:
-            raise ScenarioError(f"--vary {key}: given more than once")
+            raise ScenarioError(f"vary {key}: given more than once")
     for b in robust:
         if b.key in keys:
-            raise ScenarioError(f"--robust {b.key}: also tuned with --vary")
+            raise ScenarioError(f"robust {b.key}: also among the keys tuned (vary)")
     if seeds < 1:
-        raise ScenarioError(f"--seeds {seeds}: must be >= 1")
+        raise ScenarioError(f"seeds {seeds}: must be >= 1")
     if samples < 1:
-        raise ScenarioError(f"--samples {samples}: must be >= 1")
+        raise ScenarioError(f"samples {samples}: must be >= 1")
     objective = objective or Objective(DEFAULT_OBJECTIVE)
     variants = _robust_samples(robust, samples, seed)
     seed_list = list(range(seeds))

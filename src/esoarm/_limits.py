@@ -1,0 +1,8 @@
+"""Limits that protect the machine (light: importable by ``--help`` without pydantic)."""
+
+#: Longest run a scenario may ask for, in samples (duration · rate_hz).
+MAX_SAMPLES = 100_000_000
+#: Most runs (grid points × seeds) a sweep may have unless the caller raises it
+#: (``max_runs=``, ``--max-runs``): the result table alone takes about 80 bytes a
+#: run, and every grid point is checked before the first run (~0.3 ms each).
+MAX_RUNS = 1_000_000

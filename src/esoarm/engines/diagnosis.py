@@ -1,0 +1,91 @@
+"""Why a run diverged: what left the finite range, and the likely causes in the scenario.
+
+A run stops as diverged when |θ| or |ẑ1| exceeds the divergence limit or any
+of θ, ẑ, u is not finite (docs/semantics.md, "The sampled-data loop").  The
+one-line message then says which quantity left the range first and names the
+settings of the scenario that plausibly drove it there, most likely first, so
+that a user is not told to check ε when the initial angle was 10⁹ rad.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
+
+__all__ = ["SATURATION_WARNING", "divergence_causes", "saturation_warning", "what_left"]
+
+#: Warn when the command sat at ±torque_limit for more than this share of a run's samples.
+SATURATION_WARNING = 0.5
+
+
+def what_left(theta: float, z1: float, z2: float, z3: float, u: float, limit: float) -> str:
+    """The first quantity of the last logged row that is out of range, with its value."""
+    for name, value, unit, bounded in (("the angle θ", theta, "rad", True),
+                                       ("the angle estimate ẑ1", z1, "rad", True),
+                                       ("the rate estimate ẑ2", z2, "rad/s", False),
+                                       ("the perturbation estimate ẑ3", z3, "rad/s²", False),
+                                       ("the control u", u, "N·m", False)):
+        if not math.isfinite(value) or (bounded and abs(value) >= limit):
+            return f"{name} = {value:.3g} {unit}"
+    return "the state"
+
+
+def divergence_causes(scn: Scenario, limit: float) -> list[str]:
+    """Settings of ``scn`` that plausibly make a run diverge, most likely first.
+
+    Each item names the key and its value.  Empty when nothing in the
+    scenario stands out.
+    """
+    from esoarm.studies.analysis import observer_warnings
+
+    causes: list[str] = []
+    ts = scn.sample_time
+    inertia = getattr(scn.plant, "inertia", None)
+    if inertia is not None and 1.0 / inertia >= limit:
+        causes.append(f"plant.inertia = {inertia:g} kg·m² (the input gain 1/I0 = "
+                      f"{1.0 / inertia:.3g})")
+    rig, sensor = scn.rig, scn.sensor
+    if abs(rig.theta0) >= limit / 10:
+        causes.append(f"rig.theta0 = {rig.theta0:g} rad (the initial angle)")
+    sigma = math.radians(sensor.noise_deg)
+    if sigma >= limit / 1e3:
+        causes.append(f"sensor.noise_deg = {sensor.noise_deg:g} (noise of {sigma:.3g} rad)")
+    d = abs(rig.disturbance.amplitude)
+    if d * scn.duration**2 >= limit / 10:
+        causes.append(f"rig.disturbance.amplitude = {rig.disturbance.amplitude:g} rad/s²")
+    unstable = [m for m in observer_warnings(scn.observer.eps, ts, scn.observer.discretization)
+                if "unstable" in m]
+    if unstable:
+        causes.append(f"observer.eps = {scn.observer.eps:g} s, an unstable observer at "
+                      f"Ts = {ts:g} s with '{scn.observer.discretization}'")
+    if not 0.1 <= rig.inertia_scale <= 10:
+        causes.append(f"rig.inertia_scale = {rig.inertia_scale:g} (the controller's model is "
+                      "far from the rig)")
+    ctl = scn.controller
+    # explicit error dynamics at Ts: k1·Ts or k2·Ts² beyond ~2 cannot be sampled stably
+    if ctl.k1 * ts > 2 or ctl.k2 * ts * ts > 4:
+        causes.append(f"controller.k1 = {ctl.k1:g} 1/s, k2 = {ctl.k2:g} 1/s² (too fast for "
+                      f"Ts = {ts:g} s)")
+    ref = scn.reference
+    if ref.kind == "quintic-steps":
+        targets = [abs(m[2]) for m in getattr(ref, "moves", []) if len(m) == 3]
+        amplitude = max([*targets, abs(getattr(ref, "start", 0.0))])
+    else:
+        amplitude = abs(getattr(ref, "offset", 0.0)) + sum(
+            abs(a) for a in getattr(ref, "amplitudes", []))
+    if amplitude >= limit / 10:
+        causes.append(f"a reference of {amplitude:g} rad")
+    return causes
+
+
+def saturation_warning(fraction: float, torque_limit: float) -> str | None:
+    """A one-line warning when the command was saturated for most of a run, else None."""
+    if not fraction > SATURATION_WARNING:  # also None for NaN
+        return None
+    return (f"the command sat at the torque limit ±{torque_limit:g} N·m in "
+            f"{100 * fraction:.0f} % of the samples (saturated_fraction = {fraction:.3g}): the "
+            "loop is not the linearized one the FLC assumes; raise actuator.torque_limit or ask "
+            "for a gentler reference")

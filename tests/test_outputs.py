@@ -1,0 +1,233 @@
+"""Output files: unwritable paths are bad input, a full disk is one line, nothing half-written.
+
+Every command that writes checks its paths before any work (exit 2, one line
+naming the user's path), and every file goes through ``esoarm._io.atomic_path``
+(a full disk or a file-size limit: exit 1, one line, no partial file and no
+temporary file left behind).
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from esoarm import _io
+from esoarm.engines.simulation import simulate
+from esoarm.scenario import load_scenario
+
+SHORT = ["--set", "duration=1.0"]
+LINUX = sys.platform.startswith("linux")
+
+
+def _one_line(text: str) -> str:
+    lines = text.strip().splitlines()
+    assert len(lines) == 1, text
+    assert "Traceback" not in text
+    return lines[0]
+
+
+@pytest.fixture
+def log_csv(tmp_path: Path) -> Path:
+    """A short run written as CSV: has the t, theta, u columns replay needs."""
+    path = tmp_path / "log.csv"
+    simulate(load_scenario("test-1", {"duration": 1.0})).to_csv(path)
+    return path
+
+
+def _commands(log_csv: Path, target: str, directory: str) -> list[list[str]]:
+    return [
+        ["simulate", "test-1", *SHORT, "--out", target],
+        ["simulate", "test-1", *SHORT, "--plot", target.replace(".csv", ".png")],
+        ["sweep", "test-1", "--vary", "observer.eps=0.05", *SHORT, "--out", target],
+        ["sweep", "test-1", "--vary", "observer.eps=0.05,0.09", *SHORT, "--plot",
+         target.replace(".csv", ".png")],
+        ["tune", "test-1", "--vary", "observer.eps=0.05:0.1", *SHORT, "--out", target],
+        ["replay", str(log_csv), "--out", target],
+        ["replay", str(log_csv), "--plot", target.replace(".csv", ".png")],
+        ["run", "test-1", "--port", "/nonexistent/port", "--log", target],
+        ["reproduce", "--out", directory],
+    ]
+
+
+@pytest.mark.skipif(not LINUX or not os.path.isdir("/proc/self"), reason="needs Linux /proc")
+def test_unwritable_paths_are_bad_input_before_any_work(run_cli, log_csv, tmp_path):
+    """/proc accepts no new files: every output option says so in one line, exit 2."""
+    for args in _commands(log_csv, "/proc/esoarm-x.csv", "/proc/esoarm-results"):
+        res = run_cli(*args)
+        line = _one_line(res.stderr)
+        assert res.exit_code == 2 and res.exception is None, (args, res.stderr)
+        assert line.startswith("esoarm: error: --"), line
+        assert "/proc/esoarm-" in line and ".tmp" not in line, line
+
+
+def test_parent_that_is_a_file_is_bad_input(run_cli, log_csv, tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("x", encoding="utf-8")
+    for args in _commands(log_csv, str(afile / "r.csv"), str(afile / "res")):
+        res = run_cli(*args)
+        line = _one_line(res.stderr)
+        assert res.exit_code == 2 and res.exception is None, (args, res.stderr)
+        assert str(afile) in line and "not a directory" in line, line
+    assert afile.read_text(encoding="utf-8") == "x"
+
+
+def test_reproduce_out_that_is_a_file(run_cli, tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("x", encoding="utf-8")
+    res = run_cli("reproduce", "--out", str(afile))
+    assert res.exit_code == 2 and "not a directory" in _one_line(res.stderr)
+
+
+# -- the library: OutputError naming the user's path --------------------------------
+
+
+@pytest.mark.skipif(not LINUX or not os.path.isdir("/proc/self"), reason="needs Linux /proc")
+def test_api_writers_raise_output_error_naming_the_path(tmp_path):
+    from esoarm.hardware.replay import ReplayResult
+    from esoarm.studies.sweep import build_grid, run_sweep
+
+    res = simulate(load_scenario("test-1", {"duration": 0.2}))
+    grid = build_grid(load_scenario("test-1", {"duration": 0.2}), ["observer.eps=0.05"])
+    writers = [
+        lambda p: res.to_csv(p),
+        lambda p: res.plot(p.with_suffix(".png")),
+        lambda p: run_sweep(grid).write_csv(p),
+        lambda p: ReplayResult(res.t, res.theta, res.u, res.z, 0.02).to_csv(p),
+    ]
+    for write in writers:
+        with pytest.raises(_io.OutputError) as info:
+            write(Path("/proc/esoarm-api.csv"))
+        assert "/proc/esoarm-api" in str(info.value) and ".tmp" not in str(info.value)
+        assert isinstance(info.value, OSError)  # callers catching OSError still work
+
+
+def test_atomic_path_cleans_up_on_a_failed_write(tmp_path):
+    target = tmp_path / "out.csv"
+    target.write_text("old", encoding="utf-8")
+    with pytest.raises(_io.OutputError, match="no space left"), _io.atomic_path(target) as tmp:
+        tmp.write_text("partial", encoding="utf-8")
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp))
+    assert target.read_text(encoding="utf-8") == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
+
+
+def test_atomic_path_cleans_up_on_ctrl_c(tmp_path):
+    target = tmp_path / "out.csv"
+    with pytest.raises(KeyboardInterrupt), _io.atomic_path(target) as tmp:
+        tmp.write_text("partial", encoding="utf-8")
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_check_writable_leaves_nothing_behind(tmp_path):
+    _io.check_writable(tmp_path / "a" / "b" / "c.csv")
+    _io.check_writable(tmp_path / "x" / "y", directory=True)
+    _io.check_writable(tmp_path / "f.csv")
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- a full disk: one line, exit 1, no partial and no temporary file -----------------
+
+FSIZE = 40_000  # bytes: more than any script needs, less than the outputs below
+
+
+def _limited(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    import resource
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (FSIZE, FSIZE))
+
+    return subprocess.run(
+        [sys.executable, "-c", "import sys; from esoarm.cli import main; main(sys.argv[1:])",
+         *args], capture_output=True, text=True, timeout=300, cwd=cwd, preexec_fn=limit)
+
+
+@pytest.mark.skipif(not LINUX, reason="RLIMIT_FSIZE and SIGXFSZ semantics")
+@pytest.mark.parametrize("kind", ["simulate-csv", "simulate-plot", "sweep-csv", "replay-csv",
+                                  "reproduce"])
+def test_file_size_limit_is_one_line_exit_1(kind, tmp_path, log_csv):
+    out = tmp_path / "out"
+    out.mkdir()
+    args = {
+        "simulate-csv": ["simulate", "test-1", "--set", "duration=20", "--out", "run.csv"],
+        "simulate-plot": ["simulate", "test-1", "--set", "duration=20", "--plot", "run.svg"],
+        "sweep-csv": ["sweep", "test-1", "--vary", "observer.eps=geom:0.03:0.3:400",
+                      "--set", "duration=0.5", "--out", "sweep.csv"],
+        "replay-csv": ["replay", str(log_csv), "--set", "observer.eps=0.05", "--out", "r.csv"],
+        "reproduce": ["reproduce", "--out", "res"],
+    }[kind]
+    if kind == "replay-csv":  # a log long enough to exceed the limit
+        simulate(load_scenario("test-1", {"duration": 20.0})).to_csv(log_csv)
+    proc = _limited([*args, "--quiet"], out)  # --quiet: warnings off, the error still shown
+    line = _one_line(proc.stderr)
+    assert proc.returncode == 1, proc.stderr
+    assert line.startswith("esoarm: failed: cannot write '") and "file too large" in line
+    assert ".tmp" not in line
+    left = [p for p in out.rglob("*") if p.is_file()]
+    if kind == "reproduce":  # the files finished before the limit are whole; no temporary
+        assert not any(p.name.endswith(".tmp") for p in left), left
+    else:
+        assert left == [], left
+
+
+@pytest.mark.skipif(not LINUX or os.geteuid() != 0, reason="mounting a tmpfs needs root")
+def test_full_tmpfs_is_one_line_exit_1(tmp_path):
+    """A really full disk (a 64 kB tmpfs), not only a file-size limit."""
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(mnt)],
+                             capture_output=True, check=False)
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-c", "import sys; from esoarm.cli import main; main(sys.argv[1:])",
+             "simulate", "test-1", "--set", "duration=20", "--out", str(mnt / "run.csv")],
+            capture_output=True, text=True, timeout=120)
+        line = _one_line(proc.stderr)
+        assert proc.returncode == 1 and "no space left on the device" in line, proc.stderr
+        assert str(mnt / "run.csv") in line
+        assert list(mnt.iterdir()) == []
+    finally:
+        subprocess.run(["umount", str(mnt)], check=False)
+
+
+def test_run_log_that_cannot_be_written_stops_the_run_cleanly(tmp_path):
+    """The streamed rig log: a failed write is a fault; the file keeps whole rows only."""
+    from esoarm.hardware import loop
+
+    path = tmp_path / "log.csv"
+    log = loop._LogWriter(path)
+    for k in range(3):
+        log.write(f"{k},1,2,3,4,5,6,7,8,9,10,11,12,13\n")
+
+    class Full:
+        def write(self, text: str) -> None:
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        def close(self) -> None:
+            pass
+
+    assert log._fh is not None
+    log._fh.flush()
+    with path.open("a", encoding="utf-8") as fh:  # a half row reached the disk
+        fh.write("3,1,2")
+    log._fh = Full()  # type: ignore[assignment]
+    with pytest.raises(loop._Stop, match="cannot write the log .*no space left"):
+        log.write("3,1,2,3,4,5,6,7,8,9,10,11,12,13\n")
+    log.close()
+    lines = path.read_text(encoding="utf-8").splitlines()
+    assert len(lines) == 4 and lines[0].startswith("t,") and log.rows == 3
+    assert np.loadtxt(path, delimiter=",", skiprows=1).shape == (3, 14)
+
+
+def test_a_suffix_without_a_name_is_bad_input(run_cli):
+    res = run_cli("simulate", "test-1", "--out", ".csv")
+    assert res.exit_code == 2
+    assert "give a file name before the suffix" in _one_line(res.stderr)
