@@ -270,7 +270,7 @@ def test_scenarios_lists_builtins(run_cli):
     res = run_cli("scenarios")
     assert res.exit_code == 0
     names = [line.split()[0] for line in res.stdout.strip().splitlines()]
-    assert names == builtin_names() == ["test-1", "test-2"]
+    assert names == builtin_names() == ["test-1", "test-2", "uno-rig"]
 
 
 @pytest.mark.parametrize("name", builtin_names())

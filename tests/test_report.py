@@ -243,3 +243,23 @@ def test_summary_is_computed_from_the_runs(outputs):
     for claim in rep.claims:
         part = text.split("Not reproduced:")[1 if not claim.reproduced else 0]
         assert claim.statement in part
+
+
+def test_report_depends_only_on_the_reproduction_data() -> None:
+    """No import cycle: the report reads a Reproduction, it never imports the runner."""
+    import subprocess
+    import sys
+
+    code = ("import sys, esoarm.studies.report as r, esoarm.studies.reproduction; "
+            "import inspect; inspect.getsource(r); "
+            "print(sorted(m for m in sys.modules if m.startswith('esoarm.studies.')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert "esoarm.studies.reproduce'" not in out and "reproduce_outputs" not in out
+    import ast
+
+    tree = ast.parse((ROOT / "src/esoarm/studies/report.py").read_text())
+    imported = {node.module for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom) and node.module}
+    assert {m for m in imported if m.startswith("esoarm.studies")} == {
+        "esoarm.studies.reproduction"}

@@ -36,10 +36,10 @@ def test_plan_runs_every_scenario_once():
     assert len(set(texts)) == len(texts)
     # paper's set (7) + zoh and current copies (2 × 7) + sweep ε not in EPS_SET (3 × 6)
     n_new_eps = len([e for e in SWEEP_EPS if e not in EPS_SET])
-    assert len(plan) == 7 + 2 * 7 + 3 * n_new_eps
+    assert len(plan) == 7 + 2 + 2 * 7 + 3 * n_new_eps  # + the PID baseline on both tests
     discs = {s.observer.discretization for s in plan.values()}
     assert discs == set(DISCRETIZATIONS)
-    assert len(plan_runs(compare=False)) == 7
+    assert len(plan_runs(compare=False)) == 7 + 2
 
 
 def test_overrides_reach_every_run():
@@ -184,14 +184,14 @@ def test_cli_reproduce_writes_everything(run_cli, tmp_path):
         assert (out / name).is_file(), name
     assert (out / "fig4.svg").read_text()[:200].lstrip().startswith("<?xml")
     assert not list(out.glob("*.png")) and not list(out.glob(".*tmp"))
-    assert len(list((out / "runs").glob("*.csv"))) == 7
+    assert len(list((out / "runs").glob("*.csv"))) == 7 + 2  # + the PID baseline runs
     data = json.loads((out / "tables.json").read_text())
     for key in ("tables", "claims", "discretizations", "eps_sweep", "observer_checks",
                 "bound_checks", "findings", "scenarios", "esoarm_version"):
         assert data[key], key
     with open(out / "tables.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
-    assert {r["run"] for r in rows} == set(experiment_set())
+    assert {r["run"] for r in rows} == set(experiment_set()) | {"test-1_pid", "test-2_pid"}
     assert float(rows[0]["rms_error"]) == pytest.approx(data["tables"][0]["rms_error"])
     html = (out / "report.html").read_text()
     assert '<img src="data:image/png;base64,' in html
@@ -230,3 +230,15 @@ def test_cli_reproduce_diverged_run_is_exit_1_and_writes_nothing(run_cli, tmp_pa
     assert res.exit_code == 1
     assert "diverged" in res.stderr and "Traceback" not in res.stderr
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_pid_baseline_rows() -> None:
+    """The PID baseline: a row per test, the runs of controller.kind = "pid"."""
+    from esoarm.engines.simulation import simulate
+
+    rep = run_reproduction(["duration=4"], compare=False)
+    rows = [r for r in rep.rows if r["table"] == "baseline"]
+    assert [r["test"] for r in rows] == ["test-1", "test-2"]
+    for row in rows:
+        res = simulate(row["test"], {"duration": 4.0, "controller.kind": "pid"}, warn=False)
+        assert row["rms_error"] == res.metrics["rms_error"] and row["compensation"] == "pid"

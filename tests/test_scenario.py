@@ -47,7 +47,7 @@ def _get(scn: Scenario, dotted: str):
 
 
 def test_builtin_names():
-    assert builtin_names() == ["test-1", "test-2"]
+    assert builtin_names() == ["test-1", "test-2", "uno-rig"]
 
 
 @pytest.mark.parametrize("key", list(SPEC_DEFAULTS))

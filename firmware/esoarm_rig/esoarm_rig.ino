@@ -15,6 +15,8 @@
  *   - STOP  -> motor off, sampling stops, STOPPED
  *   - watchdog: no valid DUTY within 100 ms -> motor off, FAULT(WATCHDOG);
  *     the motor stays off until the next START
+ *   - encoder check: both lines changed between two interrupts (a glitch, or an
+ *     edge missed) -> motor off, FAULT(ENCODER); off until the next START
  * Corrupted or partial frames are counted and skipped by the parser in
  * esoarm_protocol.h (the same rule as the Python host; see docs/protocol.md).
  * See docs/hardware.md for wiring, flashing and the first run.
@@ -22,12 +24,19 @@
 #include "esoarm_protocol.h"
 
 /* ---- configuration (match the scenario: sensor.rate_hz, sensor.resolution_deg) ---- */
+/* Each can also be set from the build: make -C firmware SAMPLE_PERIOD_US=1000 BAUD=1000000 */
+#ifndef SAMPLE_PERIOD_US
 #define SAMPLE_PERIOD_US 20000UL   /* 50 Hz, as in the paper */
+#endif
+#ifndef ENCODER_PPR
 #define ENCODER_PPR 600UL          /* HN3806-600BM: 600 pulses/rev per channel */
+#endif
 #define COUNTS_PER_REV (4UL * ENCODER_PPR) /* x4 decoding: 2400 -> 0.15 deg */
 #define PWM_MAX 255                /* analogWrite range on AVR */
 #define WATCHDOG_MS 100UL
-#define BAUD 115200UL
+#ifndef BAUD
+#define BAUD 115200UL              /* 1000000 for 1 kHz sampling (see docs/hardware.md) */
+#endif
 
 #define PIN_ENC_A 2                /* interrupt pins on Uno/Nano */
 #define PIN_ENC_B 3
@@ -43,8 +52,12 @@
 
 static volatile int32_t encoder_count = 0;
 static volatile uint8_t encoder_state = 0;
-/* x4 quadrature table: index = (previous AB << 2) | current AB -> step */
-static const int8_t QUAD_TABLE[16] = {0, +1, -1, 0, -1, 0, 0, +1, +1, 0, 0, -1, 0, -1, +1, 0};
+static volatile uint8_t encoder_errors = 0;   /* invalid transitions since START (saturates) */
+/* x4 quadrature table: index = (previous AB << 2) | current AB -> step; QUAD_BAD where
+ * both lines changed between two reads (a glitch, or an edge missed): the count is wrong */
+#define QUAD_BAD 2
+static const int8_t QUAD_TABLE[16] = {0, +1, -1, QUAD_BAD, -1, 0, QUAD_BAD, +1,
+                                      +1, QUAD_BAD, 0, -1, QUAD_BAD, -1, +1, 0};
 
 static eso_parser_t parser;
 static uint8_t tx_seq = 0;
@@ -52,15 +65,32 @@ static uint8_t frame_buf[ESO_MAX_FRAME];
 
 static bool running = false;
 static bool watchdog_tripped = false;
+static bool encoder_fault = false;
 static uint32_t sample_k = 0;
 static uint32_t t_start_us = 0;
 static uint32_t next_sample_us = 0;
 static uint32_t last_command_ms = 0;
 
+/* The encoder levels AB (bit 1 = A, bit 0 = B). */
+static inline uint8_t read_ab()
+{
+#if defined(__AVR_ATmega328P__) && PIN_ENC_A == 2 && PIN_ENC_B == 3
+    uint8_t pins = PIND; /* Uno/Nano: A = PD2, B = PD3, sampled in one instruction */
+    return (uint8_t)(((pins >> 1) & 0x02u) | ((pins >> 3) & 0x01u));
+#else
+    return (uint8_t)((digitalRead(PIN_ENC_A) << 1) | digitalRead(PIN_ENC_B));
+#endif
+}
+
 static void encoder_isr()
 {
-    uint8_t ab = (uint8_t)((digitalRead(PIN_ENC_A) << 1) | digitalRead(PIN_ENC_B));
-    encoder_count += QUAD_TABLE[(encoder_state << 2) | ab];
+    uint8_t ab = read_ab();
+    int8_t step = QUAD_TABLE[(encoder_state << 2) | ab];
+    if (step == QUAD_BAD) {
+        if (encoder_errors < 255) encoder_errors++;
+    } else {
+        encoder_count += step;
+    }
     encoder_state = ab;
 }
 
@@ -111,7 +141,9 @@ static void handle_frame(const eso_frame_t *f)
         motor_off();
         noInterrupts();
         encoder_count = 0;   /* the angle at START is theta = 0 */
+        encoder_errors = 0;
         interrupts();
+        encoder_fault = false;
         sample_k = 0;
         t_start_us = micros();
         next_sample_us = t_start_us;
@@ -127,7 +159,7 @@ static void handle_frame(const eso_frame_t *f)
                                         eso_get_u32(f->payload)));
             break;
         }
-        if (!running || watchdog_tripped) break;
+        if (!running || watchdog_tripped || encoder_fault) break;
         last_command_ms = millis();
         motor_write(duty);
         break;
@@ -156,7 +188,7 @@ void setup()
     pinMode(PIN_IN2, OUTPUT);
 #endif
     motor_off();
-    encoder_state = (uint8_t)((digitalRead(PIN_ENC_A) << 1) | digitalRead(PIN_ENC_B));
+    encoder_state = read_ab();
     attachInterrupt(digitalPinToInterrupt(PIN_ENC_A), encoder_isr, CHANGE);
     attachInterrupt(digitalPinToInterrupt(PIN_ENC_B), encoder_isr, CHANGE);
     eso_parser_init(&parser);
@@ -176,6 +208,13 @@ void loop()
         motor_off();
         watchdog_tripped = true;
         send_frame(eso_encode_fault(frame_buf, tx_seq, ESO_FAULT_WATCHDOG, sample_k));
+    }
+
+    if (!encoder_fault && encoder_errors != 0) {
+        /* the angle can no longer be trusted: motor off until the next START */
+        motor_off();
+        encoder_fault = true;
+        send_frame(eso_encode_fault(frame_buf, tx_seq, ESO_FAULT_ENCODER, sample_k));
     }
 
     uint32_t now = micros();

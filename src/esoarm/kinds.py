@@ -24,8 +24,8 @@ import numpy as np
 from pydantic import Field
 
 from esoarm._jit import jitable
-from esoarm.controllers import flc
-from esoarm.observers import linear
+from esoarm.controllers import flc, pid
+from esoarm.observers import linear, nonlinear
 from esoarm.plants import lever_arm
 
 if TYPE_CHECKING:
@@ -35,8 +35,8 @@ __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "kinds_of", "tagged_un
 
 #: Registered kinds per component; the first is the default.
 PLANTS: tuple[ModuleType, ...] = (lever_arm,)
-OBSERVERS: tuple[ModuleType, ...] = (linear,)
-CONTROLLERS: tuple[ModuleType, ...] = (flc,)
+OBSERVERS: tuple[ModuleType, ...] = (linear, nonlinear)
+CONTROLLERS: tuple[ModuleType, ...] = (flc, pid)
 
 
 def _check(component: str, kinds: tuple[ModuleType, ...]) -> None:
@@ -82,7 +82,15 @@ class Kinds(NamedTuple):
 
 
 def kinds_of(scn: Scenario) -> Kinds:
-    """The kind modules a scenario selects."""
+    """The kind modules a scenario selects.
+
+    Examples
+    --------
+    >>> from esoarm.scenario import load_scenario
+    >>> k = kinds_of(load_scenario("test-1", {"observer.kind": "nonlinear"}))
+    >>> k.plant.KIND, k.observer.KIND, k.controller.KIND, k.jit
+    ('lever-arm', 'nonlinear', 'flc', True)
+    """
     return Kinds(by_name(PLANTS, scn.plant.kind), by_name(OBSERVERS, scn.observer.kind),
                  by_name(CONTROLLERS, scn.controller.kind))
 
@@ -115,30 +123,45 @@ def plant_acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
 @jitable
 def observer_initialize(z: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
     """``initialize`` of the observer kind whose CODE is p[0]."""
-    linear.initialize(z, y, p)
+    if p[0] == nonlinear.CODE:
+        nonlinear.initialize(z, y, p)
+    else:
+        linear.initialize(z, y, p)
 
 
 @jitable
 def observer_estimate(z: np.ndarray, y: np.ndarray, p: np.ndarray, zhat: np.ndarray) -> None:
     """``estimate`` of the observer kind whose CODE is p[0]."""
-    linear.estimate(z, y, p, zhat)
+    if p[0] == nonlinear.CODE:
+        nonlinear.estimate(z, y, p, zhat)
+    else:
+        linear.estimate(z, y, p, zhat)
 
 
 @jitable
 def observer_advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
                      p: np.ndarray) -> None:
     """``advance`` of the observer kind whose CODE is p[0]."""
-    linear.advance(z, zhat, y, u, p)
+    if p[0] == nonlinear.CODE:
+        nonlinear.advance(z, zhat, y, u, p)
+    else:
+        linear.advance(z, zhat, y, u, p)
 
 
 @jitable
 def controller_initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
     """``initialize`` of the controller kind whose CODE is p[0]."""
-    flc.initialize(c, y, p)
+    if p[0] == pid.CODE:
+        pid.initialize(c, y, p)
+    else:
+        flc.initialize(c, y, p)
 
 
 @jitable
 def controller_control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
                        p: np.ndarray, u: np.ndarray) -> None:
     """``control`` of the controller kind whose CODE is p[0]."""
-    flc.control(c, zhat, y, refs, k, p, u)
+    if p[0] == pid.CODE:
+        pid.control(c, zhat, y, refs, k, p, u)
+    else:
+        flc.control(c, zhat, y, refs, k, p, u)

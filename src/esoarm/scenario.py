@@ -302,6 +302,16 @@ def load_scenario(
     ScenarioError
         Unknown scenario, missing file, TOML syntax error, unknown key, wrong
         type, or a value out of range; the message names the key or file.
+
+    Examples
+    --------
+    >>> scn = load_scenario("test-1", ["observer.eps=0.05", "controller.kind=pid"])
+    >>> scn.observer.eps, scn.controller.kind, scn.n_samples
+    (0.05, 'pid', 1000)
+    >>> load_scenario("test-1", {"obs.eps": 0.05})
+    Traceback (most recent call last):
+    ...
+    esoarm.scenario.ScenarioError: override: unknown key 'obs.eps'; did you mean 'observer.eps'?
     """
     if isinstance(scenario, Scenario):
         return scenario.with_overrides(overrides or {})
@@ -344,8 +354,15 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     for key, value in over.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
             old_kind = out[key].get("kind")
-            if key in KIND_SECTIONS and value.get("kind", old_kind) != old_kind:
-                out[key] = copy.deepcopy(value)  # another kind: its own defaults
+            new_kind = value.get("kind", old_kind)
+            if key in KIND_SECTIONS and new_kind != old_kind:
+                # another kind: its own defaults, keeping the values of the keys both share
+                # (e.g. observer.eps from "linear" to "nonlinear")
+                models = [m for m in KIND_SECTIONS[key]
+                          if m.model_fields["kind"].default == new_kind]
+                shared = set(models[0].model_fields) - {"kind"} if models else set()
+                kept = {k: v for k, v in out[key].items() if k in shared}
+                out[key] = _merge(kept, value)
             else:
                 out[key] = _merge(out[key], value)
         else:

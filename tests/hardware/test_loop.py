@@ -129,7 +129,7 @@ def test_nan_guard(tmp_path, monkeypatch):
 def test_device_fault_report_stops(tmp_path):
     scn = load_scenario("test-1", ["duration=1"])
     link = FakeLink(scn, fault_at=7)
-    with pytest.raises(RigFault, match="device reported a command watchdog fault"):
+    with pytest.raises(RigFault, match="device reported a fault: command watchdog"):
         run_rig(scn, link, tmp_path / "f.csv")
     assert link.stopped and len(_log(tmp_path / "f.csv")) == 7
 

@@ -42,6 +42,7 @@ COMMANDS: dict[str, str] = {
     "emulate": "esoarm.cli.rig:emulate",
     "run": "esoarm.cli.rig:run",
     "replay": "esoarm.cli.rig:replay",
+    "hil": "esoarm.cli.hil:hil",
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
 }
@@ -54,6 +55,8 @@ SUMMARIES: dict[str, str] = {
     "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",
     "excite": "Record an identification experiment on the rig at PORT or on the twin of "
               "SCENARIO.",
+    "hil": "Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its "
+           "pins.",
     "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "
                 "error).",
     "replay": "Run the ESO offline over LOG.csv to recover velocity and perturbation estimates.",

@@ -109,32 +109,38 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
               help="Stop when the measured angle changes more than this in one sample [rad].")
 @click.option("--watchdog", type=float, default=0.25, show_default=True, metavar="SECONDS",
               help="Stop when no sample arrives for this long [s].")
+@click.option("--max-error", type=float, default=0.5, show_default=True, metavar="RAD",
+              help="Stop when the measured following error |θ − θd| exceeds this [rad] (a "
+              "driver or encoder fault leaves the arm behind its reference).")
 @click.option("--baud", type=int, default=115200, show_default=True, metavar="BITS/S",
               help="Serial line rate [bit/s]; must match the firmware (ignored by USB CDC "
               "boards and pseudo-terminals). 1 kHz sampling needs about 500000 or more.")
 @bad_input_guard
 def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, as_json: bool,
-        angle_limit: float, max_jump: float, watchdog: float, baud: int) -> None:
+        angle_limit: float, max_jump: float, watchdog: float, max_error: float,
+        baud: int) -> None:
     """Drive the rig on PORT through SCENARIO at its rate for its duration.
 
     The ESO + FLC of the scenario runs on this host, one sample at a time; the
     device sends encoder counts and receives torques [N·m] (ideal torque source)
     or PWM duties (with a [motor] table). Safety: torque limit, angle limit,
-    encoder-jump check, watchdog on incoming samples, NaN guard. A fault sends
-    stop, keeps the log and exits 1; Ctrl-C does the same and exits 130.
+    encoder-jump check, following-error limit, watchdog on incoming samples,
+    NaN guard. A fault sends stop, keeps the log and exits 1; Ctrl-C does the
+    same and exits 130.
     """
     from esoarm.hardware.link import LinkError, SerialLink
     from esoarm.hardware.loop import RigFault, RigInterrupted, SafetyLimits, run_rig
 
     log_path = output_path(log, "--log", (".csv",))
     for name, value in (("--angle-limit", angle_limit), ("--max-jump", max_jump),
-                        ("--watchdog", watchdog)):
+                        ("--watchdog", watchdog), ("--max-error", max_error)):
         if not (math.isfinite(value) and value > 0):
             raise BadInput(f"{name} {value:g}: must be a finite number > 0")
     if baud <= 0:
         raise BadInput(f"--baud {baud}: must be > 0")
     scn = resolve_scenario(scenario, overrides)
-    limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog)
+    limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog,
+                          max_error=max_error)
     try:
         link = SerialLink(port, baudrate=baud)
     except LinkError as exc:

@@ -170,6 +170,14 @@ def simulate(
     ------
     SimulationDiverged
         The state left the finite range; the exception holds the partial result.
+
+    Examples
+    --------
+    >>> res = simulate("test-1", {"duration": 2.0})
+    >>> len(res.t), round(res.metrics["rms_error"], 3) < 0.05
+    (100, True)
+    >>> res.table().shape  # t, theta, theta_ref, error, u, z1, z2, z3, f_true, y, saturated
+    (100, 11)
     """
     scn = load_scenario(scenario, overrides) if overrides or not isinstance(
         scenario, Scenario) else scenario

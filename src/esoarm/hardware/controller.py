@@ -18,6 +18,7 @@ reference is precomputed for all N samples with the same vectorized
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import numpy as np
 
@@ -25,7 +26,30 @@ from esoarm.engines.simulation import prepare
 from esoarm.plants.actuator import LIMIT, actuate, saturate
 from esoarm.scenario import Scenario
 
-__all__ = ["DeploymentController"]
+__all__ = ["DeploymentController", "SampleController"]
+
+
+class SampleController(Protocol):
+    """What the real-time loop drives per sample: :class:`DeploymentController` and the
+    identification's excitation controller both provide it."""
+
+    n_samples: int
+    ts: float
+    t: list[float]
+    torque_limit: float
+    zhat: tuple[float, float, float]
+
+    def reference(self, k: int) -> float:
+        """θd(t_k) [rad]."""
+
+    def step(self, k: int, y: float) -> float:
+        """Command u_k [N·m] from the measured angle y_k [rad]."""
+
+    def commit(self, u: float) -> None:
+        """The torque u_k [N·m] applied from t_k on."""
+
+    def predict(self, u: float) -> tuple[float, float, float]:
+        """Bridge a lost sample; return the estimate used for it."""
 
 
 class DeploymentController:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm.hardware.controller import SampleController
 from esoarm.hardware.emulator import Twin
 from esoarm.hardware.loop import LOG_COLUMNS, RunSummary, SafetyLimits, _LogWriter
 from esoarm.scenario import Scenario
@@ -40,7 +41,8 @@ class ExcitationFault(RuntimeError):
 
 
 def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | None = None,
-                limits: SafetyLimits | None = None, controller: object | None = None,
+                limits: SafetyLimits | None = None,
+                controller: SampleController | None = None,
                 ) -> tuple[RunSummary, dict[str, float]]:
     """Run the experiment on the digital twin of ``scn``.
 
@@ -72,7 +74,8 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
         The measured angle left ±angle_limit; the log keeps the rows written.
     """
     limits = limits or SafetyLimits()
-    ctl = controller if controller is not None else ExcitationController(scn, plan)  # type: ignore[arg-type]
+    ctl: SampleController = (controller if controller is not None
+                             else ExcitationController(scn, plan))  # type: ignore[arg-type]
     twin = Twin(scn)
     motor = twin.motor
     log = _LogWriter(log_path, TWIN_LOG_COLUMNS)

@@ -12,7 +12,8 @@ the sampled-data loop, steps 1-5 with :class:`~esoarm.hardware.controller.Deploy
 5. ESO update with the torque applied from t_k on
 
 Safety: |u| ≤ torque_limit (the FLC saturates; checked again), |y| ≤ angle
-limit, |y_k − y_{k−1}| ≤ max jump (encoder glitches), a host watchdog on
+limit, |y_k − y_{k−1}| ≤ max jump (encoder glitches), |y_k − θd(t_k)| ≤ max
+following error (a dead driver or encoder line), a host watchdog on
 incoming samples, and a NaN guard on u and ẑ.  Any fault, a device FAULT
 report, a lost port or Ctrl-C ends the run the same way: STOP is sent (the
 device turns the motor off; its own 100 ms watchdog does so too if the link is
@@ -36,13 +37,14 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from esoarm._io import OutputError, describe_os_error
 from esoarm.engines.metrics import series_metrics
 from esoarm.hardware import protocol as P
-from esoarm.hardware.controller import DeploymentController
+from esoarm.hardware.controller import DeploymentController, SampleController
 from esoarm.hardware.link import LinkError, SerialLink
 from esoarm.plants.actuator import actuate, actuator_vector
 from esoarm.plants.motor import MotorParams
@@ -71,11 +73,17 @@ class SafetyLimits:
         Largest allowed change of the measured angle between two samples [rad].
     watchdog : float
         Longest wait for the next sample [s].
+    max_error : float
+        Largest allowed following error |θ − θd| measured [rad]: a driver that no
+        longer drives or an encoder line that no longer counts leaves the arm
+        behind its reference. Off (inf) by default here; ``esoarm run`` sets it
+        (``--max-error``, 0.5 rad).
     """
 
     angle_limit: float = math.pi
     max_jump: float = 0.5
     watchdog: float = 0.25
+    max_error: float = math.inf
 
 
 @dataclass
@@ -202,7 +210,7 @@ class _SigintFlag:
 
     def __init__(self) -> None:
         self.hit = False
-        self._old = None
+        self._old: Any = None
 
     def __enter__(self) -> _SigintFlag:
         if threading.current_thread() is threading.main_thread():
@@ -226,7 +234,7 @@ class _Stop(Exception):
 def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             limits: SafetyLimits | None = None,
             status: Callable[[dict], None] | None = None,
-            controller: DeploymentController | None = None) -> RunSummary:
+            controller: SampleController | None = None) -> RunSummary:
     """Drive the device on ``link`` through one run of ``scn``.
 
     Parameters
@@ -356,8 +364,9 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             if kind == P.FAULT:
                 code, detail = frame.fields()
                 name = {P.FAULT_WATCHDOG: "command watchdog", P.FAULT_OVERRUN: "overrun",
-                        P.FAULT_BAD_COMMAND: "bad command"}.get(code, f"code {code}")
-                raise _Stop(f"device reported a {name} fault (detail {detail})")
+                        P.FAULT_BAD_COMMAND: "bad command",
+                    P.FAULT_ENCODER: "encoder"}.get(code, f"code {code}")
+                raise _Stop(f"device reported a fault: {name} (detail {detail})")
             if kind == P.STOPPED:
                 raise _Stop(f"device stopped unexpectedly at sample {k_next}")
             if kind != P.SAMPLE:
@@ -392,6 +401,9 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             if abs(y) > limits.angle_limit:
                 raise _Stop(f"angle limit: measured θ = {y:.4g} rad at sample {k} "
                             f"(limit ±{limits.angle_limit:g} rad)")
+            if abs(y - ctl.reference(k)) > limits.max_error:
+                raise _Stop(f"following error: θ − θd = {y - ctl.reference(k):.4g} rad at "
+                            f"sample {k} (limit {limits.max_error:g} rad)")
             u = ctl.step(k, y)
             z1, z2, z3 = ctl.zhat
             if not (isfinite(u) and isfinite(z1) and isfinite(z2) and isfinite(z3)):

@@ -69,6 +69,7 @@ FLAG_LOCKSTEP = 0x02  # device advances one sample per command (emulator --locks
 FAULT_WATCHDOG = 1  # no valid command within 100 ms; motor zeroed
 FAULT_OVERRUN = 2  # the device missed its own sample deadline
 FAULT_BAD_COMMAND = 3  # duty out of range or a command type the device does not accept
+FAULT_ENCODER = 4  # both encoder lines changed between two reads: counts were lost
 
 #: struct format of each payload (fixed length per type)
 FORMATS: dict[int, str] = {

@@ -18,7 +18,7 @@ __all__ = ["measure", "noise_sequence", "quantize"]
 
 
 @jitable
-def quantize(x, q):  # type: ignore[no-untyped-def]
+def quantize(x: float, q: float) -> float:
     """Round x to the nearest multiple of q (halves up); identity for q = 0."""
     if q > 0.0:
         return q * math.floor(x / q + 0.5)
@@ -26,7 +26,7 @@ def quantize(x, q):  # type: ignore[no-untyped-def]
 
 
 @jitable
-def measure(theta, noise, sigma, q):  # type: ignore[no-untyped-def]
+def measure(theta: float, noise: float, sigma: float, q: float) -> float:
     """Encoder reading Q(θ + σ n) [rad]."""
     return quantize(theta + sigma * noise, q)
 

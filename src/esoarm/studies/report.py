@@ -1,6 +1,6 @@
 """The reproduction report: one self-contained HTML page (``report.html``).
 
-:func:`render_report` turns a :class:`esoarm.studies.reproduce.Reproduction` and its
+:func:`render_report` turns a :class:`esoarm.studies.reproduction.Reproduction` and its
 figures (PNG bytes) into a single HTML document with inline CSS and figures
 embedded as base64 ``data:`` URIs: no scripts, no network, no other files.
 It shows
@@ -16,7 +16,7 @@ It shows
 - the esoarm version and the resolved scenarios.
 
 Every number on the page comes from the :class:`Reproduction` (the paper's
-values from :data:`esoarm.studies.reproduce.PAPER_TABLES`, quoted).
+values from :data:`esoarm.studies.reproduction.PAPER_TABLES`, quoted).
 """
 
 from __future__ import annotations
@@ -24,14 +24,14 @@ from __future__ import annotations
 import base64
 import html
 import platform
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from esoarm import __version__
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
-    from esoarm.studies.reproduce import Reproduction
+    from esoarm.studies.reproduction import Reproduction
 
 __all__ = ["ASSUMPTIONS", "assumption_rows", "render_report", "summary_text"]
 
@@ -179,12 +179,14 @@ def summary_text(rep: Reproduction) -> str:
     The ratio of the paper's RMS control to the twin's, the ε with the lowest
     RMS tracking error per test, and the claims reproduced and not.
     """
-    from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
+    from esoarm.studies.reproduction import EPS_SET, PAPER_TABLES, TABLE_NAMES
 
     ratios = [PAPER_TABLES[t][e][1] / rep.metric(t, e, "rms_u")
               for t in TABLE_NAMES for e in EPS_SET]
-    best = {t: min(EPS_SET, key=lambda e, t=t: rep.metric(t, e, "rms_error"))
-            for t in TABLE_NAMES}
+    def error_at(test: str) -> Callable[[float], float]:
+        return lambda eps: rep.metric(test, eps, "rms_error")
+
+    best = {t: min(EPS_SET, key=error_at(t)) for t in TABLE_NAMES}
     ok = [f"{c.statement} ({c.source})" for c in rep.claims if c.reproduced]
     not_ok = [f"{c.statement} ({c.source})" for c in rep.claims if not c.reproduced]
     return (
@@ -206,7 +208,7 @@ def _img(pngs: Mapping[str, bytes], stem: str, caption: str) -> str:
 
 
 def _tables_section(rep: Reproduction) -> str:
-    from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
+    from esoarm.studies.reproduction import EPS_SET, PAPER_TABLES, TABLE_NAMES
 
     parts = ['<div class="pair">']
     for test, name in TABLE_NAMES.items():
@@ -223,6 +225,18 @@ def _tables_section(rep: Reproduction) -> str:
         '<p class="muted">RMS over the run. Paper: hardware (quoted from its Tables II and III). '
         "Twin: the built-in digital twin with the assumptions listed below. A twin does not "
         "reproduce hardware numbers; compare the trends, which the claims below check.</p>")
+    if rep.baselines:
+        rows = [[_e(test), f"{res.metrics['rms_error']:.4f}", f"{res.metrics['rms_u']:.4f}",
+                 f"{rep.metric(test, 0.09, 'rms_error'):.4f}",
+                 f"{rep.metric(test, 0.09, 'rms_u'):.4f}"]
+                for test, res in rep.baselines.items()]
+        parts.append(
+            "<h3>Baseline: a discrete PID on the measured angle (not in the paper)</h3>"
+            "<p>The same twin and tests with <code>controller.kind = \"pid\"</code> at its "
+            "default gains (tuned on test-1; derivative filter, anti-windup), beside the "
+            "paper's ESO + FLC at ε = 0.09 s.</p>" + _table(
+                ["test", "error [rad]<br>PID", "control [N·m]<br>PID",
+                 "error [rad]<br>ESO + FLC", "control [N·m]<br>ESO + FLC"], rows))
     return "".join(parts)
 
 
@@ -296,7 +310,7 @@ def _theorem_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
 
 
 def _discretization_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str:
-    from esoarm.studies.reproduce import discretization_findings, table_metrics
+    from esoarm.studies.reproduction import table_metrics
 
     if not rep.comparison:
         return "<p>Not run (reproduction without comparisons).</p>"
@@ -321,7 +335,7 @@ def _discretization_section(rep: Reproduction, pngs: Mapping[str, bytes]) -> str
                       "RMS tracking error and control noise RMS(Δu) against ε on test-1, one "
                       "line per discretization; grey: ε ≤ Ts"))
     parts.append("<h3>What this means for choosing ε at 50 Hz</h3><ul>")
-    parts += [f"<li>{_e(s)}</li>" for s in discretization_findings(rep)]
+    parts += [f"<li>{_e(s)}</li>" for s in rep.findings]
     parts.append("</ul>")
     sweep_rows = [[_e(r["discretization"]), f"{r['eps']:g}", f"{r['rms_error']:.4f}",
                    f"{r['rms_u']:.4f}", f"{r['du_rms']:.4f}", f"{r['pert_est_rms']:.3g}"]
@@ -357,7 +371,8 @@ def _scenarios_section(rep: Reproduction) -> str:
 
 
 def render_report(rep: Reproduction, pngs: Mapping[str, bytes],
-                  extra_sections: Sequence[tuple[str, str, str]] = ()) -> str:
+                  extra_sections: Sequence[tuple[str, str, str]] = (),
+                  captions: Mapping[str, str] | None = None) -> str:
     """The reproduction report as one self-contained HTML document.
 
     Parameters
@@ -370,23 +385,24 @@ def render_report(rep: Reproduction, pngs: Mapping[str, bytes],
     extra_sections : sequence of (id, title, HTML)
         Further sections, placed after the claims (e.g. the two twins of
         :func:`esoarm.studies.twins_report.twins_section`).
+    captions : mapping stem -> str, optional
+        Figure captions (:func:`esoarm.studies.reproduce_outputs.captions`); a
+        figure without one is shown with its stem.
 
     Returns
     -------
     str
         HTML5 text (UTF-8), no external resources.
     """
-    from esoarm.studies.reproduce import figure_specs
-
-    captions = {stem: caption for stem, caption, _ in figure_specs(rep)}
+    captions = dict(captions or {})
     n_ok = sum(c.reproduced for c in rep.claims)
     sections = [
         ("tables", "Tables II and III: paper beside twin", _tables_section(rep)),
         ("claims", "The paper's claims, checked on the twin", _claims_section(rep)),
         *extra_sections,
         ("figures", "Fig. 4-7 on the twin", "".join(
-            _img(pngs, s, captions[s]) for s in ("fig4", "fig5", "fig6", "fig7")
-            if s in captions)),
+            _img(pngs, s, captions.get(s, s)) for s in ("fig4", "fig5", "fig6", "fig7")
+            if s in pngs)),
         ("theorems", "Theorem 1 and Theorem 2", _theorem_section(rep, pngs)),
         ("discretizations", "ESO discretizations compared", _discretization_section(rep, pngs)),
         ("assumptions", "Assumptions where the paper is silent", _assumptions_section(rep)),

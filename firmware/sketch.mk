@@ -1,0 +1,25 @@
+# arduino-mk settings for esoarm_rig.ino (called by firmware/Makefile from the sketch folder).
+BOARD_TAG = uno
+ARDUINO_DIR ?= /usr/share/arduino
+ARDMK_DIR ?= /usr/share/arduino
+TARGET = esoarm_rig
+ARDUINO_QUIET = 1
+# Debian's gcc-avr 5.4 defines DECIMAL_DIG in <float.h> for C99 only; the core's WString.cpp
+# needs it in C++ too.
+CXXFLAGS += -DDECIMAL_DIG=__DECIMAL_DIG__
+
+SKETCH_DEFINES := $(if $(filter bts7960,$(ESOARM_DRIVER)),-DESOARM_DRIVER_BTS7960) \
+  $(if $(SAMPLE_PERIOD_US),-DSAMPLE_PERIOD_US=$(SAMPLE_PERIOD_US)UL) \
+  $(if $(ENCODER_PPR),-DENCODER_PPR=$(ENCODER_PPR)UL) \
+  $(if $(BAUD),-DBAUD=$(BAUD)UL)
+
+include $(ARDMK_DIR)/Arduino.mk
+
+# The sketch (not the core) compiles with every warning as an error.
+$(OBJDIR)/esoarm_rig.ino.o: CPPFLAGS += -Wextra -Werror $(SKETCH_DEFINES)
+
+.PHONY: build-and-size
+build-and-size: $(TARGET_HEX)
+	@flash=$$($(SIZE) -A $(TARGET_ELF) | awk '/^\.text|^\.data/ {s += $$2} END {print s}'); \
+	ram=$$($(SIZE) -A $(TARGET_ELF) | awk '/^\.data|^\.bss/ {s += $$2} END {print s}'); \
+	echo "$(TARGET_ELF): flash $$flash of 32256 bytes, RAM $$ram of 2048 bytes (static)"

@@ -1,0 +1,106 @@
+"""``esoarm hil``: the compiled firmware in simavr with the twin on its pins."""
+
+from __future__ import annotations
+
+import signal
+from pathlib import Path
+
+import click
+
+from esoarm.cli._common import (
+    BadInput,
+    RunFailure,
+    bad_input_guard,
+    resolve_scenario,
+    scenario_argument,
+    set_option,
+)
+
+
+def _say(line: str) -> None:
+    print(line, flush=True)
+
+
+@click.command()
+@scenario_argument
+@set_option
+@click.option("--fault", "faults", multiple=True, metavar="KIND@SECONDS",
+              help="Inject a pin-level fault at twin time SECONDS [s] after START: "
+              "encoder-break (channel A stuck high), encoder-noise (1-20 µs glitches, "
+              "2000/s), driver (the motor pins stop reaching the motor), brownout (the MCU "
+              "resets), unplug (the serial link goes away, the MCU runs on). Repeatable.")
+@click.option("--realtime", is_flag=True,
+              help="Pace the simulated MCU to the wall clock all the time (for timing "
+              "measurements by the host). Default: the AVR's time runs at wall-clock speed "
+              "while the host owes an answer and free in between.")
+@click.option("--elf", "elf", metavar="FILE.elf", type=click.Path(dir_okay=False),
+              help="Firmware to run (default: build firmware/ of this checkout with "
+              "'make -C firmware' and use build/uno-DRIVER/esoarm_rig.elf).")
+@click.option("--driver", type=click.Choice(["l298n", "bts7960"]), default="l298n",
+              show_default=True, help="Driver variant to build when --elf is not given.")
+@click.option("--once", is_flag=True,
+              help="Exit after the first run: once the motor pins are off and the host has "
+              "sent STOP (or the link is unplugged, or the host is silent for 5 s).")
+@bad_input_guard
+def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], realtime: bool,
+        elf: str | None, driver: str, once: bool) -> None:
+    """Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its pins.
+
+    The first line printed is 'device: PATH'; pass PATH to 'esoarm run SCENARIO
+    --port'. The encoder lines D2/D3 follow the twin's angle (one edge per count
+    of 360°/sensor.resolution_deg, at the cycle the angle crosses it); the duty on
+    the driver pins (D9 PWM with D7/D8 direction, or D9/D10) drives the twin's
+    motor model ([motor] table); the UART is the pseudo-terminal. The physics is
+    the simulator's (RK4 step rig.step [s]). Needs gcc, libsimavr-dev and
+    libelf-dev; building the firmware needs gcc-avr, avr-libc, arduino-core-avr
+    and arduino-mk.
+    """
+    from esoarm.hardware.hil.board import BoardError
+    from esoarm.hardware.hil.build import ToolchainMissing, firmware_elf
+    from esoarm.hardware.hil.server import HilServer, parse_hil_fault
+
+    specs = [parse_hil_fault(f) for f in faults]
+    scn = resolve_scenario(scenario, overrides)
+    if elf is not None and not Path(elf).is_file():
+        raise BadInput(f"--elf '{elf}': no such file")
+    try:
+        elf_path = Path(elf) if elf else firmware_elf(driver)
+        server = HilServer(scn, elf_path, faults=specs, realtime=realtime, echo=_say)
+    except ToolchainMissing as exc:
+        raise RunFailure(str(exc)) from None
+    except BoardError as exc:
+        raise RunFailure(f"simavr: {exc}") from None
+    _say(f"device: {server.path}")
+    _say(f"scenario '{scn.name}': firmware {elf_path}, {server.twin.counts_per_rev} counts/rev, "
+         f"ATmega328P at 16 MHz, {'real time' if realtime else 'paced by the host'}")
+    terminated: list[int] = []
+
+    def on_term(signum, frame) -> None:  # type: ignore[no-untyped-def]
+        terminated.append(signum)
+
+    def done() -> bool:
+        # --once: a run was started, the motor pins are off, and the host has said STOP
+        # (0.3 s ago, so that STOPPED reaches it), pulled the plug, or gone quiet for 5 s
+        return bool(terminated) or (
+            once and server.log.start_cycle is not None and server.motor_duty == 0
+            and (server.unplugged or server.host_quiet(5.0)
+                 or server.stop_seen and server.host_quiet(0.3)))
+
+    old = signal.signal(signal.SIGTERM, on_term)
+    try:
+        server.serve(until=done)
+    except KeyboardInterrupt:
+        pass
+    except BoardError as exc:
+        raise RunFailure(f"simavr: {exc}") from None
+    finally:
+        signal.signal(signal.SIGTERM, old)
+        stats = server.board.isr_stats()
+        server.close()
+    if server.log.start_cycle is not None:
+        _say(f"encoder: device count − arm position at the last sample: "
+             f"{server.count_error:+d} counts (largest {server.count_error_max})")
+    if stats["n"]:
+        _say(f"encoder interrupts: {stats['n']}, {stats['isr_sum'] / stats['n']:.0f} cycles "
+             f"mean, {stats['isr_max']} max in the handler")
+    _say("stopped: port closed")

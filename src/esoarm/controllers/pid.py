@@ -1,0 +1,118 @@
+"""Controller kind ``"pid"``: a discrete PID on the measured angle, the classical baseline.
+
+On the tracking error of the measurement, e_k = θd(t_k) − y_k [rad], with the
+sample period Ts:
+
+    P_k = kp · e_k
+    D_k = a · D_{k−1} + kd · (1 − a) · (e_k − e_{k−1}) / Ts,   a = Tf / (Tf + Ts)
+    u_k = P_k + I_k + D_k                       (saturated by the actuator to ±torque_limit)
+    I_{k+1} = I_k + ki · Ts · e_k               unless u_k is saturated and e_k drives it further
+
+D is kd·s/(Tf·s + 1) discretized with backward Euler (Tf = ``derivative_filter``;
+0 gives the unfiltered difference), starting with no derivative kick (e_{−1} = e_0).
+The integrator uses forward Euler, so u_k does not depend on e_k through I,
+and stops integrating while the command is saturated in the direction the
+error pushes it (conditional integration, the anti-windup).  I_0 = 0, D_0 = 0.
+
+The PID ignores the observer's estimate: the ESO still runs beside it (its
+estimates are logged), so a PID run shows what the perturbation estimate adds.
+The default gains are tuned on test-1, rounded: ``esoarm tune test-1 --set
+controller.kind=pid --vary controller.kp=0.1:3 --vary controller.kd=0.005:0.5
+--vary controller.ki=0:5 --seeds 2 --maxiter 12 --popsize 6`` (objective
+rms_error + rms_u) found kp = 2.96, kd = 0.072, ki = 1.98 (RMS error 0.0075 rad,
+RMS u 0.037 N·m; kp at the top of its range).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from pydantic import Field
+
+from esoarm._jit import jitable
+from esoarm._schema import Section, unit
+from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
+
+if TYPE_CHECKING:
+    from esoarm.scenario import Scenario
+
+__all__ = ["CODE", "JIT", "KIND", "Params", "control", "design", "initialize", "pid_command"]
+
+KIND = "pid"
+CODE = 1
+JIT = True
+
+KP, KI, KD, TF, LIMIT, TS = range(6)
+# controller state: integrator, filtered derivative, previous error
+INT, DER, EPREV = range(3)
+
+
+class Params(Section):
+    """``[controller]`` of kind "pid": discrete PID with derivative filter and anti-windup."""
+
+    kind: Literal["pid"] = Field(
+        "pid", description="controller kind (the registered kinds: esoarm.kinds)")
+    kp: float = Field(3.0, ge=0, description="proportional gain kp",
+                      json_schema_extra=unit("N·m/rad"))
+    ki: float = Field(2.0, ge=0, description="integral gain ki",
+                      json_schema_extra=unit("N·m/(rad·s)"))
+    kd: float = Field(0.07, ge=0, description="derivative gain kd",
+                      json_schema_extra=unit("N·m·s/rad"))
+    derivative_filter: float = Field(
+        0.02, ge=0, description="time constant Tf of the derivative's first-order filter",
+        json_schema_extra=unit("s"))
+
+
+def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
+    """(CODE, kp, ki, kd, Tf, torque_limit, Ts); state: integrator, derivative, last error."""
+    ctl = scn.controller
+    if not isinstance(ctl, Params):  # pragma: no cover - the registry dispatches by kind
+        raise TypeError("not a PID controller table")
+    if plant.n_joints != 1:
+        raise ValueError("the PID kind is designed for one joint")
+    vec = [float(CODE), ctl.kp, ctl.ki, ctl.kd, ctl.derivative_filter,
+           scn.actuator.torque_limit, ts]
+    return ComponentDesign(read_only(np.array(vec)), 3)
+
+
+@jitable
+def pid_command(e: float, k: int, c: np.ndarray, pid: Vector) -> float:
+    """PID command u_k [N·m] for the error e_k [rad] at sample k; updates the state ``c``.
+
+    ``pid`` is the design vector without its CODE; ``c`` = (I, D, e_{k−1}).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c = np.zeros(3)
+    >>> pid = (2.0, 1.0, 0.0, 0.0, 10.0, 0.1)  # kp, ki, kd, Tf, limit, Ts
+    >>> float(pid_command(0.5, 0, c, pid)), float(c[0])  # P = 1.0; then I = 0.1 * 0.5
+    (1.0, 0.05)
+    """
+    ts = pid[TS]
+    e_prev = e if k == 0 else c[EPREV]
+    a = pid[TF] / (pid[TF] + ts)
+    der = a * c[DER] + pid[KD] * (1.0 - a) * (e - e_prev) / ts
+    u = pid[KP] * e + c[INT] + der
+    limit = pid[LIMIT]
+    saturated = (u > limit and e > 0.0) or (u < -limit and e < 0.0)
+    if not saturated:
+        c[INT] = c[INT] + pid[KI] * ts * e
+    c[DER] = der
+    c[EPREV] = e
+    return u
+
+
+@jitable
+def initialize(c: np.ndarray, y: np.ndarray, p: Vector) -> None:
+    """I_0 = 0, D_0 = 0 (the first sample has no derivative kick)."""
+    for i in range(len(c)):
+        c[i] = 0.0
+
+
+@jitable
+def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
+            p: Vector, u: np.ndarray) -> None:
+    """Raw PID command u_k [N·m] from the measured y_k and θd(t_k) into ``u`` (joint 0)."""
+    u[0] = pid_command(refs[0, k] - y[0], k, c, p[1:])

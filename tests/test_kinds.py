@@ -1,0 +1,189 @@
+"""Every registered kind through every engine; the nonlinear ESO and the PID on their own."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from esoarm import kinds
+from esoarm.cli import cli
+from esoarm.controllers.pid import pid_command
+from esoarm.engines import batch
+from esoarm.engines.simulation import prepare, run_reference
+from esoarm.hardware.controller import DeploymentController
+from esoarm.hardware.emulator import Twin
+from esoarm.hardware.replay import replay
+from esoarm.observers.linear import DISCRETIZATIONS
+from esoarm.observers.nonlinear import fal
+from esoarm.scenario import ScenarioError, load_scenario
+
+SHORT = {"duration": 2.0}
+KIND_SETS = {
+    "linear+flc": {},
+    "nonlinear+flc": {"observer.kind": "nonlinear"},
+    "linear+pid": {"controller.kind": "pid"},
+    "nonlinear+pid": {"observer.kind": "nonlinear", "controller.kind": "pid"},
+}
+
+
+def _scn(kind_set: str, disc: str = "euler", **extra: object):  # type: ignore[no-untyped-def]
+    return load_scenario("test-1", {**SHORT, **KIND_SETS[kind_set],
+                                    "observer.discretization": disc, **extra})
+
+
+def test_registry_is_consistent() -> None:
+    for component in (kinds.PLANTS, kinds.OBSERVERS, kinds.CONTROLLERS):
+        assert len({m.CODE for m in component}) == len(component)
+        for module in component:
+            assert module.Params().kind == module.KIND
+            for name in ("design", "JIT"):
+                assert hasattr(module, name), (module.__name__, name)
+
+
+def test_switching_kind_starts_from_its_defaults() -> None:
+    scn = load_scenario("test-1", {"observer.eps": 0.05, "observer.kind": "nonlinear"})
+    assert scn.observer.kind == "nonlinear" and scn.observer.eps == 0.05  # a shared key kept
+    assert scn.observer.alpha == [0.5, 0.25]  # the new kind's defaults
+    pid = load_scenario("test-1", {"controller.k1": 5.0, "controller.kind": "pid"})
+    assert pid.controller == load_scenario("test-1", {"controller.kind": "pid"}).controller
+    with pytest.raises(ScenarioError, match="not apply to observer kind 'linear'.*eps"):
+        load_scenario("test-1", {"observer.alpha": [0.5, 0.5]})
+    with pytest.raises(ScenarioError, match="observer.kind.*'linear', 'nonlinear'"):
+        load_scenario("test-1", {"observer.kind": "kalman"})
+    with pytest.raises(ScenarioError, match="observer.alpha"):
+        load_scenario("test-1", {"observer.kind": "nonlinear", "observer.alpha": [0.5, 1.5]})
+
+
+# -- fal and the nonlinear ESO ---------------------------------------------------
+
+
+@pytest.mark.parametrize("alpha", [0.25, 0.5, 0.8, 1.0])
+def test_fal_definition(alpha: float) -> None:
+    delta = 0.1
+    for e in np.linspace(-0.5, 0.5, 101):
+        expected = e / delta ** (1 - alpha) if abs(e) <= delta else abs(e) ** alpha * np.sign(e)
+        assert fal(e, alpha, delta) == pytest.approx(expected, rel=1e-15, abs=1e-300)
+    # continuous at the edge of the linear zone, odd, and the identity for α = 1
+    assert fal(delta, alpha, delta) == pytest.approx(delta**alpha, rel=1e-14)
+    assert fal(-0.3, alpha, delta) == -fal(0.3, alpha, delta)
+    if alpha == 1.0:
+        assert all(fal(e, 1.0, delta) == e for e in (-0.3, -1e-9, 0.0, 0.05, 2.0))
+
+
+@pytest.mark.parametrize("disc", DISCRETIZATIONS)
+def test_nonlinear_eso_with_alpha_one_is_the_linear_eso(disc: str) -> None:
+    lin = load_scenario("test-2", {"observer.discretization": disc})
+    nl = lin.with_overrides({"observer.kind": "nonlinear", "observer.discretization": disc,
+                             "observer.alpha": [1.0, 1.0], "observer.delta": 0.02})
+    a, b = run_reference(lin, prepare(lin)), run_reference(nl, prepare(nl))
+    assert np.array_equal(a.table(), b.table())
+    assert a.metrics == b.metrics
+    (fast,) = batch.simulate_many([nl])
+    assert np.array_equal(fast.table(), a.table())
+
+
+def test_nonlinear_eso_changes_the_estimate() -> None:
+    lin, nl = _scn("linear+flc"), _scn("nonlinear+flc")
+    a, b = run_reference(lin, prepare(lin)), run_reference(nl, prepare(nl))
+    assert not np.array_equal(a.z, b.z)
+    assert b.metrics["rms_error"] < 0.05  # still tracks
+
+
+# -- PID -------------------------------------------------------------------------
+
+
+def _pid_reference(errors, kp, ki, kd, tf, limit, ts):  # type: ignore[no-untyped-def]
+    """The PID written out again, independently, on a given error sequence."""
+    out, integ, der, e_prev = [], 0.0, 0.0, None
+    a = tf / (tf + ts)
+    for e in errors:
+        e_prev = e if e_prev is None else e_prev
+        der = a * der + kd * (1 - a) * (e - e_prev) / ts
+        u = kp * e + integ + der
+        if not ((u > limit and e > 0) or (u < -limit and e < 0)):
+            integ += ki * ts * e
+        out.append(u)
+        e_prev = e
+    return np.array(out)
+
+
+@pytest.mark.parametrize("limit", [10.0, 0.3])
+def test_pid_law(limit: float) -> None:
+    rng = np.random.default_rng(1)
+    errors = np.cumsum(rng.normal(0, 0.05, 200))
+    vec = (0.9, 1.5, 0.12, 0.02, limit, 0.02)
+    c = np.zeros(3)
+    got = np.array([pid_command(e, k, c, vec) for k, e in enumerate(errors)])
+    np.testing.assert_allclose(got, _pid_reference(errors, *vec), rtol=1e-13, atol=1e-15)
+
+
+def test_pid_anti_windup_bounds_the_integrator() -> None:
+    c = np.zeros(3)
+    vec = (1.0, 5.0, 0.0, 0.0, 0.5, 0.02)
+    for k in range(500):  # a large error that saturates the command
+        pid_command(2.0, k, c, vec)
+    assert c[0] < 0.5  # stopped integrating once saturated (about 0.2 when it stops)
+    c2 = np.zeros(3)
+    for k in range(500):
+        pid_command(2.0, k, c2, (1.0, 5.0, 0.0, 0.0, 1e9, 0.02))
+    assert c2[0] == pytest.approx(500 * 5.0 * 0.02 * 2.0)
+
+
+def test_pid_tracks_test1() -> None:
+    res = run_reference(*[(s, prepare(s)) for s in [load_scenario("test-1",
+                                                                  {"controller.kind": "pid"})]][0])
+    assert res.metrics["rms_error"] < 0.05 and res.metrics["diverged"] == 0.0
+
+
+# -- every kind through every engine -----------------------------------------------
+
+
+@pytest.mark.parametrize("kind_set", sorted(KIND_SETS))
+@pytest.mark.parametrize("disc", DISCRETIZATIONS)
+def test_batch_engine_is_the_reference_engine(kind_set: str, disc: str) -> None:
+    scns = [_scn(kind_set, disc), _scn(kind_set, disc, **{"actuator.lag": 0.02,
+                                                          "actuator.delay_samples": 1,
+                                                          "motor.pwm_max": 1023})]
+    for scn, fast in zip(scns, batch.simulate_many(scns), strict=True):
+        ref = run_reference(scn, prepare(scn))
+        assert np.array_equal(fast.table(), ref.table())
+        assert fast.metrics == ref.metrics
+    table = batch.run_metrics(scns)
+    for i, scn in enumerate(scns):
+        ref = run_reference(scn, prepare(scn))
+        assert table.row(i) == ref.metrics
+
+
+@pytest.mark.parametrize("kind_set", sorted(KIND_SETS))
+def test_deployment_controller_and_replay_agree(kind_set: str) -> None:
+    """The rig loop's controller over the emulated device, and replay, give simulate's numbers."""
+    scn = _scn(kind_set, "current")
+    ref = run_reference(scn, prepare(scn))
+    ctl, twin = DeploymentController(scn), Twin(scn)
+    q = math.radians(scn.sensor.resolution_deg)
+    u_log = []
+    for k in range(ctl.n_samples):
+        u, _ = ctl.actuate(ctl.step(k, q * twin.count()))
+        ctl.commit(u)
+        twin.advance(u)
+        u_log.append(u)
+    assert np.array_equal(u_log, ref.u)
+    rep = replay(scn, ref.t, ref.y, ref.u, scn.sample_time)
+    assert np.array_equal(rep.z, ref.z)
+
+
+def test_sweep_over_kinds(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    out = tmp_path / "kinds.csv"
+    res = CliRunner().invoke(cli, ["sweep", "test-1", "--set", "duration=2",
+                                   "--vary", "observer.kind=linear,nonlinear",
+                                   "--vary", "controller.kind=flc,pid", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    rows = np.genfromtxt(out, delimiter=",", names=True, dtype=None, encoding="utf-8")
+    assert len(rows) == 4
+    for row in rows:
+        scn = load_scenario("test-1", {"duration": 2.0, "observer.kind": row["observerkind"],
+                                       "controller.kind": row["controllerkind"]})
+        assert row["rms_error"] == run_reference(scn, prepare(scn)).metrics["rms_error"]
