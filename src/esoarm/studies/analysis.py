@@ -50,9 +50,11 @@ from esoarm.observers.linear import (
     discrete_error_poles,
 )
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
+from esoarm.studies.linearization import ControlLoop, to_control
 
 __all__ = [
     "CONTINUOUS",
+    "ControlLoop",
     "ObserverAnalysis",
     "analyze_observer",
     "characteristic_polynomial",
@@ -65,6 +67,7 @@ __all__ = [
     "theorem1_bound",
     "theorem2_bound",
     "tracking_l1_gain",
+    "to_control",
 ]
 
 #: The continuous observer of eq. 8 (Theorem 1), besides the sampled-data discretizations.
