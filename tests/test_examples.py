@@ -16,6 +16,7 @@ OUTPUTS = {
     "single_run.py": ("single_run.csv", "single_run.png"),
     "compare_compensation.py": ("heavy-disturbance.toml", "compare_compensation.png"),
     "observer_design.py": (),
+    "gym_loop.py": ("gym_frame.png",),
     "identify_twin.py": ("excite.csv", "fitted.toml", "identify.png"),
 }
 

@@ -130,7 +130,7 @@ def test_report_is_self_contained(html_text: str) -> None:
             # only embedded data and in-page anchors: nothing to fetch
             assert value.startswith(("data:", "#")), (tag, name, value[:80])
     imgs = [attrs for tag, attrs in page.tags if tag == "img"]
-    assert len(imgs) == 6  # Fig. 4-7, Theorem 2, discretizations
+    assert len(imgs) == 7  # Fig. 4-7, Theorem 2, discretizations, frequency domain
     for attrs in imgs:
         src = attrs["src"] or ""
         assert src.startswith("data:image/png;base64,")
@@ -190,7 +190,8 @@ def test_report_renders_in_headless_chromium(outputs: tuple[object, Path], html_
                        .replace("&lt;", "<").replace("&gt;", ">"))
     assert check["errors"] == []
     assert console_lines(dom.stderr) == []
-    assert len(check["images"]) == 6
+    assert len(check["images"]) == 7  # Fig. 4-7, Theorem 2, discretizations, frequency domain
+    assert 'id="frequency"' in html_text
     for img in check["images"]:
         assert img["complete"] and img["w"] > 300 and img["h"] > 200, img
     # Screenshot of the whole page (height measured above), kept with the test output.

@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import signal
 import sys
+import textwrap
 import warnings
 
 import click
@@ -42,6 +43,7 @@ COMMANDS: dict[str, str] = {
     "emulate": "esoarm.cli.rig:emulate",
     "run": "esoarm.cli.rig:run",
     "replay": "esoarm.cli.rig:replay",
+    "analyze": "esoarm.cli.analyze:analyze",
     "hil": "esoarm.cli.hil:hil",
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
@@ -52,6 +54,7 @@ COMMANDS: dict[str, str] = {
 # importing the command (tests/test_cli_startup.py checks they match the
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
+    "analyze": "Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.",
     "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",
     "excite": "Record an identification experiment on the rig at PORT or on the twin of "
               "SCENARIO.",
@@ -91,7 +94,7 @@ class LazyGroup(click.Group):
                     continue
                 rows.append((name, cmd.get_short_help_str(limit)))
             else:
-                rows.append((name, click.utils.make_default_short_help(summary, limit)))
+                rows.append((name, textwrap.shorten(summary, limit, placeholder="...")))
         with formatter.section("Commands"):
             formatter.write_dl(rows)
 

@@ -37,6 +37,38 @@ def _say(line: str) -> None:
     print(line, flush=True)
 
 
+def scope_options(func):  # type: ignore[no-untyped-def]
+    """--scope, --scope-port, --scope-window (the live page)."""
+    func = click.option("--scope-window", type=float, default=10.0, show_default=True,
+                        metavar="SECONDS",
+                        help="Seconds of data the scope keeps and shows [s].")(func)
+    func = click.option("--scope-port", type=int, default=8765, show_default=True,
+                        metavar="PORT",
+                        help="TCP port of the scope on 127.0.0.1 (0: any free port).")(func)
+    return click.option("--scope", "scope", is_flag=True,
+                        help="Serve a live scope at http://127.0.0.1:PORT/ (local only, works "
+                        "offline): the signals as they arrive and the status counters. Closing "
+                        "the page never disturbs the loop.")(func)
+
+
+def _check_scope(port: int, window: float) -> None:
+    if not 0 <= port <= 65535:
+        raise BadInput(f"--scope-port {port}: must be 0 … 65535")
+    if not (math.isfinite(window) and window > 0):
+        raise BadInput(f"--scope-window {window:g}: must be a finite number of seconds > 0")
+
+
+def _start_scope(make):  # type: ignore[no-untyped-def]
+    from esoarm.hardware.scope import ScopeError
+
+    try:
+        scope = make()
+    except ScopeError as exc:
+        raise BadInput(f"{exc}; choose another --scope-port (0: any free port)") from None
+    click.echo(f"scope: {scope.url}", err=True)
+    return scope
+
+
 @click.command()
 @scenario_argument
 @set_option
@@ -51,9 +83,10 @@ def _say(line: str) -> None:
               "Repeatable.")
 @click.option("--once", is_flag=True,
               help="Exit after the first stop command instead of waiting for another run.")
+@scope_options
 @bad_input_guard
 def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: tuple[str, ...],
-            once: bool) -> None:
+            once: bool, scope: bool, scope_port: int, scope_window: float) -> None:
     """Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.
 
     The first line printed is 'device: PATH'; pass PATH to 'esoarm run --port'.
@@ -61,17 +94,31 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
     rig.step [s], actuator lag and delay), draws the encoder noise on the device
     side, reports angles as encoder counts of sensor.resolution_deg [deg] and,
     with a [motor] table, turns PWM duties into torque [N·m] through the motor
-    model. On a stop command it prints a line and holds the motor off.
+    model. On a stop command it prints a line and holds the motor off. With
+    --scope, a local page plots the true and measured angle [rad], the rate
+    [rad/s] and the applied torque [N·m] with the device's counters.
     """
     from esoarm.hardware.emulator import Emulator, parse_fault
 
     specs = [parse_fault(f) for f in faults]
+    if scope:
+        _check_scope(scope_port, scope_window)
     scn = resolve_scenario(scenario, overrides)
     emu = Emulator(scn, lockstep=lockstep, faults=specs, once=once, echo=_say)
     _say(f"device: {emu.path}")
     actuator = f"PWM duty ±{emu.twin.pwm_max}" if emu.twin.motor else "ideal torque"
     _say(f"scenario '{scn.name}': {emu.twin.counts_per_rev} counts/rev, "
          f"{1e6 / emu.period_us:g} Hz, {actuator}, {'lockstep' if lockstep else 'real time'}")
+    live = None
+    if scope:
+        from esoarm.hardware.scope import scope_for_emulator
+
+        try:
+            live = _start_scope(lambda: scope_for_emulator(emu, scn.name, scope_window,
+                                                           scope_port))
+        except BadInput:
+            emu.close()
+            raise
     terminated = []
 
     def on_term(signum, frame) -> None:  # type: ignore[no-untyped-def]
@@ -85,6 +132,8 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
     finally:
         signal.signal(signal.SIGTERM, old)
         emu.close()
+        if live is not None:
+            live.close()
     if terminated:
         _say("terminated: port closed")
 
@@ -115,10 +164,11 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
 @click.option("--baud", type=int, default=115200, show_default=True, metavar="BITS/S",
               help="Serial line rate [bit/s]; must match the firmware (ignored by USB CDC "
               "boards and pseudo-terminals). 1 kHz sampling needs about 500000 or more.")
+@scope_options
 @bad_input_guard
 def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, as_json: bool,
         angle_limit: float, max_jump: float, watchdog: float, max_error: float,
-        baud: int) -> None:
+        baud: int, scope: bool, scope_port: int, scope_window: float) -> None:
     """Drive the rig on PORT through SCENARIO at its rate for its duration.
 
     The ESO + FLC of the scenario runs on this host, one sample at a time; the
@@ -126,7 +176,9 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
     or PWM duties (with a [motor] table). Safety: torque limit, angle limit,
     encoder-jump check, following-error limit, watchdog on incoming samples,
     NaN guard. A fault sends stop, keeps the log and exits 1; Ctrl-C does the
-    same and exits 130.
+    same and exits 130. With --scope, a local page plots θ, θd, u and the
+    estimates as they arrive, with the status counters (the address is
+    printed on stderr).
     """
     from esoarm.hardware.link import LinkError, SerialLink
     from esoarm.hardware.loop import RigFault, RigInterrupted, SafetyLimits, run_rig
@@ -138,6 +190,8 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
             raise BadInput(f"{name} {value:g}: must be a finite number > 0")
     if baud <= 0:
         raise BadInput(f"--baud {baud}: must be > 0")
+    if scope:
+        _check_scope(scope_port, scope_window)
     scn = resolve_scenario(scenario, overrides)
     limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog,
                           max_error=max_error)
@@ -146,8 +200,22 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
     except LinkError as exc:
         raise RunFailure(str(exc)) from None
     live = _status_display() if stderr_is_tty() and not as_json else None
+    page = None
+    if scope:
+        from esoarm.hardware.scope import scope_for_run
+
+        try:
+            page = _start_scope(lambda: scope_for_run(scn.name, scn.sensor.rate_hz, scope_window,
+                                                      scope_port))
+        except BadInput:
+            link.close()
+            raise
+    status = live.update if live else None
+    if page is not None:
+        status = _tee_status(page, status)
     try:
-        summary = run_rig(scn, link, log_path, limits, status=live.update if live else None)
+        summary = run_rig(scn, link, log_path, limits, status=status,
+                          monitor=page.push if page is not None else None)
     except RigFault as exc:
         raise RunFailure(str(exc)) from None
     except RigInterrupted as exc:
@@ -160,11 +228,21 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
     finally:
         if live:
             live.close()
+        if page is not None:
+            page.close()
         link.close()
     if as_json:
         click.echo(json.dumps({"scenario": scn.name, **summary.to_dict()}))
         return
     _print_summary(scn.name, summary)
+
+
+def _tee_status(page, other):  # type: ignore[no-untyped-def]
+    def update(s: dict) -> None:
+        page.set_status(s)
+        if other is not None:
+            other(s)
+    return update
 
 
 class _status_display:  # noqa: N801 - used like a function

@@ -76,9 +76,12 @@ def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
     from rich.console import Console
     from rich.table import Table
 
+    from esoarm.result import kind_labels
+
     s = result.summary()
-    table = Table(title=f"{s['scenario']}  (ε = {s['eps']:g} s, {s['discretization']}, "
-                  f"{s['compensation']} compensation)")
+    obs_text, ctl_text = kind_labels(result.scenario)
+    eps = f"ε = {s['eps']:g} s, " if "eps" in s else ""
+    table = Table(title=f"{s['scenario']}  ({eps}{obs_text}, {ctl_text})")
     table.add_column("metric")
     table.add_column("value", justify="right")
     table.add_column("unit")

@@ -249,6 +249,8 @@ class Emulator:
         self._t0 = 0.0
         self._watchdog_tripped = False
         self._next_tick = 0.0
+        #: optional sink for each sample sent: (t, θ true, θ encoder, θ̇, u applied) (live scope)
+        self.monitor: Callable[[tuple[float, ...]], None] | None = None
 
     # -- output --------------------------------------------------------------
     def _send(self, kind: int, *fields: int | float) -> None:
@@ -274,7 +276,11 @@ class Emulator:
             t_us = round(twin.k * self.period_us)
         else:
             t_us = round((time.perf_counter() - self._t0) * 1e6)
-        self._send(P.SAMPLE, twin.k & 0xFFFFFFFF, t_us & 0xFFFFFFFF, twin.count())
+        count = twin.count()
+        self._send(P.SAMPLE, twin.k & 0xFFFFFFFF, t_us & 0xFFFFFFFF, count)
+        if self.monitor is not None:
+            self.monitor((twin.time, twin.theta, twin.q * count, float(twin.x[1]),
+                          float(twin._applied[0])))
 
     def _apply_faults(self) -> None:
         t = self.twin.time

@@ -155,8 +155,10 @@ class _LogWriter:
     fault, and the file is cut back to its last whole row.
     """
 
-    def __init__(self, path: Path | None, columns: tuple[str, ...] = LOG_COLUMNS) -> None:
+    def __init__(self, path: Path | None, columns: tuple[str, ...] = LOG_COLUMNS,
+                 tee: Callable[[str], None] | None = None) -> None:
         self.path = path
+        self.tee = tee  # e.g. the live scope: gets every row as written
         self.rows = 0
         self._fh = None
         self._good = 0  # bytes of whole rows written
@@ -177,6 +179,8 @@ class _LogWriter:
             self._good += len(line)  # ASCII: characters are bytes
         if row:
             self.rows += 1
+            if self.tee is not None:
+                self.tee(line)
 
     def _fail(self, exc: OSError) -> None:
         fh, self._fh = self._fh, None
@@ -234,7 +238,8 @@ class _Stop(Exception):
 def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             limits: SafetyLimits | None = None,
             status: Callable[[dict], None] | None = None,
-            controller: SampleController | None = None) -> RunSummary:
+            controller: SampleController | None = None,
+            monitor: Callable[[str], None] | None = None) -> RunSummary:
     """Drive the device on ``link`` through one run of ``scn``.
 
     Parameters
@@ -255,6 +260,9 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
         ``reference``, ``t``, ``n_samples``, ``ts``, ``torque_limit``); default the
         scenario's ESO + FLC.  The identification experiment passes its
         :class:`~esoarm.studies.excitation.ExcitationController`.
+    monitor : callable, optional
+        Receives every log row (the CSV line of :data:`LOG_COLUMNS`) as it is
+        written, e.g. :meth:`esoarm.hardware.scope.Scope.push`; it must not block.
 
     Returns
     -------
@@ -288,7 +296,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             f"±{info.pwm_max}")
     ctl = controller if controller is not None else DeploymentController(scn)
     n, ts = ctl.n_samples, ctl.ts
-    log = _LogWriter(log_path)
+    log = _LogWriter(log_path, tee=monitor)
     summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
                          log=str(log_path) if log_path else "")
     acc: dict[str, list[float]] = {"e": [], "u": []}  # error and u of the samples received

@@ -50,9 +50,11 @@ from esoarm.observers.linear import (
     discrete_error_poles,
 )
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
+from esoarm.studies.linearization import ControlLoop, to_control
 
 __all__ = [
     "CONTINUOUS",
+    "ControlLoop",
     "ObserverAnalysis",
     "analyze_observer",
     "characteristic_polynomial",
@@ -65,6 +67,7 @@ __all__ = [
     "theorem1_bound",
     "theorem2_bound",
     "tracking_l1_gain",
+    "to_control",
 ]
 
 #: The continuous observer of eq. 8 (Theorem 1), besides the sampled-data discretizations.
@@ -392,6 +395,9 @@ def estimation_error(result) -> np.ndarray:  # type: ignore[no-untyped-def]
         κ_k [rad/s²].
     """
     scn = result.scenario
+    if scn.controller.kind != "flc":
+        raise ValueError(f"κ (eq. 17) is defined for the FLC, not for controller.kind = "
+                         f"{scn.controller.kind!r}")
     k1, k2 = scn.controller.k1, scn.controller.k2
     z1, z2, z3 = result.z[:, 0], result.z[:, 1], result.z[:, 2]
     if scn.controller.compensation == "eso":

@@ -146,7 +146,12 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
         if progress:
             progress(path.name)
     if report:
+        from esoarm.studies.frequency_report import frequency_section
         from esoarm.studies.report import render_report
+
+        # the loop in the frequency domain (margins and gains at the paper's three ε)
+        extra_sections = [*extra_sections, ("frequency", "The loop in the frequency domain",
+                                            frequency_section(rep))]
 
         html_path = out / "report.html"
         _write_text(html_path, render_report(rep, pngs, extra_sections, captions(rep)))

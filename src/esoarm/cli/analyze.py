@@ -1,0 +1,198 @@
+"""``esoarm analyze``: the loop in the frequency domain (margins, sensitivities, bandwidths)."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import click
+
+from esoarm.cli._common import (
+    PLOT_SUFFIXES,
+    BadInput,
+    bad_input_guard,
+    output_path,
+    resolve_scenario,
+    scenario_argument,
+    set_option,
+    stderr_is_tty,
+)
+
+
+@click.command()
+@scenario_argument
+@set_option
+@click.option("--vary", "vary", metavar="KEY=SPEC",
+              help="Analyze the loop for each value of one key: a list (observer.eps=0.05,0.09,0.2"
+              ") or lin:START:STOP:NUM / geom:START:STOP:NUM (observer.eps=geom:0.03:0.3:12). "
+              "The figure then shows the margins against the key.")
+@click.option("--theta0", type=float, default=None, metavar="RAD",
+              help="Operating angle of the linearization [rad] (default: rig.theta0). The "
+              "worst margins over the reference's range are reported beside it.")
+@click.option("--friction", type=click.Choice(["viscous", "slope", "none"]), default="viscous",
+              show_default=True,
+              help="Friction in the linear plant: viscous b only (Coulomb friction as a "
+              "disturbance, the least damped model), slope (b + (Fc + Fst)/vs, the friction "
+              "slope at rest), or none.")
+@click.option("--plot", "plot", metavar="FILE.png",
+              help="Bode diagram of the loop with its margins, |S| and |T|, and the disturbance "
+              "transfer; with --vary, the margins against the key (.png, .pdf or .svg).")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object: gain_margin [ratio], phase_margin [deg], "
+              "delay_margin [s], ms, mt, bandwidths [rad/s], ... (with --vary: 'points', one "
+              "object per value).")
+@bad_input_guard
+def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0: float | None,
+            friction: str, plot: str | None, as_json: bool) -> None:
+    """Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.
+
+    The rig is linearized at the operating angle θ0 (gravity becomes a spring,
+    friction per --friction) and sampled with the zero-order hold, the
+    actuator lag and the transport delay; the ESO (of observer.discretization)
+    and the FLC form one discrete controller. Reported: gain margin [ratio],
+    phase margin [deg] and delay margin [s] at the plant input, the peak
+    sensitivity Ms and complementary sensitivity Mt, the closed-loop and
+    observer bandwidths [rad/s] against the Nyquist frequency π/Ts, and the
+    gain from a torque disturbance at the plant input to the tracking error
+    [rad/(N·m)]. Saturation, quantization and noise are left out (linear).
+    Needs python-control: pip install 'esoarm[analyze]'.
+    """
+    try:
+        import control  # noqa: F401
+    except ImportError:
+        raise BadInput("esoarm analyze needs python-control: pip install 'esoarm[analyze]'"
+                       ) from None
+    from esoarm.studies.frequency import analyze as run_analysis
+
+    plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
+    if theta0 is not None and not math.isfinite(theta0):
+        raise BadInput(f"--theta0 {theta0}: must be a finite angle [rad]")
+    scn = resolve_scenario(scenario, overrides)
+    if vary is None:
+        res = run_analysis(scn, theta0=theta0, friction=friction)
+        if plot_path is not None:
+            from esoarm.studies.frequency_plots import figure_frequency
+
+            figure_frequency(res, plot_path)
+        if as_json:
+            click.echo(json.dumps(res.to_dict()))
+        else:
+            _print_one(res)
+            if plot_path is not None:
+                click.echo(f"figure: {plot_path}")
+        return
+    from esoarm.scenario import ScenarioError
+    from esoarm.studies.sweep import parse_vary
+
+    spec = parse_vary(vary, scn)
+    scenarios = []
+    for value in spec.values:  # validate every point before any work
+        try:
+            scenarios.append(scn.with_overrides({spec.key: value}))
+        except ScenarioError as exc:
+            raise BadInput(f"--vary {spec.key}={value!r}: {exc}") from None
+    points = []
+    with _progress(len(scenarios)) as advance:
+        for point in scenarios:
+            points.append(run_analysis(point, theta0=theta0, friction=friction))
+            advance()
+    if plot_path is not None:
+        from esoarm.studies.frequency_plots import figure_vary
+
+        figure_vary(spec.key, spec.values, points, plot_path)
+    if as_json:
+        click.echo(json.dumps({"key": spec.key, "points": [
+            {"value": v, **p.to_dict()} for v, p in zip(spec.values, points, strict=True)]}))
+        return
+    _print_vary(spec.key, spec.values, points)
+    if plot_path is not None:
+        click.echo(f"figure: {plot_path}")
+
+
+@contextmanager
+def _progress(total: int) -> Iterator[Callable[[], None]]:
+    """A progress bar on stderr when it is a terminal; silent otherwise."""
+    if not stderr_is_tty():
+        yield lambda: None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+    with Progress(TextColumn("analyzing"), BarColumn(), MofNCompleteColumn(),
+                  console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task("", total=total)
+        yield lambda: bar.advance(task)
+
+
+def _f(v: float, spec: str) -> str:
+    return format(v, spec) if math.isfinite(v) else "∞" if v == math.inf else "—"
+
+
+def _print_one(a: Any) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"{a.scenario}  (ε = {a.eps:g} s, {a.discretization} ESO; linearized at "
+                  f"θ0 = {a.theta0:g} rad, friction '{a.friction}', Ts = {a.ts:g} s)")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    table.add_column("unit")
+    table.add_column("at ω [rad/s]", justify="right")
+    rows = [
+        ("closed loop stable (spectral radius)",
+         f"{'yes' if a.stable else 'NO'} ({a.closed_loop_radius:.4f})", "", ""),
+        ("gain margin", f"{_f(a.gain_margin, '.3f')} ({_f(20 * math.log10(a.gain_margin), '.1f')}"
+         " dB)" if math.isfinite(a.gain_margin) else "∞", "ratio", _f(a.phase_crossover, ".3g")),
+        ("phase margin", _f(a.phase_margin, ".2f"), "deg", _f(a.gain_crossover, ".3g")),
+        ("delay margin", _f(a.delay_margin * 1e3, ".2f"), "ms", _f(a.gain_crossover, ".3g")),
+        ("peak sensitivity Ms", _f(a.ms, ".3f"), "", _f(a.ms_frequency, ".3g")),
+        ("peak complementary sensitivity Mt", _f(a.mt, ".3f"), "", _f(a.mt_frequency, ".3g")),
+        ("closed-loop bandwidth (|T| = −3 dB)", _f(a.closed_loop_bandwidth, ".3g"), "rad/s", ""),
+        ("observer bandwidth (f → ẑ3, −3 dB)", _f(a.observer_bandwidth, ".3g"), "rad/s", ""),
+        ("observer pole frequency", _f(a.observer_pole_frequency, ".3g"), "rad/s", ""),
+        ("Nyquist frequency π/Ts", _f(a.nyquist, ".4g"), "rad/s", ""),
+        ("measurement noise → control, peak |K S|", _f(a.noise_to_control_peak, ".4g"),
+         "N·m/rad", _f(a.noise_to_control_frequency, ".3g")),
+        ("disturbance → error, peak", _f(a.disturbance_peak, ".4g"), "rad/(N·m)",
+         _f(a.disturbance_peak_frequency, ".3g")),
+        ("disturbance → error, DC", _f(a.disturbance_dc, ".3g"), "rad/(N·m)", "0"),
+        ("scenario's disturbance → error amplitude", _f(a.scenario_disturbance_error, ".3g"),
+         "rad", ""),
+    ]
+    for row in rows:
+        table.add_row(*row)
+    Console(width=max(Console().width, 110)).print(table)
+    if not a.stable:
+        click.echo(f"the closed loop is UNSTABLE (spectral radius {a.closed_loop_radius:.4g} >= 1):"
+                   " the margins above describe a loop that does not settle")
+    r = a.range
+    if r and len(r.get("angles", [])) > 1:
+        click.echo(f"over the reference's range θ0 ∈ [{r['theta_min']:g}, {r['theta_max']:g}] rad: "
+                   f"gain margin ≥ {_f(r['gain_margin_min'], '.3f')}, phase margin ≥ "
+                   f"{_f(r['phase_margin_min'], '.2f')} deg, delay margin ≥ "
+                   f"{_f(r['delay_margin_min'] * 1e3, '.2f')} ms")
+
+
+def _print_vary(key: str, values: Any, points: Any) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    a = points[0]
+    table = Table(title=f"{a.scenario}: margins against {key} (linearized at θ0 = {a.theta0:g} "
+                  f"rad, friction '{a.friction}', Nyquist {a.nyquist:.4g} rad/s)")
+    for name in (key.rsplit(".", 1)[-1], "stable", "GM", "PM°", "DM ms", "Ms", "Mt",
+                 "bw CL", "bw ESO", "w→e pk", "n→u pk"):
+        table.add_column(name, justify="right")
+    for v, p in zip(values, points, strict=True):
+        table.add_row(f"{v:.4g}" if isinstance(v, float) else str(v), "yes" if p.stable else "NO",
+                      _f(p.gain_margin, ".3g"), _f(p.phase_margin, ".3g"),
+                      _f(p.delay_margin * 1e3, ".3g"), _f(p.ms, ".3g"), _f(p.mt, ".3g"),
+                      _f(p.closed_loop_bandwidth, ".3g"), _f(p.observer_bandwidth, ".3g"),
+                      _f(p.disturbance_peak, ".3g"), _f(p.noise_to_control_peak, ".3g"))
+    Console(width=max(Console().width, 110)).print(table)
+    click.echo("GM gain margin [ratio], PM phase margin [deg], DM delay margin [ms], bw "
+               "bandwidths [rad/s], w→e pk peak torque-disturbance-to-error gain [rad/(N·m)], "
+               "n→u pk peak noise-to-control gain [N·m/rad]")

@@ -1,0 +1,241 @@
+"""The digital twin as a Gymnasium environment, stepped at the sensor rate.
+
+One ``step`` is one sample period Ts of the sampled-data loop that
+``esoarm simulate`` runs (:func:`esoarm.engines.loop.closed_loop`), in the same
+order and with the same step functions of the scenario's plant, observer and
+controller kinds (:mod:`esoarm.kinds`) and the same actuator functions, so that
+the environment driven by the ESO-FLC gives the simulator's trajectory bit for
+bit (tested):
+
+``reset``
+    θ(0) = ``rig.theta0`` at rest; y_0 = Q(θ + σ n_0); ESO state z_0 = (y_0, 0, 0);
+    the estimate ẑ_0 and the reference at t_0 go into the first observation.
+``step(action)`` at sample k
+    u_k = sat(action) (``action_mode="torque"``) or sat(FLC(ẑ_k) + action)
+    (``"residual"``, a correction on top of the ESO-FLC); the reward is
+    r_k = −(e_k² + effort_weight · u_k²) with e_k = θ(t_k) − θd(t_k) the
+    true tracking error at the sample the action is taken (like Gymnasium's
+    Pendulum, the cost of the state the action sees), so that with
+    effort_weight = 0, −Σ r_k / N is ``rms_error``² of the run; the ESO
+    advances with (y_k, u_k); the rig integrates [t_k, t_{k+1}) with RK4 under
+    u_{k−delay}; then y_{k+1}, ẑ_{k+1} and the next observation.
+
+The observation is (y_k, θd, θ̇d, θ̈d) and, with ``observe_estimates=True``,
+(ẑ1, ẑ2, ẑ3) appended [rad, rad, rad/s, rad/s², rad, rad/s, rad/s²].  ``info``
+holds the simulator's log row of the step (t, theta, theta_ref, error, u, z1,
+z2, z3, f_true, y, saturated).  An episode is truncated after N = duration · rate_hz steps
+and terminated if the state leaves the finite range (the simulators'
+divergence rule).
+
+Seeding: the encoder noise of an episode is ``default_rng(s).standard_normal(N)``,
+exactly as the simulator draws it for ``sensor.seed = s``.  ``reset(seed=s)``
+uses s; the first ``reset()`` without a seed uses the scenario's
+``sensor.seed``; later unseeded resets draw s from the environment's seeded
+generator (``self.np_random``).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from esoarm.controllers.flc import LIMIT as FLC_LIMIT
+from esoarm.controllers.flc import flc_command
+from esoarm.engines.loop import within_limits
+from esoarm.engines.simulation import prepare
+from esoarm.plants.actuator import LIMIT, actuate, delayed_input, saturate
+from esoarm.plants.sensor import measure, noise_sequence
+from esoarm.scenario import Scenario, load_scenario
+
+__all__ = ["ACTION_MODES", "EsoFlcPolicy", "LeverArmEnv"]
+
+ACTION_MODES = ("torque", "residual")
+INFO_KEYS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3", "f_true", "y",
+             "saturated")
+
+
+class LeverArmEnv(gym.Env):
+    """The lever arm of a scenario as an environment (see the module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario, str or Path
+        A scenario, a built-in name or a TOML path (default "test-1").
+    overrides : dict or list of str, optional
+        Dotted-key overrides, e.g. ``{"observer.eps": 0.05}``.
+    action_mode : {"torque", "residual"}
+        The action is the torque u [N·m], or a correction [N·m] added to the
+        ESO-FLC's command; saturated to ±torque_limit either way.
+    observe_estimates : bool
+        Append the ESO estimate ẑ = (ẑ1, ẑ2, ẑ3) to the observation.
+    effort_weight : float
+        Weight λ of the control effort in the reward −(e² + λ u²) [1/(N·m)²·rad²].
+    render_mode : {None, "rgb_array"}
+        "rgb_array": :meth:`render` returns an image of the arm (H × W × 3 uint8).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+
+    def __init__(self, scenario: Scenario | str | Path = "test-1",
+                 overrides: dict | list[str] | None = None, *, action_mode: str = "torque",
+                 observe_estimates: bool = False, effort_weight: float = 0.0,
+                 render_mode: str | None = None) -> None:
+        if action_mode not in ACTION_MODES:
+            raise ValueError(f"action_mode must be one of {', '.join(ACTION_MODES)}; "
+                             f"got {action_mode!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array'; got {render_mode!r}")
+        if not (math.isfinite(effort_weight) and effort_weight >= 0):
+            raise ValueError(f"effort_weight must be a finite number >= 0; got {effort_weight!r}")
+        scn = scenario if isinstance(scenario, Scenario) and not overrides else \
+            load_scenario(scenario, overrides)
+        self.scenario = scn
+        self.action_mode = action_mode
+        self.observe_estimates = observe_estimates
+        self.effort_weight = float(effort_weight)
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": scn.sensor.rate_hz}
+        self._inp = prepare(scn, draw_noise=False)
+        self.n_steps = len(self._inp.t)
+        self.n_joints = self._inp.plant.n_joints
+        if self.n_joints != 1:
+            raise ValueError("the environment drives one joint (the lever arm)")
+        limit = float(self._inp.actuator[LIMIT])
+        self.action_space = spaces.Box(-limit, limit, shape=(1,), dtype=np.float64)
+        size = 7 if observe_estimates else 4
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float64)
+        self._seeded_once = False
+        self.noise_seed = scn.sensor.seed
+        self._new_arrays()
+
+    def _new_arrays(self) -> None:
+        inp = self._inp
+        self._noise = np.zeros(self.n_steps)
+        self._x = np.array(inp.plant.x0)
+        self._z = np.zeros(max(inp.observer.n_state, 1))
+        self._zhat = np.zeros(max(inp.observer.n_state, 1))
+        self._c = np.zeros(max(inp.controller.n_state, 1))
+        self._y = np.zeros(1)
+        self._u = np.zeros(1)
+        self._drive = np.zeros(1)
+        self._applied = np.zeros(1)
+        self._acc = np.zeros(1)
+        self._hist = np.zeros(max(self.n_steps, 1))
+        self._k = 0
+
+    # -- the loop ------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode; see the module docstring for the noise seed."""
+        super().reset(seed=seed)
+        if seed is not None:
+            noise_seed = int(seed)
+        elif not self._seeded_once:
+            noise_seed = self.scenario.sensor.seed
+        else:
+            noise_seed = int(self.np_random.integers(0, 2**31 - 1))
+        self._seeded_once = True
+        self.noise_seed = noise_seed
+        inp = self._inp
+        self._new_arrays()
+        self._noise = noise_sequence(noise_seed, self.n_steps, self.scenario.sensor.noise_deg)
+        if self.n_steps:
+            self._y[0] = measure(self._x[0], self._noise[0], inp.sigma, inp.q)
+        plant, observer, controller = inp.kinds
+        observer.initialize(self._z, self._y, inp.observer.vector)
+        controller.initialize(self._c, self._y, inp.controller.vector)
+        self._measure()
+        return self._observation(), {"t": 0.0, "noise_seed": noise_seed}
+
+    def _measure(self) -> None:
+        """Steps 1 and 3 of the loop: y_k and the estimate ẑ_k at the current sample."""
+        inp, k = self._inp, self._k
+        self._y[0] = measure(self._x[0], self._noise[k], inp.sigma, inp.q)
+        inp.kinds.observer.estimate(self._z, self._y, inp.observer.vector, self._zhat)
+
+    def _observation(self) -> np.ndarray:
+        inp, k = self._inp, min(self._k, self.n_steps - 1)
+        head = (self._y[0], inp.refs[0, k], inp.refs[1, k], inp.refs[2, k])
+        if self.observe_estimates:
+            return np.array((*head, *self._zhat[:3]), dtype=np.float64)
+        return np.array(head, dtype=np.float64)
+
+    def flc_command(self) -> float:
+        """The controller kind's raw command u_k [N·m] for the current sample (unsaturated)."""
+        inp = self._inp
+        inp.kinds.controller.control(self._c, self._zhat, self._y, inp.refs, self._k,
+                                     inp.controller.vector, self._u)
+        return float(self._u[0])
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Apply the action over one sample period Ts; see the module docstring."""
+        if self._k >= self.n_steps:
+            raise RuntimeError("the episode is over (truncated): call reset()")
+        inp, k = self._inp, self._k
+        plant, observer, _ = inp.kinds
+        a = float(np.asarray(action, dtype=np.float64).reshape(-1)[0])
+        raw = a if self.action_mode == "torque" else self.flc_command() + a
+        # 3. saturate and actuate, exactly as the loop does
+        u = saturate(raw, inp.actuator[LIMIT])
+        sat = 1.0 if u != raw and raw == raw else 0.0
+        u, self._drive[0], _ = actuate(u, self._zhat[1], inp.actuator)
+        self._u[0] = u
+        # 6. (first half) the input held over [t_k, t_{k+1})
+        delayed_input(self._hist, k, inp.delay, self._drive, self._applied)
+        tk = k * inp.ts
+        # 4. the log row
+        plant.acceleration(self._x, self._applied, tk, inp.plant.vector, self._acc)
+        theta, ref = float(self._x[0]), float(inp.refs[0, k])
+        h1, h2, h3 = (float(v) for v in self._zhat[:3])
+        error = theta - ref
+        info = dict(zip(INFO_KEYS, (float(inp.t[k]), theta, ref, error, u, h1, h2, h3,
+                                    float(self._acc[0] - inp.plant.b0[0] * u),
+                                    float(self._y[0]), sat), strict=True))
+        reward = -(error * error + self.effort_weight * u * u)
+        if not within_limits(theta, h1, h2, h3, u):
+            return self._observation(), float(reward), True, False, info
+        # 5. observer update, 6. the plant integrates to t_{k+1}
+        observer.advance(self._z, self._zhat, self._y, self._u, inp.observer.vector)
+        plant.advance(self._x, self._applied, tk, inp.h, inp.nsub, inp.plant.vector)
+        self._k = k + 1
+        truncated = self._k >= self.n_steps
+        if not truncated:
+            self._measure()
+        return self._observation(), float(reward), False, truncated, info
+
+    # -- drawing -----------------------------------------------------------------------
+    def render(self) -> np.ndarray | None:  # type: ignore[override]
+        """An image of the arm (grey), its reference (dashed red) and the torque (bar)."""
+        if self.render_mode != "rgb_array":
+            return None
+        from esoarm.envs.render import draw_arm
+
+        k = min(self._k, self.n_steps - 1)
+        return draw_arm(float(self._x[0]), float(self._inp.refs[0, k]),
+                        float(self._u[0]) / float(self._inp.actuator[LIMIT]))
+
+
+class EsoFlcPolicy:
+    """The paper's ESO-FLC as a fixed policy for ``action_mode="torque"``.
+
+    Needs ``observe_estimates=True``: the action is the FLC's raw command
+    (eq. 14-16) from (ẑ, θd, θ̇d, θ̈d), which the environment saturates as
+    ``esoarm simulate`` does.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        base = env.unwrapped
+        if not isinstance(base, LeverArmEnv) or not base.observe_estimates:
+            raise ValueError("EsoFlcPolicy needs a LeverArmEnv with observe_estimates=True")
+        self._ctl = base._inp.controller.vector[1:]  # the FLC kind's parameters
+        if len(self._ctl) <= FLC_LIMIT:
+            raise ValueError("EsoFlcPolicy needs the FLC controller kind")
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        _, ref, dref, ddref, z1, z2, z3 = (float(v) for v in obs)
+        return np.array([flc_command(z1, z2, z3, ref, dref, ddref, self._ctl)])
