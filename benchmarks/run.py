@@ -78,8 +78,12 @@ def load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
-def run_proc(cmd: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
-    """Run a command; return (wall time [s], peak resident memory [MiB]) of that process."""
+def run_proc(cmd: list[str], env: dict[str, str] | None = None,
+             cpu: list[float] | None = None) -> tuple[float, float]:
+    """Run a command; return (wall time [s], peak resident memory [MiB]) of that process.
+
+    With ``cpu``, the process's CPU time (user + system) [s] is appended to it.
+    """
     with tempfile.TemporaryFile() as err:
         t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=err)
@@ -90,6 +94,8 @@ def run_proc(cmd: list[str], env: dict[str, str] | None = None) -> tuple[float, 
             err.seek(0)
             raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}): "
                                f"{err.read().decode(errors='replace')[-2000:]}")
+    if cpu is not None:
+        cpu.append(usage.ru_utime + usage.ru_stime)
     return wall, usage.ru_maxrss / 1024.0
 
 
@@ -197,10 +203,13 @@ def bench_inprocess(grid, c: CLoop, quick: bool) -> dict:  # type: ignore[type-a
     out["fast_all"] = time.perf_counter() - t0
     sub = pts[:: (10 if not quick else 50)]
     n_sub = len(sub) * len(seeds)
-    for name, fn in (("exact", batch.run_metrics), ("fast", fast.run_metrics)):
+    runners = {"exact": batch.run_metrics, "fast": fast.run_metrics,
+               "unblocked": lambda *a, **k: batch.run_metrics(*a, blocked=False, **k)}
+    for name, fn in runners.items():
         c0 = time.process_time()
         fn(sub, seeds=seeds, workers=1)
         out[f"{name}_cpu_per_run"] = (time.process_time() - c0) / n_sub
+    out["scalar_c_cpu_per_run"] = scalar_block_c(sub, seeds, c.work)
     c0 = time.process_time()
     out["c_per_run_sub"] = c.time(n_sub) / n_sub
     c.time()  # all runs: the C loop's metrics against the exact engine's
@@ -216,6 +225,29 @@ def bench_inprocess(grid, c: CLoop, quick: bool) -> dict:  # type: ignore[type-a
     out["fast_rel_unquantized"] = float((np.abs(f0 - e0) / np.abs(e0))[:, :5].max())
     out["diverged"] = (int(exact[:, -1].sum()), int(quick_vals[:, -1].sum()))
     return out
+
+
+def scalar_block_c(points, seeds, work: Path) -> float:  # type: ignore[no-untyped-def]
+    """CPU time per run of the fast engine's C block loop built *without* -ffast-math.
+
+    The same block structure (runs innermost) calling scalar libm, as the exact
+    engine must: how much the block order alone gains in C on this CPU.
+    """
+    import ctypes
+
+    from esoarm.engines import batch, fast
+
+    src = Path(fast.__file__).with_name("_fast_kernel.c")
+    obj, lib = work / "scalar.o", work / "scalar.so"
+    subprocess.run(["gcc", "-O3", "-fno-math-errno", "-fPIC", "-c", str(src), "-o", str(obj)],
+                   check=True)
+    subprocess.run(["gcc", "-shared", str(obj), "-o", str(lib), "-lm"], check=True)
+    kernel = fast._bind(ctypes.CDLL(str(lib)))
+    runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
+    pack = batch._pack(list(points), runs)
+    c0 = time.process_time()
+    fast._run_pack(kernel, pack, 1)
+    return (time.process_time() - c0) / len(runs)
 
 
 def bench_python(grid, n: int) -> dict:  # type: ignore[type-arg, no-untyped-def]
@@ -267,7 +299,9 @@ def bench_startup(reps: int) -> dict:  # type: ignore[type-arg]
     for cmd in cmds.values():  # warm the caches
         run_proc(cmd)
     for name, cmd in cmds.items():
-        out[name] = min(run_proc(cmd)[0] for _ in range(reps))
+        cpu: list[float] = []
+        out[name] = min(run_proc(cmd, cpu=cpu)[0] for _ in range(reps))
+        out[f"{name}_cpu"] = min(cpu)
     code = "import time; t = time.perf_counter(); import esoarm.cli; print(time.perf_counter() - t)"
     out["import_cli"] = min(float(sh([sys.executable, "-c", code]) or "nan") for _ in range(reps))
     return out
@@ -359,13 +393,19 @@ def main() -> None:
                         help="small sizes only: a smoke test of this script (for CI)")
     parser.add_argument("--no-doc", action="store_true", help="do not write docs/benchmarks.md")
     parser.add_argument("--rounds", type=int, default=3, help="rounds of C / exact / fast")
+    parser.add_argument("--max-runs", type=int, default=100_000,
+                        help="largest sweep of the throughput curve (powers of 10 up to it)")
+    parser.add_argument("--big", type=int, default=1_000_000,
+                        help="runs of the large metrics-only sweep (memory)")
     args = parser.parse_args()
     from bench_doc import plot_scaling, write_doc
 
     machine = machine_info()
-    m: dict = {"quick": args.quick}  # type: ignore[type-arg]
+    command = " ".join(["python benchmarks/run.py", *sys.argv[1:]])
+    m: dict = {"quick": args.quick, "command": command}  # type: ignore[type-arg]
     grid = canonical_grid()
-    sizes = [1, 10, 100] if args.quick else [1, 10, 100, 1000, 10_000, 100_000]
+    top = 100 if args.quick else args.max_runs
+    sizes = [10**i for i in range(7) if 10**i <= top]
     steps = [
         ("start-up", lambda: bench_startup(2 if args.quick else 5)),
         ("canonical sweep: C, exact, fast (rounds)",
@@ -377,7 +417,7 @@ def main() -> None:
                                                           else 10_000)),
     ]
     if not args.quick:
-        steps += [("1,000,000-run sweep", lambda: bench_million(work, 1_000_000)),
+        steps += [(f"{args.big:,}-run sweep", lambda: bench_million(work, args.big)),
                   ("tuning study", bench_tune)]
     names = ["startup", "canonical", "inproc", "python", "control", "scaling", "million", "tune"]
     with tempfile.TemporaryDirectory(prefix="esoarm-bench-") as tmp:

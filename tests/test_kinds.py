@@ -187,3 +187,14 @@ def test_sweep_over_kinds(tmp_path) -> None:  # type: ignore[no-untyped-def]
         scn = load_scenario("test-1", {"duration": 2.0, "observer.kind": row["observerkind"],
                                        "controller.kind": row["controllerkind"]})
         assert row["rms_error"] == run_reference(scn, prepare(scn)).metrics["rms_error"]
+
+
+@pytest.mark.parametrize("kind_set", sorted(KIND_SETS))
+def test_simulate_command_names_the_kinds(kind_set: str, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    sets = [a for k, v in {**SHORT, **KIND_SETS[kind_set]}.items() for a in ("--set", f"{k}={v}")]
+    res = CliRunner().invoke(cli, ["simulate", "test-1", *sets, "--plot",
+                                   str(tmp_path / "run.png")])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "run.png").is_file()
+    if "pid" in kind_set:
+        assert "pid" in res.output and "controller" in res.output  # (rich may wrap the title)

@@ -107,6 +107,13 @@ def plant_advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
 
 
 @jitable
+def plant_advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
+                        nsub: int, p: np.ndarray) -> None:
+    """``advance_block`` of the plant kind whose CODE is p[0] (a block of runs, same p)."""
+    lever_arm.advance_block(xs, us, live, t0, h, nsub, p)
+
+
+@jitable
 def plant_acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                        out: np.ndarray) -> None:
     """``acceleration`` of the plant kind whose CODE is p[0]."""

@@ -164,9 +164,14 @@ def plot_run(result: SimResult, path: str | Path | None = None) -> Figure:
     axes[3].legend(loc="best")
     for ax in axes:
         ax.grid(alpha=0.3)
+    from esoarm.result import kind_labels
+
+    obs_text, ctl_text = kind_labels(scn)
+    eps = getattr(scn.observer, "eps", None)
     fig.suptitle(
-        f"{scn.name}: ε = {scn.observer.eps:g} s, {scn.observer.discretization} ESO, "
-        f"{scn.controller.compensation} compensation\nRMS error {result.rms_error:.4f} rad, "
+        f"{scn.name}: " + (f"ε = {eps:g} s, " if eps is not None else "")
+        + (f"{obs_text} ESO" if scn.observer.kind == "linear" else obs_text)
+        + f", {ctl_text}\nRMS error {result.rms_error:.4f} rad, "
         f"RMS u {result.rms_u:.4f} N·m",
         fontsize=10,
     )

@@ -76,10 +76,13 @@ def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
     from rich.console import Console
     from rich.table import Table
 
+    from esoarm.result import kind_labels
+
     s = result.summary()
-    eps = s["eps"] if isinstance(s["eps"], list) else f"{s['eps']:g}"
-    table = Table(title=f"{s['scenario']}  (ε = {eps} s, {s['discretization']}, "
-                  f"{s['compensation']} compensation)")
+    obs_text, ctl_text = kind_labels(result.scenario)
+    eps = "" if "eps" not in s else (f"ε = {s['eps']} s, " if isinstance(s["eps"], list)
+                                     else f"ε = {s['eps']:g} s, ")
+    table = Table(title=f"{s['scenario']}  ({eps}{obs_text}, {ctl_text})")
     table.add_column("metric")
     table.add_column("value", justify="right")
     table.add_column("unit")

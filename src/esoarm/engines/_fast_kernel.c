@@ -39,7 +39,7 @@ enum {
     NPAR
 };
 enum { KIND_EULER, KIND_ZOH, KIND_CURRENT };
-enum { M_SE, M_SU, M_ME, M_MU, M_SF, M_ROWS, M_DIV, NOUT };
+enum { M_SE, M_SU, M_ME, M_MU, M_SF, M_SR, M_SD, M_SAT, M_ROWS, M_DIV, NOUT };
 
 int esoarm_fast_lanes(void) { return LANES; }
 int esoarm_fast_npar(void) { return NPAR; }
@@ -61,6 +61,8 @@ static inline double lt_limit(double x, double lim) {
 
 /*
  * Run one block.
+ *   nl                   lanes used (1 ... LANES); the loops run over nl rounded up to a
+ *                        multiple of 8 (the extra lanes repeat valid data and are ignored)
  *   n, nsub, delay       samples, RK4 steps per sample, transport delay [samples]
  *   kind, comp, lag_on   discretization (0 euler, 1 zoh, 2 current), compensation
  *                        (0 eso, 1 model), actuator lag present (0/1)
@@ -73,9 +75,10 @@ static inline double lt_limit(double x, double lim) {
  *   noise                lane l uses noise[noise_off[l] + k]
  *   uhist                scratch, (delay + 1) x LANES doubles (used when delay > 0)
  *   out                  NOUT x LANES: sums of e^2, u^2, max|e|, max|u|, sum (z3-f)^2,
+ *                        sum (z2-omega)^2, sum (u_k - u_{k-1})^2, saturated samples,
  *                        rows, diverged
  */
-void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int lag_on,
+void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp, int lag_on,
                        double h, double ts, double damp, double dfreq, double limit,
                        const double *restrict par, const double *restrict refs,
                        long stride, const int64_t *restrict ref_off,
@@ -84,6 +87,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
     double th[LANES], om[LANES], ta[LANES], z1[LANES], z2[LANES], z3[LANES];
     double ua[LANES], alive[LANES];
     double se[LANES], su[LANES], sf[LANES], me[LANES], mu[LANES], rows[LANES];
+    double sr[LANES], sd[LANES], ssat[LANES], uprev[LANES];
     double ref[LANES], dref[LANES], ddref[LANES], nz[LANES];
     double ivs[LANES], iin[LANES], ilag[LANES], iq[LANES];
 #define P(i) (par + (i) * LANES)
@@ -97,12 +101,14 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
     for (int i = 0; i < 9; i++) phi[i] = P(P_PHI + i);
     for (int i = 0; i < 3; i++) { gam[i] = P(P_GAMMA + i); gain[i] = P(P_GAIN + i); }
 #undef P
+    const int nv = nl >= LANES ? LANES : ((nl + 7) / 8) * 8;
     for (int l = 0; l < LANES; l++) {
         th[l] = theta0[l]; om[l] = 0.0; ta[l] = 0.0;
         double x = theta0[l] + sigma[l] * noise[noise_off[l]];
         z1[l] = q[l] > 0.0 ? q[l] * floor(x / q[l] + 0.5) : x;
         z2[l] = 0.0; z3[l] = 0.0;
         se[l] = su[l] = sf[l] = me[l] = mu[l] = 0.0;
+        sr[l] = sd[l] = ssat[l] = uprev[l] = 0.0;
         rows[l] = (double)n; alive[l] = 1.0;
         ivs[l] = 1.0 / vs[l]; iin[l] = 1.0 / inertia[l];
         ilag[l] = lag[l] > 0.0 ? 1.0 / lag[l] : 0.0;
@@ -112,7 +118,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
     for (long k = 0; k < n; k++) {
         const double tk = k * ts;
         const double dk = damp * sin(dfreq * tk);
-        for (int l = 0; l < LANES; l++) {
+        for (int l = 0; l < nv; l++) {
             ref[l] = refs[ref_off[l] + k];
             dref[l] = refs[ref_off[l] + stride + k];
             ddref[l] = refs[ref_off[l] + 2 * stride + k];
@@ -122,7 +128,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
         const double *uold = delay > 0 ? uhist + ((k + 1) % (delay + 1)) * LANES : ua;
         int any_dead = 0;
 #pragma omp simd reduction(| : any_dead)
-        for (int l = 0; l < LANES; l++) {
+        for (int l = 0; l < nv; l++) {
             double x = th[l] + sigma[l] * nz[l];
             double y = q[l] > 0.0 ? q[l] * floor(x * iq[l] + 0.5) : x;
             double e = y - z1[l];
@@ -132,8 +138,9 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
             }
             double alpha = ddref[l] - k1[l] * (h2 - dref[l]) - k2[l] * (h1 - ref[l]);
             double bh = comp == 0 ? h3 : -(cg[l] * cos(h1)) / i0[l];
-            double u = i0[l] * (alpha - bh);
-            u = u > lim[l] ? lim[l] : (u < -lim[l] ? -lim[l] : u);
+            double raw = i0[l] * (alpha - bh);
+            double sat = raw > lim[l] || raw < -lim[l] ? 1.0 : 0.0;
+            double u = raw > lim[l] ? lim[l] : (raw < -lim[l] ? -lim[l] : raw);
             double uap;
             if (delay > 0) {
                 urow[l] = u;
@@ -149,6 +156,9 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
             double err = th[l] - ref[l];
             double a = alive[l];
             se[l] += a * err * err; su[l] += a * u * u; sf[l] += a * (h3 - f) * (h3 - f);
+            double dr = h2 - om[l], du = k > 0 ? u - uprev[l] : 0.0;
+            sr[l] += a * dr * dr; sd[l] += a * du * du; ssat[l] += a * sat;
+            uprev[l] = u;
             double ae = fabs(err) * a, au = fabs(u) * a;
             me[l] = ae > me[l] ? ae : me[l];
             mu[l] = au > mu[l] ? au : mu[l];
@@ -193,7 +203,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
             const double d4 = damp * sin(dfreq * (t + h));
             if (lag_on) {
 #pragma omp simd
-                for (int l = 0; l < LANES; l++) {
+                for (int l = 0; l < nv; l++) {
                     double x0 = th[l], v0 = om[l], q0 = ta[l], uu = ua[l];
                     double gc = gcoef[l], f0 = fc[l], iv = ivs[l], vi = visc[l], ii = iin[l];
                     double il = ilag[l];
@@ -218,7 +228,7 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
                 }
             } else {
 #pragma omp simd
-                for (int l = 0; l < LANES; l++) {
+                for (int l = 0; l < nv; l++) {
                     double x0 = th[l], v0 = om[l], uu = ua[l];
                     double gc = gcoef[l], f0 = fc[l], iv = ivs[l], vi = visc[l], ii = iin[l];
                     double a1 = v0;
@@ -244,6 +254,9 @@ void esoarm_fast_block(long n, long nsub, long delay, int kind, int comp, int la
         out[M_ME * LANES + l] = me[l];
         out[M_MU * LANES + l] = mu[l];
         out[M_SF * LANES + l] = sf[l];
+        out[M_SR * LANES + l] = sr[l];
+        out[M_SD * LANES + l] = sd[l];
+        out[M_SAT * LANES + l] = ssat[l];
         out[M_ROWS * LANES + l] = rows[l];
         out[M_DIV * LANES + l] = alive[l] != 0.0 ? 0.0 : 1.0;
     }

@@ -43,7 +43,7 @@ from numba import njit, prange
 
 from esoarm import _jit
 from esoarm import kinds as _kinds
-from esoarm.engines.loop import closed_loop
+from esoarm.engines.loop import closed_loop, closed_loop_block
 from esoarm.engines.metrics import METRICS, NMETRIC, NROW, MetricsTable, NoiseCache, log_metrics
 from esoarm.engines.simulation import (
     SimulationDiverged,
@@ -72,6 +72,10 @@ _N, _NSUB, _DELAY, _REFIDX, _NJ, _NZ, _NC = range(7)
 #: (zero-padded; a kind needs its vector to fit).
 VECTOR_WIDTH = (16, 32, 16, 16)
 
+#: Runs of one grid point the metrics kernel advances together.
+BLOCK = 64
+#: Upper bound on the logs of one block [bytes] (fewer runs per block for long runs).
+BLOCK_BYTES = 32 * 2**20
 #: Runs per chunk in metrics mode (bounds memory; one progress tick per chunk).
 DEFAULT_CHUNK = 2048
 
@@ -207,6 +211,64 @@ def _metrics_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, re
         log_metrics(log, abs(status), status < 0, out[r])
 
 
+@njit(cache=True)
+def _run_block(logs, rows, n, xs, noises, fpar, ipar, ref, b0, pp, op, cp,
+               ap):  # pragma: no cover - compiled
+    """A block of runs of one point through :func:`closed_loop_block` (tuples as in _run)."""
+    closed_loop_block(logs, rows, n, xs, noises, fpar[_SIGMA], fpar[_Q], ref, fpar[_TS],
+                      fpar[_H], ipar[_NSUB], ipar[_DELAY], b0, _tuple16(pp), _tuple32(op),
+                      _tuple16(cp), _tuple16(ap), ipar[_NZ], ipar[_NC],
+                      _kinds.plant_advance_block, _kinds.plant_acceleration,
+                      _kinds.observer_initialize, _kinds.observer_estimate,
+                      _kinds.observer_advance, _kinds.controller_initialize,
+                      _kinds.controller_control)
+
+
+@njit(cache=True, parallel=True)
+def _blocked_metrics_kernel(blk_point, blk_start, blk_len, run_noise, fpar, ipar, x0, b0, pp, op,
+                            cp, ap, refs, noises, out):  # pragma: no cover - compiled
+    for b in prange(blk_point.shape[0]):
+        p = blk_point[b]
+        r0 = blk_start[b]
+        m = blk_len[b]
+        n = ipar[p, _N]
+        nj = ipar[p, _NJ]
+        logs = np.empty((m, NROW * nj, max(n, 1)))
+        xs = np.empty((m, x0.shape[1]))
+        nz = np.empty((m, noises.shape[1]))
+        for i in range(m):
+            xs[i] = x0[p]
+            nz[i] = noises[run_noise[r0 + i]]
+        rows = np.empty(m, dtype=np.int64)
+        _run_block(logs, rows, n, xs, nz, fpar[p], ipar[p], refs[ipar[p, _REFIDX]],
+                   b0[p, :nj], pp[p], op[p], cp[p], ap[p])
+        for i in range(m):
+            log_metrics(logs[i], abs(rows[i]), rows[i] < 0, out[r0 + i])
+
+
+def _blocks(run_point: np.ndarray, ipar: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Cut the runs (point-major) into blocks of consecutive runs of one grid point.
+
+    At most :data:`BLOCK` runs per block, fewer for long runs so that a block's
+    logs stay within :data:`BLOCK_BYTES`.
+    """
+    starts, lens, pts = [], [], []
+    r, total = 0, len(run_point)
+    while r < total:
+        p = int(run_point[r])
+        per_run = 8 * NROW * max(int(ipar[p, _NJ]), 1) * max(int(ipar[p, _N]), 1)
+        cap = max(1, min(BLOCK, BLOCK_BYTES // per_run))
+        stop = r + 1
+        while stop < total and run_point[stop] == p and stop - r < cap:
+            stop += 1
+        starts.append(r)
+        lens.append(stop - r)
+        pts.append(p)
+        r = stop
+    return (np.array(pts, dtype=np.int64), np.array(starts, dtype=np.int64),
+            np.array(lens, dtype=np.int64))
+
+
 @njit(cache=True, parallel=True)
 def _series_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises, logs,
                    rows_out):  # pragma: no cover - compiled
@@ -335,6 +397,7 @@ def run_metrics(
     chunk: int = DEFAULT_CHUNK,
     progress: Callable[[int], None] | None = None,
     _noise_cache: NoiseCache | None = None,
+    blocked: bool = True,
 ) -> MetricsTable:
     """Run every point (× every seed) and keep only the metrics of each run.
 
@@ -351,6 +414,10 @@ def run_metrics(
         Runs per kernel call; memory is O(chunk · N), not O(runs · N).
     progress : callable, optional
         Called with the number of runs finished after each chunk.
+    blocked : bool
+        Advance the runs of a grid point together, in blocks of up to :data:`BLOCK`
+        (:func:`~esoarm.engines.loop.closed_loop_block`: the same numbers, faster);
+        False runs them one at a time (kept for comparison in the benchmarks).
 
     Returns
     -------
@@ -376,7 +443,11 @@ def run_metrics(
                 pack = _pack([points[pi] for pi in used],
                              [(local[part[i][0]], part[i][1]) for i in jit_idx], noise_cache)
                 res = np.empty((len(jit_idx), NMETRIC))
-                _metrics_kernel(*pack.args(), res)  # type: ignore[call-arg]
+                if blocked:
+                    blk = _blocks(pack.run_point, pack.ipar)
+                    _blocked_metrics_kernel(*blk, *pack.args()[1:], res)  # type: ignore[call-arg]
+                else:
+                    _metrics_kernel(*pack.args(), res)  # type: ignore[call-arg]
                 out[start + np.array(jit_idx)] = res
             if py_idx:
                 jobs = [points[part[i][0]].with_overrides({"sensor.seed": part[i][1]})

@@ -22,9 +22,7 @@ What it supports
     Every scenario the exact engine runs except those :func:`unsupported`
     names (a run that needs the exact engine is reported, never silently
     approximated): the lever arm with the linear ESO and the FLC, no motor.
-    It computes ``rms_error``, ``rms_u``, ``max_abs_error``, ``max_abs_u``,
-    ``rms_f_error``, ``samples`` and ``diverged``; the other metrics of
-    :data:`esoarm.engines.metrics.METRICS` are NaN.
+    It computes every metric of :data:`esoarm.engines.metrics.METRICS`.
 
 Without a working C compiler the fast engine is unavailable: :func:`run_metrics`
 warns once and runs the exact engine instead (same numbers, slower).
@@ -75,10 +73,9 @@ _PAR_NAMES = (
     *(f"gain{i}" for i in range(3)), "k1", "k2", "i0", "cgcoef", "limit",
 )
 _NPAR = len(_PAR_NAMES)
-_NOUT = 7
-#: Columns of :data:`esoarm.engines.metrics.METRICS` this engine computes (the others are NaN).
-COMPUTED: tuple[int, ...] = tuple(METRICS.index(name) for name in (
-    "rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error", "samples", "diverged"))
+_NOUT = 10
+#: Columns of :data:`esoarm.engines.metrics.METRICS` this engine computes (all of them).
+COMPUTED: tuple[int, ...] = tuple(range(len(METRICS)))
 
 
 class FastEngineUnavailable(RuntimeError):
@@ -114,6 +111,19 @@ def _compiler() -> str | None:
     return None
 
 
+def _cpu_flags() -> str:
+    """The CPU's feature flags: a kernel built with -march=native is only reused on a
+    CPU with the same instruction sets (a shared home directory may span machines)."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                if line.startswith(("flags", "Features")):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return ""
+
+
 def cache_dir() -> Path:
     """Where built kernels are kept: ``$ESOARM_CACHE_DIR`` or ``~/.cache/esoarm``."""
     env = os.environ.get("ESOARM_CACHE_DIR")
@@ -130,7 +140,7 @@ def _build(cc: str) -> Path:
     errors = []
     for cflags, libs in _FLAG_SETS:
         stamp = hashlib.sha256(
-            source + repr((version, cflags, libs, os.uname().machine)).encode()
+            source + repr((version, cflags, libs, os.uname().machine, _cpu_flags())).encode()
         ).hexdigest()[:16]
         target = cache_dir() / f"fast-kernel-{stamp}.so"
         if target.exists():
@@ -159,6 +169,17 @@ def _build(cc: str) -> Path:
     raise FastEngineUnavailable("the fast engine's C kernel did not build: " + "; ".join(errors))
 
 
+def _bind(lib: ctypes.CDLL) -> ctypes.CDLL:
+    """Declare the C signature of ``esoarm_fast_block`` on a loaded kernel."""
+    fn = lib.esoarm_fast_block
+    fn.restype = None
+    i, n, d, p = ctypes.c_int, ctypes.c_long, ctypes.c_double, ctypes.c_void_p
+    fn.argtypes = [i, n, n, n, i, i, i,  # lanes, N, substeps, delay, kind, comp, lag on
+                   d, d, d, d, d,  # h, Ts, disturbance amplitude and frequency, limit
+                   p, p, n, p, p, p, p, p]  # par, refs, stride, offsets, noise, ..., out
+    return lib
+
+
 def load_kernel() -> ctypes.CDLL:
     """Build (first time only) and load the C kernel.
 
@@ -185,13 +206,7 @@ def load_kernel() -> ctypes.CDLL:
         except (FastEngineUnavailable, OSError) as exc:
             _LIB_ERROR = str(exc)
             raise FastEngineUnavailable(_LIB_ERROR) from None
-        fn = lib.esoarm_fast_block
-        fn.restype = None
-        fn.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_int, ctypes.c_int,
-                       ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                       ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
-                       ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
-                       ctypes.c_void_p, ctypes.c_void_p]
+        _bind(lib)
         _LIB = lib
         return lib
 
@@ -278,7 +293,7 @@ def _run_pack(lib: ctypes.CDLL, pack: _batch._Pack, workers: int) -> np.ndarray:
         noise_off = (pack.run_noise[lanes] * nmax).astype(np.int64)
         uhist = np.zeros((delay + 1) * _LANES)
         out = np.empty((_NOUT, _LANES))
-        lib.esoarm_fast_block(n, nsub, delay, kind, comp, lag_on, h, ts, damp, dfreq,
+        lib.esoarm_fast_block(len(runs), n, nsub, delay, kind, comp, lag_on, h, ts, damp, dfreq,
                               DIVERGENCE_LIMIT, par.ctypes.data, refs.ctypes.data, nmax,
                               ref_off.ctypes.data, noises.ctypes.data, noise_off.ctypes.data,
                               uhist.ctypes.data, out.ctypes.data)
@@ -290,17 +305,20 @@ def _run_pack(lib: ctypes.CDLL, pack: _batch._Pack, workers: int) -> np.ndarray:
     else:
         for b in blocks:
             work(b)
-    # the kernel computes the metrics of COMPUTED; the others are NaN
     res = np.full((nruns, len(METRICS)), np.nan)
-    n_rows = raw[:, 5]
+    n_rows = raw[:, 8]
     col = METRICS.index
     res[:, col("rms_error")] = np.sqrt(raw[:, 0] / n_rows)
     res[:, col("rms_u")] = np.sqrt(raw[:, 1] / n_rows)
     res[:, col("max_abs_error")] = raw[:, 2]
     res[:, col("max_abs_u")] = raw[:, 3]
     res[:, col("rms_f_error")] = np.sqrt(raw[:, 4] / n_rows)
+    res[:, col("rms_rate_error")] = np.sqrt(raw[:, 5] / n_rows)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        res[:, col("rms_du")] = np.where(n_rows > 1, np.sqrt(raw[:, 6] / (n_rows - 1)), 0.0)
+    res[:, col("saturated_fraction")] = raw[:, 7] / n_rows
     res[:, col("samples")] = n_rows
-    res[:, col("diverged")] = raw[:, 6]
+    res[:, col("diverged")] = raw[:, 9]
     return res
 
 

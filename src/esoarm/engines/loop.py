@@ -33,7 +33,7 @@ from esoarm.engines.metrics import ERR, NROW, OM, REF, SAT, TH, Z1, Z2, Z3, F, U
 from esoarm.plants.actuator import LIMIT, actuate, delayed_input, saturate
 from esoarm.plants.sensor import measure
 
-__all__ = ["DIVERGENCE_LIMIT", "closed_loop", "within_limits"]
+__all__ = ["DIVERGENCE_LIMIT", "closed_loop", "closed_loop_block", "within_limits"]
 
 #: |θ| or |z1| beyond this [rad] (or any non-finite value) ends a run as diverged.
 DIVERGENCE_LIMIT = 1e6
@@ -156,3 +156,96 @@ def closed_loop(
         # 6. integrate the plant to t_{k+1}
         plant_advance(x, applied, tk, h, nsub, pp)
     return n
+
+
+@jitable
+def closed_loop_block(
+    logs: np.ndarray, rows: np.ndarray, n: int, xs: np.ndarray, noises: np.ndarray,
+    sigma: float, q: float, refs: np.ndarray, ts: float, h: float, nsub: int, delay: int,
+    b0: np.ndarray, pp: np.ndarray, op: np.ndarray, cp: np.ndarray, ap: np.ndarray, nz: int,
+    nc: int,
+    plant_advance_block: Callable[..., None], plant_acceleration: Callable[..., None],
+    observer_initialize: Callable[..., None], observer_estimate: Callable[..., None],
+    observer_advance: Callable[..., None], controller_initialize: Callable[..., None],
+    controller_control: Callable[..., None],
+) -> None:
+    """:func:`closed_loop` for a block of runs of one parameter set, runs innermost.
+
+    Run i of the block has its own plant state ``xs[i]``, noise ``noises[i]`` and log
+    ``logs[i]``; ``rows[i]`` receives what :func:`closed_loop` returns for it.  Each run
+    takes the very steps of :func:`closed_loop` in the same order -- the same step
+    functions, the same arithmetic -- so its numbers are the same bits; only the loop
+    order changes: each sample, and each RK4 step of the plant (the kind's
+    ``advance_block``), is taken for every run of the block before the next, and what
+    depends on time only (the disturbance d(t)) is computed once for the block.  A run
+    that diverges stops (its row is logged, as in :func:`closed_loop`) while the others
+    go on.
+    """
+    m = xs.shape[0]
+    nj = len(b0)
+    limit = ap[LIMIT]
+    y = np.empty((m, nj))
+    u = np.empty((m, nj))
+    drive = np.empty(nj)
+    applied = np.empty((m, nj))
+    acc = np.empty(nj)
+    sat = np.empty(nj)
+    z = np.zeros((m, max(nz, 1)))
+    zhat = np.zeros((m, max(nz, 1)))
+    c = np.zeros((m, max(nc, 1)))
+    hist = np.zeros((m, max(n, 1) * nj))
+    alive = np.ones(m, dtype=np.bool_)
+    for i in range(m):
+        rows[i] = n
+        for j in range(nj):
+            y[i, j] = measure(xs[i, j], noises[i, j], sigma, q)
+        observer_initialize(z[i], y[i], op)
+        controller_initialize(c[i], y[i], cp)
+    for k in range(n):
+        tk = k * ts
+        for i in range(m):
+            if not alive[i]:
+                continue
+            x = xs[i]
+            log = logs[i]
+            yi, ui, zi, zh = y[i], u[i], z[i], zhat[i]
+            # 1. measure
+            for j in range(nj):
+                yi[j] = measure(x[j], noises[i, k * nj + j], sigma, q)
+            # 3. estimate, control, saturate, actuate
+            observer_estimate(zi, yi, op, zh)
+            controller_control(c[i], zh, yi, refs, k, cp, ui)
+            for j in range(nj):
+                raw = ui[j]
+                ui[j] = saturate(raw, limit)
+                sat[j] = 1.0 if ui[j] != raw and raw == raw else 0.0
+                ui[j], drive[j], _ = actuate(ui[j], zh[3 * j + 1], ap)
+            # 6. (first half) the input held over [t_k, t_{k+1})
+            delayed_input(hist[i], k, delay, drive, applied[i])
+            # 4. log
+            plant_acceleration(x, applied[i], tk, pp, acc)
+            ok = True
+            for j in range(nj):
+                r = j * NROW
+                ref = refs[3 * j, k]
+                e = 3 * j
+                log[r + TH, k] = x[j]
+                log[r + REF, k] = ref
+                log[r + ERR, k] = x[j] - ref
+                log[r + U, k] = ui[j]
+                log[r + Z1, k] = zh[e]
+                log[r + Z2, k] = zh[e + 1]
+                log[r + Z3, k] = zh[e + 2]
+                log[r + F, k] = acc[j] - b0[j] * ui[j]
+                log[r + Y, k] = yi[j]
+                log[r + SAT, k] = sat[j]
+                log[r + OM, k] = x[nj + j]
+                ok = ok and within_limits(x[j], zh[e], zh[e + 1], zh[e + 2], ui[j])
+            if not ok:
+                alive[i] = False
+                rows[i] = -(k + 1)
+                continue
+            # 5. observer update
+            observer_advance(zi, zh, yi, ui, op)
+        # 6. integrate every live run to t_{k+1} (the plant kind's block step)
+        plant_advance_block(xs, applied, alive, tk, h, nsub, pp)

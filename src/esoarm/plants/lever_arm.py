@@ -39,8 +39,9 @@ from esoarm.plants.motor import MotorParams
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "Params", "RigParams", "acceleration", "advance", "design",
-           "observer_input", "rig_acceleration", "rig_advance", "rig_derivative", "rig_rk4_step"]
+__all__ = ["CODE", "JIT", "KIND", "Params", "RigParams", "acceleration", "advance",
+           "advance_block", "design", "observer_input", "rig_acceleration", "rig_advance",
+           "rig_derivative", "rig_rk4_step"]
 
 KIND = "lever-arm"
 CODE = 0
@@ -72,22 +73,57 @@ def disturbance(t: float, rig: Vector) -> float:
 
 
 @jitable
+def rig_acceleration_at(theta: float, omega: float, tau: float, d: float,
+                        rig: Vector) -> float:
+    """True angular acceleration θ̈ [rad/s²] given the disturbance value d = d(t) [rad/s²]."""
+    friction = rig[FC] * math.tanh(omega / rig[VS]) + rig[VISC] * omega
+    if rig[FST] != 0.0:  # Stribeck term; skipped when 0 (Fc + 0·exp(…) is Fc, bit for bit)
+        x = omega / rig[VST]
+        friction = (rig[FC] + rig[FST] * math.exp(-x * x)) * math.tanh(omega / rig[VS]) \
+            + rig[VISC] * omega
+    return (tau - gravity_torque(theta, rig[GCOEF]) - friction) / rig[INERTIA] + d
+
+
+@jitable
 def rig_acceleration(theta: float, omega: float, tau: float, t: float, rig: Vector) -> float:
     """True angular acceleration θ̈ [rad/s²] at angle θ, rate θ̇, torque τ, time t."""
-    x = omega / rig[VST]
-    friction = (rig[FC] + rig[FST] * math.exp(-x * x)) * math.tanh(omega / rig[VS]) \
-        + rig[VISC] * omega
-    return (tau - gravity_torque(theta, rig[GCOEF]) - friction) / rig[INERTIA] + disturbance(t, rig)
+    return rig_acceleration_at(theta, omega, tau, disturbance(t, rig), rig)
+
+
+@jitable
+def rig_derivative_at(theta: float, omega: float, tau: float, u: float, d: float,
+                      rig: Vector) -> tuple[float, float, float]:
+    """Time derivative of the rig state (θ, θ̇, τ) under the input u [N·m], d(t) = d given."""
+    lag = rig[LAG]
+    if lag > 0.0:
+        return omega, rig_acceleration_at(theta, omega, tau, d, rig), (u - tau) / lag
+    return omega, rig_acceleration_at(theta, omega, u, d, rig), 0.0
 
 
 @jitable
 def rig_derivative(theta: float, omega: float, tau: float, u: float, t: float,
                    rig: Vector) -> tuple[float, float, float]:
     """Time derivative of the rig state (θ, θ̇, τ) under the applied input u [N·m]."""
-    lag = rig[LAG]
-    if lag > 0.0:
-        return omega, rig_acceleration(theta, omega, tau, t, rig), (u - tau) / lag
-    return omega, rig_acceleration(theta, omega, u, t, rig), 0.0
+    return rig_derivative_at(theta, omega, tau, u, disturbance(t, rig), rig)
+
+
+@jitable
+def rig_rk4_step_at(theta: float, omega: float, tau: float, u: float, d0: float, dhalf: float,
+                    d1: float, h: float, rig: Vector) -> tuple[float, float, float]:
+    """One RK4 step of length h [s] with u held, given d at the step's start, middle and end."""
+    half = 0.5 * h
+    a1, b1, c1 = rig_derivative_at(theta, omega, tau, u, d0, rig)
+    a2, b2, c2 = rig_derivative_at(theta + half * a1, omega + half * b1, tau + half * c1, u,
+                                   dhalf, rig)
+    a3, b3, c3 = rig_derivative_at(theta + half * a2, omega + half * b2, tau + half * c2, u,
+                                   dhalf, rig)
+    a4, b4, c4 = rig_derivative_at(theta + h * a3, omega + h * b3, tau + h * c3, u, d1, rig)
+    sixth = h / 6.0
+    return (
+        theta + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+        omega + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
+        tau + sixth * (c1 + 2.0 * c2 + 2.0 * c3 + c4),
+    )
 
 
 @jitable
@@ -95,18 +131,8 @@ def rig_rk4_step(theta: float, omega: float, tau: float, u: float, t: float, h: 
                  rig: Vector) -> tuple[float, float, float]:
     """One classical RK4 step of length h [s] from time t with u held."""
     half = 0.5 * h
-    a1, b1, c1 = rig_derivative(theta, omega, tau, u, t, rig)
-    a2, b2, c2 = rig_derivative(theta + half * a1, omega + half * b1, tau + half * c1, u,
-                                t + half, rig)
-    a3, b3, c3 = rig_derivative(theta + half * a2, omega + half * b2, tau + half * c2, u,
-                                t + half, rig)
-    a4, b4, c4 = rig_derivative(theta + h * a3, omega + h * b3, tau + h * c3, u, t + h, rig)
-    sixth = h / 6.0
-    return (
-        theta + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
-        omega + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
-        tau + sixth * (c1 + 2.0 * c2 + 2.0 * c3 + c4),
-    )
+    return rig_rk4_step_at(theta, omega, tau, u, disturbance(t, rig),
+                           disturbance(t + half, rig), disturbance(t + h, rig), h, rig)
 
 
 @jitable
@@ -238,6 +264,29 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
     # the parameters as a tuple: compiled, they live in registers through the RK4 loop
     rig = (p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10])
     x[0], x[1], x[2] = rig_advance(x[0], x[1], x[2], u[0], t0, h, nsub, rig)
+
+
+@jitable
+def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
+                  nsub: int, p: np.ndarray) -> None:
+    """:func:`advance` for a block of runs sharing ``p``: run i is ``xs[i]``, ``us[i]``.
+
+    The same RK4 steps as :func:`advance` on each run with ``live[i]`` true, the
+    runs innermost; d(t), which depends on t only, is computed once per stage
+    time for the whole block.  The same numbers as :func:`advance`, bit for bit.
+    """
+    rig = (p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10])
+    half = 0.5 * h
+    for j in range(nsub):
+        t = t0 + j * h
+        d0 = disturbance(t, rig)
+        dhalf = disturbance(t + half, rig)
+        d1 = disturbance(t + h, rig)
+        for i in range(xs.shape[0]):
+            if live[i]:
+                x = xs[i]
+                x[0], x[1], x[2] = rig_rk4_step_at(x[0], x[1], x[2], us[i, 0], d0, dhalf, d1,
+                                                   h, rig)
 
 
 @jitable

@@ -395,6 +395,9 @@ def estimation_error(result) -> np.ndarray:  # type: ignore[no-untyped-def]
         κ_k [rad/s²].
     """
     scn = result.scenario
+    if scn.controller.kind != "flc":
+        raise ValueError(f"κ (eq. 17) is defined for the FLC, not for controller.kind = "
+                         f"{scn.controller.kind!r}")
     k1, k2 = scn.controller.k1, scn.controller.k2
     z1, z2, z3 = result.z[:, 0], result.z[:, 1], result.z[:, 2]
     if scn.controller.compensation == "eso":
