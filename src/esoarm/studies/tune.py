@@ -49,7 +49,8 @@ import numpy as np
 
 from esoarm.engines.metrics import METRICS
 from esoarm.scenario import Scenario, ScenarioError
-from esoarm.studies.sweep import _apply, _lookup, metrics_runner
+from esoarm.studies.sweep import metrics_runner
+from esoarm.studies.sweep_grid import _apply, _lookup
 
 __all__ = [
     "DEFAULT_OBJECTIVE",
