@@ -5,5 +5,8 @@
 ``batch``        the compiled engine (numba, many runs in parallel), bit-identical to it
 ``fast``         the opt-in fast engine (a vectorized C kernel), agrees to round-off
 ``metrics``      the log layout and every metric, for every engine (no numba)
-``arm_loop``     the same loop on a URDF arm (vectors per joint, Pinocchio)
+``diagnosis``    what left the range when a run diverges, and the likely causes
+
+A URDF arm runs through the same ``loop`` (its plant kind is not compilable, so the reference
+engine runs it, in worker processes for sweeps).
 """
