@@ -55,7 +55,7 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
     libelf-dev; building the firmware needs gcc-avr, avr-libc, arduino-core-avr
     and arduino-mk.
     """
-    from esoarm.hardware.hil.board import BoardError
+    from esoarm.hardware.hil.board import F_CPU, BoardError
     from esoarm.hardware.hil.build import ToolchainMissing, firmware_elf
     from esoarm.hardware.hil.server import HilServer, parse_hil_fault
 
@@ -80,11 +80,18 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
 
     def done() -> bool:
         # --once: a run was started, the motor pins are off, and the host has said STOP
-        # (0.3 s ago, so that STOPPED reaches it), pulled the plug, or gone quiet for 5 s
+        # (0.3 s ago, so that STOPPED reaches it), gone quiet for 5 s, or pulled the plug
+        # (then the firmware's watchdog stops the motor and sends its FAULT frame, which
+        # takes a few ms on the wire after the pins go off: wait for it, 1 s at most)
         return bool(terminated) or (
             once and server.log.start_cycle is not None and server.motor_duty == 0
-            and (server.unplugged or server.host_quiet(5.0)
+            and (unplug_settled() or server.host_quiet(5.0)
                  or server.stop_seen and server.host_quiet(0.3)))
+
+    def unplug_settled() -> bool:
+        if server.unplug_cycle is None:
+            return False
+        return bool(server.device_faults) or server.board.cycle - server.unplug_cycle > F_CPU
 
     old = signal.signal(signal.SIGTERM, on_term)
     try:

@@ -143,6 +143,8 @@ class HilServer:
         self._wall0 = time.perf_counter()
         self._cycle0 = 0
         self.motor_duty = 0
+        self.unplug_cycle: int | None = None  # AVR cycle at which the link went away
+        self.device_faults: list[str] = []  # FAULT frames the firmware sent, by name
         self.stop_seen = False    # the host sent STOP after the last START
         self.count_error = 0      # device count − arm position [counts] at the last sample
         self.count_error_max = 0
@@ -221,6 +223,7 @@ class HilServer:
             name = {P.FAULT_WATCHDOG: "watchdog", P.FAULT_OVERRUN: "overrun",
                     P.FAULT_BAD_COMMAND: "bad command",
                     P.FAULT_ENCODER: "encoder"}.get(code, f"code {code}")
+            self.device_faults.append(name)
             self.echo(f"device fault: {name} (detail {detail}) at t = {self.twin.t:.4g} s")
         if kind == P.STOPPED:
             self.run_active = False
@@ -290,6 +293,7 @@ class HilServer:
         if self.unplugged:
             return
         self.unplugged = True
+        self.unplug_cycle = self.board.cycle
         for fd in (self.master, self.slave):
             try:
                 os.close(fd)
