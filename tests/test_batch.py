@@ -110,6 +110,19 @@ def test_bit_identical_builtin(name: str) -> None:
     assert {k: row[k] for k in ref.metrics} == ref.metrics
 
 
+@pytest.mark.parametrize("disc", DISCRETIZATIONS)
+def test_blocked_metrics_bit_identical_every_case(disc: str) -> None:
+    """The vectorized block kernel (stiction on and off, lag, motor, ...) changes no bit."""
+    scns = [_scenario("test-1", disc, extra) for extra in CASES.values()]
+    table = batch.run_metrics(scns, seeds=[3, 4, 5])
+    for i, scn in enumerate(scns):
+        for j, seed in enumerate((3, 4, 5)):
+            one = scn.with_overrides({"sensor.seed": seed})
+            ref = run_reference(one, prepare(one))
+            row = table.row(3 * i + j)
+            assert {k: row[k] for k in ref.metrics} == ref.metrics, list(CASES)[i]
+
+
 @pytest.mark.parametrize("disc", ["euler", "zoh"])
 def test_divergence_rule(disc: str) -> None:
     # Euler is unstable for Ts/ε ≥ 2; a tiny ε with "zoh" rings up through saturation-free

@@ -25,6 +25,8 @@ SETTINGS = {
     "saturation": {"actuator.torque_limit": 0.05},
     "model-compensation": {"controller.compensation": "model"},
     "theta0": {"rig.theta0": 0.3},
+    "stiction": {"rig.stiction": 0.15, "rig.stribeck_velocity": 0.05},
+    "stiction+lag": {"rig.stiction": 0.1, "actuator.lag": 0.02},
     "fine-step": {"rig.step": 0.0005, "sensor.rate_hz": 100.0},
     "diverges": {"observer.eps": 0.004},
     "diverges-late": {"observer.discretization": "zoh", "observer.eps": 0.02,

@@ -165,20 +165,20 @@ _install_cache_locator()
 # compiled kernels
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _tuple16(a):  # pragma: no cover - compiled
     return (a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12],
             a[13], a[14], a[15])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _tuple32(a):  # pragma: no cover - compiled
     return (a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12],
             a[13], a[14], a[15], a[16], a[17], a[18], a[19], a[20], a[21], a[22], a[23], a[24],
             a[25], a[26], a[27], a[28], a[29], a[30], a[31])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _run(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp, ap):  # pragma: no cover - compiled
     """One run of :func:`closed_loop` with the registry's dispatch functions.
 
@@ -197,7 +197,7 @@ def _run(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp, ap):  # pragma: no 
                        _kinds.controller_control)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def _metrics_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
                     out):  # pragma: no cover - compiled
     nmax = refs.shape[2]
@@ -211,7 +211,7 @@ def _metrics_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, re
         log_metrics(log, abs(status), status < 0, out[r])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _run_block(logs, rows, n, xs, noises, fpar, ipar, ref, b0, pp, op, cp,
                ap):  # pragma: no cover - compiled
     """A block of runs of one point through :func:`closed_loop_block` (tuples as in _run)."""
@@ -224,7 +224,7 @@ def _run_block(logs, rows, n, xs, noises, fpar, ipar, ref, b0, pp, op, cp,
                       _kinds.controller_control)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def _blocked_metrics_kernel(blk_point, blk_start, blk_len, run_noise, fpar, ipar, x0, b0, pp, op,
                             cp, ap, refs, noises, out):  # pragma: no cover - compiled
     for b in prange(blk_point.shape[0]):
@@ -269,7 +269,7 @@ def _blocks(run_point: np.ndarray, ipar: np.ndarray) -> tuple[np.ndarray, ...]:
             np.array(lens, dtype=np.int64))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def _series_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises, logs,
                    rows_out):  # pragma: no cover - compiled
     for r in prange(run_point.shape[0]):

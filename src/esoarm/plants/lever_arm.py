@@ -7,7 +7,9 @@
 
 Fst (``rig.stiction``, default 0) is the breakaway torque above Coulomb
 friction, decaying over the Stribeck velocity vst; with Fst = 0 the friction is
-exactly Fc tanh(θ̇/vs) + b θ̇ (bit for bit: Fc + 0·exp(…) = Fc).
+exactly Fc tanh(θ̇/vs) + b θ̇ (bit for bit: Fc + 0·exp(…) = Fc).  tanh, exp
+and the cos of G(θ) are :mod:`esoarm.plants.elementary`'s (plain arithmetic,
+the same bits in every engine, vectorizable across a block of runs).
 
 integrated with classical RK4 at a fixed step h, d evaluated at each stage
 time.  The scalar functions take the rig parameters packed in one float vector
@@ -33,6 +35,7 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
 from esoarm.contract import PlantDesign, Vector, read_only
+from esoarm.plants.elementary import exp_neg, tanh
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
 from esoarm.plants.motor import MotorParams
 
@@ -65,6 +68,9 @@ class Params(Section):
 INERTIA, GCOEF, FC, VS, VISC, DAMP, DFREQ, LAG, FST, VST = range(10)
 VECTOR_SIZE = 10
 
+#: Runs per vector in :func:`advance_block` (8 doubles: AVX-512; a multiple of AVX2's 4).
+LANES = 8
+
 
 @jitable
 def disturbance(t: float, rig: Vector) -> float:
@@ -76,11 +82,12 @@ def disturbance(t: float, rig: Vector) -> float:
 def rig_acceleration_at(theta: float, omega: float, tau: float, d: float,
                         rig: Vector) -> float:
     """True angular acceleration θ̈ [rad/s²] given the disturbance value d = d(t) [rad/s²]."""
-    friction = rig[FC] * math.tanh(omega / rig[VS]) + rig[VISC] * omega
-    if rig[FST] != 0.0:  # Stribeck term; skipped when 0 (Fc + 0·exp(…) is Fc, bit for bit)
+    coulomb = rig[FC]
+    if len(rig) > FST:  # a rig given without its Stribeck entries has Fst = 0 (see advance_block)
+        # with Fst = 0 this is Fc bit for bit (Fc + 0·e^(−x²) is Fc)
         x = omega / rig[VST]
-        friction = (rig[FC] + rig[FST] * math.exp(-x * x)) * math.tanh(omega / rig[VS]) \
-            + rig[VISC] * omega
+        coulomb = rig[FC] + rig[FST] * exp_neg(x * x)
+    friction = coulomb * tanh(omega / rig[VS]) + rig[VISC] * omega
     return (tau - gravity_torque(theta, rig[GCOEF]) - friction) / rig[INERTIA] + d
 
 
@@ -95,9 +102,11 @@ def rig_derivative_at(theta: float, omega: float, tau: float, u: float, d: float
                       rig: Vector) -> tuple[float, float, float]:
     """Time derivative of the rig state (θ, θ̇, τ) under the input u [N·m], d(t) = d given."""
     lag = rig[LAG]
-    if lag > 0.0:
-        return omega, rig_acceleration_at(theta, omega, tau, d, rig), (u - tau) / lag
-    return omega, rig_acceleration_at(theta, omega, u, d, rig), 0.0
+    lagged = lag > 0.0
+    # selects, not branches: a compiled block of runs stays one vector loop
+    torque = tau if lagged else u
+    dtau = (u - tau) / lag if lagged else 0.0
+    return omega, rig_acceleration_at(theta, omega, torque, d, rig), dtau
 
 
 @jitable
@@ -275,18 +284,40 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
     runs innermost; d(t), which depends on t only, is computed once per stage
     time for the whole block.  The same numbers as :func:`advance`, bit for bit.
     """
-    rig = (p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10])
+    if p[1 + FST] == 0.0:  # no Stribeck term: the rig without its entries skips e^(−x²)
+        _advance_block(xs, us, live, t0, h, nsub, (p[1], p[2], p[3], p[4], p[5], p[6], p[7],
+                                                   p[8]))
+    else:
+        _advance_block(xs, us, live, t0, h, nsub, (p[1], p[2], p[3], p[4], p[5], p[6], p[7],
+                                                   p[8], p[9], p[10]))
+
+
+@jitable
+def _advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
+                   nsub: int, rig: Vector) -> None:
     half = 0.5 * h
+    m = xs.shape[0]
+    # one array per state component (runs contiguous): the loop over runs below has no
+    # branch and no libm call, so it compiles to vector instructions.  A run that is not
+    # live is advanced too (its numbers are never read) and not written back; the arrays
+    # are padded with copies of run 0 to whole vectors (LANES), since a leftover run or
+    # two would take the scalar path, several times slower per run.
+    mp = -(-m // LANES) * LANES
+    theta, omega, tau, u = np.empty(mp), np.empty(mp), np.empty(mp), np.empty(mp)
+    for i in range(mp):
+        r = i if i < m else 0
+        theta[i], omega[i], tau[i], u[i] = xs[r, 0], xs[r, 1], xs[r, 2], us[r, 0]
     for j in range(nsub):
         t = t0 + j * h
         d0 = disturbance(t, rig)
         dhalf = disturbance(t + half, rig)
         d1 = disturbance(t + h, rig)
-        for i in range(xs.shape[0]):
-            if live[i]:
-                x = xs[i]
-                x[0], x[1], x[2] = rig_rk4_step_at(x[0], x[1], x[2], us[i, 0], d0, dhalf, d1,
-                                                   h, rig)
+        for i in range(mp):
+            theta[i], omega[i], tau[i] = rig_rk4_step_at(theta[i], omega[i], tau[i], u[i],
+                                                         d0, dhalf, d1, h, rig)
+    for i in range(m):
+        if live[i]:
+            xs[i, 0], xs[i, 1], xs[i, 2] = theta[i], omega[i], tau[i]
 
 
 @jitable

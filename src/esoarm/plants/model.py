@@ -15,9 +15,8 @@ reuse them (see :mod:`esoarm._jit`).
 
 from __future__ import annotations
 
-import math
-
 from esoarm._jit import jitable
+from esoarm.plants.elementary import cos
 
 
 @jitable
@@ -37,7 +36,7 @@ def gravity_torque(theta: float, gcoef: float) -> float:
     gcoef : float
         (m1 l1 − m2 l2) g [N·m], from :func:`gravity_coefficient`.
     """
-    return gcoef * math.cos(theta)
+    return gcoef * cos(theta)
 
 
 @jitable
