@@ -4,6 +4,7 @@ memory independent of the number of runs (:class:`SweepWriter`)."""
 from __future__ import annotations
 
 import csv
+import math
 import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -106,12 +107,14 @@ class SweepWriter:
 
     def _write(self, start: int, values: np.ndarray) -> None:
         n_float = len(METRICS) - 2  # samples, diverged are counts
-        for k, m in enumerate(values):
+        # Python floats (tolist) print exactly as the float64 values they come from
+        for k, m in enumerate(values.tolist()):
             p, j = divmod(start + k, self._per_point)
             combo = self.grid.points.combo(p)
             seed = self.grid.seeds[j] if self._seed_col is None else combo[self._seed_col]
-            counts = [int(v) if np.isfinite(v) else v for v in m[n_float:]]
-            self._csv.writerow([_cell(v) for v in (*combo, seed, *m[:n_float], *counts)])
+            counts = [int(v) if math.isfinite(v) else v for v in m[n_float:]]
+            self._csv.writerow([*map(_cell, combo), _cell(seed), *map(repr, m[:n_float]),
+                                *map(_cell, counts)])
         self.rows_written += len(values)
 
     def _rank(self, first_point: int, values: np.ndarray) -> None:
