@@ -55,6 +55,8 @@ def test_objective_default_and_functions() -> None:
         ("log(-rms_error)", "not a finite number"),
         ("9**9**9 * rms_u", "not a finite number"),  # a float: no bignum, no hang
         ("min(rms_error)", "min() takes 2 arguments, got 1"),
+        ("1" + "0" * 400 + " * rms_u", "is not a finite number"),
+        ("1e999 + rms_u", "inf is not a finite number"),
         ("sqrt(rms_u, 2)", "sqrt() takes 1 argument, got 2"),
     ],
 )

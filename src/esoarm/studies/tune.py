@@ -193,7 +193,9 @@ class Objective:
             self._check(node.operand)
         elif isinstance(node, ast.Constant) and isinstance(node.value, int | float) \
                 and not isinstance(node.value, bool):
-            pass
+            if not math.isfinite(_as_float(node.value)):
+                raise ScenarioError(f"objective '{self.text}': {node.value!r:.20} is not a "
+                                    "finite number")
         elif isinstance(node, ast.Name):
             if node.id not in (*_OBJ_METRICS, "w"):
                 raise ScenarioError(
@@ -226,7 +228,7 @@ class Objective:
                 v = ev(node.operand)
                 return -v if isinstance(node.op, ast.USub) else v
             if isinstance(node, ast.Constant):  # a float: 9**9**9 overflows to inf, not a bignum
-                return np.float64(node.value)
+                return np.float64(_as_float(node.value))
             if isinstance(node, ast.Name):
                 return env[node.id]
             assert isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
@@ -234,6 +236,14 @@ class Objective:
 
         with np.errstate(all="ignore"):
             return np.asarray(ev(self._tree), dtype=float)
+
+
+def _as_float(value: Any) -> float:
+    """A number of the expression as a float (inf for an integer too large for one)."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
 
 
 @dataclass
@@ -352,7 +362,8 @@ def tune(
     nonfinite: list[dict[str, Any]] = []  # rows of the search whose objective was inf/nan
     runs = 0
 
-    def score(candidates: list[dict[str, Any]]) -> tuple[np.ndarray, list[dict[str, float]]]:
+    def score(candidates: list[dict[str, Any]],
+              ) -> tuple[np.ndarray, list[dict[str, float]], np.ndarray]:
         nonlocal runs
         points = [_apply(base, {**cand, **var}, ", ".join([*cand, *var]))
                   for cand in candidates for var in variants]
