@@ -237,9 +237,9 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
         from esoarm.studies.sweep_plots import figure_sweep
 
         figure_sweep(kept, plot_path)
-    if writer.diverged:
-        warn_line(f"{writer.diverged} of {grid.n_runs} runs diverged "
-                  "(diverged = 1 in the CSV; their metrics cover the samples up to divergence)")
+    divergence = writer.divergence_warning()
+    if divergence is not None:
+        warn_line(divergence)
     if as_json:
         click.echo(json.dumps(_summary(writer, out_path, plot_path, writer.diverged)))
         return
