@@ -71,7 +71,7 @@ def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, floa
         return ["t", "y" if "y" in header else "theta", "u"]
 
     _, data = read_log_columns(path, pick, "need t [s], theta or y [rad, measured], u [N·m]",
-                                   lost_ok=("theta", "y"))
+                               lost_ok=("theta", "y"))
     t, theta, u = data[:, 0], data[:, 1], data[:, 2]
     return t, theta, u, sample_period(t, path)
 
