@@ -78,15 +78,22 @@ def load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
+#: The environment of the commands timed warm: Python may cache bytecode (as after
+#: ``pip install``) even where PYTHONDONTWRITEBYTECODE is set (a sandbox, a CI).
+WARM_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
 def run_proc(cmd: list[str], env: dict[str, str] | None = None,
              cpu: list[float] | None = None) -> tuple[float, float]:
     """Run a command; return (wall time [s], peak resident memory [MiB]) of that process.
 
-    With ``cpu``, the process's CPU time (user + system) [s] is appended to it.
+    With ``cpu``, the process's CPU time (user + system) [s] is appended to it.  Without
+    ``env``, the command runs in :data:`WARM_ENV`.
     """
     with tempfile.TemporaryFile() as err:
         t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=err)
+        proc = subprocess.Popen(cmd, env=WARM_ENV if env is None else env,
+                                stdout=subprocess.DEVNULL, stderr=err)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
         proc.returncode = os.waitstatus_to_exitcode(status)

@@ -29,6 +29,11 @@ def test_the_likely_cause_is_named(overrides, cause):
     assert causes and causes[0].startswith(cause), causes
 
 
+def test_a_pid_controller_has_no_k1_k2_and_the_other_causes_still_count():
+    scn = load_scenario("test-1", {"controller.kind": "pid", "observer.eps": 0.005})
+    assert divergence_causes(scn, LIMIT)[0].startswith("observer.eps = 0.005 s")
+
+
 @pytest.mark.parametrize("name", ["test-1", "test-2"])
 def test_nothing_stands_out_in_the_builtins(name):
     assert divergence_causes(load_scenario(name), LIMIT) == []
@@ -73,3 +78,16 @@ def test_cli_warns_when_the_command_is_saturated_most_of_the_run(run_cli):
     assert json.loads(res.stdout)["saturated_fraction"] == pytest.approx(0.575)
     calm = run_cli("simulate", "test-1", "--json")
     assert "torque limit" not in calm.stderr
+
+
+def test_a_diverged_pid_run_is_a_one_line_failure_not_an_internal_error():
+    from click.testing import CliRunner
+
+    from esoarm.cli import cli
+
+    res = CliRunner().invoke(cli, ["simulate", "test-1", "--set", "controller.kind=pid",
+                                   "--set", "observer.eps=0.004", "--set", "duration=2",
+                                   "--quiet"])
+    assert res.exit_code == 1, res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "diverged" in lines[0] and "observer.eps = 0.004 s" in lines[0]

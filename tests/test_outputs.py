@@ -117,6 +117,74 @@ def test_atomic_path_cleans_up_on_a_failed_write(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
 
 
+def _tree(root: Path) -> dict[str, str]:
+    """Every file under root (hidden ones too) -> its text."""
+    return {str(p.relative_to(root)): p.read_text(encoding="utf-8")
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _write_some(out: Path, fail_after: int | None = None) -> None:
+    """Write a.csv, runs/r1.csv, runs/r2.csv, report.html through atomic_path; OSError
+    (a full disk) instead of the file number ``fail_after``."""
+    for i, name in enumerate(("a.csv", "runs/r1.csv", "runs/r2.csv", "report.html")):
+        with _io.atomic_path(out / name) as tmp:
+            if i == fail_after:
+                tmp.write_text("par", encoding="utf-8")
+                raise OSError(errno.ENOSPC, "No space left on device", str(tmp))
+            tmp.write_text(f"new {name}", encoding="utf-8")
+
+
+def test_staged_dir_appears_only_complete(tmp_path):
+    out = tmp_path / "sub" / "res"
+    with _io.staged_dir(out) as staging:
+        assert staging != out and staging.is_dir() and not out.exists()
+        _write_some(staging)
+        assert not out.exists()  # nothing under DIR before the end
+    assert _tree(out) == {n: f"new {n}" for n in ("a.csv", "report.html", "runs/r1.csv",
+                                                  "runs/r2.csv")}
+    assert [p.name for p in out.parent.iterdir()] == ["res"]  # no temporary directory left
+
+
+@pytest.mark.parametrize("fail_after", [0, 2, 3])
+def test_staged_dir_failing_halfway_leaves_no_directory(tmp_path, fail_after):
+    out = tmp_path / "res"
+    with pytest.raises(_io.OutputError) as info, _io.staged_dir(out) as staging:
+        _write_some(staging, fail_after)
+    name = ("a.csv", "runs/r1.csv", "runs/r2.csv", "report.html")[fail_after]
+    assert str(info.value) == f"cannot write '{out / name}': no space left on the device"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_staged_dir_over_earlier_results_replaces_them_only_when_complete(tmp_path):
+    out = tmp_path / "res"
+    (out / "runs").mkdir(parents=True)
+    old = {"a.csv": "old a", "runs/r1.csv": "old r1", "runs/mine.txt": "keep",
+           "notes.txt": "keep"}
+    for name, text in old.items():
+        (out / name).write_text(text, encoding="utf-8")
+    with pytest.raises(_io.OutputError, match="runs/r2.csv"), _io.staged_dir(out) as staging:
+        assert staging.parent == out  # inside DIR: the renames stay on one file system
+        _write_some(staging, fail_after=2)
+    assert _tree(out) == old
+    with _io.staged_dir(out) as staging:
+        _write_some(staging)
+    assert _tree(out) == {"a.csv": "new a.csv", "notes.txt": "keep", "report.html":
+                          "new report.html", "runs/mine.txt": "keep",
+                          "runs/r1.csv": "new runs/r1.csv", "runs/r2.csv": "new runs/r2.csv"}
+
+
+def test_staged_dir_on_ctrl_c_and_plain_os_errors(tmp_path):
+    out = tmp_path / "res"
+    with pytest.raises(KeyboardInterrupt), _io.staged_dir(out) as staging:
+        _write_some(staging, fail_after=None)
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(_io.OutputError) as info, _io.staged_dir(out):
+        raise OSError(errno.EFBIG, "File too large")  # a writer that names no file
+    assert str(info.value).startswith(f"cannot write '{out}': file too large")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_atomic_path_cleans_up_on_ctrl_c(tmp_path):
     target = tmp_path / "out.csv"
     with pytest.raises(KeyboardInterrupt), _io.atomic_path(target) as tmp:

@@ -242,3 +242,54 @@ def test_pid_baseline_rows() -> None:
     for row in rows:
         res = simulate(row["test"], {"duration": 4.0, "controller.kind": "pid"}, warn=False)
         assert row["rms_error"] == res.metrics["rms_error"] and row["compensation"] == "pid"
+
+
+def _short_reproductions(monkeypatch):  # type: ignore[no-untyped-def]
+    """Every reproduction of the command at duration = 4 s without the comparisons (fast)."""
+    from esoarm.studies import reproduce, twins_report
+
+    real = reproduce.run_reproduction
+
+    def short(overrides=None, progress=None, compare=True):  # type: ignore[no-untyped-def]
+        return real([*(overrides or []), "duration=4"], progress=progress, compare=False)
+
+    monkeypatch.setattr(reproduce, "run_reproduction", short)
+    monkeypatch.setattr(twins_report, "run_reproduction", short)
+
+
+@pytest.mark.parametrize("earlier", [False, True], ids=["new DIR", "DIR with earlier results"])
+def test_cli_reproduce_failing_halfway_leaves_dir_as_it_was(tmp_path, monkeypatch, capsys,
+                                                            earlier):
+    """A full disk while writing the figures: one line, exit 1, DIR as before the command."""
+    import errno
+
+    from esoarm.cli import main
+    from esoarm.studies import reproduce_outputs
+
+    _short_reproductions(monkeypatch)
+    out = tmp_path / "res"
+    if earlier:
+        (out / "runs").mkdir(parents=True)
+        (out / "tables.csv").write_text("earlier\n")
+        (out / "runs" / "test-1_eps0.09.csv").write_text("earlier\n")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    real, calls = reproduce_outputs._write_bytes, []
+
+    def full_disk(path, data):  # type: ignore[no-untyped-def]
+        calls.append(path.name)
+        if path.name == "fig5.png":  # the runs, tables and fig4 are written by then
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        real(path, data)
+
+    monkeypatch.setattr(reproduce_outputs, "_write_bytes", full_disk)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "--out", str(out)])
+    assert exit_info.value.code == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert calls[-2:] == ["fig4.png", "fig5.png"] and "tables.json" in calls
+    assert err[0] == (f"esoarm: failed: cannot write '{out / 'fig5.png'}': no space left on "
+                      "the device (no partial file left behind)")
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+    if earlier:
+        assert (out / "tables.csv").read_text() == "earlier\n"

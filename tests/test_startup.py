@@ -45,6 +45,32 @@ def test_small_sweep_loads_no_compiled_engine() -> None:
             "'--vary', 'observer.eps=0.09'])\nexcept SystemExit:\n    pass")
     loaded = _modules_after(code)
     assert "numba" not in loaded and "matplotlib" not in loaded and "dask" not in loaded
+    assert "scipy" not in loaded
+
+
+def test_grid_warnings_need_no_scipy() -> None:
+    # ε = 0.03 s < 2·Ts warns (zoh); the observer check must not pull in the linearization
+    code = ("from esoarm.scenario import load_scenario\n"
+            "from esoarm.studies.sweep_grid import build_grid\n"
+            "g = build_grid(load_scenario('test-1', {'observer.discretization': 'zoh'}), "
+            "['observer.eps=0.03,0.09'])\n"
+            "assert g.warnings(), g.warnings()")
+    assert "scipy" not in _modules_after(code)
+
+
+def test_fast_engine_loads_no_numba() -> None:
+    code = ("from esoarm.cli import main\n"
+            "try:\n    main(['sweep', 'test-1', '--set', 'duration=0.2', '--engine', 'fast', "
+            "'--vary', 'observer.eps=0.09'])\nexcept SystemExit:\n    pass")
+    loaded = _modules_after(code)
+    assert "numba" not in loaded and "scipy" not in loaded
+
+
+def test_analysis_still_offers_the_linearization() -> None:
+    from esoarm.studies import analysis, linearization
+
+    assert analysis.to_control is linearization.to_control
+    assert analysis.ControlLoop is linearization.ControlLoop
 
 
 def test_command_summaries_match_the_commands() -> None:

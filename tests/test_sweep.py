@@ -194,6 +194,33 @@ def test_diverged_runs_are_rows_with_a_warning(tmp_path: Path) -> None:
     assert "1 of 2 runs diverged" in res.stderr
     assert "unstable" in res.stderr  # the scenario warning for eps = 0.004 with Euler
     assert [r["diverged"] for r in _read_csv(out)] == ["1", "0"]
+    (line,) = [x for x in res.stderr.splitlines() if "runs diverged" in x]
+    assert "at 1 of 2 grid points (observer.eps = 0.004)" in line
+    assert "likely cause at the first: observer.eps = 0.004 s, an unstable observer" in line
+
+
+def test_divergence_warning_names_the_first_points_in_grid_order(base) -> None:  # type: ignore[no-untyped-def]
+    from esoarm.engines.metrics import METRICS
+    from esoarm.studies.sweep_output import DIVERGED_SHOWN, SweepWriter
+
+    grid = sweep.build_grid(base, ["observer.eps=0.01,0.02,0.03,0.04,0.05,0.06"], 2)
+    writer = SweepWriter(grid)
+    assert writer.divergence_warning() is None
+    diverged = {1: 2, 2: 1, 4: 1, 5: 2}  # grid point -> diverged seeds
+    for first in (8, 4, 0):  # chunks of two points, finishing out of order (as on Dask)
+        values = np.zeros((4, len(METRICS)))
+        for k in range(4):
+            p, j = divmod(first + k, 2)
+            values[k, -1] = j < diverged.get(p, 0)
+        writer.add(first, values)
+    assert writer.diverged == 6 and writer.diverged_points == 4
+    assert writer.first_diverged == [(1, 2), (2, 1), (4, 1)][:DIVERGED_SHOWN]
+    line = writer.divergence_warning()
+    assert line is not None and line.startswith("6 of 12 runs diverged, at 4 of 6 grid points "
+                                                "(observer.eps = 0.02 (2 of 2 seeds); "
+                                                "observer.eps = 0.03 (1 of 2 seeds); "
+                                                "observer.eps = 0.05 (1 of 2 seeds); and 1 more)")
+    assert "nothing in the scenario of the first stands out" in line  # eps = 0.02 is stable
 
 
 def test_interrupt_keeps_finished_rows(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]

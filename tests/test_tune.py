@@ -16,7 +16,14 @@ from esoarm.cli import cli
 from esoarm.engines import batch
 from esoarm.scenario import ScenarioError, load_scenario
 from esoarm.studies.sweep_plots import pareto_mask
-from esoarm.studies.tune import DIVERGED_PENALTY, Bound, Objective, parse_bound, tune
+from esoarm.studies.tune import (
+    DIVERGED_PENALTY,
+    Bound,
+    Objective,
+    describe_nonfinite,
+    parse_bound,
+    tune,
+)
 
 FAST = {"maxiter": 8, "popsize": 6}
 
@@ -43,6 +50,14 @@ def test_objective_default_and_functions() -> None:
         ("rms_error.real", "only numbers"),
         ("rms_error +", "not a valid expression"),
         ("rms_error if rms_u else 1", "only numbers"),
+        ("1/0", "not a finite number (gives inf)"),
+        ("rms_error/0 - rms_u/0", "not a finite number (gives nan)"),
+        ("log(-rms_error)", "not a finite number"),
+        ("9**9**9 * rms_u", "not a finite number"),  # a float: no bignum, no hang
+        ("min(rms_error)", "min() takes 2 arguments, got 1"),
+        ("1" + "0" * 400 + " * rms_u", "is not a finite number"),
+        ("1e999 + rms_u", "inf is not a finite number"),
+        ("sqrt(rms_u, 2)", "sqrt() takes 1 argument, got 2"),
     ],
 )
 def test_objective_rejects(text: str, needle: str) -> None:
@@ -108,6 +123,43 @@ def test_diverging_candidates_are_penalised(base) -> None:  # type: ignore[no-un
     assert res.best_metrics["diverged_runs"] == 0
 
 
+def test_objective_finite_somewhere_is_accepted() -> None:
+    # finite only where rms_u > 0.1 (or rms_error > rms_u): fine until a run says otherwise
+    for text in ("log(rms_u - 0.1)", "log(rms_error - rms_u)", "1"):
+        assert Objective(text).text == text
+
+
+def test_nonfinite_objective_is_scored_as_diverged_and_counted(base) -> None:  # type: ignore[no-untyped-def]
+    bounds = [parse_bound("observer.eps=0.03:0.3", base)]
+    grid = [base.with_overrides({"observer.eps": e}) for e in (0.03, 0.1, 0.3)]
+    rms_u = batch.run_metrics(grid, seeds=[0]).values[:, 1]
+    cut = float(np.median(rms_u))  # the objective is nan below, -inf at, finite above
+    objective = Objective(f"log(rms_u - {cut!r})")
+    res = tune(base, bounds, objective=objective, seeds=1, seed=0, **FAST)
+    ok = [e for e in res.evaluations if not e["diverged_runs"]]
+    below = [e for e in ok if e["rms_u"] <= cut]
+    assert 0 < res.nonfinite == len(below) < len(ok)
+    assert all(e["objective"] == DIVERGED_PENALTY for e in below)
+    assert res.nonfinite_example == below[0] and res.best_metrics["rms_u"] > cut
+    line = describe_nonfinite(res, objective)
+    assert line is not None and f"at {res.nonfinite} of {len(res.evaluations)} candidates" in line
+    assert f"rms_u = {below[0]['rms_u']:.4g}" in line and "rms_error" not in line
+
+
+def test_objective_finite_at_no_candidate_is_bad_input(tmp_path: Path) -> None:
+    out, fig = tmp_path / "never.csv", tmp_path / "never.png"
+    res = CliRunner().invoke(cli, ["tune", "test-1", "--vary", "observer.eps=0.03:0.3",
+                                   "--set", "duration=2.0", "--seeds", "1", "--maxiter", "2",
+                                   "--popsize", "3", "--objective", "log(rms_u - 500)",
+                                   "--out", str(out), "--plot", str(fig)])
+    assert res.exit_code == 2, res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--objective 'log(rms_u - 500)': not a finite number at any" \
+        in lines[0], res.stderr
+    assert "observer.eps = " in lines[0] and "rms_u = " in lines[0]
+    assert not out.exists() and not fig.exists()
+
+
 def test_cli_tune(tmp_path: Path) -> None:
     out, fig = tmp_path / "cands.csv", tmp_path / "pareto.png"
     res = CliRunner().invoke(cli, ["tune", "test-1", "--vary", "observer.eps=0.03:0.3",
@@ -134,6 +186,8 @@ def test_cli_tune(tmp_path: Path) -> None:
          "rig.inertia_scale"),
         (["--set", "duration=1"], "--vary"),
         (["--vary", "observer.eps=0.03:0.3", "--seeds", "0"], "--seeds"),
+        (["--vary", "observer.eps=0.03:0.3", "--objective", "1/0"],
+         "--objective '1/0': not a finite number"),
     ],
 )
 def test_cli_tune_bad_input(tmp_path: Path, args: list[str], needle: str) -> None:

@@ -8,6 +8,11 @@ Ctrl-C -- removes the temporary file, leaves the target as it was, and (for
 operating-system errors) raises :class:`OutputError`, whose message is one
 line naming the user's path, not the temporary one.
 
+:func:`staged_dir` does the same for a directory of outputs (``esoarm
+reproduce --out DIR``): the files are written into a temporary directory and
+moved into DIR only once all of them are complete, so a failure halfway leaves
+DIR as it was, not a directory that looks complete with files missing.
+
 :func:`check_writable` tests a path before any work is done, so that a
 command can reject an unwritable output path as bad input (exit status 2)
 instead of failing after a long run.
@@ -17,12 +22,14 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["OutputError", "atomic_path", "check_writable", "describe_os_error", "make_dir"]
+__all__ = ["OutputError", "atomic_path", "check_writable", "describe_os_error", "make_dir",
+           "staged_dir"]
 
 
 class OutputError(OSError):
@@ -96,6 +103,80 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except BaseException:
         _remove(tmp)
         raise
+
+
+@contextmanager
+def staged_dir(path: str | Path) -> Iterator[Path]:
+    """Yield a new, empty temporary directory; move what was written there into ``path``.
+
+    Write every output of a command into the yielded directory.  On success
+    its contents are moved into ``path`` by renames only (no data is written
+    then): when ``path`` does not exist the temporary directory itself is
+    renamed to it; when it exists (results of an earlier run, other files),
+    each new file replaces the one of the same name and other files are kept.
+    On any exception (Ctrl-C included) the temporary directory is removed and
+    ``path`` is left as it was; an :class:`OSError` is raised again as
+    :class:`OutputError` naming the file under ``path`` (not the temporary one).
+
+    The temporary directory is ``.NAME.PID.tmp`` beside a new ``path``, or
+    ``.esoarm-partial.PID`` inside an existing one, so that the renames stay on
+    one file system.
+
+    Raises
+    ------
+    OutputError
+        An output could not be written; ``path`` is as it was.
+    """
+    path = Path(path)
+    existing = path.is_dir()
+    if existing:
+        tmp = path / f".esoarm-partial.{os.getpid()}"
+    else:
+        make_dir(path.absolute().parent)
+        tmp = path.absolute().parent / f".{path.absolute().name}.{os.getpid()}.tmp"
+    try:
+        shutil.rmtree(tmp, ignore_errors=True)  # a leftover of a killed run with our pid
+        tmp.mkdir()
+    except OSError as exc:
+        raise OutputError(path, describe_os_error(exc)) from None
+    try:
+        yield tmp
+        if existing:
+            _merge_into(tmp, path)
+        else:
+            try:
+                os.rename(tmp, path)
+            except OSError:  # something made path meanwhile: move the files into it
+                make_dir(path)
+                _merge_into(tmp, path)
+    except OSError as exc:
+        raise OutputError(_user_path(exc, tmp, path), _reason(exc)) from None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)  # nothing left when all was moved
+
+
+def _merge_into(src: Path, dst: Path) -> None:
+    """Move the entries of ``src`` into the directory ``dst`` (renames), then remove ``src``."""
+    for entry in sorted(src.iterdir()):
+        target = dst / entry.name
+        if entry.is_dir() and target.is_dir():
+            _merge_into(entry, target)
+        else:
+            os.replace(entry, target)
+    src.rmdir()
+
+
+def _user_path(exc: OSError, tmp: Path, path: Path) -> Path:
+    """The user's name of the file an error is about: under ``path`` rather than ``tmp``."""
+    where = exc.path if isinstance(exc, OutputError) else Path(exc.filename or path)
+    try:
+        return path / Path(where).absolute().relative_to(tmp.absolute())
+    except ValueError:  # not a file under tmp
+        return path if not isinstance(exc, OutputError) else where
+
+
+def _reason(exc: OSError) -> str:
+    return exc.reason if isinstance(exc, OutputError) else describe_os_error(exc)
 
 
 def make_dir(path: str | Path) -> Path:

@@ -27,7 +27,8 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
     Fig. 7 ablation (test-2, ε = 0.09 s, with and without perturbation
     estimation); prints the paper's RMS tracking error [rad] and RMS control
     [N·m] beside the twin's, checks each qualitative claim, and writes the
-    tables, time series and Fig. 4-7 into DIR.  Also repeats the set with the
+    tables, time series and Fig. 4-7 into DIR (all at the end: if a file cannot
+    be written, DIR is left as it was).  Also repeats the set with the
     three ESO discretizations (euler, zoh, current), sweeps ε on test-1, checks
     Theorem 1 and 2, and writes everything into one self-contained
     DIR/report.html (open it in a browser; no network needed). --twin paper runs
@@ -38,6 +39,7 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from esoarm._io import staged_dir
     from esoarm.engines.simulation import SimulationDiverged
     from esoarm.studies.paper_twin import twin_overrides
     from esoarm.studies.reproduce import figure_specs, plan_runs, run_reproduction, write_outputs
@@ -66,8 +68,11 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
         bar.update(task, total=n_runs + len(figure_specs(rep)) + 2)
         section = ("twins", "Two twins: nominal and calibrated to the paper",
                    twins_section(reps))
-        write_outputs(rep, out, fmt=fmt, progress=lambda what: step(f"wrote {what}"),
-                      extra_sections=[section])
+        # written into a temporary directory, moved into DIR once all is complete: a
+        # failure halfway (a full disk) leaves DIR as it was, not looking complete
+        with staged_dir(out) as staging:
+            write_outputs(rep, staging, fmt=fmt, progress=lambda what: step(f"wrote {what}"),
+                          extra_sections=[section])
     _print(rep, out, fmt, twin)
 
 

@@ -237,9 +237,9 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
         from esoarm.studies.sweep_plots import figure_sweep
 
         figure_sweep(kept, plot_path)
-    if writer.diverged:
-        warn_line(f"{writer.diverged} of {grid.n_runs} runs diverged "
-                  "(diverged = 1 in the CSV; their metrics cover the samples up to divergence)")
+    divergence = writer.divergence_warning()
+    if divergence is not None:
+        warn_line(divergence)
     if as_json:
         click.echo(json.dumps(_summary(writer, out_path, plot_path, writer.diverged)))
         return
@@ -346,7 +346,9 @@ def _print_sweep(result: Any, diverged: int) -> None:
 @click.option("--objective", "objective", default=None, metavar="EXPR",
               help="Expression to minimize over rms_error [rad], rms_u [N·m], max_abs_error "
               "[rad], max_abs_u [N·m], rms_f_error [rad/s²] and w, evaluated on the means over "
-              "seeds and robust samples [default: rms_error + w*rms_u].")
+              "seeds and robust samples [default: rms_error + w*rms_u]. A candidate with a "
+              "diverged run, or at which EXPR is inf or nan, scores 1e6 (a warning counts the "
+              "latter); an EXPR that is finite nowhere (1/0, log(-rms_error)) is bad input.")
 @click.option("--weight", "weight", type=float, default=None, metavar="W",
               help="w in the objective [rad/(N·m)]: the price of 1 N·m of RMS control in "
               "radians of RMS error [default: 1.0].")
@@ -395,7 +397,13 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
       esoarm tune test-1 --vary observer.eps=0.02:0.3 --robust rig.inertia_scale=0.8:1.2
     """
     from esoarm.scenario import load_scenario
-    from esoarm.studies.tune import DEFAULT_OBJECTIVE, DEFAULT_WEIGHT, Objective, parse_bound
+    from esoarm.studies.tune import (
+        DEFAULT_OBJECTIVE,
+        DEFAULT_WEIGHT,
+        Objective,
+        describe_nonfinite,
+        parse_bound,
+    )
     from esoarm.studies.tune import tune as run_tune
 
     out_path = output_path(out, "--out", (".csv",))
@@ -426,6 +434,9 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
         click.echo("esoarm: interrupted: tuning stopped, nothing written", err=True)
         raise click.exceptions.Exit(INTERRUPTED) from None
 
+    nonfinite = describe_nonfinite(res, obj)
+    if nonfinite is not None:
+        warn_line(nonfinite)
     if out_path is not None:
         from esoarm.studies.sweep_output import write_rows_atomic
 

@@ -34,7 +34,6 @@ import hashlib
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 
 import numba
@@ -45,6 +44,23 @@ from esoarm import _jit
 from esoarm import kinds as _kinds
 from esoarm.engines.loop import closed_loop, closed_loop_block
 from esoarm.engines.metrics import METRICS, NMETRIC, NROW, MetricsTable, NoiseCache, log_metrics
+from esoarm.engines.packing import (  # packing needs no numba (the fast engine uses it alone)
+    _DELAY,
+    _H,
+    _N,
+    _NC,
+    _NJ,
+    _NSUB,
+    _NZ,
+    _Q,
+    _REFIDX,
+    _SIGMA,
+    _TS,
+    VECTOR_WIDTH,  # noqa: F401 - re-exported
+    _Pack,  # noqa: F401 - re-exported
+    _pack,
+    _stack,  # noqa: F401 - re-exported
+)
 from esoarm.engines.simulation import (
     SimulationDiverged,
     diverged_message,
@@ -63,14 +79,6 @@ __all__ = [
     "run_metrics",
     "simulate_many",
 ]
-
-# point-parameter columns
-_SIGMA, _Q, _H, _TS = range(4)
-_N, _NSUB, _DELAY, _REFIDX, _NJ, _NZ, _NC = range(7)
-
-#: Widths of the plant, observer, controller and actuator vectors in the kernels
-#: (zero-padded; a kind needs its vector to fit).
-VECTOR_WIDTH = (16, 32, 16, 16)
 
 #: Runs of one grid point the metrics kernel advances together.
 BLOCK = 64
@@ -277,94 +285,6 @@ def _series_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, ref
         nj = ipar[p, _NJ]
         rows_out[r] = _run(logs[r], ipar[p, _N], x0[p], noises[run_noise[r]], fpar[p], ipar[p],
                            refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p], cp[p], ap[p])
-
-
-# ---------------------------------------------------------------------------
-# packing scenarios into arrays
-
-
-@dataclass
-class _Pack:
-    """Arrays for the kernels: P points, R runs (run -> point, run -> noise row)."""
-
-    run_point: np.ndarray
-    run_noise: np.ndarray
-    fpar: np.ndarray
-    ipar: np.ndarray
-    x0: np.ndarray
-    b0: np.ndarray
-    pp: np.ndarray
-    op: np.ndarray
-    cp: np.ndarray
-    ap: np.ndarray
-    refs: np.ndarray
-    noises: np.ndarray
-
-    def args(self) -> tuple[np.ndarray, ...]:
-        return (self.run_point, self.run_noise, self.fpar, self.ipar, self.x0, self.b0, self.pp,
-                self.op, self.cp, self.ap, self.refs, self.noises)
-
-
-def _stack(rows: list[np.ndarray], width: int | None = None) -> np.ndarray:
-    """Rows of different lengths as one zero-padded 2-D array, at least ``width`` wide."""
-    longest = max((len(r) for r in rows), default=1)
-    if width is not None and longest > width:  # pragma: no cover - guards a new kind
-        raise ValueError(f"a parameter vector of {longest} values; the compiled engine takes "
-                         f"at most {width} (see esoarm.engines.batch.VECTOR_WIDTH)")
-    out = np.zeros((len(rows), max(width or longest, 1)))
-    for i, row in enumerate(rows):
-        out[i, : len(row)] = row
-    return out
-
-
-def _pack(points: Sequence[Scenario], runs: Sequence[tuple[int, int]],
-          noise_cache: NoiseCache | None = None) -> _Pack:
-    """Pack ``points`` and ``runs`` = [(point index, seed), ...] for the kernels."""
-    noise_cache = noise_cache or NoiseCache()
-    p = len(points)
-    fpar = np.empty((p, 4))
-    ipar = np.empty((p, 7), dtype=np.int64)
-    x0, b0, pp, op, cp, ap = [], [], [], [], [], []
-    ref_keys: dict[str, int] = {}
-    ref_list: list[np.ndarray] = []
-    for i, scn in enumerate(points):
-        inp = prepare(scn, draw_noise=False)  # noise is drawn once per seed (NoiseCache)
-        fpar[i] = (inp.sigma, inp.q, inp.h, inp.ts)
-        ipar[i, :3] = (len(inp.t), inp.nsub, inp.delay)
-        ipar[i, 4:] = (inp.plant.n_joints, inp.observer.n_state, inp.controller.n_state)
-        x0.append(inp.plant.x0)
-        b0.append(inp.plant.b0)
-        pp.append(inp.plant.vector)
-        op.append(inp.observer.vector)
-        cp.append(inp.controller.vector)
-        ap.append(inp.actuator)
-        ref_key = f"{scn.sample_time!r}/{scn.n_samples}/{scn.reference.model_dump_json()}"
-        if ref_key not in ref_keys:
-            ref_keys[ref_key] = len(ref_list)
-            ref_list.append(inp.refs)
-        ipar[i, _REFIDX] = ref_keys[ref_key]
-    nmax = int(ipar[:, _N].max()) if p else 1
-    nref = max((r.shape[0] for r in ref_list), default=3)
-    refs = np.zeros((len(ref_list), nref, nmax))
-    for i, ref in enumerate(ref_list):
-        refs[i, : ref.shape[0], : ref.shape[1]] = ref
-    noise_rows: dict[tuple[int, int], int] = {}
-    noise_list: list[np.ndarray] = []
-    run_point = np.empty(len(runs), dtype=np.int64)
-    run_noise = np.empty(len(runs), dtype=np.int64)
-    for r, (pi, seed) in enumerate(runs):
-        scn = points[pi]
-        length = scn.n_samples * int(ipar[pi, _NJ])
-        key, seq = noise_cache.get(seed, length, scn.sensor.noise_deg)
-        if key not in noise_rows:
-            noise_rows[key] = len(noise_list)
-            noise_list.append(seq)
-        run_point[r] = pi
-        run_noise[r] = noise_rows[key]
-    noises = _stack(noise_list) if noise_list else np.zeros((1, nmax))
-    wp, wo, wc, wa = VECTOR_WIDTH
-    return _Pack(run_point, run_noise, fpar, ipar, _stack(x0), _stack(b0), _stack(pp, wp),
-                 _stack(op, wo), _stack(cp, wc), _stack(ap, wa), refs, noises)
 
 
 class _threads:

@@ -64,10 +64,11 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
     if not 0.1 <= rig.inertia_scale <= 10:
         causes.append(f"rig.inertia_scale = {rig.inertia_scale:g} (the controller's model is "
                       "far from the rig)")
-    ctl = scn.controller
     # explicit error dynamics at Ts: k1·Ts or k2·Ts² beyond ~2 cannot be sampled stably
-    if ctl.k1 * ts > 2 or ctl.k2 * ts * ts > 4:
-        causes.append(f"controller.k1 = {ctl.k1:g} 1/s, k2 = {ctl.k2:g} 1/s² (too fast for "
+    # (the FLC and computed-torque kinds; a PID has kp, ki, kd instead)
+    k1, k2 = getattr(scn.controller, "k1", None), getattr(scn.controller, "k2", None)
+    if k1 is not None and k2 is not None and (k1 * ts > 2 or k2 * ts * ts > 4):
+        causes.append(f"controller.k1 = {k1:g} 1/s, k2 = {k2:g} 1/s² (too fast for "
                       f"Ts = {ts:g} s)")
     ref = scn.reference
     if ref.kind == "quintic-steps":

@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from esoarm.controllers import flc as _ctl
-from esoarm.engines import batch as _batch
+from esoarm.engines import packing as _packing
 from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache
 from esoarm.engines.simulation import DIVERGENCE_LIMIT
 from esoarm.observers import linear as _obs
@@ -241,11 +241,11 @@ def unsupported(scn: Scenario) -> str | None:
     return None
 
 
-def _point_rows(pack: _batch._Pack) -> np.ndarray:
+def _point_rows(pack: _packing._Pack) -> np.ndarray:
     """(P, NPAR) per-point parameter rows in the kernel's order."""
     # the kinds' vectors without their CODE in element 0
     f, rg, ob, ct = pack.fpar, pack.pp[:, 1:], pack.op[:, 1:], pack.cp[:, 1:]
-    cols = [pack.x0[:, 0], f[:, _batch._SIGMA], f[:, _batch._Q], pack.b0[:, 0],
+    cols = [pack.x0[:, 0], f[:, _packing._SIGMA], f[:, _packing._Q], pack.b0[:, 0],
             rg[:, _rig.INERTIA], rg[:, _rig.GCOEF], rg[:, _rig.FC], rg[:, _rig.VS],
             rg[:, _rig.VISC], rg[:, _rig.LAG],
             ob[:, _obs.BETA1], ob[:, _obs.BETA2], ob[:, _obs.BETA3],
@@ -257,17 +257,17 @@ def _point_rows(pack: _batch._Pack) -> np.ndarray:
     return out
 
 
-def _structure(pack: _batch._Pack, p: int) -> tuple:  # type: ignore[type-arg]
+def _structure(pack: _packing._Pack, p: int) -> tuple:  # type: ignore[type-arg]
     """What a block must share: sizes, steps, discretization, flags, disturbance."""
     ip, f, rg, ob, ct = (pack.ipar[p], pack.fpar[p], pack.pp[p, 1:], pack.op[p, 1:],
                          pack.cp[p, 1:])
-    return (int(ip[_batch._N]), int(ip[_batch._NSUB]), int(ip[_batch._DELAY]),
+    return (int(ip[_packing._N]), int(ip[_packing._NSUB]), int(ip[_packing._DELAY]),
             int(ob[_obs.DISC]), int(ct[_ctl.COMP]), int(rg[_rig.LAG] > 0.0),
-            float(f[_batch._H]), float(f[_batch._TS]), float(rg[_rig.DAMP]),
+            float(f[_packing._H]), float(f[_packing._TS]), float(rg[_rig.DAMP]),
             float(rg[_rig.DFREQ]))
 
 
-def _run_pack(lib: ctypes.CDLL, pack: _batch._Pack, workers: int) -> np.ndarray:
+def _run_pack(lib: ctypes.CDLL, pack: _packing._Pack, workers: int) -> np.ndarray:
     """Metrics rows (R, len(METRICS)) of one packed chunk."""
     nruns = len(pack.run_point)
     rows = _point_rows(pack)
@@ -289,7 +289,7 @@ def _run_pack(lib: ctypes.CDLL, pack: _batch._Pack, workers: int) -> np.ndarray:
         lanes = np.resize(runs, _LANES)  # pad with repeats; their outputs are dropped
         pts = pack.run_point[lanes]
         par = np.ascontiguousarray(rows[pts].T)
-        ref_off = (pack.ipar[pts, _batch._REFIDX] * 3 * nmax).astype(np.int64)
+        ref_off = (pack.ipar[pts, _packing._REFIDX] * 3 * nmax).astype(np.int64)
         noise_off = (pack.run_noise[lanes] * nmax).astype(np.int64)
         uhist = np.zeros((delay + 1) * _LANES)
         out = np.empty((_NOUT, _LANES))
@@ -375,6 +375,8 @@ def run_metrics(
             warnings.warn(f"{exc}; running the exact engine instead", FastEngineWarning,
                           stacklevel=2)
             _warned = True
+        from esoarm.engines import batch as _batch  # numba: only when falling back
+
         return _batch.run_metrics(points, seeds, workers=workers, chunk=chunk,
                                   progress=progress, _noise_cache=_noise_cache)
     if workers is not None and workers < 1:
@@ -391,11 +393,13 @@ def run_metrics(
         used = sorted({pi for pi, _ in part})
         local = {pi: j for j, pi in enumerate(used)}
         chunk_points = [points[pi] for pi in used]
-        pack = _batch._pack(chunk_points, [(local[pi], s) for pi, s in part], noise_cache)
+        pack = _packing._pack(chunk_points, [(local[pi], s) for pi, s in part], noise_cache)
         res = _run_pack(lib, pack, nthreads)
         bad = np.flatnonzero(res[:, METRICS.index("diverged")] != 0.0)
         if len(bad):  # diverged: the exact engine gives the partial metrics
             again = [points[part[i][0]].with_overrides({"sensor.seed": part[i][1]}) for i in bad]
+            from esoarm.engines import batch as _batch
+
             res[bad] = _batch.run_metrics(again, workers=workers).values
         out[start : start + len(part)] = res
         if progress is not None:

@@ -31,16 +31,13 @@ the encoder count jumps by half a revolution.
 from __future__ import annotations
 
 import math
-import os
-import select
 import time
-import tty
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
 from esoarm.hardware import protocol as P
+from esoarm.hardware.device import PtyDevice, TimedFault, due_faults, parse_timed_fault
 from esoarm.kinds import kinds_of
 from esoarm.plants.actuator import delayed_input
 from esoarm.plants.motor import MotorParams
@@ -56,28 +53,13 @@ DEVICE_WATCHDOG = 0.1
 NOMINAL_PWM_MAX = 255
 
 
-@dataclass(frozen=True)
-class FaultSpec:
-    """A fault to inject: ``kind`` from :data:`FAULT_KINDS` at twin time ``at`` [s]."""
-
-    kind: str
-    at: float
+#: A fault to inject: ``kind`` from :data:`FAULT_KINDS` at twin time ``at`` [s].
+FaultSpec = TimedFault
 
 
 def parse_fault(text: str) -> FaultSpec:
     """Parse ``KIND@SECONDS``; raises :class:`ScenarioError` with one line."""
-    kind, sep, when = text.partition("@")
-    if not sep or kind not in FAULT_KINDS:
-        raise ScenarioError(
-            f"fault '{text}': expected KIND@SECONDS with KIND one of {', '.join(FAULT_KINDS)}"
-        )
-    try:
-        at = float(when)
-    except ValueError:
-        at = math.nan
-    if not (math.isfinite(at) and at >= 0):
-        raise ScenarioError(f"fault '{text}': SECONDS must be a finite number >= 0")
-    return FaultSpec(kind, at)
+    return parse_timed_fault(text, FAULT_KINDS)
 
 
 def encoder_counts_per_rev(scn: Scenario) -> int:
@@ -228,17 +210,14 @@ class Emulator:
         self.faults = sorted(faults, key=lambda f: f.at)
         self.once = once
         self.echo = echo
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        os.set_blocking(self.master, False)
-        self.path = os.ttyname(self.slave)
+        self.port = PtyDevice()
+        self.path = self.port.path
         self.parser = P.Parser()
         self.seq = 0
         self.period_us = round(1e6 * self.twin.ts)
         self.flags = (P.FLAG_LOCKSTEP if lockstep else 0) | (
             P.FLAG_TORQUE if self.twin.motor is None else 0)
         self.running = False
-        self.closed = False
         self.active: set[str] = set()
         self.frames_lost = 0  # output buffer full (nobody reading)
         self.bad_commands = 0
@@ -262,9 +241,7 @@ class Emulator:
             b = bytearray(frame)
             b[P.HEADER_SIZE] ^= 0xFF  # first payload byte: the CRC no longer matches
             frame = bytes(b)
-        try:
-            os.write(self.master, frame)
-        except BlockingIOError:
+        if not self.port.write(frame):
             self.frames_lost += 1
 
     def _send_sample(self) -> None:
@@ -284,9 +261,7 @@ class Emulator:
 
     def _apply_faults(self) -> None:
         t = self.twin.time
-        while self.faults and self.faults[0].at <= t + 1e-12:
-            fault = self.faults.pop(0)
-            self.echo(f"fault injected: {fault.kind} at t = {t:.4g} s")
+        for fault in due_faults(self.faults, t, self.echo):
             if fault.kind == "glitch":
                 self.twin.glitch_offset += self.twin.counts_per_rev // 2
             elif fault.kind == "disconnect":
@@ -372,19 +347,10 @@ class Emulator:
             timeout = 0.05
             if self.running and not self.lockstep:
                 timeout = max(0.0, min(timeout, self._next_tick - time.perf_counter()))
-            ready, _, _ = select.select([self.master], [], [], timeout)
-            if ready:
-                try:
-                    data = os.read(self.master, 4096)
-                except (BlockingIOError, InterruptedError):
-                    data = b""
-                except OSError:  # the other side hung up (EIO): wait for a new host
-                    data = b""
-                    time.sleep(0.01)
-                for frame in self.parser.feed(data):
-                    self._handle(frame)
-                    if self.closed:
-                        return
+            for frame in self.parser.feed(self.port.read(timeout)):
+                self._handle(frame)
+                if self.closed:
+                    return
             if self.running and not self.lockstep and "stall" not in self.active:
                 now = time.perf_counter()
                 if now >= self._next_tick:
@@ -393,13 +359,11 @@ class Emulator:
                     if now - self._next_tick > 10 * self.twin.ts:  # far behind: resynchronise
                         self._next_tick = now + self.twin.ts
 
+    @property
+    def closed(self) -> bool:
+        """True once the port went away (``disconnect`` fault, ``once``, :meth:`close`)."""
+        return self.port.closed
+
     def close(self) -> None:
         """Close the pseudo-terminal (the port goes away)."""
-        if self.closed:
-            return
-        self.closed = True
-        for fd in (self.master, self.slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+        self.port.close()

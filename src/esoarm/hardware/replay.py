@@ -12,16 +12,16 @@ its own z1, z2, z3 columns.  The sample period is taken from the log.
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from esoarm.hardware.logfile import read_log_columns, sample_period
 from esoarm.kinds import kinds_of
 from esoarm.result import write_csv_atomic
-from esoarm.scenario import Scenario, ScenarioError
+from esoarm.scenario import Scenario
 
 __all__ = ["REPLAY_COLUMNS", "ReplayResult", "read_log", "replay"]
 
@@ -60,54 +60,20 @@ class ReplayResult:
 def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Read t, theta, u from a CSV log and check them; return (t, theta, u, Ts).
 
-    Raises :class:`ScenarioError` (one line naming the file) for a missing
-    file, missing columns, bad numbers or a non-uniform time column.
+    The measured angle is the column ``y`` where the file has it (a simulated
+    series' ``theta`` is the true angle), else ``theta`` (a rig log's theta is
+    the measured angle); nan in it marks a lost sample.  Raises
+    :class:`ScenarioError` (one line naming the file) for a missing file,
+    missing columns, bad numbers or a non-uniform time column
+    (:mod:`esoarm.hardware.logfile`).
     """
-    path = Path(path)
-    src = f"log '{path}'"
-    try:
-        with open(path, encoding="utf-8", newline="") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if header is None:
-                raise ScenarioError(f"{src}: empty file")
-            header = [h.strip() for h in header]
-            # the measured angle: `y` where the file has it (a simulated series' `theta` is
-            # the true angle), else `theta` (a rig log's theta is the measured angle)
-            angle = "y" if "y" in header else "theta"
-            missing = [c for c in ("t", angle, "u") if c not in header]
-            if missing:
-                raise ScenarioError(f"{src}: missing column(s) {', '.join(missing)}; "
-                                    "need t [s], theta or y [rad, measured], u [N·m]")
-            idx = [header.index(c) for c in ("t", angle, "u")]
-            rows = []
-            for line_no, row in enumerate(reader, start=2):
-                if not row:
-                    continue
-                try:
-                    rows.append([float(row[i]) for i in idx])
-                except (ValueError, IndexError):
-                    raise ScenarioError(f"{src}: line {line_no}: expected numbers in columns "
-                                        f"t, {angle}, u") from None
-    except FileNotFoundError:
-        raise ScenarioError(f"{src}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{src}: cannot read: {exc}") from None
-    data = np.array(rows, dtype=float).reshape(-1, 3)
+    def pick(header: list[str]) -> list[str]:
+        return ["t", "y" if "y" in header else "theta", "u"]
+
+    _, data = read_log_columns(path, pick, "need t [s], theta or y [rad, measured], u [N·m]",
+                               lost_ok=("theta", "y"))
     t, theta, u = data[:, 0], data[:, 1], data[:, 2]
-    if len(t) < 2:
-        raise ScenarioError(f"{src}: needs at least 2 rows, has {len(t)}")
-    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(u))):
-        raise ScenarioError(f"{src}: columns t and u must be finite numbers")
-    if np.isnan(theta[0]) or np.any(np.isinf(theta)):
-        raise ScenarioError(f"{src}: theta must be finite (nan allowed for lost samples, "
-                            "not in the first row)")
-    dt = np.diff(t)
-    ts = float(t[1] - t[0])
-    if not ts > 0 or np.max(np.abs(dt - ts)) > 1e-6 * ts + 1e-12:
-        raise ScenarioError(f"{src}: column t must be uniformly spaced and increasing "
-                            f"(steps from {dt.min():g} to {dt.max():g} s)")
-    return t, theta, u, ts
+    return t, theta, u, sample_period(t, path)
 
 
 def replay(scn: Scenario, t: np.ndarray, theta: np.ndarray, u: np.ndarray,

@@ -15,14 +15,14 @@ bridged with zero innovation.  The sample period comes from the log.
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from esoarm.hardware.logfile import read_log_columns, sample_period
 from esoarm.result import write_csv_atomic
-from esoarm.scenario import Scenario, ScenarioError
+from esoarm.scenario import Scenario
 
 __all__ = ["ArmReplay", "read_arm_log", "replay_arm"]
 
@@ -70,57 +70,27 @@ class ArmReplay:
 def read_arm_log(path: str | Path, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Read t, theta_i, u_i of n joints from a CSV log; return (t, theta, u, Ts).
 
-    Raises :class:`ScenarioError` (one line naming the file) for a missing
-    file, missing columns, bad numbers or a non-uniform time column.
+    The measured angles are the columns ``y_i`` when the log has all of them
+    (a CSV of ``esoarm simulate``), else ``theta_i``; a one-joint arm may use
+    unsuffixed ``theta`` (or ``y``) and ``u``.  Raises :class:`ScenarioError`
+    (one line naming the file) for a missing file, missing columns, bad
+    numbers or a non-uniform time column (:mod:`esoarm.hardware.logfile`).
     """
-    path = Path(path)
-    src = f"log '{path}'"
-    want = ["t", *(f"theta_{i}" for i in range(1, n + 1)), *(f"u_{i}" for i in range(1, n + 1))]
-    try:
-        with open(path, encoding="utf-8", newline="") as fh:
-            reader = csv.reader(fh)
-            header = [h.strip() for h in next(reader, [])]
-            if not header:
-                raise ScenarioError(f"{src}: empty file")
-            suffixed = all(f"theta_{i}" in header for i in range(1, n + 1))
-            if n == 1 and not suffixed:
-                want = ["t", "theta", "u"]
-            # the measured angle y when the log has it (a CSV of esoarm simulate), else theta
-            angle = "y" if all(c.replace("theta", "y") in header for c in want
-                               if c.startswith("theta")) else "theta"
-            want = [c.replace("theta", angle) for c in want]
-            missing = [c for c in want if c not in header]
-            if missing:
-                raise ScenarioError(f"{src}: missing column(s) {', '.join(missing)}; an arm "
-                                    f"of {n} joints needs t, theta_1 … theta_{n}, u_1 … u_{n}")
-            idx = [header.index(c) for c in want]
-            rows = []
-            for line_no, row in enumerate(reader, start=2):
-                if not row:
-                    continue
-                try:
-                    rows.append([float(row[i]) for i in idx])
-                except (ValueError, IndexError):
-                    raise ScenarioError(f"{src}: line {line_no}: expected numbers in columns "
-                                        f"{', '.join(want)}") from None
-    except FileNotFoundError:
-        raise ScenarioError(f"{src}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{src}: cannot read: {exc}") from None
-    data = np.array(rows, dtype=float).reshape(-1, 1 + 2 * n)
+    joints = range(1, n + 1)
+
+    def pick(header: list[str]) -> list[str]:
+        suffixed = all(f"theta_{i}" in header for i in joints)
+        thetas, us = ([f"theta_{i}" for i in joints], [f"u_{i}" for i in joints])
+        if n == 1 and not suffixed:
+            thetas, us = ["theta"], ["u"]
+        ys = [c.replace("theta", "y") for c in thetas]
+        return ["t", *(ys if all(c in header for c in ys) else thetas), *us]
+
+    _, data = read_log_columns(
+        path, pick, f"an arm of {n} joints needs t, theta_1 … theta_{n}, u_1 … u_{n}",
+        lost_ok=[f"{c}{j}" for c in ("theta", "y") for j in ("", *(f"_{i}" for i in joints))])
     t, theta, u = data[:, 0], data[:, 1:1 + n], data[:, 1 + n:]
-    if len(t) < 2:
-        raise ScenarioError(f"{src}: needs at least 2 rows, has {len(t)}")
-    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(u))):
-        raise ScenarioError(f"{src}: columns t and u_i must be finite numbers")
-    if np.isnan(theta[0]).any() or np.isinf(theta).any():
-        raise ScenarioError(f"{src}: theta_i must be finite (nan allowed for lost samples, "
-                            "not in the first row)")
-    dt = np.diff(t)
-    ts = float(t[1] - t[0])
-    if not ts > 0 or np.max(np.abs(dt - ts)) > 1e-6 * ts + 1e-12:
-        raise ScenarioError(f"{src}: column t must be uniformly spaced and increasing")
-    return t, theta, u, ts
+    return t, theta, u, sample_period(t, path)
 
 
 def replay_arm(scn: Scenario, t: np.ndarray, theta: np.ndarray, u: np.ndarray,

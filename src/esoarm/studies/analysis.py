@@ -38,6 +38,7 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -50,7 +51,9 @@ from esoarm.observers.linear import (
     discrete_error_poles,
 )
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
-from esoarm.studies.linearization import ControlLoop, to_control
+
+if TYPE_CHECKING:
+    from esoarm.studies.linearization import ControlLoop, to_control
 
 __all__ = [
     "CONTINUOUS",
@@ -69,6 +72,20 @@ __all__ = [
     "tracking_l1_gain",
     "to_control",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """``ControlLoop`` and ``to_control``, imported on first use.
+
+    They live in :mod:`esoarm.studies.linearization`, which imports SciPy
+    (~0.25 s): the observer warnings every scenario check runs need neither.
+    """
+    if name in ("ControlLoop", "to_control"):
+        from esoarm.studies import linearization
+
+        return getattr(linearization, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 #: The continuous observer of eq. 8 (Theorem 1), besides the sampled-data discretizations.
 CONTINUOUS = "continuous"

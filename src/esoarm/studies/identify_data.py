@@ -21,7 +21,6 @@ the transport delay applied to the input sequence.
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from esoarm.engines.batch import cover_with_physics_stamp  # registers the physics with numba
+from esoarm.hardware.logfile import read_log_columns, sample_period
 from esoarm.plants.lever_arm import advance
 from esoarm.scenario import ScenarioError
 
@@ -106,59 +106,23 @@ def read_ident_log(path: str | Path, torque_limit: float, need_duty: bool = Fals
     """
     src = f"log '{path}'"
     want = ["t", "theta", "u"] + (["duty"] if need_duty else [])
-    try:
-        with open(path, encoding="utf-8", newline="") as fh:
-            reader = csv.reader(fh)
-            header = [h.strip() for h in next(reader, [])]
-            if not header:
-                raise ScenarioError(f"{src}: empty file")
-            missing = [c for c in want if c not in header]
-            if missing:
-                raise ScenarioError(
-                    f"{src}: missing column(s) {', '.join(missing)}; need t [s], theta [rad], "
-                    "u [N·m]" + (" and duty [counts] (the scenario has a [motor] table)"
-                                 if "duty" in missing else ""))
-            cols = [header.index(c) for c in want]
-            rows = []
-            for line_no, row in enumerate(reader, start=2):
-                if not row:
-                    continue
-                try:
-                    rows.append([float(row[i]) for i in cols])
-                except (ValueError, IndexError):
-                    raise ScenarioError(f"{src}: line {line_no}: expected numbers in columns "
-                                        f"{', '.join(want)}") from None
-    except FileNotFoundError:
-        raise ScenarioError(f"{src}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{src}: cannot read: {exc}") from None
-    data = np.array(rows, dtype=float).reshape(-1, len(want))
+    need = "need t [s], theta [rad], u [N·m]" + (
+        " and duty [counts] (the scenario has a [motor] table)" if need_duty else "")
+    _, data = read_log_columns(path, want, need, lost_ok=("theta",))
     t, y, u = data[:, 0], data[:, 1], data[:, 2]
     duty = data[:, 3] if need_duty else None
-    bad = ~(np.isfinite(t) & np.isfinite(u) & ~np.isinf(y))
-    if duty is not None:
-        bad |= ~np.isfinite(duty)
-    if bad.any():
-        line = int(np.argmax(bad)) + 2
-        raise ScenarioError(f"{src}: line {line}: non-finite value in t, u" +
-                            (", duty" if need_duty else "") + " (only theta may be nan, "
-                            "for a lost sample)")
     n = len(t)
     if n < 2:
         raise ScenarioError(f"{src}: too short ({n} rows); identification needs at least "
                             f"{MIN_DURATION:g} s and {MIN_SAMPLES} samples")
-    ts = float(t[1] - t[0])
-    dt = np.diff(t)
-    if not ts > 0 or np.max(np.abs(dt - ts)) > 1e-6 * ts + 1e-12:
-        raise ScenarioError(f"{src}: column t must be uniformly spaced and increasing "
-                            f"(steps from {dt.min():g} to {dt.max():g} s)")
+    ts = sample_period(t, path)
     if n < MIN_SAMPLES or n * ts < MIN_DURATION:
         raise ScenarioError(f"{src}: too short ({n} samples, {n * ts:.3g} s); identification "
                             f"needs at least {MIN_DURATION:g} s and {MIN_SAMPLES} samples")
-    lost = np.isnan(y)
-    if lost[0] or lost.mean() > MAX_LOST:
+    lost = np.isnan(y)  # never the first row (read_log_columns)
+    if lost.mean() > MAX_LOST:
         raise ScenarioError(f"{src}: {int(lost.sum())} rows with theta = nan "
-                            f"(at most {MAX_LOST:.0%} lost samples, not the first row)")
+                            f"(at most {MAX_LOST:.0%} lost samples)")
     excitation = duty if duty is not None else u
     if np.std(excitation) < 1e-9 + 1e-3 * (np.max(np.abs(excitation)) if duty is None else 1):
         raise ScenarioError(f"{src}: not exciting enough: the input is (nearly) constant; "

@@ -4,6 +4,7 @@ memory independent of the number of runs (:class:`SweepWriter`)."""
 from __future__ import annotations
 
 import csv
+import math
 import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -18,7 +19,10 @@ from esoarm.engines.metrics import METRICS
 if TYPE_CHECKING:
     from esoarm.studies.sweep import SweepGrid
 
-__all__ = ["SweepResult", "SweepWriter", "write_rows_atomic"]
+__all__ = ["DIVERGED_SHOWN", "SweepResult", "SweepWriter", "write_rows_atomic"]
+
+#: Diverged grid points named in the sweep's warning line (the first in grid order).
+DIVERGED_SHOWN = 3
 
 
 def _cell(value: Any) -> str:
@@ -62,6 +66,10 @@ class SweepWriter:
         self.path = Path(path) if path is not None else None
         self.n_done = 0
         self.diverged = 0
+        #: grid points with at least one diverged run
+        self.diverged_points = 0
+        #: the first few of them in grid order: (point index, diverged runs there)
+        self.first_diverged: list[tuple[int, int]] = []
         self.rows_written = 0
         self.seconds = 0.0
         self._per_point = max(len(grid.seeds), 1)
@@ -86,6 +94,7 @@ class SweepWriter:
         """Take the metric rows of runs ``start`` … ``start + len(values) − 1``."""
         self.n_done += len(values)
         self.diverged += int(np.count_nonzero(values[:, -1]))
+        self._note_diverged(start // self._per_point, values)
         self._rank(start // self._per_point, values)
         if self._fh is None:
             return
@@ -106,13 +115,50 @@ class SweepWriter:
 
     def _write(self, start: int, values: np.ndarray) -> None:
         n_float = len(METRICS) - 2  # samples, diverged are counts
-        for k, m in enumerate(values):
+        # Python floats (tolist) print exactly as the float64 values they come from
+        for k, m in enumerate(values.tolist()):
             p, j = divmod(start + k, self._per_point)
             combo = self.grid.points.combo(p)
             seed = self.grid.seeds[j] if self._seed_col is None else combo[self._seed_col]
-            counts = [int(v) if np.isfinite(v) else v for v in m[n_float:]]
-            self._csv.writerow([_cell(v) for v in (*combo, seed, *m[:n_float], *counts)])
+            counts = [int(v) if math.isfinite(v) else v for v in m[n_float:]]
+            self._csv.writerow([*map(_cell, combo), _cell(seed), *map(repr, m[:n_float]),
+                                *map(_cell, counts)])
         self.rows_written += len(values)
+
+    def _note_diverged(self, first_point: int, values: np.ndarray) -> None:
+        per_point = values[:, -1].reshape(-1, self._per_point) > 0
+        counts = per_point.sum(axis=1)
+        hit = [(first_point + int(k), int(counts[k])) for k in np.flatnonzero(counts)]
+        self.diverged_points += len(hit)
+        # chunks may finish out of order: keep the first few in grid order
+        self.first_diverged = sorted(self.first_diverged + hit)[:DIVERGED_SHOWN]
+
+    def divergence_warning(self) -> str | None:
+        """One line: how many runs diverged, at which grid points (the first few), and the
+        likely cause at the first of them (:func:`esoarm.engines.diagnosis.divergence_causes`);
+        None when no run diverged."""
+        if not self.diverged:
+            return None
+        from esoarm.engines.diagnosis import divergence_causes
+        from esoarm.engines.loop import DIVERGENCE_LIMIT
+
+        grid = self.grid
+        shown = []
+        for p, n in self.first_diverged:
+            values = ", ".join(f"{k} = {_short(v)}" for k, v in
+                               zip(grid.keys, grid.points.combo(p), strict=True))
+            seeds = f" ({n} of {self._per_point} seeds)" if self._per_point > 1 else ""
+            shown.append(values + seeds)
+        more = self.diverged_points - len(shown)
+        where = "; ".join(shown) + (f"; and {more} more" if more > 0 else "")
+        causes = divergence_causes(grid.points[self.first_diverged[0][0]], DIVERGENCE_LIMIT)
+        why = (f"likely cause at the first: {causes[0]}" if causes else
+               "nothing in the scenario of the first stands out; check observer.eps against "
+               "the sample rate, the gains and the disturbance")
+        points = len(grid.points)
+        return (f"{self.diverged} of {self.n_done} runs diverged, at {self.diverged_points} of "
+                f"{points} grid point{'s' if points > 1 else ''} ({where}); {why} (diverged = 1 "
+                "in the CSV; their metrics cover the samples up to divergence)")
 
     def _rank(self, first_point: int, values: np.ndarray) -> None:
         by_point = values.reshape(-1, self._per_point, len(METRICS))
@@ -165,6 +211,10 @@ class SweepWriter:
                 self._tmp.unlink(missing_ok=True)
             except OSError:  # pragma: no cover
                 pass
+
+
+def _short(value: Any) -> str:
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
 
 
 def _finite_means(a: np.ndarray) -> np.ndarray:

@@ -15,7 +15,13 @@ Objective
     metrics are first averaged over the noise seeds (``--seeds K``: seeds
     0 … K−1) and, with ``--robust``, over the sampled rig uncertainty; the
     expression is evaluated on those means.  A candidate any of whose runs
-    diverged scores :data:`DIVERGED_PENALTY`.
+    diverged scores :data:`DIVERGED_PENALTY`, and so does one at which the
+    expression is not a finite number (``log(rms_u - 0.1)`` with rms_u <
+    0.1 N·m): :attr:`TuneResult.nonfinite` counts those, for a warning.  An
+    expression that is inf or nan whatever the metrics (``1/0``,
+    ``log(-rms_error)``) is bad input, found before any run; one that is not
+    finite at any candidate whose runs did not diverge is bad input too, found
+    after the search (nothing is written then).
 
 Robustness
     ``--robust KEY=LOW:HIGH`` (repeatable) draws ``--samples M`` values of each
@@ -151,6 +157,11 @@ class Objective:
         "abs": np.abs, "sqrt": np.sqrt, "log": np.log, "exp": np.exp,
         "min": np.minimum, "max": np.maximum,
     }
+    _ARITY = {"abs": 1, "sqrt": 1, "log": 1, "exp": 1, "min": 2, "max": 2}
+    #: the expression is tried on this many sets of metric values when it is made, each
+    #: metric drawn log-uniformly in _PROBE_RANGE (seeded), and must be finite at one
+    _PROBES = 64
+    _PROBE_RANGE = (1e-6, 1e3)
 
     def __init__(self, text: str, weight: float = DEFAULT_WEIGHT) -> None:
         self.text = text
@@ -160,6 +171,18 @@ class Objective:
         except SyntaxError:
             raise ScenarioError(f"objective '{text}': not a valid expression") from None
         self._check(self._tree)
+        used = {n.id for n in ast.walk(self._tree) if isinstance(n, ast.Name)}
+        #: the metrics the expression uses, in :data:`METRICS` order
+        self.metrics = tuple(m for m in _OBJ_METRICS if m in used)
+        rng = np.random.default_rng(0)
+        lo, hi = np.log10(self._PROBE_RANGE)
+        probe = self({m: 10.0 ** rng.uniform(lo, hi, self._PROBES) for m in _OBJ_METRICS})
+        if not np.isfinite(probe).any():
+            raise ScenarioError(
+                f"objective '{text}': not a finite number (gives {np.ravel(probe)[0]:g}) for "
+                f"any of {self._PROBES} sampled sets of metric values (each from "
+                f"{self._PROBE_RANGE[0]:g} to {self._PROBE_RANGE[1]:g}) with w = {weight:g}; "
+                "it must give a finite number to minimize")
 
     def _check(self, node: ast.AST) -> None:
         allowed = ", ".join(_OBJ_METRICS)
@@ -170,7 +193,9 @@ class Objective:
             self._check(node.operand)
         elif isinstance(node, ast.Constant) and isinstance(node.value, int | float) \
                 and not isinstance(node.value, bool):
-            pass
+            if not math.isfinite(_as_float(node.value)):
+                raise ScenarioError(f"objective '{self.text}': {node.value!r:.20} is not a "
+                                    "finite number")
         elif isinstance(node, ast.Name):
             if node.id not in (*_OBJ_METRICS, "w"):
                 raise ScenarioError(
@@ -179,6 +204,11 @@ class Objective:
                 )
         elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
                 and node.func.id in self._FUNCS and not node.keywords:
+            name, want = node.func.id, self._ARITY[node.func.id]
+            if len(node.args) != want:
+                raise ScenarioError(
+                    f"objective '{self.text}': {name}() takes {want} argument"
+                    f"{'s' if want > 1 else ''}, got {len(node.args)}")
             for arg in node.args:
                 self._check(arg)
         else:
@@ -197,8 +227,8 @@ class Objective:
             if isinstance(node, ast.UnaryOp):
                 v = ev(node.operand)
                 return -v if isinstance(node.op, ast.USub) else v
-            if isinstance(node, ast.Constant):
-                return node.value
+            if isinstance(node, ast.Constant):  # a float: 9**9**9 overflows to inf, not a bignum
+                return np.float64(_as_float(node.value))
             if isinstance(node, ast.Name):
                 return env[node.id]
             assert isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
@@ -206,6 +236,14 @@ class Objective:
 
         with np.errstate(all="ignore"):
             return np.asarray(ev(self._tree), dtype=float)
+
+
+def _as_float(value: Any) -> float:
+    """A number of the expression as a float (inf for an integer too large for one)."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
 
 
 @dataclass
@@ -237,6 +275,10 @@ class TuneResult:
     runs: int = 0
     seconds: float = 0.0
     message: str = ""
+    #: candidates whose runs did not diverge but whose objective was inf or nan
+    #: (scored :data:`DIVERGED_PENALTY`), and the first of them (its evaluation row)
+    nonfinite: int = 0
+    nonfinite_example: dict[str, Any] | None = None
 
 
 def _robust_samples(robust: Sequence[Bound], samples: int, seed: int) -> list[dict[str, Any]]:
@@ -317,9 +359,11 @@ def tune(
     variants = _robust_samples(robust, samples, seed)
     seed_list = list(range(seeds))
     evaluations: list[dict[str, Any]] = []
+    nonfinite: list[dict[str, Any]] = []  # rows of the search whose objective was inf/nan
     runs = 0
 
-    def score(candidates: list[dict[str, Any]]) -> tuple[np.ndarray, list[dict[str, float]]]:
+    def score(candidates: list[dict[str, Any]],
+              ) -> tuple[np.ndarray, list[dict[str, float]], np.ndarray]:
         nonlocal runs
         points = [_apply(base, {**cand, **var}, ", ".join([*cand, *var]))
                   for cand in candidates for var in variants]
@@ -329,15 +373,16 @@ def tune(
         with np.errstate(all="ignore"):
             means = {m: vals[:, :, i].mean(axis=1) for i, m in enumerate(METRICS)}
         diverged = vals[:, :, METRICS.index("diverged")].max(axis=1) > 0
-        obj = objective(means)
-        obj = np.where(diverged | ~np.isfinite(obj), DIVERGED_PENALTY, obj)
+        raw = np.broadcast_to(objective(means), diverged.shape)
+        bad = ~diverged & ~np.isfinite(raw)
+        obj = np.where(diverged | bad, DIVERGED_PENALTY, raw)
         rows = []
         for j, cand in enumerate(candidates):
             row = {**cand, **{m: float(means[m][j]) for m in _OBJ_METRICS},
                    "diverged_runs": int(vals[j, :, METRICS.index("diverged")].sum()),
                    "objective": float(obj[j])}
             rows.append(row)
-        return obj, rows
+        return obj, rows, bad
 
     def func(x: np.ndarray) -> np.ndarray:
         x = np.asarray(x, dtype=float)
@@ -345,8 +390,9 @@ def tune(
             x = x[:, None]
         cands = [{b.key: b.from_unit(float(c)) for b, c in zip(bounds, col, strict=True)}
                  for col in x.T]
-        obj, rows = score(cands)
+        obj, rows, bad = score(cands)
         evaluations.extend(rows)
+        nonfinite.extend(row for row, b in zip(rows, bad, strict=True) if b)
         return obj
 
     start = time.perf_counter()
@@ -374,9 +420,15 @@ def tune(
     )
     best = {b.key: b.from_unit(float(c)) for b, c in zip(bounds, np.atleast_1d(res.x),
                                                           strict=True)}
-    _, (best_row,) = score([best])
+    finite_scored = sum(r["diverged_runs"] == 0 for r in evaluations) - len(nonfinite)
+    if nonfinite and finite_scored == 0:
+        raise ScenarioError(
+            f"objective '{objective.text}': not a finite number at any of the "
+            f"{len(nonfinite)} candidates whose runs did not diverge (e.g. at "
+            f"{_describe(nonfinite[0], keys, objective.metrics)}); nothing to minimize")
+    _, (best_row,), _ = score([best])
     own = {b.key: _lookup(base.to_dict(), b.key) for b in bounds}
-    _, (base_row,) = score([own])
+    _, (base_row,), _ = score([own])
     return TuneResult(
         keys=keys,
         best=best,
@@ -388,4 +440,24 @@ def tune(
         runs=runs,
         seconds=time.perf_counter() - start,
         message=str(res.message),
+        nonfinite=len(nonfinite),
+        nonfinite_example=nonfinite[0] if nonfinite else None,
     )
+
+
+def _describe(row: dict[str, Any], keys: Sequence[str], metrics: Sequence[str]) -> str:
+    """``observer.eps = 0.05: rms_u = 0.03`` for a candidate's evaluation row."""
+    values = ", ".join(f"{k} = {row[k]:.4g}" for k in keys)
+    if not metrics:
+        return values
+    return values + ": " + ", ".join(f"{m} = {row[m]:.4g}" for m in metrics)
+
+
+def describe_nonfinite(res: TuneResult, objective: Objective) -> str | None:
+    """One warning line for the candidates whose objective was inf or nan, or None."""
+    if not res.nonfinite or res.nonfinite_example is None:
+        return None
+    return (f"objective '{objective.text}' was not a finite number at {res.nonfinite} of "
+            f"{len(res.evaluations)} candidates (first at "
+            f"{_describe(res.nonfinite_example, res.keys, objective.metrics)}); scored "
+            f"{DIVERGED_PENALTY:,.0f}, as candidates with a diverged run are")

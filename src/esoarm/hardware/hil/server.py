@@ -27,9 +27,7 @@ from __future__ import annotations
 
 import math
 import os
-import select
 import time
-import tty
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,9 +35,10 @@ from pathlib import Path
 import numpy as np
 
 from esoarm.hardware import protocol as P
+from esoarm.hardware.device import PtyDevice, TimedFault, due_faults, parse_timed_fault
 from esoarm.hardware.hil.board import F_CPU, Board
 from esoarm.hardware.hil.twin import PinTwin
-from esoarm.scenario import Scenario, ScenarioError
+from esoarm.scenario import Scenario
 
 __all__ = ["HIL_FAULTS", "HilFault", "HilServer", "parse_hil_fault"]
 
@@ -51,27 +50,13 @@ GLITCH_RATE = 2000.0
 BOOT_TIME = 0.05
 
 
-@dataclass(frozen=True)
-class HilFault:
-    """A pin-level fault ``kind`` (one of :data:`HIL_FAULTS`) at twin time ``at`` [s]."""
-
-    kind: str
-    at: float
+#: A pin-level fault ``kind`` (one of :data:`HIL_FAULTS`) at twin time ``at`` [s].
+HilFault = TimedFault
 
 
 def parse_hil_fault(text: str) -> HilFault:
     """Parse ``KIND@SECONDS``; raises :class:`ScenarioError` with one line."""
-    kind, sep, when = text.partition("@")
-    if not sep or kind not in HIL_FAULTS:
-        raise ScenarioError(
-            f"--fault '{text}': expected KIND@SECONDS with KIND one of {', '.join(HIL_FAULTS)}")
-    try:
-        at = float(when)
-    except ValueError:
-        at = math.nan
-    if not (math.isfinite(at) and at >= 0):
-        raise ScenarioError(f"--fault '{text}': SECONDS must be a finite number >= 0")
-    return HilFault(kind, at)
+    return parse_timed_fault(text, HIL_FAULTS)
 
 
 @dataclass
@@ -124,10 +109,8 @@ class HilServer:
         self.realtime = realtime
         self.echo = echo
         self.log = HilLog(keep_frames=record)
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        os.set_blocking(self.master, False)
-        self.path = os.ttyname(self.slave)
+        self.port = PtyDevice()
+        self.path = self.port.path
         self.closed = False
         self.unplugged = False
         self.rx_parser = P.Parser()   # host -> device (watched, not consumed)
@@ -189,12 +172,7 @@ class HilServer:
             return
         for frame in self._split_frames(data, cycles):
             self._on_device_frame(frame)
-        if self.unplugged or self.closed:
-            return
-        try:
-            os.write(self.master, data)
-        except (BlockingIOError, OSError):
-            pass  # nobody reading: the bytes are lost, as on a real line
+        self.port.write(data)  # lost when nobody reads or unplugged, as on a real line
 
     def _split_frames(self, data: bytes, cycles: np.ndarray) -> list[FrameRecord]:
         out = []
@@ -229,23 +207,7 @@ class HilServer:
             self.run_active = False
 
     def _pump_in(self, timeout: float = 0.0) -> None:
-        if self.unplugged or self.closed:
-            if timeout > 0:
-                time.sleep(timeout)
-            return
-        try:
-            ready, _, _ = select.select([self.master], [], [], timeout)
-        except (OSError, ValueError):
-            return
-        if not ready:
-            return
-        try:
-            data = os.read(self.master, 4096)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError:  # no host on the other side (EIO): wait for one
-            time.sleep(min(0.01, max(timeout, 0.001)))
-            return
+        data = self.port.read(timeout)  # waits out the timeout when unplugged or closed
         if not data:
             return
         self.board.send(data)
@@ -270,9 +232,7 @@ class HilServer:
         if not self.twin.running:
             return
         t = self.twin.t
-        while self.faults and self.faults[0].at <= t + 1e-12:
-            fault = self.faults.pop(0)
-            self.echo(f"fault injected: {fault.kind} at t = {t:.4g} s")
+        for fault in due_faults(self.faults, t, self.echo):
             if fault.kind == "encoder-break":
                 self.encoder_break = True
             elif fault.kind == "encoder-noise":
@@ -294,11 +254,7 @@ class HilServer:
             return
         self.unplugged = True
         self.unplug_cycle = self.board.cycle
-        for fd in (self.master, self.slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+        self.port.close()
 
     # -- pacing ----------------------------------------------------------------
     def _pace(self, next_cycle: int) -> None:
@@ -368,10 +324,5 @@ class HilServer:
         """Close the pseudo-terminal and free the MCU."""
         if not self.closed:
             self.closed = True
-            if not self.unplugged:
-                for fd in (self.master, self.slave):
-                    try:
-                        os.close(fd)
-                    except OSError:
-                        pass
+            self.port.close()
             self.board.close()
