@@ -103,3 +103,19 @@ def test_compiled_gives_the_same_bits_and_vectorizes():
     apply(xs, out)
     want = np.array([[el.tanh(x), el.cos(x), el.exp_neg(abs(x))] for x in xs.tolist()])
     assert np.array_equal(out.view(np.uint64), want.view(np.uint64))
+
+
+@pytest.mark.parametrize(("fast", "vec"), [(el.tanh, el._tanh_vec), (el.cos, el._cos_vec),
+                                           (el.exp_neg, el._exp_neg_vec)])
+def test_interpreter_form_is_the_compiled_form(fast, vec):
+    """The interpreter's form of each function gives the compiled form's bits."""
+    xs = np.concatenate([RNG.normal(0, 3, 20000), RNG.uniform(-30, 30, 20000),
+                         RNG.uniform(-1e6, 1e6, 5000), 10 ** RNG.uniform(-300, 12, 5000),
+                         -(10 ** RNG.uniform(-300, 12, 5000)), np.arange(-100, 100) * math.pi / 4,
+                         [0.0, -0.0, 20.0, -20.0, 708.0, 709.0, 1e9, -1e9, math.inf, -math.inf]])
+    if fast is el.exp_neg:
+        xs = np.abs(xs)
+    got = np.array([fast(x) for x in xs.tolist()])
+    want = np.array([vec(x) for x in xs.tolist()])
+    assert np.array_equal(got.view(np.uint64), want.view(np.uint64))
+    assert math.isnan(fast(math.nan)) and math.isnan(vec(math.nan))

@@ -18,30 +18,58 @@ engine quick to start.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import TypeVar
 
 F = TypeVar("F", bound=Callable[..., object])
 
-_pending: list[Callable[..., object]] = []
+_pending: list[tuple[Callable[..., object], Callable[..., object] | None]] = []
 _registered = False
 
 
-def _register(func: Callable[..., object]) -> None:
+def _register(func: Callable[..., object], compiled: Callable[..., object] | None) -> None:
     try:
-        from numba.extending import register_jitable
+        from numba.extending import overload, register_jitable
     except ImportError:  # pragma: no cover - the reference engine needs no numba
         return
-    register_jitable(func)  # returns func itself: the interpreter keeps calling it
+    if compiled is None:
+        register_jitable(func)  # returns func itself: the interpreter keeps calling it
+    else:
+        @functools.wraps(func)  # the typer takes func's signature, as numba requires
+        def typer(*args: object) -> Callable[..., object]:
+            return compiled
+
+        overload(func)(typer)
 
 
 def jitable(func: F) -> F:
     """Return ``func`` unchanged, recorded for use inside numba kernels."""
     if _registered:
-        _register(func)
+        _register(func, None)
     else:
-        _pending.append(func)
+        _pending.append((func, None))
     return func
+
+
+def jitable_as(compiled: Callable[..., object]) -> Callable[[F], F]:
+    """Like :func:`jitable`, but kernels compile ``compiled`` in place of the function.
+
+    For a function written twice, once for the interpreter and once for the
+    compiler, with the same floating-point operations in the same order (so the
+    same bits; the tests compare the two): e.g. a power of two by
+    :func:`math.ldexp` in Python and by exact products in a vector loop.
+    ``compiled`` must itself be :func:`jitable`.
+    """
+
+    def mark(func: F) -> F:
+        if _registered:
+            _register(func, compiled)
+        else:
+            _pending.append((func, compiled))
+        return func
+
+    return mark
 
 
 def register_all() -> None:
@@ -56,7 +84,7 @@ def register_all() -> None:
         _inline_physics()
     _registered = True
     while _pending:
-        _register(_pending.pop(0))
+        _register(*_pending.pop(0))
 
 
 #: LLVM's inlining threshold for the kernels (its default is 225).

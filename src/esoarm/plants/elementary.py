@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 
-from esoarm._jit import jitable
+from esoarm._jit import jitable, jitable_as
 
 __all__ = ["cos", "exp_neg", "tanh"]
 
@@ -108,7 +108,7 @@ def _pow2(k: float) -> float:
 
 
 @jitable
-def tanh(x: float) -> float:
+def _tanh_vec(x: float) -> float:
     """Hyperbolic tangent: e/(e + 2) with e = e^{2|x|} − 1, the sign of x (|x| > 20: ±1)."""
     a = abs(x)
     a = 20.0 if a > 20.0 else a  # tanh(20) is 1 to 17 digits; NaN passes (the test is false)
@@ -121,7 +121,7 @@ def tanh(x: float) -> float:
 
 
 @jitable
-def exp_neg(x: float) -> float:
+def _exp_neg_vec(x: float) -> float:
     """e^{−x} for x ≥ 0; 0 for x > 708 (where e^{−x} is below the normal doubles)."""
     y = 709.0 if x > 709.0 else x
     k = _round(y * INV_LN2)
@@ -159,7 +159,7 @@ def _sin_series(r: float, r2: float) -> float:
 
 
 @jitable
-def cos(x: float) -> float:
+def _cos_vec(x: float) -> float:
     """Cosine: x = n·π/2 + r, |r| ≤ π/4, then ±cos r or ±sin r by n mod 4."""
     n = _round(x * TWO_OVER_PI)
     r = ((x - n * PIO2_1) - n * PIO2_2) - n * PIO2_3
@@ -172,3 +172,50 @@ def cos(x: float) -> float:
     negate = f == 0.25 or abs(f) == 0.5
     v = s if quarter else c
     return -v if negate else v
+
+
+# ---------------------------------------------------------------------------
+# The public functions: the forms above, written for the interpreter.  Compiled
+# kernels use the forms above (jitable_as); the interpreter runs these, which take
+# the same floating-point operations in the same order on the arguments they
+# handle (so the same bits; tests/test_elementary.py compares the two) and hand
+# everything else (NaN, ±inf, huge arguments) to the forms above.  The differences:
+# 2^k by math.ldexp instead of ten exact products, n mod 4 by an integer, and only
+# the series that is needed -- about twice as fast in CPython.
+
+
+@jitable_as(_tanh_vec)
+def tanh(x: float) -> float:
+    """Hyperbolic tangent, ≤ 3 ulp (see the module docstring); NaN, ±0, ±inf as libm."""
+    a = abs(x)
+    if not a <= 20.0:
+        return _tanh_vec(x)
+    y = a + a
+    k = (y * INV_LN2 + SHIFT) - SHIFT
+    r = (y - k * LN2_HI) - k * LN2_LO
+    s = math.ldexp(1.0, int(k))
+    em = s * _expm1_series(r) + (s - 1.0)
+    return math.copysign(em / (em + 2.0), x)
+
+
+@jitable_as(_exp_neg_vec)
+def exp_neg(x: float) -> float:
+    """e^{−x} for x ≥ 0, ≤ 2 ulp; 0 for x > 708."""
+    if not 0.0 <= x <= 708.0:
+        return _exp_neg_vec(x)
+    k = (x * INV_LN2 + SHIFT) - SHIFT
+    r = (k * LN2_HI - x) + k * LN2_LO
+    return (1.0 + _expm1_series(r)) / math.ldexp(1.0, int(k))
+
+
+@jitable_as(_cos_vec)
+def cos(x: float) -> float:
+    """Cosine, ≤ 2.5 ulp for |x| ≤ 1e5 (see the module docstring); NaN for ±inf."""
+    if not abs(x) < 1e9:
+        return _cos_vec(x)
+    n = (x * TWO_OVER_PI + SHIFT) - SHIFT
+    r = ((x - n * PIO2_1) - n * PIO2_2) - n * PIO2_3
+    r2 = r * r
+    q = int(n) & 3
+    v = _sin_series(r, r2) if q & 1 else _cos_series(r2)
+    return -v if q == 1 or q == 2 else v

@@ -270,9 +270,14 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
     ``nsub`` RK4 steps of h [s] from t0 [s] (:func:`rig_advance`); ``p`` is
     :attr:`PlantDesign.vector`.
     """
-    # the parameters as a tuple: compiled, they live in registers through the RK4 loop
-    rig = (p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10])
-    x[0], x[1], x[2] = rig_advance(x[0], x[1], x[2], u[0], t0, h, nsub, rig)
+    # the parameters as a tuple: compiled, they live in registers through the RK4 loop;
+    # without a Stribeck term, the tuple without its entries skips e^(−x²) (same bits)
+    if p[1 + FST] == 0.0:
+        rig8 = (p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8])
+        x[0], x[1], x[2] = rig_advance(x[0], x[1], x[2], u[0], t0, h, nsub, rig8)
+    else:
+        rig = (p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10])
+        x[0], x[1], x[2] = rig_advance(x[0], x[1], x[2], u[0], t0, h, nsub, rig)
 
 
 @jitable
