@@ -33,7 +33,7 @@ from esoarm.engines.metrics import ERR, NROW, OM, REF, SAT, TH, Z1, Z2, Z3, F, U
 from esoarm.plants.actuator import LIMIT, actuate, delayed_input, saturate
 from esoarm.plants.sensor import measure
 
-__all__ = ["DIVERGENCE_LIMIT", "closed_loop", "closed_loop_block", "within_limits"]
+__all__ = ["DIVERGENCE_LIMIT", "closed_loop", "closed_loop_block", "log_sample", "within_limits"]
 
 #: |θ| or |z1| beyond this [rad] (or any non-finite value) ends a run as diverged.
 DIVERGENCE_LIMIT = 1e6
@@ -49,6 +49,31 @@ def within_limits(theta: float, z1: float, z2: float, z3: float, u: float) -> bo
     return (
         math.isfinite(theta + z2 + z3 + u) and abs(theta) < lim and abs(z1) < lim
     )
+
+
+@jitable
+def log_sample(log: np.ndarray, k: int, j: int, nj: int, x: np.ndarray, ref: float, u: float,
+               zhat: np.ndarray, f: float, y: float, sat: float) -> bool:
+    """Step 4 for joint j of nj: log row k, then the divergence rule on what was logged.
+
+    Rows as :data:`esoarm.engines.metrics.LOG_ROWS`; ``x`` is the plant state (angles,
+    rates, ... of the nj joints), ``zhat`` the estimate (3 per joint), ``f`` the true
+    perturbation θ̈(t_k) − b0·v_k.  True while :func:`within_limits` holds.
+    """
+    r = j * NROW
+    i = 3 * j
+    log[r + TH, k] = x[j]
+    log[r + REF, k] = ref
+    log[r + ERR, k] = x[j] - ref
+    log[r + U, k] = u
+    log[r + Z1, k] = zhat[i]
+    log[r + Z2, k] = zhat[i + 1]
+    log[r + Z3, k] = zhat[i + 2]
+    log[r + F, k] = f
+    log[r + Y, k] = y
+    log[r + SAT, k] = sat
+    log[r + OM, k] = x[nj + j]
+    return within_limits(x[j], zhat[i], zhat[i + 1], zhat[i + 2], u)
 
 
 @jitable
@@ -134,21 +159,8 @@ def closed_loop(
         plant_observer_input(zhat, u, pp, v)
         ok = True
         for j in range(nj):
-            r = j * NROW
-            ref = refs[3 * j, k]
-            i = 3 * j
-            log[r + TH, k] = x[j]
-            log[r + REF, k] = ref
-            log[r + ERR, k] = x[j] - ref
-            log[r + U, k] = u[j]
-            log[r + Z1, k] = zhat[i]
-            log[r + Z2, k] = zhat[i + 1]
-            log[r + Z3, k] = zhat[i + 2]
-            log[r + F, k] = acc[j] - b0[j] * v[j]
-            log[r + Y, k] = y[j]
-            log[r + SAT, k] = sat[j]
-            log[r + OM, k] = x[nj + j]
-            ok = ok and within_limits(x[j], zhat[i], zhat[i + 1], zhat[i + 2], u[j])
+            ok = log_sample(log, k, j, nj, x, refs[3 * j, k], u[j], zhat,
+                            acc[j] - b0[j] * v[j], y[j], sat[j]) and ok
         if not ok:
             return -(k + 1)
         # 5. observer update
@@ -226,21 +238,8 @@ def closed_loop_block(
             plant_acceleration(x, applied[i], tk, pp, acc)
             ok = True
             for j in range(nj):
-                r = j * NROW
-                ref = refs[3 * j, k]
-                e = 3 * j
-                log[r + TH, k] = x[j]
-                log[r + REF, k] = ref
-                log[r + ERR, k] = x[j] - ref
-                log[r + U, k] = ui[j]
-                log[r + Z1, k] = zh[e]
-                log[r + Z2, k] = zh[e + 1]
-                log[r + Z3, k] = zh[e + 2]
-                log[r + F, k] = acc[j] - b0[j] * ui[j]
-                log[r + Y, k] = yi[j]
-                log[r + SAT, k] = sat[j]
-                log[r + OM, k] = x[nj + j]
-                ok = ok and within_limits(x[j], zh[e], zh[e + 1], zh[e + 2], ui[j])
+                ok = log_sample(log, k, j, nj, x, refs[3 * j, k], ui[j], zh,
+                                acc[j] - b0[j] * ui[j], yi[j], sat[j]) and ok
             if not ok:
                 alive[i] = False
                 rows[i] = -(k + 1)
