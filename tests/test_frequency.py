@@ -139,10 +139,15 @@ def test_plant_matches_the_rig_step(lag: float, friction: str) -> None:
 
 @pytest.mark.parametrize("disc", DISCRETIZATIONS)
 @pytest.mark.parametrize("comp", ["eso", "model"])
-def test_controller_matches_the_step_functions(disc: str, comp: str) -> None:
-    """K(z) reproduces the observer and controller kinds' step functions on a random y."""
+@pytest.mark.parametrize("kind", ["linear", "nonlinear"])
+def test_controller_matches_the_step_functions(disc: str, comp: str, kind: str) -> None:
+    """K(z) reproduces the observer and controller kinds' step functions on a random y.
+
+    For the nonlinear ESO the innovations stay within fal's linear zone (|e| ≤ δ =
+    0.1 rad), where K(z) is exact too.
+    """
     theta0 = 0.4
-    scn = load_scenario("test-1", {"observer.discretization": disc,
+    scn = load_scenario("test-1", {"observer.kind": kind, "observer.discretization": disc,
                                    "controller.compensation": comp,
                                    "actuator.torque_limit": 1e9})
     inp = prepare(scn)
@@ -279,6 +284,36 @@ def test_cli_bad_input(run_cli, args, word, tmp_path, monkeypatch) -> None:  # t
     assert word in res.stderr and "Traceback" not in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("args, word", [
+    (("two-link",), "plant.kind"),
+    (("test-1", "--set", "controller.kind=pid"), "controller.kind"),
+    (("test-1", "--vary", "controller.kind=flc,computed-torque"), "controller.kind"),
+])
+def test_cli_refuses_kinds_it_does_not_model(run_cli, args, word) -> None:  # type: ignore[no-untyped-def]
+    res = run_cli("analyze", *args)
+    assert res.exit_code == 2, res.stderr
+    assert word in res.stderr and "Traceback" not in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_nonlinear_eso_is_analyzed_in_its_linear_zone() -> None:
+    """fal's slope δ^(α−1) scales the 2nd and 3rd gains; α = 1 is the linear ESO exactly."""
+    lin = F.analyze("test-1")
+    same = F.analyze("test-1", {"observer.kind": "nonlinear", "observer.alpha": [1.0, 1.0]})
+    # the pole frequency of the nonlinear kind comes from eigenvalues, which for the
+    # linear ESO's triple pole are accurate to ~eps^(1/3); everything else is the same bits
+    pole = "observer_pole_frequency"
+    assert same.observer_pole_frequency == pytest.approx(lin.observer_pole_frequency, rel=1e-4)
+    assert {**same.to_dict(), pole: None} == {**lin.to_dict(), "observer": "nonlinear", pole: None}
+    fal = F.analyze("test-1", {"observer.kind": "nonlinear"})
+    assert fal.observer == "nonlinear" and fal.phase_margin != lin.phase_margin
+    p_lin, q_lin, *_ = L.observer_matrices(load_scenario("test-1"))
+    p_nl, q_nl, *_ = L.observer_matrices(load_scenario("test-1", {"observer.kind": "nonlinear"}))
+    delta, (a2, a3) = 0.1, (0.5, 0.25)  # the kind's defaults
+    assert q_nl[:, 0] == pytest.approx(q_lin[:, 0] * [1.0, delta ** (a2 - 1), delta ** (a3 - 1)],
+                                       rel=1e-15)
 
 
 def test_cli_usage_error_is_one_line(run_esoarm, tmp_path) -> None:  # type: ignore[no-untyped-def]

@@ -58,19 +58,17 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
     observer bandwidths [rad/s] against the Nyquist frequency π/Ts, and the
     gain from a torque disturbance at the plant input to the tracking error
     [rad/(N·m)]. Saturation, quantization and noise are left out (linear).
-    Needs python-control: pip install 'esoarm[analyze]'.
+    Models the lever arm with the FLC and either ESO kind (the nonlinear one
+    in fal's linear zone, innovations within ±δ).
     """
-    try:
-        import control  # noqa: F401
-    except ImportError:
-        raise BadInput("esoarm analyze needs python-control: pip install 'esoarm[analyze]'"
-                       ) from None
     from esoarm.studies.frequency import analyze as run_analysis
+    from esoarm.studies.linearization import check_supported
 
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     if theta0 is not None and not math.isfinite(theta0):
         raise BadInput(f"--theta0 {theta0}: must be a finite angle [rad]")
     scn = resolve_scenario(scenario, overrides)
+    check_supported(scn)
     if vary is None:
         res = run_analysis(scn, theta0=theta0, friction=friction)
         if plot_path is not None:
@@ -91,7 +89,9 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
     scenarios = []
     for value in spec.values:  # validate every point before any work
         try:
-            scenarios.append(scn.with_overrides({spec.key: value}))
+            point = scn.with_overrides({spec.key: value})
+            check_supported(point)
+            scenarios.append(point)
         except ScenarioError as exc:
             raise BadInput(f"--vary {spec.key}={value!r}: {exc}") from None
     points = []
@@ -135,8 +135,10 @@ def _print_one(a: Any) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"{a.scenario}  (ε = {a.eps:g} s, {a.discretization} ESO; linearized at "
-                  f"θ0 = {a.theta0:g} rad, friction '{a.friction}', Ts = {a.ts:g} s)")
+    from esoarm.studies.frequency import eso_label
+
+    table = Table(title=f"{a.scenario}  (ε = {a.eps:g} s, {a.discretization} {eso_label(a)}; "
+                  f"linearized at θ0 = {a.theta0:g} rad, friction '{a.friction}', Ts = {a.ts:g} s)")
     table.add_column("quantity")
     table.add_column("value", justify="right")
     table.add_column("unit")

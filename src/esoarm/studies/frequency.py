@@ -34,6 +34,7 @@ from esoarm.studies.linearization import (
     closed_loop_radius,
     freqresp,
     linearize,
+    observer_matrices,
     perturbation_estimate,
 )
 
@@ -175,6 +176,7 @@ class FrequencyAnalysis:
     scenario_disturbance_error: float
     eps: float
     discretization: str
+    observer: str = "linear"
     range: dict[str, Any] = field(default_factory=dict)
     curves: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
@@ -182,6 +184,11 @@ class FrequencyAnalysis:
         """JSON-ready: no curves, non-finite numbers as None."""
         out = {k: v for k, v in asdict(self).items() if k != "curves"}
         return _clean(out)  # type: ignore[no-any-return]
+
+
+def eso_label(a: FrequencyAnalysis) -> str:
+    """"ESO", or for the nonlinear kind the zone the linear analysis holds in."""
+    return "ESO" if a.observer == "linear" else "fal-ESO (its linear zone |e| ≤ δ)"
 
 
 def _clean(obj: Any) -> Any:
@@ -267,7 +274,10 @@ def analyze(scenario: Scenario | str | Path = "test-1", overrides: dict | list[s
     inertia = scn.rig.inertia_scale * scn.plant.inertia
     d_at = float(abs(d_fun(np.array([dist_w]))[0])) if 0 < dist_w < wn else math.nan
     d_dc = float(abs(freqresp_dc(lin)))
-    pole = design_observer(scn.observer.eps, ts, 1.0, scn.observer.discretization).poles[0]
+    if scn.observer.kind == "nonlinear":  # fal's linear zone: poles no longer a triple
+        pole = float(np.max(np.abs(np.linalg.eigvals(observer_matrices(scn)[0]))))
+    else:
+        pole = design_observer(scn.observer.eps, ts, 1.0, scn.observer.discretization).poles[0]
     pole_freq = -math.log(abs(pole)) / ts if pole != 0 else math.inf
     rng: dict[str, Any] = {}
     if over_range:
@@ -285,7 +295,8 @@ def analyze(scenario: Scenario | str | Path = "test-1", overrides: dict | list[s
         disturbance_peak=dpk, disturbance_peak_frequency=w_dpk, disturbance_dc=d_dc,
         disturbance_at_scenario=d_at,
         scenario_disturbance_error=d_at * inertia * abs(scn.rig.disturbance.amplitude),
-        eps=scn.observer.eps, discretization=scn.observer.discretization, range=rng,
+        eps=scn.observer.eps, discretization=scn.observer.discretization,
+        observer=scn.observer.kind, range=rng,
         curves={"w": w, "loop": L, "sensitivity": sens, "complementary": comp,
                 "disturbance": dist, "perturbation_estimate": f_fun(w)},
     )

@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FormatStrFormatter, NullFormatter
 
 from esoarm.plotting import eps_color, finish_figure
+from esoarm.studies.frequency import eso_label
 
 if TYPE_CHECKING:
     from esoarm.studies.frequency import FrequencyAnalysis
@@ -97,7 +98,7 @@ def figure_frequency(a: FrequencyAnalysis, path: str | Path | None = None) -> Fi
     _draw(axes, a, eps_color(a.eps), "", marks=True)
     _finish_axes(axes, a.nyquist)
     fig.suptitle(
-        f"{a.scenario}: ε = {a.eps:g} s, {a.discretization} ESO, linearized at θ0 = "
+        f"{a.scenario}: ε = {a.eps:g} s, {a.discretization} {eso_label(a)}, linearized at θ0 = "
         f"{a.theta0:g} rad, friction '{a.friction}', Ts = {a.ts:g} s", fontsize=10)
     return finish_figure(fig, path)
 

@@ -40,7 +40,14 @@ Controller (one discrete LTI system)
         u_k = −I0 (k2 ẑ1 + k1 ẑ2 + β̂),  β̂ = ẑ3 ("eso") or −gcoef sin θ0 ẑ1/I0 ("model")
 
     The ESO is linear for every discretization, so this is exact for the
-    controller; only the plant is linearized.
+    controller; only the plant is linearized.  The nonlinear ESO (observer kind
+    ``"nonlinear"``) injects fal(e, α, δ) of the innovation e, which is linear
+    for |e| ≤ δ with slope δ^(α−1): its 2nd and 3rd gains are scaled by that
+    slope, which is exact for innovations within ±δ (larger ones are outside a
+    linear analysis).
+
+Supported: the lever-arm plant kind with the FLC controller kind and either
+observer kind; other kinds are refused (:class:`~esoarm.scenario.ScenarioError`).
 """
 
 from __future__ import annotations
@@ -56,7 +63,7 @@ from scipy.optimize import brentq
 
 from esoarm.observers.linear import design_observer
 from esoarm.plants.model import gravity_coefficient
-from esoarm.scenario import Scenario, load_scenario
+from esoarm.scenario import Scenario, ScenarioError, load_scenario
 
 __all__ = [
     "FRICTION_MODELS",
@@ -207,16 +214,33 @@ def _reduced_gains(scn: Scenario, theta0: float) -> np.ndarray:
     return i0 * np.array([ctl.k2 + gcoef * math.sin(theta0) / i0, ctl.k1, 0.0])
 
 
+def check_supported(scn: Scenario) -> None:
+    """Refuse, in one line, a scenario whose kinds this linearization does not model."""
+    if scn.plant.kind != "lever-arm":
+        raise ScenarioError(
+            f"plant.kind: the frequency-domain analysis models the lever arm (one joint), not "
+            f"'{scn.plant.kind}'; simulate, sweep and tune run it")
+    if scn.controller.kind != "flc":
+        raise ScenarioError(
+            f"controller.kind: the frequency-domain analysis models the FLC (controller.kind = "
+            f"'flc'), not '{scn.controller.kind}'; simulate, sweep and tune run it")
+
+
 def observer_matrices(scn: Scenario) -> tuple[np.ndarray, ...]:
     """The ESO of the scenario as z⁺ = P z + Q y + Γ u, ẑ = (I − M C) z + M y.
 
-    Returns (P, Q, Γ, M) as arrays of shapes (3,3), (3,1), (3,1), (3,1).
+    Returns (P, Q, Γ, M) as arrays of shapes (3,3), (3,1), (3,1), (3,1).  For the
+    nonlinear ESO, the loop for innovations |y − z1| ≤ δ (fal's linear zone).
     """
     ts = scn.sample_time
     b0 = 1.0 / scn.plant.inertia
-    d = design_observer(scn.observer.eps, ts, b0, scn.observer.discretization)
+    obs = scn.observer
+    d = design_observer(obs.eps, ts, b0, obs.discretization)
     c = np.array([[1.0, 0.0, 0.0]])
     gain = d.gain.reshape(3, 1)
+    if obs.kind == "nonlinear":  # fal(e, α, δ) = δ^(α−1) e for |e| ≤ δ
+        gain = gain * np.array([[1.0], [obs.delta ** (obs.alpha[0] - 1.0)],
+                                [obs.delta ** (obs.alpha[1] - 1.0)]])
     gam = d.gamma.reshape(3, 1)
     if d.discretization == "current":
         # z⁺ = Φ ẑ + Γ u with ẑ = z + Lc (y − z1)
@@ -330,6 +354,7 @@ def linearize(scenario: Scenario | str | Path, overrides: dict | list[str] | Non
     friction : {"viscous", "slope", "none"}
     """
     scn = _load(scenario, overrides)
+    check_supported(scn)
     th = scn.rig.theta0 if theta0 is None else float(theta0)
     plant = sampled_plant(scn, th, friction)
     ctl = controller_matrices(scn, th)
