@@ -210,7 +210,7 @@ class LeverArmEnv(gym.Env):
 
     # -- drawing -----------------------------------------------------------------------
     def render(self) -> np.ndarray | None:  # type: ignore[override]
-        """An image of the arm (grey), its reference (dashed red) and the torque (bar)."""
+        """An image of the arm (grey), its reference (thin vermilion line) and the torque (bar)."""
         if self.render_mode != "rgb_array":
             return None
         from esoarm.envs.render import draw_arm

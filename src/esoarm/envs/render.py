@@ -2,7 +2,7 @@
 
 The pivot sits in the middle; the arm (dark grey, with the two masses of the
 paper's Fig. 1) points along θ measured from the horizontal, positive
-counter-clockwise; the reference θd is a thin red line; a bar at the bottom
+counter-clockwise; the reference θd is a thin vermilion line; a bar at the bottom
 shows the torque u as a fraction of ±torque_limit (blue: positive).
 """
 
