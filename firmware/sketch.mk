@@ -18,6 +18,15 @@ include $(ARDMK_DIR)/Arduino.mk
 # The sketch (not the core) compiles with every warning as an error.
 $(OBJDIR)/esoarm_rig.ino.o: CPPFLAGS += -Wextra -Werror $(SKETCH_DEFINES)
 
+# The settings are part of the build: the file changes (and the sketch is rebuilt) only when
+# SAMPLE_PERIOD_US, ENCODER_PPR, BAUD or the driver differ from the last build in OBJDIR.
+SETTINGS := $(OBJDIR)/settings.txt
+$(OBJDIR)/esoarm_rig.ino.o: $(SETTINGS)
+.PHONY: settings-check
+$(SETTINGS): settings-check
+	@mkdir -p $(dir $@)
+	@echo '$(strip $(SKETCH_DEFINES))' | cmp -s - $@ || echo '$(strip $(SKETCH_DEFINES))' > $@
+
 .PHONY: build-and-size
 build-and-size: $(TARGET_HEX)
 	@flash=$$($(SIZE) -A $(TARGET_ELF) | awk '/^\.text|^\.data/ {s += $$2} END {print s}'); \
