@@ -110,4 +110,8 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
     if stats["n"]:
         _say(f"encoder interrupts: {stats['n']}, {stats['isr_sum'] / stats['n']:.0f} cycles "
              f"mean, {stats['isr_max']} max in the handler")
+    if server.slips:
+        _say(f"warning: the simulation fell behind real time {server.slips} times (worst "
+             f"{server.worst_slip * 1e3:.0f} ms; the machine is busy): period jitter the host "
+             "measured includes it")
     _say("stopped: port closed")

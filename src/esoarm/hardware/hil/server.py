@@ -14,7 +14,11 @@ to the host until the host answers, the AVR runs no faster than the wall
 clock; between the answer and the next device frame it runs free.  When no run
 is in progress it runs at real time (an idle board does not spin the CPU).
 ``realtime=True`` paces everything to the wall clock (needed when the host
-measures period jitter).
+measures period jitter).  Where the simulation falls more than
+:data:`SLIP_S` behind the wall clock (a loaded machine), it does not race to
+catch up -- that would hand the host a burst of frames and measure the
+simulator, not the firmware -- but carries on from the wall clock's now; each
+such slip is counted (``slips``, ``worst_slip``) and reported.
 
 Faults (``KIND@SECONDS``, twin time after START): ``encoder-break`` channel A
 stuck high (a broken wire with its pull-up); ``encoder-noise`` glitches of
@@ -57,6 +61,10 @@ HilFault = TimedFault
 def parse_hil_fault(text: str) -> HilFault:
     """Parse ``KIND@SECONDS``; raises :class:`ScenarioError` with one line."""
     return parse_timed_fault(text, HIL_FAULTS)
+
+
+#: realtime: a lag behind the wall clock beyond this [s] is a slip (counted, not repaid).
+SLIP_S = 0.005
 
 
 @dataclass
@@ -125,6 +133,8 @@ class HilServer:
         self._last_host_cycle = 0
         self._wall0 = time.perf_counter()
         self._cycle0 = 0
+        self.slips = 0  # realtime: times the simulation fell behind the wall clock
+        self.worst_slip = 0.0  # [s]
         self.motor_duty = 0
         self.unplug_cycle: int | None = None  # AVR cycle at which the link went away
         self.device_faults: list[str] = []  # FAULT frames the firmware sent, by name
@@ -261,6 +271,11 @@ class HilServer:
         now = time.perf_counter()
         if self.realtime:
             due = self._wall0 + (next_cycle - self._cycle0) / F_CPU
+            if now - due > SLIP_S:  # behind: carry on from now rather than race
+                self.slips += 1
+                self.worst_slip = max(self.worst_slip, now - due)
+                self._wall0, self._cycle0 = now, next_cycle
+                due = now
         elif self._awaiting is not None:
             w, c = self._awaiting
             due = w + (next_cycle - c) / F_CPU
