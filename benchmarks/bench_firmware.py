@@ -1,6 +1,6 @@
 """Timing of the rig firmware measured on the simulated ATmega328P (simavr, 16 MHz).
 
-Run:  python benchmarks/bench_firmware.py [--out docs/firmware-timing.md]
+Run:  python benchmarks/bench_firmware.py [--out docs/benchmarks-firmware.md]
 
 Everything here is counted in CPU cycles of the simulated chip, so the numbers
 do not depend on the machine that runs the benchmark.  A scripted host answers
@@ -16,7 +16,7 @@ no-load speed Vs/(N·Kt) at the arm, times 2400 counts per revolution).
    back to back from its double buffer.  Reported: the cycles to the first byte
    written, plus 19 real byte times (the chip), and simavr's own figure.
 2. Encoder interrupt: cycles inside the handler (attachInterrupt's dispatch,
-   two digitalRead, the table step) and from the edge to the handler's return.
+   one read of PIND for both channels, the table step) and from the edge to the handler's return.
 3. Highest sustained sample rate at 115200 and 1000000 bit/s: firmware builds
    at shorter and shorter periods; sustained = every sample arrives, in order,
    no OVERRUN or watchdog fault, and the reading never falls a period behind.
