@@ -227,7 +227,8 @@ def _run_block(logs, rows, n, xs, noises, fpar, ipar, ref, b0, pp, op, cp,
                       fpar[_H], ipar[_NSUB], ipar[_DELAY], b0, _tuple16(pp), _tuple32(op),
                       _tuple16(cp), _tuple16(ap), ipar[_NZ], ipar[_NC],
                       _kinds.plant_advance_block, _kinds.plant_acceleration,
-                      _kinds.observer_initialize, _kinds.observer_estimate,
+                      _kinds.plant_observer_input, _kinds.observer_initialize,
+                      _kinds.observer_estimate,
                       _kinds.observer_advance, _kinds.controller_initialize,
                       _kinds.controller_control)
 

@@ -177,7 +177,8 @@ def closed_loop_block(
     b0: np.ndarray, pp: np.ndarray, op: np.ndarray, cp: np.ndarray, ap: np.ndarray, nz: int,
     nc: int,
     plant_advance_block: Callable[..., None], plant_acceleration: Callable[..., None],
-    observer_initialize: Callable[..., None], observer_estimate: Callable[..., None],
+    plant_observer_input: Callable[..., None], observer_initialize: Callable[..., None],
+    observer_estimate: Callable[..., None],
     observer_advance: Callable[..., None], controller_initialize: Callable[..., None],
     controller_control: Callable[..., None],
 ) -> None:
@@ -201,6 +202,7 @@ def closed_loop_block(
     drive = np.empty(nj)
     applied = np.empty((m, nj))
     acc = np.empty(nj)
+    v = np.empty(nj)
     sat = np.empty(nj)
     z = np.zeros((m, max(nz, 1)))
     zhat = np.zeros((m, max(nz, 1)))
@@ -236,15 +238,16 @@ def closed_loop_block(
             delayed_input(hist[i], k, delay, drive, applied[i])
             # 4. log
             plant_acceleration(x, applied[i], tk, pp, acc)
+            plant_observer_input(zh, ui, pp, v)
             ok = True
             for j in range(nj):
                 ok = log_sample(log, k, j, nj, x, refs[3 * j, k], ui[j], zh,
-                                acc[j] - b0[j] * ui[j], yi[j], sat[j]) and ok
+                                acc[j] - b0[j] * v[j], yi[j], sat[j]) and ok
             if not ok:
                 alive[i] = False
                 rows[i] = -(k + 1)
                 continue
             # 5. observer update
-            observer_advance(zi, zh, yi, ui, op)
+            observer_advance(zi, zh, yi, v, op)
         # 6. integrate every live run to t_{k+1} (the plant kind's block step)
         plant_advance_block(xs, applied, alive, tk, h, nsub, pp)
