@@ -51,10 +51,7 @@ def test_same_numbers_as_reference(name, disc, compensation, variant):
     scn = load_scenario(name, [f"observer.discretization={disc}",
                                f"controller.compensation={compensation}", "duration=2",
                                *VARIANTS[variant]])
-    # bit-exactness holds for the ideal torque source; a [motor] table (uno-rig) turns
-    # torques into PWM counts, which the reference simulator does not model
-    scn = scn.model_copy(update={"motor": None})
-    inp = prepare(scn)
+    inp = prepare(scn)  # with a [motor] table both sides apply it (one actuator step)
     ref = run_reference(scn, inp)
     u, z, y = _host_over_twin(scn)
     assert np.array_equal(u, ref.u)
