@@ -136,7 +136,8 @@ def _fmt(value: Any) -> str:
               help="Run every grid point with sensor.seed = 0 … K−1 (noise seeds).")
 @click.option("--out", "out", metavar="FILE.csv",
               help="Write one row per run: the varied keys, seed, rms_error [rad], rms_u [N·m], "
-              "max_abs_error [rad], max_abs_u [N·m], rms_f_error [rad/s²], samples, diverged.")
+              "max_abs_error [rad], max_abs_u [N·m], rms_f_error [rad/s²], rms_rate_error "
+              "[rad/s], rms_du [N·m], saturated_fraction, samples, diverged.")
 @click.option("--plot", "plot", metavar="FILE.png",
               help="Draw RMS error [rad] and RMS control [N·m] against the varied key with the "
               "spread over seeds, or heat maps for two varied keys (.png, .pdf or .svg). "
@@ -345,7 +346,8 @@ def _print_sweep(result: Any, diverged: int) -> None:
 @set_option
 @click.option("--objective", "objective", default=None, metavar="EXPR",
               help="Expression to minimize over rms_error [rad], rms_u [N·m], max_abs_error "
-              "[rad], max_abs_u [N·m], rms_f_error [rad/s²] and w, evaluated on the means over "
+              "[rad], max_abs_u [N·m], rms_f_error [rad/s²], rms_rate_error [rad/s], rms_du "
+              "[N·m], saturated_fraction and w, evaluated on the means over "
               "seeds and robust samples [default: rms_error + w*rms_u]. A candidate with a "
               "diverged run, or at which EXPR is inf or nan, scores 1e6 (a warning counts the "
               "latter); an EXPR that is finite nowhere (1/0, log(-rms_error)) is bad input.")

@@ -52,7 +52,7 @@ def pack_params(params: TwinParams, inertia_scale: float) -> np.ndarray:
 
 
 @jitable
-def joint_drive(v, tau, p, out):  # type: ignore[no-untyped-def]
+def joint_drive(v: np.ndarray, tau: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """ABA input (τ − F(q̇))/s into ``out``: torque less friction, over the scale s."""
     n = v.shape[0]
     inv_s = p[5 * n]
@@ -62,7 +62,7 @@ def joint_drive(v, tau, p, out):  # type: ignore[no-untyped-def]
 
 
 @jitable
-def add_disturbance(acc, t, p):  # type: ignore[no-untyped-def]
+def add_disturbance(acc: np.ndarray, t: float, p: np.ndarray) -> np.ndarray:
     """q̈ = ABA output + d(t), d_i = amplitude_i sin(frequency_i t) [rad/s²] (eq. 6)."""
     n = acc.shape[0]
     out = np.empty(n)
@@ -72,7 +72,8 @@ def add_disturbance(acc, t, p):  # type: ignore[no-untyped-def]
 
 
 @jitable
-def rk4_begin(q, v, tau, u, p, w):  # type: ignore[no-untyped-def]
+def rk4_begin(q: np.ndarray, v: np.ndarray, tau: np.ndarray, u: np.ndarray, p: np.ndarray,
+              w: np.ndarray) -> None:
     """Load the state (q, q̇, τ) as RK4 stage 0 into the workspace ``w`` (8, n)."""
     lag = p[p.shape[0] - 1]
     w[0, :] = q
@@ -83,7 +84,8 @@ def rk4_begin(q, v, tau, u, p, w):  # type: ignore[no-untyped-def]
 
 
 @jitable
-def rk4_stage(stage, q, v, tau, u, t, h, acc, p, w):  # type: ignore[no-untyped-def]
+def rk4_stage(stage: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, u: np.ndarray,
+              t: float, h: float, acc: np.ndarray, p: np.ndarray, w: np.ndarray) -> None:
     """Finish RK4 stage ``stage`` (0-3) from the ABA output ``acc`` at stage time t.
 
     Workspace rows of ``w``: 0-2 the stage state (q, q̇, τ), 3 the ABA input
