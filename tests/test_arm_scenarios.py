@@ -183,6 +183,8 @@ def test_bad_arm_input_is_one_line_exit_2_nothing_written(tmp_path, urdf, extra,
     ("two-link", ["controller.kind=flc"], "a URDF arm uses 'computed-torque'"),
     ("test-1", ["controller.kind=computed-torque"], "needs plant.kind = 'urdf'"),
     ("test-1", ["reference.kind=range"], "has none"),
+    ("two-link", ["observer.kind=nonlinear"], "designed for one joint"),
+    ("two-link", ["rig.stiction=0.5"], "no Stribeck term"),
 ])
 def test_mismatched_kinds_are_bad_input(scenario, sets, needle):
     with pytest.raises(ScenarioError, match=needle):
@@ -251,3 +253,18 @@ def test_replay_of_an_arms_simulate_csv_gives_back_its_estimates(tmp_path):
     for j in (1, 2):
         for c in ("z1", "z2", "z3"):
             np.testing.assert_array_equal(b[f"{c}_{j}"], a[f"{c}_{j}"])
+
+
+def test_per_joint_lists_on_the_command_line(run_cli, tmp_path):
+    """A per-joint ε prints and runs; a run diverging with per-joint gains is one line, exit 1."""
+    out = tmp_path / "a.csv"
+    res = run_cli("simulate", "two-link", "--set", "observer.eps=[0.015,0.02]", "--set",
+                  "duration=0.5", "--out", str(out), "-v")
+    assert res.exit_code == 0, res.stderr
+    assert "ε = [0.015, 0.02] s" in res.stderr and out.exists()
+    res = run_cli("simulate", "two-link", "--set", "observer.eps=[0.001,0.02]", "--set",
+                  "controller.k1=[20,20]", "--set", "duration=0.5")
+    assert res.exit_code == 1 and "Traceback" not in res.stderr
+    failed = [line for line in res.stderr.splitlines() if "failed" in line]
+    assert len(failed) == 1 and "observer.eps = [0.001, 0.02] s" in failed[0]
+

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict
 from pydantic.json_schema import JsonDict
 
-__all__ = ["Section", "unit"]
+__all__ = ["Section", "joint_values", "show_joint_values", "unit"]
 
 
 class Section(BaseModel):
@@ -22,3 +22,15 @@ class Section(BaseModel):
 def unit(symbol: str) -> JsonDict:
     """``json_schema_extra`` carrying a field's SI unit (shown in the docs)."""
     return {"unit": symbol}
+
+
+def joint_values(value: float | list[float]) -> list[float]:
+    """A key that is one number or one per joint, as a list (``0.02`` → ``[0.02]``)."""
+    return [float(v) for v in value] if isinstance(value, list) else [float(value)]
+
+
+def show_joint_values(value: float | list[float]) -> str:
+    """``0.02`` or, per joint, ``[0.015, 0.02]`` (numbers as ``:g``) for messages."""
+    if isinstance(value, list):
+        return "[" + ", ".join(f"{v:g}" for v in value) + "]"
+    return f"{value:g}"

@@ -39,6 +39,7 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
     Each item names the key and its value.  Empty when nothing in the
     scenario stands out.
     """
+    from esoarm._schema import joint_values, show_joint_values
     from esoarm.studies.analysis import observer_warnings
 
     causes: list[str] = []
@@ -56,20 +57,22 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
     d = abs(rig.disturbance.amplitude)
     if d * scn.duration**2 >= limit / 10:
         causes.append(f"rig.disturbance.amplitude = {rig.disturbance.amplitude:g} rad/s²")
-    unstable = [m for m in observer_warnings(scn.observer.eps, ts, scn.observer.discretization)
-                if "unstable" in m]
+    obs = scn.observer
+    unstable = [m for eps in dict.fromkeys(joint_values(obs.eps))
+                for m in observer_warnings(eps, ts, obs.discretization) if "unstable" in m]
     if unstable:
-        causes.append(f"observer.eps = {scn.observer.eps:g} s, an unstable observer at "
-                      f"Ts = {ts:g} s with '{scn.observer.discretization}'")
+        causes.append(f"observer.eps = {show_joint_values(obs.eps)} s, an unstable observer at "
+                      f"Ts = {ts:g} s with '{obs.discretization}'")
     if not 0.1 <= rig.inertia_scale <= 10:
         causes.append(f"rig.inertia_scale = {rig.inertia_scale:g} (the controller's model is "
                       "far from the rig)")
     # explicit error dynamics at Ts: k1·Ts or k2·Ts² beyond ~2 cannot be sampled stably
     # (the FLC and computed-torque kinds; a PID has kp, ki, kd instead)
     k1, k2 = getattr(scn.controller, "k1", None), getattr(scn.controller, "k2", None)
-    if k1 is not None and k2 is not None and (k1 * ts > 2 or k2 * ts * ts > 4):
-        causes.append(f"controller.k1 = {k1:g} 1/s, k2 = {k2:g} 1/s² (too fast for "
-                      f"Ts = {ts:g} s)")
+    if k1 is not None and k2 is not None and (
+            max(joint_values(k1)) * ts > 2 or max(joint_values(k2)) * ts * ts > 4):
+        causes.append(f"controller.k1 = {show_joint_values(k1)} 1/s, k2 = "
+                      f"{show_joint_values(k2)} 1/s² (too fast for Ts = {ts:g} s)")
     ref = scn.reference
     if ref.kind == "quintic-steps":
         targets = [abs(m[2]) for m in getattr(ref, "moves", []) if len(m) == 3]
