@@ -147,6 +147,13 @@ def check(scn: Scenario) -> str | None:
     if scn.controller.kind != "computed-torque":
         return (f"key 'controller.kind': '{scn.controller.kind}' is the lever arm's; a URDF arm "
                 "uses 'computed-torque'")
+    if scn.observer.kind != "linear" and n > 1:
+        return (f"key 'observer.kind': '{scn.observer.kind}' is designed for one joint, and "
+                f"'{Path(scn.plant.file).name}' has {_joint_list(arm)}; use 'linear' (one ESO "
+                "per joint)")
+    if scn.rig.stiction != 0.0:
+        return ("key 'rig.stiction': the URDF twin's friction is Coulomb and viscous per joint "
+                "(no Stribeck term); leave it 0")
     for section in ("observer", "controller"):
         values = getattr(scn, section).model_dump()
         for key in PER_JOINT_KEYS:
