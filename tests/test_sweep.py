@@ -325,3 +325,13 @@ def test_verbose_progress_lines_without_a_terminal_and_json_stays_pure() -> None
                                      *SHORT, "--json", "--quiet"])
     assert quiet.exit_code == 0 and quiet.stderr == ""
     assert json.loads(quiet.stdout)["runs"] == 2
+
+
+def test_best_points_rank_a_diverged_point_last(run_cli) -> None:  # type: ignore[no-untyped-def]
+    """ε = 0.2 ms diverges early with a smaller RMS error than ε = 0.09 s: it is not 'best'."""
+    res = run_cli("sweep", "test-1", "--vary", "observer.eps=0.0002,0.09", "--set",
+                  "duration=2", "-q")
+    assert res.exit_code == 0, res.stderr
+    rows = [line for line in res.stdout.splitlines() if line.startswith("│")]
+    assert rows[0].split("│")[1].strip() == "0.09"
+    assert "(diverged)" in rows[1] and "(diverged)" not in rows[0]

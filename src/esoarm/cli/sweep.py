@@ -328,8 +328,9 @@ def _print_sweep(result: Any, diverged: int) -> None:
     for label in ("RMS error [rad]", "RMS u [N·m]", "max |error| [rad]"):
         table.add_column(escape(label), justify="right")  # "[rad]" is not rich markup
     for row in result.best(5):
+        mark = " (diverged)" if row["diverged"] > 0 else ""
         table.add_row(*(_fmt(row[k]) for k in grid.keys),
-                      *(f"{row[m]:.5f}" for m in ("rms_error", "rms_u", "max_abs_error")))
+                      *(f"{row[m]:.5f}{mark}" for m in ("rms_error", "rms_u", "max_abs_error")))
     Console().print(table)
 
 

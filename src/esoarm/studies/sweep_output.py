@@ -166,7 +166,10 @@ class SweepWriter:
         for k, row in enumerate(means):
             if np.isfinite(row[self._by]):
                 self._best.append((float(row[self._by]), first_point + k, row))
-        self._best.sort(key=lambda item: (item[0], item[1]))
+        # a point with a diverged run ranks after every point without (its metrics cover
+        # only the samples before divergence)
+        div = METRICS.index("diverged")
+        self._best.sort(key=lambda item: (item[2][div] > 0, item[0], item[1]))
         del self._best[self._keep:]
 
     def best(self, n: int = 5) -> list[dict[str, Any]]:
@@ -289,7 +292,8 @@ class SweepResult:
     def best(self, n: int = 5, by: str = "rms_error") -> list[dict[str, Any]]:
         """The ``n`` grid points with the lowest seed-mean ``by``, with their mean metrics."""
         means = {m: _nanmean_rows(self.point_metric(m)) for m in METRICS}
-        order = [i for i in np.argsort(means[by], kind="stable") if np.isfinite(means[by][i])]
+        order = [i for i in np.lexsort((means[by], means["diverged"] > 0))
+                 if np.isfinite(means[by][i])]  # diverged points last
         out = []
         values = list(self.grid.point_values())
         for i in order[:n]:
