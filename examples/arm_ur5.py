@@ -7,7 +7,8 @@ Writes OUT_DIR/ur5.toml pointing at the package's UR5 URDF (its meshes are not
 needed for the dynamics), with a 1 kg payload the controller does not know, a
 500 Hz loop and the joints moved through 15 % of their range, then simulates
 it with the ESO and without estimation.  For a Panda use
-`panda_description/urdf/panda.urdf` (nine joints: seven plus two fingers).
+`panda_description/urdf/panda.urdf` (nine joints: seven plus two fingers) with
+``payload_mass = 0``: the payload sits on the last link in URDF order, a finger.
 Without example-robot-data installed it says so and stops.
 """
 
