@@ -150,8 +150,8 @@ def _fmt(value: Any) -> str:
               "first use with the system C compiler, agrees to relative 1e-9 (see the "
               "benchmarks page); falls back to exact with a warning where no compiler works.")
 @click.option("--workers", "workers", type=int, default=None, metavar="N",
-              help="Threads (cores) in this process [default: all]; with --scheduler, numba "
-              "threads per Dask task [default: 1].")
+              help="Threads (cores) in this process [default: all] (for a URDF arm: worker "
+              "processes); with --scheduler, numba threads per Dask task [default: 1].")
 @click.option("--scheduler", "scheduler", metavar="ADDRESS",
               help="Run the chunks on an existing Dask distributed cluster, e.g. "
               "tcp://127.0.0.1:8786 (needs the 'cluster' extra here and esoarm installed on the "
@@ -169,7 +169,7 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
           scheduler: str | None, chunk: int | None, max_runs: int) -> None:
     """Sweep SCENARIO over a grid of parameters × noise seeds (compiled engine).
 
-    Every run follows the sampled-data closed loop (docs/semantics.md) exactly
+    A URDF arm runs on the reference engine in worker processes. Every run follows the sampled-data closed loop (docs/semantics.md) exactly
     (same numbers as `esoarm simulate`; --engine fast: to round-off); only
     metrics are kept. Rows reach --out as chunks finish, so memory does not
     grow with the number of runs (except with --plot). Ctrl-C (or SIGTERM)
@@ -375,7 +375,7 @@ def _print_sweep(result: Any, diverged: int) -> None:
               "first use with the system C compiler, agrees to relative 1e-9 (see the "
               "benchmarks page); falls back to exact with a warning where no compiler works.")
 @click.option("--workers", "workers", type=int, default=None, metavar="N",
-              help="Threads (cores) [default: all].")
+              help="Threads (cores) [default: all]; for a URDF arm, worker processes.")
 @click.option("--out", "out", metavar="FILE.csv",
               help="Write every candidate scored: its values, mean metrics, objective.")
 @click.option("--plot", "plot", default="tune-pareto.png", show_default=True, metavar="FILE.png",
@@ -392,9 +392,9 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     """Tune keys of SCENARIO to minimize an objective (SciPy differential evolution).
 
     Each candidate is scored on K noise seeds (and M sampled rig variants with
-    --robust) on the compiled engine; prints the best values with their
-    metrics next to the scenario's own values, and draws the Pareto front of
-    tracking error against control effort. Example:
+    --robust) on the compiled engine (a URDF arm: worker processes); prints the
+    best values with their metrics next to the scenario's own values, and draws
+    the Pareto front of tracking error against control effort. Example:
 
     \b
       esoarm tune test-1 --vary observer.eps=0.02:0.3 --robust rig.inertia_scale=0.8:1.2
