@@ -169,9 +169,10 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
           scheduler: str | None, chunk: int | None, max_runs: int) -> None:
     """Sweep SCENARIO over a grid of parameters × noise seeds (compiled engine).
 
-    A URDF arm runs on the reference engine in worker processes. Every run follows the sampled-data closed loop (docs/semantics.md) exactly
+    Every run follows the sampled-data closed loop (docs/semantics.md) exactly
     (same numbers as `esoarm simulate`; --engine fast: to round-off); only
-    metrics are kept. Rows reach --out as chunks finish, so memory does not
+    metrics are kept; a URDF arm runs on the reference engine in worker
+    processes. Rows reach --out as chunks finish, so memory does not
     grow with the number of runs (except with --plot). Ctrl-C (or SIGTERM)
     stops the sweep and keeps
     the finished rows in --out. Example:
