@@ -32,13 +32,17 @@ SETTINGS = {
     "diverges-late": {"observer.discretization": "zoh", "observer.eps": 0.02,
                       "actuator.torque_limit": 1e12, "actuator.delay_samples": 3},
 }
+# The URDF twin's friction is Coulomb + viscous per joint: rig.stiction is bad input there.
+URDF_REFUSES = {"stiction", "stiction+lag"}
 
 
 @pytest.mark.parametrize("name", builtin_names())
 @pytest.mark.parametrize("disc", ["euler", "zoh", "current"])
 def test_blocks_change_no_bit(name: str, disc: str) -> None:
+    urdf = load_scenario(name).plant.kind == "urdf"
     pts = [load_scenario(name, {"duration": 2.0, "observer.discretization": disc, **extra})
-           for extra in SETTINGS.values()]
+           for key, extra in SETTINGS.items()
+           if not (urdf and key in URDF_REFUSES)]
     blocked = batch.run_metrics(pts, seeds=range(5)).values
     single = batch.run_metrics(pts, seeds=range(5), blocked=False).values
     np.testing.assert_array_equal(blocked, single)
