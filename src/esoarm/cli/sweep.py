@@ -405,6 +405,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
         DEFAULT_OBJECTIVE,
         DEFAULT_WEIGHT,
         Objective,
+        describe_baseline,
         describe_nonfinite,
         parse_bound,
     )
@@ -438,9 +439,9 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
         click.echo("esoarm: interrupted: tuning stopped, nothing written", err=True)
         raise click.exceptions.Exit(INTERRUPTED) from None
 
-    nonfinite = describe_nonfinite(res, obj)
-    if nonfinite is not None:
-        warn_line(nonfinite)
+    for line in (describe_nonfinite(res, obj), describe_baseline(res)):
+        if line is not None:
+            warn_line(line)
     if out_path is not None:
         from esoarm.studies.sweep_output import write_rows_atomic
 

@@ -395,6 +395,13 @@ def tune(
         nonfinite.extend(row for row, b in zip(rows, bad, strict=True) if b)
         return obj
 
+    # The scenario's own values start the search when they lie within the bounds: differential
+    # evolution replaces a member only by a better one, so the best found is never worse than
+    # the scenario as given.
+    own = {b.key: _lookup(base.to_dict(), b.key) for b in bounds}
+    inside = all(isinstance(own[b.key], int | float) and b.low <= own[b.key] <= b.high
+                 for b in bounds)
+    x0 = [b.to_unit(float(own[b.key])) for b in bounds] if inside else None
     start = time.perf_counter()
     gens = 0
 
@@ -417,6 +424,7 @@ def tune(
         init="latinhypercube",
         integrality=[b.integer for b in bounds],
         callback=callback,
+        x0=x0,
     )
     best = {b.key: b.from_unit(float(c)) for b, c in zip(bounds, np.atleast_1d(res.x),
                                                           strict=True)}
@@ -427,7 +435,6 @@ def tune(
             f"{len(nonfinite)} candidates whose runs did not diverge (e.g. at "
             f"{_describe(nonfinite[0], keys, objective.metrics)}); nothing to minimize")
     _, (best_row,), _ = score([best])
-    own = {b.key: _lookup(base.to_dict(), b.key) for b in bounds}
     _, (base_row,), _ = score([own])
     return TuneResult(
         keys=keys,
@@ -451,6 +458,20 @@ def _describe(row: dict[str, Any], keys: Sequence[str], metrics: Sequence[str]) 
     if not metrics:
         return values
     return values + ": " + ", ".join(f"{m} = {row[m]:.4g}" for m in metrics)
+
+
+def describe_baseline(res: TuneResult) -> str | None:
+    """One warning line when the scenario as given scores better than the best found, or None.
+
+    It can only happen when the scenario's own values lie outside the bounds searched (within
+    them they start the search, see :func:`tune`).
+    """
+    if not res.baseline["objective"] < res.best_metrics["objective"]:
+        return None
+    own = ", ".join(f"{k} = {res.baseline[k]:.4g}" for k in res.keys)
+    return (f"the scenario as given ({own}, outside the bounds searched) scores better than the "
+            f"best found (objective {res.baseline['objective']:.5g} < "
+            f"{res.best_metrics['objective']:.5g}): widen the bounds to include it")
 
 
 def describe_nonfinite(res: TuneResult, objective: Objective) -> str | None:
