@@ -203,7 +203,9 @@ def write_doc(m: dict, machine: dict[str, str]) -> str:  # type: ignore[type-arg
             f"{n / sc['exact'][i]:,.0f} | {n / sc['fast'][i]:,.0f} | "
             f"{sc['rss_exact'][i]:.0f} / {sc['rss_fast'][i]:.0f} |")
     lines += ["", "Whole commands include process start, imports, loading the compiled "
-              "kernels and building the grid; the C loop is timed inside the program.", ""]
+              "kernels and building the grid; the C loop is timed inside the program. Peak "
+              "memory is each command's own maximum resident set, reported by GNU time "
+              "(`/usr/bin/time -f %M`), which starts it.", ""]
     lines += ["## Reading the numbers", "", *notes(m), ""]
     if m.get("tune"):
         lines += _tune_table(m["tune"])

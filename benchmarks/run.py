@@ -83,27 +83,41 @@ def load() -> str:
 WARM_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 
+#: GNU time reports the peak resident memory of the command it starts (its ``%M``).
+GNU_TIME = "/usr/bin/time"
+
+
 def run_proc(cmd: list[str], env: dict[str, str] | None = None,
-             cpu: list[float] | None = None) -> tuple[float, float]:
-    """Run a command; return (wall time [s], peak resident memory [MiB]) of that process.
+             cpu: list[float] | None = None, memory: bool = False) -> tuple[float, float]:
+    """Run a command; return (wall time [s], peak resident memory [MiB] or nan).
 
     With ``cpu``, the process's CPU time (user + system) [s] is appended to it.  Without
-    ``env``, the command runs in :data:`WARM_ENV`.
+    ``env``, the command runs in :data:`WARM_ENV`.  With ``memory``, the command runs under
+    GNU time, which forks it from its own small process and reports its peak resident
+    memory: read from this process's ``wait4``, the peak would include this (large)
+    process's own, which Linux hands on through ``vfork`` + ``exec``.  Without ``memory`` or
+    without GNU time, the memory is nan.
     """
+    wrap = memory and os.path.exists(GNU_TIME)
+    full = [GNU_TIME, "-f", "esoarm-bench-maxrss %M", *cmd] if wrap else cmd
     with tempfile.TemporaryFile() as err:
         t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd, env=WARM_ENV if env is None else env,
+        proc = subprocess.Popen(full, env=WARM_ENV if env is None else env,
                                 stdout=subprocess.DEVNULL, stderr=err)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
         proc.returncode = os.waitstatus_to_exitcode(status)
+        err.seek(0)
+        text = err.read().decode(errors="replace")
         if proc.returncode != 0:
-            err.seek(0)
-            raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}): "
-                               f"{err.read().decode(errors='replace')[-2000:]}")
+            raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}): {text[-2000:]}")
     if cpu is not None:
         cpu.append(usage.ru_utime + usage.ru_stime)
-    return wall, usage.ru_maxrss / 1024.0
+    peak = float("nan")
+    for line in text.splitlines():
+        if line.startswith("esoarm-bench-maxrss "):
+            peak = int(line.split()[1]) / 1024.0  # KiB
+    return wall, peak
 
 
 def sweep_cmd(points: int, seeds: int, engine: str, out: Path | None = None) -> list[str]:
@@ -325,7 +339,7 @@ def bench_scaling(c: CLoop, sizes: list[int], c_max: int) -> dict:  # type: igno
     for n in sizes:
         points, seeds = split_runs(n)
         for engine in ("exact", "fast"):
-            wall, rss = run_proc(sweep_cmd(points, seeds, engine))
+            wall, rss = run_proc(sweep_cmd(points, seeds, engine), memory=True)
             res[engine].append(wall)
             res[f"rss_{engine}"].append(rss)
         if n <= c_max:
@@ -346,7 +360,7 @@ def bench_million(work: Path, runs: int) -> dict:  # type: ignore[type-arg]
     """A metrics-only sweep of ``runs`` runs with the fast engine, written to CSV."""
     out = work / "million.csv"
     points, seeds = split_runs(runs)
-    wall, rss = run_proc(sweep_cmd(points, seeds, "fast", out))
+    wall, rss = run_proc(sweep_cmd(points, seeds, "fast", out), memory=True)
     with out.open() as fh:
         rows = sum(1 for _ in fh) - 1
     return {"runs": runs, "seconds": wall, "peak_mib": rss, "rows": rows}
