@@ -7,7 +7,9 @@
 - the linear plant against the nonlinear rig's RK4 step (finite differences),
   the linear controller against the ESO/FLC step functions the simulators run;
 - the ESO's transfer functions against Theorem 1's closed forms;
-- the predicted disturbance response against a nonlinear simulation.
+- the predicted disturbance response against a nonlinear simulation;
+- all of these with a ``[motor]`` table too (uno-rig): its back-EMF damping and the
+  host's back-EMF compensation are in the linear loop.
 """
 
 from __future__ import annotations
@@ -21,16 +23,23 @@ import pytest
 import esoarm
 from esoarm.engines.simulation import prepare
 from esoarm.observers.linear import DISCRETIZATIONS
-from esoarm.plants.actuator import LIMIT, saturate
-from esoarm.plants.lever_arm import RigParams, rig_advance
-from esoarm.scenario import builtin_names, load_scenario
+from esoarm.plants.actuator import LIMIT, MOTOR_BLOCK, actuate, saturate
+from esoarm.plants.lever_arm import design, rig_advance
+from esoarm.plants.motor import PWM_MAX, MotorParams
+from esoarm.scenario import Scenario, builtin_names, load_scenario
 from esoarm.studies import frequency as F
 from esoarm.studies import linearization as L
 
 control = pytest.importorskip("control")
 
+#: uno-rig's [motor] table as overrides of test-1 (back-EMF damping 0.1215 N·m·s/rad)
+UNO_MOTOR = {"motor.supply_voltage": 12.0, "motor.resistance": 2.4,
+             "motor.torque_constant": 0.018, "motor.gear_ratio": 30.0, "motor.deadband": 0.06}
+
 LOOPS = [
     {},
+    UNO_MOTOR,
+    {**UNO_MOTOR, "actuator.lag": 0.02, "actuator.delay_samples": 1},
     {"actuator.lag": 0.01},
     {"actuator.delay_samples": 2},
     {"actuator.lag": 0.02, "actuator.delay_samples": 1},
@@ -103,10 +112,15 @@ def test_to_control_objects(name: str) -> None:
     np.testing.assert_allclose(sys.loop(z), lin.response("loop", w), rtol=1e-10)
 
 
+@pytest.mark.parametrize("base", ["test-1", "uno-rig"])
 @pytest.mark.parametrize("lag", [0.0, 0.02])
 @pytest.mark.parametrize("friction", ["viscous", "slope", "none"])
-def test_plant_matches_the_rig_step(lag: float, friction: str) -> None:
-    """Finite differences of the nonlinear rig over one sample give the plant matrices."""
+def test_plant_matches_the_rig_step(lag: float, friction: str, base: str) -> None:
+    """Finite differences of the nonlinear rig over one sample give the plant matrices.
+
+    The rig is the one the simulators integrate (the plant kind's design): with
+    uno-rig's ``[motor]``, the back-EMF damping (N·Kt)²/R is part of it.
+    """
     over = {"actuator.lag": lag, "rig.disturbance.amplitude": 0.0}
     if friction == "slope":
         over["rig.stiction"] = 0.03  # Stribeck: its slope at rest adds Fst/vs
@@ -115,9 +129,10 @@ def test_plant_matches_the_rig_step(lag: float, friction: str) -> None:
         over["rig.coulomb_friction"] = 0.0
     if friction == "none":
         over["rig.viscous_friction"] = 0.0
-    scn = load_scenario("test-1", over)
+    scn = load_scenario(base, over)
     theta0 = 0.7
-    rig = RigParams.from_scenario(scn).vector
+    rig = design(scn).vector[1:]  # (code, rig vector): the rig the simulators integrate
+    assert (scn.motor is not None) == (base == "uno-rig")
     u0 = rig[1] * math.cos(theta0)  # gravity torque: an equilibrium
     ad, bd, _, _ = L.sampled_plant(scn, theta0, friction)
     n = ad.shape[0]
@@ -140,19 +155,28 @@ def test_plant_matches_the_rig_step(lag: float, friction: str) -> None:
 @pytest.mark.parametrize("disc", DISCRETIZATIONS)
 @pytest.mark.parametrize("comp", ["eso", "model"])
 @pytest.mark.parametrize("kind", ["linear", "nonlinear"])
-def test_controller_matches_the_step_functions(disc: str, comp: str, kind: str) -> None:
+@pytest.mark.parametrize("base", ["test-1", "uno-rig"])
+def test_controller_matches_the_step_functions(disc: str, comp: str, kind: str,
+                                               base: str) -> None:
     """K(z) reproduces the observer and controller kinds' step functions on a random y.
 
     For the nonlinear ESO the innovations stay within fal's linear zone (|e| ≤ δ =
-    0.1 rad), where K(z) is exact too.
+    0.1 rad), where K(z) is exact too.  With uno-rig's ``[motor]`` the output is the
+    torque that drives the plant, from the actuator the simulators run (the host's
+    back-EMF compensation with ẑ2, the deadband and its pre-compensation), and the
+    observer is updated with the torque the host believes it applies; the duty's
+    resolution is raised to 1e12 counts so that PWM rounding (left out of the linear
+    loop) is below the tolerance.
     """
     theta0 = 0.4
-    scn = load_scenario("test-1", {"observer.kind": kind, "observer.discretization": disc,
-                                   "controller.compensation": comp,
-                                   "actuator.torque_limit": 1e9})
+    scn = load_scenario(base, {"observer.kind": kind, "observer.discretization": disc,
+                               "controller.compensation": comp,
+                               "actuator.torque_limit": 1e9})
     inp = prepare(scn)
     _, observer, controller = inp.kinds
     op, cp = inp.observer.vector, inp.controller.vector
+    ap = np.array(inp.actuator)
+    ap[MOTOR_BLOCK + PWM_MAX] = 1e12 if scn.motor is not None else 0.0
     ak, bk, ck, dk = L.controller_matrices(scn, theta0)
     rng = np.random.default_rng(1)
     dy = 1e-3 * rng.standard_normal(60)
@@ -163,9 +187,9 @@ def test_controller_matches_the_step_functions(disc: str, comp: str, kind: str) 
         y[0] = yk
         observer.estimate(z, y, op, zhat)
         controller.control(c, zhat, y, refs, 0, cp, u)
-        u[0] = saturate(u[0], inp.actuator[LIMIT])
+        u[0], drive, _ = actuate(saturate(u[0], ap[LIMIT]), zhat[1], ap)
         observer.advance(z, zhat, y, u, op)
-        return float(u[0])
+        return float(drive)
 
     observer.initialize(z, y, op)
     for _ in range(3000):  # settle the observer on y = θ0: the operating point
@@ -177,6 +201,9 @@ def test_controller_matches_the_step_functions(disc: str, comp: str, kind: str) 
         xk = ak @ xk + bk[:, 0] * dy[k]
         tol = 1e-9 if comp == "eso" else 1e-6  # "model": cos linearized
         assert u_k - u_eq == pytest.approx(u_lin, abs=tol)
+    if scn.motor is not None:  # the compensation is a visible part of the output
+        plain = L.controller_matrices(_without_motor(scn), theta0)
+        assert np.allclose(plain[0], ak) and not np.allclose(plain[2], ck)
 
 
 @pytest.mark.parametrize("disc", DISCRETIZATIONS)
@@ -227,6 +254,74 @@ def test_disturbance_response_against_nonlinear_simulation(disc: str) -> None:
     tail = result.error[-period:]
     assert (tail.max() - tail.min()) / 2 == pytest.approx(a.scenario_disturbance_error, rel=1e-3)
     assert abs(a.disturbance_dc) < 1e-9  # the ESO's integral action
+
+
+def _without_motor(scn: Scenario) -> Scenario:
+    """The same scenario with an ideal torque source (no ``[motor]`` table)."""
+    return scn.model_copy(update={"motor": None})
+
+
+@pytest.mark.parametrize("disc", DISCRETIZATIONS)
+@pytest.mark.parametrize("freq", [0.5, 3.0])
+def test_motor_disturbance_response_against_nonlinear_simulation(disc: str, freq: float) -> None:
+    """With a ``[motor]`` the linear loop predicts the twin's disturbance response.
+
+    uno-rig drives the arm through its motor model (back-EMF damping, the host's
+    compensation with ẑ2, deadband and its pre-compensation, PWM duty counts).  The
+    linear loop leaves out the PWM rounding: at pwm_max = 255 one count is 11 mN·m at
+    the arm, twice the scenario's 5 mN·m disturbance, so the check uses the finest
+    duty the scenario allows (32767 counts, 0.09 mN·m per count) and a disturbance of
+    0.5 N·m, within the supply's 2.7 N·m (no saturation).  3 rad/s is near the peak
+    of the disturbance transfer, where the motor's damping changes it most.
+    """
+    scn = load_scenario("uno-rig", {
+        "sensor.noise_deg": 0.0, "sensor.resolution_deg": 0.0, "rig.coulomb_friction": 0.0,
+        "reference.kind": "multisine", "reference.amplitudes": [0.0],
+        "reference.frequencies": [0.5], "duration": 40.0, "observer.discretization": disc,
+        "motor.pwm_max": 32767, "rig.disturbance.amplitude": 20.0,
+        "rig.disturbance.frequency": freq})
+    motor = MotorParams.from_scenario(scn)
+    assert motor is not None
+    result = esoarm.simulate(scn)
+    # the duty the host asks for, (u + Dm ẑ2)/stall, stays well inside ±1 (no supply limit)
+    duty = (result.u + motor.damping * result.z[:, 1]) / motor.stall_gain
+    assert np.max(np.abs(duty)) < 0.5 and not np.any(result.saturated)
+    a = F.analyze(scn, over_range=False, n_freq=400)
+    period = round(2 * math.pi / freq / scn.sample_time)
+    tail = result.error[-4 * period:]
+    assert (tail.max() - tail.min()) / 2 == pytest.approx(a.scenario_disturbance_error, rel=1e-3)
+    assert abs(a.disturbance_dc) < 1e-9
+    # the check tells the motor's part apart: without it the prediction is off by more
+    # than 5 times the tolerance (0.9-1.2 % at 0.5 rad/s, 24-31 % at 3 rad/s)
+    plain = F.analyze(_without_motor(scn), over_range=False, n_freq=400)
+    assert abs(plain.scenario_disturbance_error / a.scenario_disturbance_error - 1) > (
+        5e-3 if freq < 1 else 0.2)
+
+
+def test_motor_changes_the_loop_and_is_named(run_cli) -> None:  # type: ignore[no-untyped-def]
+    """uno-rig is test-1 plus a motor (and an encoder): its margins must differ."""
+    uno, t1 = F.analyze("uno-rig"), F.analyze("test-1")
+    assert uno.motor["damping"] == pytest.approx((30.0 * 0.018) ** 2 / 2.4, rel=1e-12)
+    assert uno.motor["pwm_step"] == pytest.approx(30 * 0.018 * 12 / 2.4 / (0.94 * 255))
+    assert uno.motor["left_out"] == ["deadband", "pwm_quantization", "supply_saturation"]
+    assert t1.motor == {}
+    # more damping at the plant input: larger gain, phase and delay margins
+    assert uno.gain_margin > 1.3 * t1.gain_margin
+    assert uno.phase_margin > t1.phase_margin + 10
+    assert uno.delay_margin > t1.delay_margin
+    res = run_cli("analyze", "uno-rig")
+    assert res.exit_code == 0, res.stderr
+    notes = [ln for ln in res.stdout.splitlines() if ln.startswith("motor:")]
+    assert len(notes) == 1
+    for word in ("0.1215", "deadband", "PWM quantization", "supply saturation"):
+        assert word in notes[0]
+    out = json.loads(run_cli("analyze", "uno-rig", "--json").stdout)
+    assert out["gain_margin"] == pytest.approx(uno.gain_margin)
+    assert out["motor"]["left_out"] == uno.motor["left_out"]
+    res = run_cli("analyze", "uno-rig", "--vary", "motor.resistance=2.4,4")
+    assert res.exit_code == 0, res.stderr
+    assert sum(ln.startswith("motor:") for ln in res.stdout.splitlines()) == 1
+    assert "motor:" not in run_cli("analyze", "test-1").stdout
 
 
 def test_eps_trade_off_in_the_frequency_domain() -> None:

@@ -58,8 +58,11 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
     observer bandwidths [rad/s] against the Nyquist frequency π/Ts, and the
     gain from a torque disturbance at the plant input to the tracking error
     [rad/(N·m)]. Saturation, quantization and noise are left out (linear).
-    Models the lever arm with the FLC and either ESO kind (the nonlinear one
-    in fal's linear zone, innovations within ±δ).
+    With a [motor] table its back-EMF damping and the host's back-EMF
+    compensation are in the loop; its deadband, PWM quantization and supply
+    saturation are left out (a note line says so). Models the lever arm with
+    the FLC and either ESO kind (the nonlinear one in fal's linear zone,
+    innovations within ±δ).
     """
     from esoarm.studies.frequency import analyze as run_analysis
     from esoarm.studies.linearization import check_supported
@@ -135,7 +138,7 @@ def _print_one(a: Any) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from esoarm.studies.frequency import eso_label
+    from esoarm.studies.frequency import eso_label, motor_note
 
     table = Table(title=f"{a.scenario}  (ε = {a.eps:g} s, {a.discretization} {eso_label(a)}; "
                   f"linearized at θ0 = {a.theta0:g} rad, friction '{a.friction}', Ts = {a.ts:g} s)")
@@ -176,11 +179,15 @@ def _print_one(a: Any) -> None:
                    f"gain margin ≥ {_f(r['gain_margin_min'], '.3f')}, phase margin ≥ "
                    f"{_f(r['phase_margin_min'], '.2f')} deg, delay margin ≥ "
                    f"{_f(r['delay_margin_min'] * 1e3, '.2f')} ms")
+    if a.motor:
+        click.echo(motor_note(a))
 
 
 def _print_vary(key: str, values: Any, points: Any) -> None:
     from rich.console import Console
     from rich.table import Table
+
+    from esoarm.studies.frequency import motor_note
 
     a = points[0]
     table = Table(title=f"{a.scenario}: margins against {key} (linearized at θ0 = {a.theta0:g} "
@@ -198,3 +205,7 @@ def _print_vary(key: str, values: Any, points: Any) -> None:
     click.echo("GM gain margin [ratio], PM phase margin [deg], DM delay margin [ms], bw "
                "bandwidths [rad/s], w→e pk peak torque-disturbance-to-error gain [rad/(N·m)], "
                "n→u pk peak noise-to-control gain [N·m/rad]")
+    notes = {motor_note(p) for p in points} - {""}
+    if notes:  # one line: with values when every point has the same motor
+        click.echo(notes.pop() if len(notes) == 1 else motor_note(
+            next(p for p in points if p.motor), values=False))

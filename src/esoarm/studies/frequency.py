@@ -13,6 +13,11 @@ Loop, margins and sensitivities
     gain crossover, the delay margin [s] the smallest PM/ω over the gain
     crossovers ω [rad/s] with positive phase margin.  All frequencies are in
     rad/s, up to the Nyquist frequency π/Ts.
+
+Motor
+    With a ``[motor]`` table its linear part (back-EMF damping, the host's
+    back-EMF compensation) is in the loop; what is left out is named in
+    ``FrequencyAnalysis.motor`` and by :func:`motor_note`.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from esoarm.observers.linear import design_observer
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario
 from esoarm.studies.linearization import (
     LinearLoop,
@@ -38,7 +44,8 @@ from esoarm.studies.linearization import (
     perturbation_estimate,
 )
 
-__all__ = ["FrequencyAnalysis", "Margins", "analyze", "frequency_grid", "freqresp_dc", "margins"]
+__all__ = ["FrequencyAnalysis", "Margins", "analyze", "frequency_grid", "freqresp_dc", "margins",
+           "motor_note", "motor_terms"]
 
 
 # ---------------------------------------------------------------------------
@@ -178,12 +185,51 @@ class FrequencyAnalysis:
     discretization: str
     observer: str = "linear"
     range: dict[str, Any] = field(default_factory=dict)
+    motor: dict[str, Any] = field(default_factory=dict)
     curves: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: no curves, non-finite numbers as None."""
         out = {k: v for k, v in asdict(self).items() if k != "curves"}
         return _clean(out)  # type: ignore[no-any-return]
+
+
+#: What a ``[motor]`` table adds that the linear loop leaves out.
+MOTOR_LEFT_OUT = ("deadband", "pwm_quantization", "supply_saturation")
+
+
+def motor_terms(scn: Scenario) -> dict[str, Any]:
+    """The motor's terms in the analysis ({} without a ``[motor]`` table).
+
+    ``damping`` (N·Kt)²/R [N·m·s/rad], in the plant and, as the host's
+    compensation Dm·ẑ2, in the controller; ``stall_torque`` N·Kt·Vs/R [N·m],
+    the supply's limit at rest; ``pwm_step`` the arm torque of one duty count
+    after the deadband pre-compensation, N·Kt·Vs/(R·(1 − δ)·pwm_max) [N·m];
+    ``deadband`` δ; ``left_out`` the nonlinear parts (:data:`MOTOR_LEFT_OUT`).
+    """
+    m = MotorParams.from_scenario(scn)
+    if m is None:
+        return {}
+    return {"damping": m.damping, "stall_torque": m.stall_gain,
+            "pwm_step": m.stall_gain / ((1.0 - m.deadband) * m.pwm_max),
+            "deadband": m.deadband, "left_out": list(MOTOR_LEFT_OUT)}
+
+
+def motor_note(a: FrequencyAnalysis, values: bool = True) -> str:
+    """One line: the motor's linear terms in the loop and what is left out ('' without one)."""
+    m = a.motor
+    if not m:
+        return ""
+    if not values:
+        return ("motor: the back-EMF damping (N·Kt)²/R is in the plant and the host's "
+                "compensation +(N·Kt)²/R·ẑ2 in the controller; left out (nonlinear): the driver "
+                "deadband (pre-compensated by the host), the PWM quantization, the supply "
+                "saturation")
+    return (f"motor: back-EMF damping (N·Kt)²/R = {m['damping']:.4g} N·m·s/rad in the plant "
+            f"and the host's compensation +{m['damping']:.4g}·ẑ2 in the controller; left out "
+            f"(nonlinear): the driver deadband {m['deadband']:g} (pre-compensated by the host), "
+            f"the PWM quantization ({m['pwm_step']:.3g} N·m per duty count at the arm), the "
+            f"supply saturation (|u + {m['damping']:.4g}·ẑ2| ≤ {m['stall_torque']:.4g} N·m)")
 
 
 def eso_label(a: FrequencyAnalysis) -> str:
@@ -296,7 +342,7 @@ def analyze(scenario: Scenario | str | Path = "test-1", overrides: dict | list[s
         disturbance_at_scenario=d_at,
         scenario_disturbance_error=d_at * inertia * abs(scn.rig.disturbance.amplitude),
         eps=scn.observer.eps, discretization=scn.observer.discretization,
-        observer=scn.observer.kind, range=rng,
+        observer=scn.observer.kind, range=rng, motor=motor_terms(scn),
         curves={"w": w, "loop": L, "sensitivity": sens, "complementary": comp,
                 "disturbance": dist, "perturbation_estimate": f_fun(w)},
     )

@@ -99,7 +99,8 @@ def figure_frequency(a: FrequencyAnalysis, path: str | Path | None = None) -> Fi
     _finish_axes(axes, a.nyquist)
     fig.suptitle(
         f"{a.scenario}: ε = {a.eps:g} s, {a.discretization} {eso_label(a)}, linearized at θ0 = "
-        f"{a.theta0:g} rad, friction '{a.friction}', Ts = {a.ts:g} s", fontsize=10)
+        f"{a.theta0:g} rad, friction '{a.friction}', Ts = {a.ts:g} s"
+        + (", motor's linear part" if a.motor else ""), fontsize=10)
     return finish_figure(fig, path)
 
 
@@ -156,5 +157,6 @@ def figure_vary(key: str, values: Sequence[Any], results: Sequence[FrequencyAnal
             ax.set_xticks(x, [str(v) for v in values])
     a = results[0]
     fig.suptitle(f"{a.scenario}: margins against {key} (linearized at θ0 = {a.theta0:g} rad, "
-                 f"friction '{a.friction}', Ts = {a.ts:g} s)", fontsize=10)
+                 f"friction '{a.friction}', Ts = {a.ts:g} s"
+                 + (", motor's linear part" if a.motor else "") + ")", fontsize=10)
     return finish_figure(fig, path)

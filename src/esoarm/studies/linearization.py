@@ -30,14 +30,33 @@ Plant (sample-to-sample, exact)
     response is that of the sampled-data loop at the samples.  Noise,
     quantization and the saturation ±torque_limit are left out (linear model).
 
+Motor (a scenario's ``[motor]`` table, :mod:`esoarm.plants.motor`)
+    The motor is a torque source (N·Kt·Vs/R)·d plus the back-EMF damping
+    Dm = (N·Kt)²/R, and the host asks for the duty d = (u + Dm ẑ2)/(N·Kt·Vs/R)
+    (back-EMF compensation with the estimated rate).  Its linear part is in
+    the loop, as the simulators run it (:func:`esoarm.plants.actuator.actuate`):
+
+    - the plant's damping is c + Dm (for every ``friction`` choice: the
+      back-EMF is not friction), its input the motor's source torque;
+    - the torque that drives the plant is u + Dm ẑ2 (the compensation), while
+      the observer is updated with u, the torque the host believes it applies
+      (equal to u but for the nonlinear parts below), so the controller's
+      output row gains −Dm on ẑ2 and its state update keeps u.
+
+    Left out (nonlinear): the driver's deadband and the host's
+    pre-compensation of it, which cancel but for the PWM rounding; the PWM
+    quantization to whole duty counts (a step of N·Kt·Vs/(R·(1 − δ)·pwm_max)
+    at the arm); the supply-voltage saturation |d| ≤ 1 (|u + Dm ẑ2| ≤ N·Kt·Vs/R).
+
 Controller (one discrete LTI system)
     The ESO of the scenario's discretization and the FLC, with the reference
     set to zero (deviation from the operating point), in the negative-feedback
-    convention u_k = −K(z) y_k:
+    convention τ_k = −K(z) y_k (τ the torque that drives the plant):
 
         ẑ_k = (I − M C) z_k + M y_k              (M = Lc for "current", else 0)
         z_{k+1} = P z_k + Q y_k + Γ u_k           (the observer update)
         u_k = −I0 (k2 ẑ1 + k1 ẑ2 + β̂),  β̂ = ẑ3 ("eso") or −gcoef sin θ0 ẑ1/I0 ("model")
+        τ_k = u_k + Dm ẑ2_k                       (Dm = 0 without a motor)
 
     The ESO is linear for every discretization, so this is exact for the
     controller; only the plant is linearized.  The nonlinear ESO (observer kind
@@ -63,6 +82,7 @@ from scipy.optimize import brentq
 
 from esoarm.observers.linear import design_observer
 from esoarm.plants.model import gravity_coefficient
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError, load_scenario
 
 __all__ = [
@@ -76,6 +96,7 @@ __all__ = [
     "eso_closed_forms",
     "freqresp",
     "linearize",
+    "motor_damping",
     "observer_system",
     "perturbation_estimate",
     "sampled_plant",
@@ -107,11 +128,19 @@ def _load(scenario: Scenario | str | Path, overrides: dict | list[str] | None) -
     return load_scenario(scenario, overrides)
 
 
+def motor_damping(scn: Scenario) -> float:
+    """The motor's back-EMF damping (N·Kt)²/R at the arm [N·m·s/rad]; 0 without ``[motor]``."""
+    motor = MotorParams.from_scenario(scn)
+    return 0.0 if motor is None else motor.damping
+
+
 def continuous_plant(scn: Scenario, theta0: float, friction: str = "viscous"
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The rig linearized at (θ0, 0): (A, B, C), input the applied torque [N·m], output θ [rad].
 
-    States (δθ, δθ̇) or, with an actuator lag T > 0, (δθ, δθ̇, δτ).
+    States (δθ, δθ̇) or, with an actuator lag T > 0, (δθ, δθ̇, δτ).  With a
+    ``[motor]`` table the back-EMF damping :func:`motor_damping` is added to the
+    friction's, and the input is the motor's source torque.
     """
     if friction not in FRICTION_MODELS:
         raise ValueError(f"friction must be one of {', '.join(FRICTION_MODELS)}; got {friction!r}")
@@ -122,7 +151,7 @@ def continuous_plant(scn: Scenario, theta0: float, friction: str = "viscous"
     damping = {"viscous": r.viscous_friction,
                "slope": r.viscous_friction
                + (r.coulomb_friction + r.stiction) / r.friction_velocity,
-               "none": 0.0}[friction]
+               "none": 0.0}[friction] + motor_damping(scn)
     lag = scn.actuator.lag
     if lag > 0:
         a = np.array([[0.0, 1.0, 0.0],
@@ -264,14 +293,20 @@ def observer_system(scn: Scenario) -> Matrices:
 
 
 def controller_matrices(scn: Scenario, theta0: float) -> Matrices:
-    """ESO + FLC as K(z): input y [rad], output −u [N·m] (u = −K y)."""
+    """ESO + FLC (+ the motor's back-EMF compensation) as K(z): input y [rad], output −τ [N·m].
+
+    τ = u + Dm ẑ2 drives the plant (τ = u without a motor); the observer is
+    updated with u (module docstring).
+    """
     pmat, qmat, gam, mgain = observer_matrices(scn)
     c = np.array([[1.0, 0.0, 0.0]])
     kr = _reduced_gains(scn, theta0).reshape(1, 3)
-    ck = kr @ (np.eye(3) - mgain @ c)
+    zhat_z = np.eye(3) - mgain @ c  # ẑ = zhat_z z + M y
+    ck = kr @ zhat_z
     dk = kr @ mgain
-    # u = −(ck z + dk y)
-    return pmat - gam @ ck, qmat - gam @ dk, ck, dk
+    # u = −(ck z + dk y) updates the observer; −τ = −u − Dm ẑ2 is the output
+    ko = kr - motor_damping(scn) * np.array([[0.0, 1.0, 0.0]])
+    return pmat - gam @ ck, qmat - gam @ dk, ko @ zhat_z, ko @ mgain
 
 
 def _series(first: Matrices, second: Matrices) -> Matrices:
@@ -315,9 +350,9 @@ class LinearLoop:
     Attributes
     ----------
     plant : tuple
-        u_k [N·m] → θ_k [rad] (ZOH, lag, delay).
+        τ_k [N·m] → θ_k [rad] (ZOH, lag, delay; τ = u without a motor).
     controller : tuple
-        y_k [rad] → −u_k [N·m] (negative-feedback convention).
+        y_k [rad] → −τ_k [N·m] (negative-feedback convention).
     loop : tuple
         Controller after plant: the loop broken at the plant input.
     observer : tuple
@@ -326,6 +361,8 @@ class LinearLoop:
         Sample period [s], operating angle [rad].
     friction : str
         Friction model of the linearization (module docstring).
+    motor_damping : float
+        Back-EMF damping (N·Kt)²/R in the loop [N·m·s/rad]; 0 without a motor.
     """
 
     plant: Matrices
@@ -335,6 +372,7 @@ class LinearLoop:
     ts: float
     theta0: float
     friction: str
+    motor_damping: float = 0.0
 
     def response(self, which: str, w: np.ndarray) -> np.ndarray:
         """Frequency response of ``plant``, ``controller`` or ``loop`` at w [rad/s]."""
@@ -359,7 +397,7 @@ def linearize(scenario: Scenario | str | Path, overrides: dict | list[str] | Non
     plant = sampled_plant(scn, th, friction)
     ctl = controller_matrices(scn, th)
     return LinearLoop(plant, ctl, _series(plant, ctl), observer_system(scn), scn.sample_time,
-                      th, friction)
+                      th, friction, motor_damping(scn))
 
 
 def freqresp(sys: Matrices, z: np.ndarray) -> np.ndarray:
@@ -385,9 +423,11 @@ class ControlLoop:
     Attributes
     ----------
     plant : control.StateSpace
-        u [N·m] → θ [rad].
+        u [N·m] → θ [rad]; with a ``[motor]`` the input is the motor's source
+        torque τ = u + (N·Kt)²/R·ẑ2 and the back-EMF damping is in the plant.
     controller : control.StateSpace
-        y [rad] → −u [N·m]: the ESO + FLC with the negative-feedback sign, u = −K y.
+        y [rad] → −u [N·m]: the ESO + FLC with the negative-feedback sign, u = −K y
+        (with a motor, −τ: the host's back-EMF compensation included).
     loop : control.StateSpace
         ``controller * plant``, broken at the plant input; ``control.feedback(loop, 1)``
         is the closed loop (complementary sensitivity at the plant input).
