@@ -98,6 +98,7 @@ def test_stream_carries_the_logged_rows_and_keeps_the_window() -> None:
             for col, vals in ev.get("rows", {}).items():
                 got.setdefault(col, []).extend(vals)
         assert events[-1]["status"]["ended"]
+        assert events[-1]["status"]["k"] == 149  # the status line ends with the last row
         # the ring keeps the last window (+ a margin); the page trims to the window
         log = np.array([[float(x) for x in r.split(",")] for r in rows])
         n = len(got["t"])
