@@ -203,6 +203,18 @@ def test_cli_bad_scope_options(tmp_path: Path) -> None:
     assert len(res.stderr.strip().splitlines()) == 1
 
 
+@needs_pty
+def test_emulate_on_a_busy_scope_port_prints_no_device(tmp_path: Path) -> None:
+    """The scope's port is bound before 'device:' is printed: a busy port is the error alone."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        res = esoarm("emulate", "test-1", "--scope", "--scope-port", str(s.getsockname()[1]))
+    assert res.returncode == 2
+    assert res.stdout == ""  # no 'device: PATH' to a port that is already gone
+    assert len(res.stderr.strip().splitlines()) == 1 and "cannot listen" in res.stderr
+
+
 def test_stream_resumes_after_reconnect() -> None:
     from esoarm.hardware.scope import Panel
 
