@@ -193,6 +193,8 @@ def test_fault_ends_safe_on_both_sides(elf, tmp_path, fault):
 def test_hil_bad_input(elf, tmp_path):
     res = _run_cli(["hil", "test-1", "--elf", str(elf)])
     assert res.returncode == 2 and "[motor] table" in res.stderr
+    res = _run_cli(["hil", "two-link", "--elf", str(elf)])  # an arm: the plant is the reason
+    assert res.returncode == 2 and "'hil' works on the lever-arm rig" in res.stderr
     res = _run_cli(["hil", "uno-rig", "--elf", str(tmp_path / "missing.elf")])
     assert res.returncode == 2 and "missing.elf" in res.stderr
     res = _run_cli(["hil", "uno-rig", "--elf", str(elf), "--fault", "meteor@1"])

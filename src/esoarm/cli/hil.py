@@ -11,6 +11,7 @@ from esoarm.cli._common import (
     BadInput,
     RunFailure,
     bad_input_guard,
+    lever_only,
     resolve_scenario,
     scenario_argument,
     set_option,
@@ -61,6 +62,7 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
 
     specs = [parse_hil_fault(f) for f in faults]
     scn = resolve_scenario(scenario, overrides)
+    lever_only(scn, "hil")  # before the [motor] check: an arm has the wrong kind, not no motor
     if elf is not None and not Path(elf).is_file():
         raise BadInput(f"--elf '{elf}': no such file")
     try:
