@@ -270,9 +270,16 @@ def test_builtins_do_not_warn(run_cli, name):
 def test_scenarios_lists_builtins(run_cli):
     res = run_cli("scenarios")
     assert res.exit_code == 0
-    names = [line.split()[0] for line in res.stdout.strip().splitlines()]
+    lines = res.stdout.strip().splitlines()
+    names = [line.split()[0] for line in lines]
     assert names == builtin_names() == ["test-1", "test-1-urdf", "test-2", "two-link",
                                         "uno-rig"]
+    # one column of descriptions after the longest name, each a complete sentence
+    column = max(map(len, names)) + 2
+    for line in lines:
+        name, text = line[:column].rstrip(), line[column:]
+        assert name in names and text[:1] not in ("", " "), line
+        assert text.endswith("."), line
 
 
 @pytest.mark.parametrize("name", builtin_names())

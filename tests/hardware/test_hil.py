@@ -193,6 +193,8 @@ def test_fault_ends_safe_on_both_sides(elf, tmp_path, fault):
 def test_hil_bad_input(elf, tmp_path):
     res = _run_cli(["hil", "test-1", "--elf", str(elf)])
     assert res.returncode == 2 and "[motor] table" in res.stderr
+    res = _run_cli(["hil", "two-link", "--elf", str(elf)])  # an arm: the plant is the reason
+    assert res.returncode == 2 and "'hil' works on the lever-arm rig" in res.stderr
     res = _run_cli(["hil", "uno-rig", "--elf", str(tmp_path / "missing.elf")])
     assert res.returncode == 2 and "missing.elf" in res.stderr
     res = _run_cli(["hil", "uno-rig", "--elf", str(elf), "--fault", "meteor@1"])
@@ -229,5 +231,43 @@ def test_realtime_slip_is_counted_not_repaid(elf):
         server._pace(F_CPU // 1000 + F_CPU // 100)  # 10 ms after the new anchor: waits for it
         elapsed = time.perf_counter() - t0
         assert server.slips == 1 and 0.009 < elapsed < 0.2
+    finally:
+        server.close()
+
+
+def test_host_paced_lag_behind_the_wall_clock_is_counted(elf):
+    """Host-paced: samples sent later than the AVR's time says are counted, running ahead is not."""
+    import time
+
+    from esoarm.hardware import protocol as P
+    from esoarm.hardware.hil.server import F_CPU, FrameRecord, HilServer
+    from esoarm.scenario import load_scenario
+
+    server = HilServer(load_scenario("uno-rig"), elf, echo=lambda _: None)
+    try:
+        ts = round(0.02 * F_CPU)  # cycles per sample at 50 Hz
+        # the AVR 3x faster than the wall clock: always ahead, never behind
+        for k in range(50):
+            server._track_lag(100.0 + k * 0.02 / 3, k * ts)
+        assert server.lags == 0 and server.samples_tracked == 50
+        # then 2x slower: sample j is j * 20 ms behind the most-ahead one
+        base = 100.0 + 49 * 0.02 / 3
+        for j in range(1, 11):
+            server._track_lag(base + j * 0.04, (49 + j) * ts)
+        assert server.lags == 10 and server.worst_lag == pytest.approx(0.2, abs=1e-9)
+
+        # wired to the SAMPLE frames of a run (and not outside one)
+        def sample(k: int, cycle: int) -> None:
+            payload = P.encode(P.SAMPLE, 0, k, cycle // 16, 0)[5:-2]
+            server._on_device_frame(FrameRecord(P.Frame(P.SAMPLE, 0, payload), cycle, cycle))
+
+        server.lags, server.samples_tracked, server.worst_lag = 0, 0, 0.0
+        sample(0, 0)
+        assert server.samples_tracked == 0  # no run in progress
+        server.run_active, server._drift_min = True, float("inf")  # as START does
+        sample(0, 0)
+        time.sleep(0.03)
+        sample(1, F_CPU // 1000)  # 1 ms of AVR time after at least 30 ms of wall time
+        assert server.samples_tracked == 2 and server.lags == 1 and server.worst_lag > 0.028
     finally:
         server.close()

@@ -140,3 +140,26 @@ def test_duty_device_needs_a_motor_table():
     with pytest.raises(ScenarioError, match=r"\[motor\]"):
         run_rig(scn, link, None)
     assert not any(kind == P.START for kind, *_ in link.sent)
+
+
+def test_status_ends_at_the_last_sample_logged(tmp_path):
+    """The status is rate-limited; its last report is the last row of the log, after STOP."""
+    scn = load_scenario("test-1", ["duration=2"])
+    for link, name in ((FakeLink(scn), "end.csv"), (FakeLink(scn, count_offset=(40, 2000)),
+                                                    "fault.csv")):
+        seen: list[tuple[dict, bool]] = []
+
+        def status(s, link=link, seen=seen):
+            seen.append((s, link.stopped))
+
+        try:
+            run_rig(scn, link, tmp_path / name, status=status)
+        except RigFault:
+            pass
+        data = _log(tmp_path / name)
+        last, stopped = seen[-1]
+        assert stopped  # reported after STOP went out, never before it
+        assert last["k"] == data["k"][-1] == len(data) - 1 and last["n"] == 100
+        assert (last["t"], last["theta"], last["error"], last["u"]) == (
+            data["t"][-1], data["theta"][-1], data["error"][-1], data["u"][-1])
+        assert len({s["k"] for s, _ in seen}) == len(seen)  # no sample reported twice

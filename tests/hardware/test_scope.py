@@ -98,6 +98,7 @@ def test_stream_carries_the_logged_rows_and_keeps_the_window() -> None:
             for col, vals in ev.get("rows", {}).items():
                 got.setdefault(col, []).extend(vals)
         assert events[-1]["status"]["ended"]
+        assert events[-1]["status"]["k"] == 149  # the status line ends with the last row
         # the ring keeps the last window (+ a margin); the page trims to the window
         log = np.array([[float(x) for x in r.split(",")] for r in rows])
         n = len(got["t"])
@@ -202,6 +203,18 @@ def test_cli_bad_scope_options(tmp_path: Path) -> None:
     assert len(res.stderr.strip().splitlines()) == 1
 
 
+@needs_pty
+def test_emulate_on_a_busy_scope_port_prints_no_device(tmp_path: Path) -> None:
+    """The scope's port is bound before 'device:' is printed: a busy port is the error alone."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        res = esoarm("emulate", "test-1", "--scope", "--scope-port", str(s.getsockname()[1]))
+    assert res.returncode == 2
+    assert res.stdout == ""  # no 'device: PATH' to a port that is already gone
+    assert len(res.stderr.strip().splitlines()) == 1 and "cannot listen" in res.stderr
+
+
 def test_stream_resumes_after_reconnect() -> None:
     from esoarm.hardware.scope import Panel
 
@@ -220,3 +233,59 @@ def test_stream_resumes_after_reconnect() -> None:
         assert msg["rows"]["t"] == [0.06, 0.08]
     finally:
         scope.close()
+
+
+def _js_function(source: str, name: str) -> str:
+    """The text of ``function name(...) {...}`` in ``source`` (braces matched)."""
+    start = source.index(f"function {name}(")
+    depth = 0
+    for i in range(source.index("{", start), len(source)):
+        depth += {"{": 1, "}": -1}.get(source[i], 0)
+        if depth == 0:
+            return source[start:i + 1]
+    raise AssertionError(f"unbalanced braces in {name}")
+
+
+def test_axis_ticks_are_whole_multiples_of_the_step(tmp_path: Path) -> None:
+    """The page's own niceTicks and fmt, run in Chromium over 24 000 axis ranges.
+
+    Every tick is a multiple of its step, so a label of a tick at zero reads 0,
+    never the running sum's rounding error (the page showed -5.6e-17).
+    """
+    browser = _browser()
+    if browser is None:
+        pytest.skip("no Chromium on this machine: `apt-get install -y chromium` (.ci/run does)")
+    from importlib import resources
+
+    page = resources.files("esoarm.hardware").joinpath("scope.html").read_text("utf-8")
+    script = _js_function(page, "niceTicks") + "\n" + _js_function(page, "fmt") + """
+    var out = { ranges: 0, ticks: 0, zero: 0, bad: [] };
+    for (var a = 1; a <= 400; a++) { for (var b = 1; b <= 60; b++) {
+      var lo = -a * 0.0137, hi = b * 0.0213, ticks = niceTicks(lo, hi, 4);
+      var step = ticks[1] - ticks[0];
+      out.ranges++;
+      ticks.forEach(function (v) {
+        out.ticks++;
+        var label = fmt(v), q = Math.round(v / step);
+        if (Math.abs(v / step - q) > 1e-9 || (q === 0 && label !== "0")) {
+          if (out.bad.length < 5) { out.bad.push([lo, hi, label]); }
+        }
+        if (q === 0) { out.zero++; }
+      });
+    } }
+    document.getElementById("out").textContent = JSON.stringify(out);
+    """
+    html = tmp_path / "ticks.html"
+    html.write_text(f'<!DOCTYPE html><html><body><pre id="out">none</pre><script>{script}'
+                    "</script></body></html>", "utf-8")
+    env = {**os.environ, "HOME": str(tmp_path)}
+    res = subprocess.run(
+        [browser, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'profile'}", "--dump-dom",
+         html.as_uri()], capture_output=True, text=True, timeout=90, env=env, check=False)
+    assert res.returncode == 0, res.stderr[-2000:]
+    match = re.search(r'<pre id="out">(.*?)</pre>', res.stdout, re.S)
+    assert match, res.stdout[-2000:]
+    out = json.loads(match.group(1).replace("&quot;", '"'))
+    assert out["ranges"] == 24000 and out["ticks"] > 3 * 24000
+    assert out["zero"] == 24000  # every range spans zero: one tick there each
+    assert out["bad"] == []

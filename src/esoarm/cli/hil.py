@@ -11,6 +11,7 @@ from esoarm.cli._common import (
     BadInput,
     RunFailure,
     bad_input_guard,
+    lever_only,
     resolve_scenario,
     scenario_argument,
     set_option,
@@ -57,10 +58,11 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
     """
     from esoarm.hardware.hil.board import F_CPU, BoardError
     from esoarm.hardware.hil.build import ToolchainMissing, firmware_elf
-    from esoarm.hardware.hil.server import HilServer, parse_hil_fault
+    from esoarm.hardware.hil.server import SLIP_S, HilServer, parse_hil_fault
 
     specs = [parse_hil_fault(f) for f in faults]
     scn = resolve_scenario(scenario, overrides)
+    lever_only(scn, "hil")  # before the [motor] check: an arm has the wrong kind, not no motor
     if elf is not None and not Path(elf).is_file():
         raise BadInput(f"--elf '{elf}': no such file")
     try:
@@ -114,4 +116,9 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         _say(f"warning: the simulation fell behind real time {server.slips} times (worst "
              f"{server.worst_slip * 1e3:.0f} ms; the machine is busy): period jitter the host "
              "measured includes it")
+    if server.lags:
+        _say(f"warning: the simulated AVR fell more than {SLIP_S * 1e3:.0f} ms behind the wall "
+             f"clock at {server.lags} of {server.samples_tracked} samples (worst "
+             f"{server.worst_lag * 1e3:.0f} ms; the machine is busy): the deadline misses and "
+             "period jitter 'run' reports measure the simulator, not the host")
     _say("stopped: port closed")

@@ -59,14 +59,15 @@ def _check_scope(port: int, window: float) -> None:
         raise BadInput(f"--scope-window {window:g}: must be a finite number of seconds > 0")
 
 
-def _start_scope(make):  # type: ignore[no-untyped-def]
+def _start_scope(make, announce: bool = True):  # type: ignore[no-untyped-def]
     from esoarm.hardware.scope import ScopeError
 
     try:
         scope = make()
     except ScopeError as exc:
         raise BadInput(f"{exc}; choose another --scope-port (0: any free port)") from None
-    click.echo(f"scope: {scope.url}", err=True)
+    if announce:
+        click.echo(f"scope: {scope.url}", err=True)
     return scope
 
 
@@ -107,20 +108,22 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
     scn = resolve_scenario(scenario, overrides)
     lever_only(scn, "emulate")
     emu = Emulator(scn, lockstep=lockstep, faults=specs, once=once, echo=_say)
-    _say(f"device: {emu.path}")
-    actuator = f"PWM duty ±{emu.twin.pwm_max}" if emu.twin.motor else "ideal torque"
-    _say(f"scenario '{scn.name}': {emu.twin.counts_per_rev} counts/rev, "
-         f"{1e6 / emu.period_us:g} Hz, {actuator}, {'lockstep' if lockstep else 'real time'}")
     live = None
-    if scope:
+    if scope:  # bound before 'device:' is printed: a busy port is an error, no dead path
         from esoarm.hardware.scope import scope_for_emulator
 
         try:
             live = _start_scope(lambda: scope_for_emulator(emu, scn.name, scope_window,
-                                                           scope_port))
+                                                           scope_port), announce=False)
         except BadInput:
             emu.close()
             raise
+    _say(f"device: {emu.path}")
+    actuator = f"PWM duty ±{emu.twin.pwm_max}" if emu.twin.motor else "ideal torque"
+    _say(f"scenario '{scn.name}': {emu.twin.counts_per_rev} counts/rev, "
+         f"{1e6 / emu.period_us:g} Hz, {actuator}, {'lockstep' if lockstep else 'real time'}")
+    if live is not None:
+        click.echo(f"scope: {live.url}", err=True)
     terminated = []
 
     def on_term(signum, frame) -> None:  # type: ignore[no-untyped-def]

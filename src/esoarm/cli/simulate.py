@@ -103,10 +103,12 @@ def scenarios() -> None:
 
     from esoarm.scenario import builtin_names
 
-    for name in builtin_names():
+    names = builtin_names()
+    width = max(map(len, names), default=0)
+    for name in names:
         text = (resources.files("esoarm") / "scenarios" / f"{name}.toml").read_text("utf-8")
         first = next((ln[1:].strip() for ln in text.splitlines() if ln.startswith("#")), "")
-        click.echo(f"{name:10s} {first}")
+        click.echo(f"{name:{width}s}  {first}")
 
 
 @click.command()

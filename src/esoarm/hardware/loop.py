@@ -254,7 +254,8 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
         Host safety limits.
     status : callable, optional
         Called about ten times a second with a dict (t, theta, error, u,
-        deadline_misses) for a live display.
+        deadline_misses, k, n) for a live display, and once more when the run
+        ends (after STOP) with the last sample logged.
     controller : optional
         What computes u_k from y_k (``step``, ``commit``, ``predict``, ``zhat``,
         ``reference``, ``t``, ``n_samples``, ``ts``, ``torque_limit``); default the
@@ -304,10 +305,11 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     latencies: list[float] = []
     error_message = None
     interrupted = False
+    last: list[Any] = [-1, math.nan, -1]  # k logged last, its measured θ, k of the last status
     with _SigintFlag() as sigint:
         try:
             _loop(scn, link, ctl, q, motor if not use_torque else None, limits, log, summary,
-                  acc, periods, latencies, sigint, status, n, ts, info.lockstep)
+                  acc, periods, latencies, sigint, status, n, ts, info.lockstep, last)
         except _Stop as exc:
             error_message, interrupted = str(exc), exc.interrupted
         except LinkError as exc:
@@ -316,6 +318,12 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             link.stop()
             summary.stop_acknowledged = _wait_stopped(link, 0.5)
             log.close()
+    k_last, y_last, k_shown = last
+    if status is not None and k_last > k_shown:
+        # the status is rate-limited (10/s): once more with the last sample logged, after
+        # STOP went out, so that a display ends where the log ends
+        status({"t": ctl.t[k_last], "theta": y_last, "error": acc["e"][-1], "u": acc["u"][-1],
+                "deadline_misses": summary.deadline_misses, "k": k_last, "n": n})
     _finish(summary, acc, periods, latencies, log.rows, link, ts)
     if error_message is not None:
         kept = f"; {log.rows} rows in {log_path}" if log_path else ""
@@ -340,7 +348,7 @@ def _wait_stopped(link: SerialLink, timeout: float) -> bool:
 
 
 def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencies,  # type: ignore[no-untyped-def]
-          sigint, status, n, ts, lockstep) -> None:
+          sigint, status, n, ts, lockstep, last) -> None:
     fmt = repr
     nan = math.nan
     isfinite = math.isfinite
@@ -443,8 +451,11 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             y_prev = y
             u_last = u_applied
             k_next = k + 1
+            last[0] = k
+            last[1] = y
             if status is not None and now >= next_status:
                 next_status = now + 0.1
+                last[2] = k
                 status({"t": ctl.t[k], "theta": y, "error": e, "u": u_applied,
                         "deadline_misses": summary.deadline_misses, "k": k, "n": n})
 

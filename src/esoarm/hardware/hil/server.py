@@ -18,7 +18,12 @@ measures period jitter).  Where the simulation falls more than
 :data:`SLIP_S` behind the wall clock (a loaded machine), it does not race to
 catch up -- that would hand the host a burst of frames and measure the
 simulator, not the firmware -- but carries on from the wall clock's now; each
-such slip is counted (``slips``, ``worst_slip``) and reported.
+such slip is counted (``slips``, ``worst_slip``) and reported.  In the
+host-paced mode the AVR's time runs ahead of the wall clock on a free core and
+falls behind it on a busy one; how far behind it falls during a run is tracked
+at every SAMPLE frame (``lags``, ``worst_lag``, see :meth:`HilServer._track_lag`)
+and reported: the host's deadline misses and period jitter then measure the
+simulator, not the host.
 
 Faults (``KIND@SECONDS``, twin time after START): ``encoder-break`` channel A
 stuck high (a broken wire with its pull-up); ``encoder-noise`` glitches of
@@ -63,7 +68,8 @@ def parse_hil_fault(text: str) -> HilFault:
     return parse_timed_fault(text, HIL_FAULTS)
 
 
-#: realtime: a lag behind the wall clock beyond this [s] is a slip (counted, not repaid).
+#: realtime: a lag behind the wall clock beyond this [s] is a slip (counted, not repaid);
+#: host-paced: a sample this far behind the run's most-ahead one is counted (``lags``).
 SLIP_S = 0.005
 
 
@@ -135,6 +141,12 @@ class HilServer:
         self._cycle0 = 0
         self.slips = 0  # realtime: times the simulation fell behind the wall clock
         self.worst_slip = 0.0  # [s]
+        # host-paced: samples of a run sent more than SLIP_S behind the wall clock, counted
+        # from the run's most-ahead sample (see _track_lag)
+        self.lags = 0
+        self.worst_lag = 0.0  # [s]
+        self.samples_tracked = 0
+        self._drift_min = math.inf  # [s] smallest wall − AVR time at a sample of this run
         self.motor_duty = 0
         self.unplug_cycle: int | None = None  # AVR cycle at which the link went away
         self.device_faults: list[str] = []  # FAULT frames the firmware sent, by name
@@ -205,7 +217,10 @@ class HilServer:
             self.count_error = count - (self.twin.position - self.twin.start_position)
             self.count_error_max = max(self.count_error_max, abs(self.count_error))
         if kind in (P.SAMPLE, P.FAULT, P.INFO, P.STOPPED):
-            self._awaiting = (time.perf_counter(), self.board.cycle)
+            wall = time.perf_counter()
+            self._awaiting = (wall, self.board.cycle)
+            if kind == P.SAMPLE and self.run_active and not self.realtime:
+                self._track_lag(wall, rec.first_cycle)
         if kind == P.FAULT:
             code, detail = rec.frame.fields()
             name = {P.FAULT_WATCHDOG: "watchdog", P.FAULT_OVERRUN: "overrun",
@@ -232,6 +247,7 @@ class HilServer:
                 self.stop_seen = False
                 self.run_active = True
                 self.log.start_cycle = self.board.cycle
+                self._drift_min = math.inf
                 self._apply_faults(at_start=True)
             elif frame.kind == P.STOP:
                 self.run_active = False
@@ -267,6 +283,24 @@ class HilServer:
         self.port.close()
 
     # -- pacing ----------------------------------------------------------------
+    def _track_lag(self, wall: float, cycle: int) -> None:
+        """Host-paced: how far behind the wall clock the AVR is at a sample of a run.
+
+        ``wall`` [s] is when the frame goes to the host, ``cycle`` the AVR cycle of its
+        first byte.  The lag is wall − AVR time, less its smallest value so far in
+        this run: the host takes the device clock's offset from the earliest arrival
+        it has seen, so a sample this far behind reaches it this much later than its
+        deadline assumes.  Running ahead (the AVR runs free between an answer and the
+        next sample) lowers the reference instead.
+        """
+        drift = wall - cycle / F_CPU
+        self._drift_min = min(self._drift_min, drift)
+        lag = drift - self._drift_min
+        self.samples_tracked += 1
+        if lag > SLIP_S:
+            self.lags += 1
+            self.worst_lag = max(self.worst_lag, lag)
+
     def _pace(self, next_cycle: int) -> None:
         now = time.perf_counter()
         if self.realtime:
