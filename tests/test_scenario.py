@@ -143,6 +143,41 @@ def test_errors_are_one_line_scenario_errors(overrides, fragment):
     assert isinstance(info.value, ValueError)
 
 
+@pytest.mark.parametrize(
+    ("name", "overrides", "message"),
+    [
+        ("test-1", {"observer.eps": [0.05, -1]},
+         "override: key 'observer.eps[1]' (joint 1, counting from 0) = -1: Input should be "
+         "greater than 0"),
+        ("two-link", {"controller.k1": [20.0, "a"]},
+         "override: key 'controller.k1[1]' (joint 1, counting from 0) = 'a': input should be "
+         "a valid number"),
+        ("two-link", {"observer.eps": [math.inf, 0.02]},
+         "override: key 'observer.eps[0]' (joint 0, counting from 0) = inf: must be a finite "
+         "number (no NaN or inf)"),
+        # a lever arm has one joint: a list of two was an internal error in the observer
+        ("test-1", {"observer.eps": [0.05, 0.09]},
+         "key 'observer.eps': 2 entries, but plant kind 'lever-arm' has one joint"),
+        # an empty list was an internal error (min of nothing) in the computability check
+        ("test-1", {"observer.eps": []},
+         "key 'observer.eps': 0 entries, but plant kind 'lever-arm' has one joint"),
+        ("two-link", {"observer.eps": []}, "key 'observer.eps': 0 entries, but 'two-link.urdf'"),
+        # a plain number keeps its message
+        ("test-1", {"observer.eps": "a"},
+         "override: key 'observer.eps' = 'a': input should be a valid number"),
+    ],
+    ids=["negative-entry", "text-entry", "inf-entry", "lever-two", "lever-empty", "arm-empty",
+         "number"],
+)
+def test_per_joint_list_errors_name_the_joint(name, overrides, message):
+    if name == "two-link":
+        pytest.importorskip("pinocchio")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(name, overrides)
+    assert message in str(info.value) and "\n" not in str(info.value)
+    assert load_scenario("test-1", {"observer.eps": [0.05]}).observer.eps == [0.05]
+
+
 def test_toml_syntax_error_names_file_and_line(tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text("duration = 5.0\n\n[sensor\nseed = 1\n", encoding="utf-8")

@@ -128,7 +128,8 @@ def _fmt(value: Any) -> str:
 @scenario_argument
 @click.option("--vary", "vary", multiple=True, metavar="KEY=SPEC",
               help="Vary a dotted scenario key (in its own unit, e.g. observer.eps in s). "
-              "SPEC: a comma list 0.05,0.09,0.2 (strings allowed: euler,zoh,current), "
+              "SPEC: a comma list 0.05,0.09,0.2 (strings allowed: euler,zoh,current; an "
+              "arm's per-joint lists: [0.02,0.03],[0.04,0.06]), "
               "lin:START:STOP:NUM or geom:START:STOP:NUM. Repeatable: the grid is the cross "
               "product, first --vary slowest.")
 @set_option
