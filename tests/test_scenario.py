@@ -206,6 +206,22 @@ def test_to_toml_round_trip_builtins(name, tmp_path):
     assert load_scenario(path) == scn
 
 
+def test_round_trip_with_per_joint_references(tmp_path, run_cli):
+    """Tables inside a list (reference.joints) are written inline; `show` printed an internal
+    error for them ('cannot write dict as TOML')."""
+    over = ["reference.kind=per-joint",
+            'reference.joints=[{kind = "multisine", amplitudes = [0.3, 0.1], '
+            'frequencies = [2.0, 5.0], phases = [0.0, 1.5]}]']
+    scn = load_scenario("test-1", over)
+    text = scn.to_toml()
+    assert tomllib.loads(text) == {k: v for k, v in scn.to_dict().items() if v is not None}
+    path = tmp_path / "pj.toml"
+    path.write_text(text, encoding="utf-8")
+    assert load_scenario(path) == scn
+    res = run_cli("show", "test-1", *(a for o in over for a in ("--set", o)))
+    assert res.exit_code == 0 and res.stdout == text, res.stderr
+
+
 def test_round_trip_with_optional_motor_section(tmp_path):
     scn = load_scenario("test-1", ["motor.supply_voltage=24.0"])
     path = tmp_path / "m.toml"
