@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -123,6 +124,13 @@ def test_diverging_candidates_are_penalised(base) -> None:  # type: ignore[no-un
     assert res.best_metrics["diverged_runs"] == 0
 
 
+def test_objective_weight_must_be_a_price() -> None:
+    for w in (-1.0, math.nan, math.inf):
+        with pytest.raises(ScenarioError, match=r"weight .*: must be a finite number >= 0"):
+            Objective("rms_error + w*rms_u", w)
+    assert Objective("rms_error + w*rms_u", 0.0).weight == 0.0
+
+
 def test_objective_finite_somewhere_is_accepted() -> None:
     # finite only where rms_u > 0.1 (or rms_error > rms_u): fine until a run says otherwise
     for text in ("log(rms_u - 0.1)", "log(rms_error - rms_u)", "1"):
@@ -188,6 +196,9 @@ def test_cli_tune(tmp_path: Path) -> None:
         (["--vary", "observer.eps=0.03:0.3", "--seeds", "0"], "--seeds"),
         (["--vary", "observer.eps=0.03:0.3", "--objective", "1/0"],
          "--objective '1/0': not a finite number"),
+        # a negative price of control effort rewarded it (the tune ran, best ε at the bound)
+        (["--vary", "observer.eps=0.03:0.3", "--weight", "-1"],
+         "--weight -1.0: must be a finite number >= 0"),
     ],
 )
 def test_cli_tune_bad_input(tmp_path: Path, args: list[str], needle: str) -> None:

@@ -420,8 +420,9 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     if seed < 0:
         raise BadInput(f"--seed {seed}: must be >= 0")
     w = DEFAULT_WEIGHT if weight is None else weight
-    if not math.isfinite(w):
-        raise BadInput(f"--weight {weight}: must be a finite number")
+    if not (math.isfinite(w) and w >= 0):
+        raise BadInput(f"--weight {weight}: must be a finite number >= 0 [rad/(N·m)] (the price "
+                       "of control effort; a negative one rewards it)")
     obj = Objective(objective or DEFAULT_OBJECTIVE, w)
     base = load_scenario(scenario, list(overrides))
     bounds = [parse_bound(item, base, "--vary") for item in vary]
