@@ -133,6 +133,11 @@ def test_file_with_only_differences(tmp_path):
         (["rig.step=0.003"], "rig.step"),
         (["reference.moves=[[3.0, 1.0, 1.0], [1.0, 1.0, 0.0]]"], "reference.moves[1]"),
         (["sensor.noise_deg=nan"], "finite"),
+        # a whole table: it exists, it is not a leaf (was "unknown key 'rig.disturbance'")
+        (['rig.disturbance={kind="sine"}'], "key 'rig.disturbance' is a table; set its keys "
+         "one at a time (rig.disturbance.amplitude, rig.disturbance.frequency, "
+         "rig.disturbance.kind)"),
+        ({"observer": {"eps": 0.05}}, "override: key 'observer' is a table"),
     ],
 )
 def test_errors_are_one_line_scenario_errors(overrides, fragment):
