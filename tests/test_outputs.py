@@ -205,6 +205,12 @@ def test_api_writers_raise_output_error_naming_the_path(tmp_path):
             write(Path("/proc/esoarm-api.csv"))
         assert "/proc/esoarm-api" in str(info.value) and ".tmp" not in str(info.value)
         assert isinstance(info.value, OSError)  # callers catching OSError still work
+    afile = tmp_path / "afile"
+    afile.write_text("x", encoding="utf-8")
+    with pytest.raises(_io.OutputError) as info:  # was "File exists"
+        res.to_csv(afile / "sub" / "r.csv")
+    assert str(info.value) == f"cannot write '{afile / 'sub' / 'r.csv'}': '{afile}' is a file, " \
+        "not a directory"
 
 
 def test_atomic_path_cleans_up_on_a_failed_write(tmp_path):

@@ -99,7 +99,7 @@ def target_file(path: str | Path) -> Path:
         if path.is_symlink():
             path = Path(os.path.realpath(path))
         mode = path.stat().st_mode
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):  # not there (yet): the caller says why
         return path
     except OSError as exc:
         raise OutputError(path, describe_os_error(exc)) from None
@@ -132,6 +132,9 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     path = target_file(user_path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):  # a file where a directory is needed
+        raise OutputError(user_path, f"'{_file_in_the_way(path.parent)}' is a file, not a "
+                          "directory") from None
     except OSError as exc:
         raise OutputError(user_path, describe_os_error(exc)) from None
     tmp = temp_name(path)
@@ -220,6 +223,13 @@ def _user_path(exc: OSError, tmp: Path, path: Path) -> Path:
 
 def _reason(exc: OSError) -> str:
     return exc.reason if isinstance(exc, OutputError) else describe_os_error(exc)
+
+
+def _file_in_the_way(directory: Path) -> Path:
+    """The nearest ancestor of ``directory`` (or itself) that exists: a file, when mkdir failed."""
+    while not directory.exists() and directory.parent != directory:
+        directory = directory.parent
+    return directory
 
 
 def make_dir(path: str | Path) -> Path:
