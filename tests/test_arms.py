@@ -262,3 +262,51 @@ def test_bad_urdf_is_one_line(tmp_path, capfd, text, needle):
     assert needle in message
     assert "\n" not in message and str(path) in message
     assert capfd.readouterr().err == ""  # urdfdom's own printout is captured
+
+
+
+_FOREARM = ('<mass value="0.6"/>\n      <inertia ixx="0.00005" ixy="0.0" ixz="0.0" '
+            'iyy="0.003125" iyz="0.0" izz="0.003125"/>')
+
+
+@pytest.mark.parametrize(("old", "new", "needle"), [
+    # the forearm massless: the elbow moves nothing (was a NaN run blamed on observer.eps)
+    (_FOREARM, '<mass value="0"/>\n      <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" '
+     'izz="0"/>', "joint 'elbow' moves no mass: link 'forearm'"),
+    ("<inertial>\n      <origin xyz=\"0.125 0 0\" rpy=\"0 0 0\"/>\n      " + _FOREARM +
+     "\n    </inertial>", "", "joint 'elbow' moves no mass"),
+    ('<mass value="0.6"/>', '<mass value="nan"/>', "mass [nan] is not a float"),
+    ('<mass value="0.6"/>', '<mass value="0"/>', "link 'forearm' has an inertia tensor but mass 0"),
+    ('<mass value="1.0"/>', '<mass value="-1.0"/>', "link 'upper_arm' has mass -1 kg"),
+    ('iyy="0.003125"', 'iyy="-0.003125"', "link 'forearm': its inertia tensor is not positive"),
+    ('lower="-2.5" upper="2.5"', 'lower="2.5" upper="-2.5"',
+     "joint 'elbow': lower limit 2.5 is above the upper limit -2.5"),
+], ids=["massless-leaf", "no-inertial", "nan-mass", "inertia-without-mass", "negative-mass",
+        "negative-moment", "reversed-limits"])
+def test_unphysical_urdf_is_one_line(tmp_path, capfd, old, new, needle):
+    """Masses, inertias and limits a twin cannot run: bad input naming the link or joint
+    (these ran silently, or diverged at sample 0 with a message about observer.eps)."""
+    text = builtin_robot("two-link").read_text(encoding="utf-8")
+    assert old in text
+    path = tmp_path / "arm.urdf"
+    path.write_text(text.replace(old, new), encoding="utf-8")
+    with pytest.raises(UrdfError) as info:
+        load_arm(path)
+    message = str(info.value)
+    assert needle in message and "\n" not in message and str(path) in message
+    assert capfd.readouterr().err == ""
+    with pytest.raises(UrdfError, match="is a directory"):
+        load_arm(tmp_path)
+
+
+def test_a_massless_rod_inside_the_chain_is_allowed(tmp_path):
+    """A massless upper arm carrying a forearm with mass: M(q) stays invertible."""
+    text = builtin_robot("two-link").read_text(encoding="utf-8")
+    text = text.replace('<mass value="1.0"/>', '<mass value="0"/>').replace(
+        'ixx="0.0001" ixy="0.0" ixz="0.0" iyy="0.0075" iyz="0.0" izz="0.0075"',
+        'ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"')
+    path = tmp_path / "arm.urdf"
+    path.write_text(text, encoding="utf-8")
+    arm = load_arm(path)
+    m = arm.mass_matrix(np.array([0.3, -0.4]))
+    assert np.linalg.eigvalsh(m).min() > 0

@@ -189,3 +189,24 @@ def test_a_server_that_is_not_dask_is_one_line_exit_1() -> None:
     lines = [ln for ln in proc.stderr.strip().splitlines() if "warning:" not in ln]
     assert len(lines) == 1 and "Dask scheduler at tcp://127.0.0.1:" in lines[0], proc.stderr
     assert "Exception ignored" not in proc.stderr
+
+
+def test_a_server_that_accepts_and_stays_silent_is_one_line_within_seconds() -> None:
+    """distributed's Client waits for ever for the handshake of a server that accepts and
+    says nothing (a hung scheduler, an HTTP server): the probe gives up after its timeout."""
+    import socket
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)  # the backlog accepts the connection; nothing is ever sent
+    try:
+        port = server.getsockname()[1]
+        start = time.monotonic()
+        proc = _esoarm(*SWEEP, "--scheduler", f"tcp://127.0.0.1:{port}")
+        seconds = time.monotonic() - start
+    finally:
+        server.close()
+    assert proc.returncode == 1, proc.stderr
+    lines = [ln for ln in proc.stderr.strip().splitlines() if "warning:" not in ln]
+    assert len(lines) == 1 and "sends nothing within 5 s" in lines[0], proc.stderr
+    assert seconds < 60  # hung for ever before (the subprocess timeout is 120 s)

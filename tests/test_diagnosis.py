@@ -72,7 +72,7 @@ def test_a_diverged_run_says_what_and_why(overrides, left, cause):
 def test_cli_warns_when_the_command_is_saturated_most_of_the_run(run_cli):
     res = run_cli("simulate", "test-1", "--set", "actuator.torque_limit=0.05", "--json")
     assert res.exit_code == 0
-    assert "sat at the torque limit ±0.05 N·m in 57 % of the samples" in res.stderr
+    assert "sat at the torque limit ±0.05 N·m in 57.5 % of the samples" in res.stderr
     import json
 
     assert json.loads(res.stdout)["saturated_fraction"] == pytest.approx(0.575)
@@ -91,3 +91,12 @@ def test_a_diverged_pid_run_is_a_one_line_failure_not_an_internal_error():
     assert res.exit_code == 1, res.output
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "diverged" in lines[0] and "observer.eps = 0.004 s" in lines[0]
+
+
+def test_saturation_warning_does_not_round_up_to_all_samples():
+    """0.995 was shown as '100 %' beside saturated_fraction = 0.995."""
+    from esoarm.engines.diagnosis import saturation_warning
+
+    assert "in 99.5 % of the samples" in saturation_warning(0.995, 0.001)
+    assert "in 100 % of the samples" in saturation_warning(1.0, 0.001)
+    assert saturation_warning(0.2, 1.0) is None

@@ -371,6 +371,9 @@ def test_cli_vary_and_plot(run_cli, tmp_path) -> None:  # type: ignore[no-untype
     (("--vary", "observer.epz=1"), "observer.epz"),
     (("--plot", "x.txt"), "--plot"),
     (("--theta0", "nan"), "--theta0"),
+    # a second --vary replaced the first without a word (click keeps the last)
+    (("--vary", "observer.eps=0.05,0.1", "--vary", "controller.k1=5,10"),
+     "--vary given 2 times"),
 ])
 def test_cli_bad_input(run_cli, args, word, tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     monkeypatch.chdir(tmp_path)

@@ -52,6 +52,11 @@ def _commands(log_csv: Path, target: str, directory: str) -> list[list[str]]:
         ["replay", str(log_csv), "--plot", target.replace(".csv", ".png")],
         ["run", "test-1", "--port", "/nonexistent/port", "--log", target],
         ["reproduce", "--out", directory],
+        ["analyze", "test-1", "--plot", target.replace(".csv", ".png")],
+        ["excite", "test-1", "--twin", "--duration", "1", "--log", target],
+        ["identify", str(log_csv), "--out", target.replace(".csv", ".toml")],
+        ["identify", str(log_csv), "--plot", target.replace(".csv", ".png")],
+        ["arm-study", "two-link", "--set", "duration=0.1", "--eps", "0.02", "--out", directory],
     ]
 
 
@@ -75,6 +80,101 @@ def test_parent_that_is_a_file_is_bad_input(run_cli, log_csv, tmp_path):
         assert res.exit_code == 2 and res.exception is None, (args, res.stderr)
         assert str(afile) in line and "not a directory" in line, line
     assert afile.read_text(encoding="utf-8") == "x"
+
+
+def test_arm_study_checks_out_before_the_runs_and_writes_all_or_nothing(run_cli, tmp_path,
+                                                                       monkeypatch):
+    """arm-study's DIR: bad input before any run (was an internal error after them), and a
+    write failing halfway leaves DIR as it was (files staged, moved in at the end)."""
+    from esoarm.studies import arm_study
+
+    def no_runs(*args, **kwargs):
+        raise AssertionError("the runs started before --out was checked")
+
+    monkeypatch.setattr(arm_study, "run_arm_study", no_runs)
+    afile = tmp_path / "afile"
+    afile.write_text("x", encoding="utf-8")
+    res = run_cli("arm-study", "two-link", "--out", str(afile / "res"))
+    assert res.exit_code == 2 and "not a directory" in _one_line(res.stderr)
+    monkeypatch.undo()
+    pytest.importorskip("pinocchio")
+
+    real_write = arm_study.write_arm_study
+
+    def write_then_fail(study, out, fmt="png"):
+        real_write(study, out, fmt)
+        raise _io.OutputError(Path(out) / "report.html", "no space left on the device")
+
+    monkeypatch.setattr(arm_study, "write_arm_study", write_then_fail)
+    out = tmp_path / "study"
+    res = run_cli("arm-study", "two-link", "--set", "duration=0.2", "--eps", "0.02",
+                  "--workers", "1", "--out", str(out), "--quiet")
+    # esoarm.cli.main prints an OutputError as one line, exit 1 (test_file_size_limit_...)
+    assert isinstance(res.exception, _io.OutputError), res
+    assert str(res.exception) == (f"cannot write '{out / 'report.html'}': "
+                                  "no space left on the device")
+    assert list(tmp_path.iterdir()) == [afile]  # no DIR, no temporary directory
+
+
+def test_empty_out_directory_is_bad_input(run_cli, tmp_path, monkeypatch):
+    """--out '' is not the current directory (reproduce wrote its files there)."""
+    monkeypatch.chdir(tmp_path)
+    for args in (["reproduce", "--out", ""], ["arm-study", "two-link", "--out", ""]):
+        res = run_cli(*args)
+        assert res.exit_code == 2 and "give a directory name" in _one_line(res.stderr), args
+    with pytest.raises(_io.OutputError, match="empty path"):
+        _io.check_writable("")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_name_too_long_is_bad_input(run_cli, log_csv, tmp_path):
+    long = "a" * 300
+    for args in _commands(log_csv, str(tmp_path / f"{long}.csv"), str(tmp_path / long / "res")):
+        res = run_cli(*args)
+        line = _one_line(res.stderr)
+        assert res.exit_code == 2 and res.exception is None, (args, res.stderr)
+        assert "too long" in line and "at most" not in line or "255" in line, line
+    _io.check_writable(tmp_path / ("b" * 255 + ".csv")[-255:])  # the longest name fits
+    with _io.atomic_path(tmp_path / ("c" * 251 + ".csv")) as tmp:  # its temporary one too
+        tmp.write_text("x", encoding="utf-8")
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith("c")] == ["c" * 251 + ".csv"]
+
+
+@pytest.mark.skipif(not LINUX, reason="FIFOs and /dev/null")
+def test_a_fifo_or_a_device_is_not_replaced_by_a_file(run_cli, log_csv, tmp_path):
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    for args in _commands(log_csv, str(fifo), str(tmp_path / "res"))[:1] + [
+            ["sweep", "test-1", "--vary", "observer.eps=0.05", *SHORT, "--out", str(fifo)]]:
+        res = run_cli(*args)
+        assert res.exit_code == 2 and "a FIFO (named pipe)" in _one_line(res.stderr), args
+    for path in (fifo, Path("/dev/null")):
+        with pytest.raises(_io.OutputError, match="not a regular file"), _io.atomic_path(path):
+            raise AssertionError("not reached")
+    assert fifo.exists() and not fifo.is_file()
+    assert Path("/dev/null").is_char_device()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv", "pipe.csv"]
+
+
+def test_a_symbolic_link_keeps_pointing_at_the_written_file(run_cli, tmp_path):
+    """An output path that is a link: its target is written, the link stays (as with >)."""
+    data = tmp_path / "data"
+    data.mkdir()
+    for args, name in ((["simulate", "test-1", *SHORT], "run.csv"),
+                       (["sweep", "test-1", "--vary", "observer.eps=0.05,0.09", *SHORT],
+                        "sweep.csv")):
+        link = tmp_path / name
+        link.symlink_to(data / name)  # dangling until written
+        res = run_cli(*args, "--out", str(link), "--quiet")
+        assert res.exit_code == 0, res.stderr
+        assert link.is_symlink() and (data / name).is_file()
+        assert link.read_text(encoding="utf-8").startswith(("t,", "observer.eps,"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "run.csv", "sweep.csv"]
+    assert sorted(p.name for p in data.iterdir()) == ["run.csv", "sweep.csv"]
+    dead = tmp_path / "dead.csv"
+    dead.symlink_to("/proc/esoarm-nowhere.csv")
+    res = run_cli("simulate", "test-1", *SHORT, "--out", str(dead))
+    assert res.exit_code == 2 and str(dead) in _one_line(res.stderr)
 
 
 def test_reproduce_out_that_is_a_file(run_cli, tmp_path):
@@ -105,6 +205,12 @@ def test_api_writers_raise_output_error_naming_the_path(tmp_path):
             write(Path("/proc/esoarm-api.csv"))
         assert "/proc/esoarm-api" in str(info.value) and ".tmp" not in str(info.value)
         assert isinstance(info.value, OSError)  # callers catching OSError still work
+    afile = tmp_path / "afile"
+    afile.write_text("x", encoding="utf-8")
+    with pytest.raises(_io.OutputError) as info:  # was "File exists"
+        res.to_csv(afile / "sub" / "r.csv")
+    assert str(info.value) == f"cannot write '{afile / 'sub' / 'r.csv'}': '{afile}' is a file, " \
+        "not a directory"
 
 
 def test_atomic_path_cleans_up_on_a_failed_write(tmp_path):
@@ -242,6 +348,23 @@ def test_file_size_limit_is_one_line_exit_1(kind, tmp_path, log_csv):
         assert not any(p.name.endswith(".tmp") for p in left), left
     else:
         assert left == [], left
+
+
+@pytest.mark.skipif(not LINUX, reason="RLIMIT_FSIZE and SIGXFSZ semantics")
+def test_excite_twin_log_on_a_full_disk_keeps_whole_rows(tmp_path):
+    """The streamed log of 'excite --twin': one line, exit 1, whole rows kept (was an
+    internal error)."""
+    proc = _limited(["excite", "test-1", "--twin", "--duration", "20", "--log", "ex.csv",
+                     "--quiet"], tmp_path)
+    line = _one_line(proc.stderr)
+    assert proc.returncode == 1, proc.stderr
+    assert line.startswith("esoarm: failed: cannot write the log 'ex.csv': file too large")
+    assert "rows kept" in line and "internal error" not in line
+    lines = (tmp_path / "ex.csv").read_text(encoding="utf-8").splitlines()
+    width = len(lines[0].split(","))
+    assert 10 < len(lines) < 1000 and all(len(ln.split(",")) == width for ln in lines)
+    assert f"{len(lines) - 1} rows kept" in line
+    assert [p.name for p in tmp_path.iterdir()] == ["ex.csv"]
 
 
 @pytest.mark.skipif(not LINUX or os.geteuid() != 0, reason="mounting a tmpfs needs root")

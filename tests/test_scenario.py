@@ -133,6 +133,11 @@ def test_file_with_only_differences(tmp_path):
         (["rig.step=0.003"], "rig.step"),
         (["reference.moves=[[3.0, 1.0, 1.0], [1.0, 1.0, 0.0]]"], "reference.moves[1]"),
         (["sensor.noise_deg=nan"], "finite"),
+        # a whole table: it exists, it is not a leaf (was "unknown key 'rig.disturbance'")
+        (['rig.disturbance={kind="sine"}'], "key 'rig.disturbance' is a table; set its keys "
+         "one at a time (rig.disturbance.amplitude, rig.disturbance.frequency, "
+         "rig.disturbance.kind)"),
+        ({"observer": {"eps": 0.05}}, "override: key 'observer' is a table"),
     ],
 )
 def test_errors_are_one_line_scenario_errors(overrides, fragment):
@@ -141,6 +146,41 @@ def test_errors_are_one_line_scenario_errors(overrides, fragment):
     msg = str(info.value)
     assert fragment in msg and "\n" not in msg
     assert isinstance(info.value, ValueError)
+
+
+@pytest.mark.parametrize(
+    ("name", "overrides", "message"),
+    [
+        ("test-1", {"observer.eps": [0.05, -1]},
+         "override: key 'observer.eps[1]' (joint 1, counting from 0) = -1: Input should be "
+         "greater than 0"),
+        ("two-link", {"controller.k1": [20.0, "a"]},
+         "override: key 'controller.k1[1]' (joint 1, counting from 0) = 'a': input should be "
+         "a valid number"),
+        ("two-link", {"observer.eps": [math.inf, 0.02]},
+         "override: key 'observer.eps[0]' (joint 0, counting from 0) = inf: must be a finite "
+         "number (no NaN or inf)"),
+        # a lever arm has one joint: a list of two was an internal error in the observer
+        ("test-1", {"observer.eps": [0.05, 0.09]},
+         "key 'observer.eps': 2 entries, but plant kind 'lever-arm' has one joint"),
+        # an empty list was an internal error (min of nothing) in the computability check
+        ("test-1", {"observer.eps": []},
+         "key 'observer.eps': 0 entries, but plant kind 'lever-arm' has one joint"),
+        ("two-link", {"observer.eps": []}, "key 'observer.eps': 0 entries, but 'two-link.urdf'"),
+        # a plain number keeps its message
+        ("test-1", {"observer.eps": "a"},
+         "override: key 'observer.eps' = 'a': input should be a valid number"),
+    ],
+    ids=["negative-entry", "text-entry", "inf-entry", "lever-two", "lever-empty", "arm-empty",
+         "number"],
+)
+def test_per_joint_list_errors_name_the_joint(name, overrides, message):
+    if name == "two-link":
+        pytest.importorskip("pinocchio")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(name, overrides)
+    assert message in str(info.value) and "\n" not in str(info.value)
+    assert load_scenario("test-1", {"observer.eps": [0.05]}).observer.eps == [0.05]
 
 
 def test_toml_syntax_error_names_file_and_line(tmp_path):
@@ -169,6 +209,22 @@ def test_to_toml_round_trip_builtins(name, tmp_path):
     path = tmp_path / "x.toml"
     path.write_text(text, encoding="utf-8")
     assert load_scenario(path) == scn
+
+
+def test_round_trip_with_per_joint_references(tmp_path, run_cli):
+    """Tables inside a list (reference.joints) are written inline; `show` printed an internal
+    error for them ('cannot write dict as TOML')."""
+    over = ["reference.kind=per-joint",
+            'reference.joints=[{kind = "multisine", amplitudes = [0.3, 0.1], '
+            'frequencies = [2.0, 5.0], phases = [0.0, 1.5]}]']
+    scn = load_scenario("test-1", over)
+    text = scn.to_toml()
+    assert tomllib.loads(text) == {k: v for k, v in scn.to_dict().items() if v is not None}
+    path = tmp_path / "pj.toml"
+    path.write_text(text, encoding="utf-8")
+    assert load_scenario(path) == scn
+    res = run_cli("show", "test-1", *(a for o in over for a in ("--set", o)))
+    assert res.exit_code == 0 and res.stdout == text, res.stderr
 
 
 def test_round_trip_with_optional_motor_section(tmp_path):

@@ -38,6 +38,10 @@ def _read_csv(path: Path) -> list[dict[str, str]]:
 
 def test_parse_vary_forms(base) -> None:  # type: ignore[no-untyped-def]
     assert sweep.parse_vary("observer.eps=0.05,0.09,0.2").values == (0.05, 0.09, 0.2)
+    # an arm's per-joint lists: commas inside [...] (or quotes) do not split the list
+    assert sweep.parse_vary("observer.eps=[0.02,0.03], [0.04,0.06]").values == (
+        [0.02, 0.03], [0.04, 0.06])
+    assert sweep.parse_vary('name="a,b",c').values == ("a,b", "c")
     assert sweep.parse_vary("observer.discretization=euler,zoh,current").values == (
         "euler", "zoh", "current")
     lin = sweep.parse_vary("controller.k1=lin:5:15:3")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -141,6 +142,13 @@ def test_scenario_better_than_bounds_is_said(base) -> None:  # type: ignore[no-u
     assert line is not None and "outside the bounds" in line and "observer.eps = 0.09" in line
 
 
+def test_objective_weight_must_be_a_price() -> None:
+    for w in (-1.0, math.nan, math.inf):
+        with pytest.raises(ScenarioError, match=r"weight .*: must be a finite number >= 0"):
+            Objective("rms_error + w*rms_u", w)
+    assert Objective("rms_error + w*rms_u", 0.0).weight == 0.0
+
+
 def test_objective_finite_somewhere_is_accepted() -> None:
     # finite only where rms_u > 0.1 (or rms_error > rms_u): fine until a run says otherwise
     for text in ("log(rms_u - 0.1)", "log(rms_error - rms_u)", "1"):
@@ -206,6 +214,9 @@ def test_cli_tune(tmp_path: Path) -> None:
         (["--vary", "observer.eps=0.03:0.3", "--seeds", "0"], "--seeds"),
         (["--vary", "observer.eps=0.03:0.3", "--objective", "1/0"],
          "--objective '1/0': not a finite number"),
+        # a negative price of control effort rewarded it (the tune ran, best ε at the bound)
+        (["--vary", "observer.eps=0.03:0.3", "--weight", "-1"],
+         "--weight -1.0: must be a finite number >= 0"),
     ],
 )
 def test_cli_tune_bad_input(tmp_path: Path, args: list[str], needle: str) -> None:

@@ -23,13 +23,14 @@ from __future__ import annotations
 import errno
 import os
 import shutil
+import stat
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = ["OutputError", "atomic_path", "check_writable", "describe_os_error", "make_dir",
-           "staged_dir"]
+           "staged_dir", "target_file", "temp_name"]
 
 
 class OutputError(OSError):
@@ -65,15 +66,58 @@ def describe_os_error(exc: OSError) -> str:
     return exc.strerror or type(exc).__name__
 
 
-def _tmp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp")
+#: Longest file name (one path component) in bytes on common file systems (ext4, xfs, tmpfs).
+_NAME_MAX = 255
+
+
+def temp_name(path: Path) -> Path:
+    """The temporary file beside ``path`` (``.NAME.PID.tmp``; shorter when NAME is long)."""
+    name = f".{path.name}.{os.getpid()}.tmp"
+    if len(name.encode("utf-8", "surrogateescape")) > _NAME_MAX:
+        name = f".esoarm.{os.getpid()}.tmp"
+    return path.with_name(name)
+
+
+_tmp_name = temp_name
+
+
+def target_file(path: str | Path) -> Path:
+    """The regular file that writing ``path`` replaces: a symbolic link is followed.
+
+    An atomic write renames a new file onto its target; renamed onto a symbolic
+    link it would replace the link, so the link's target is written instead
+    (as a shell's ``>`` does).  A FIFO, a device or a socket cannot be replaced
+    by a file without breaking what it is for: :class:`OutputError`.
+
+    Raises
+    ------
+    OutputError
+        ``path`` is a directory or a special file, or cannot be looked at.
+    """
+    path = Path(path)
+    try:
+        if path.is_symlink():
+            path = Path(os.path.realpath(path))
+        mode = path.stat().st_mode
+    except (FileNotFoundError, NotADirectoryError):  # not there (yet): the caller says why
+        return path
+    except OSError as exc:
+        raise OutputError(path, describe_os_error(exc)) from None
+    if stat.S_ISDIR(mode):
+        raise OutputError(path, "is a directory")
+    if not stat.S_ISREG(mode):
+        what = ("a FIFO (named pipe)" if stat.S_ISFIFO(mode) else
+                "a socket" if stat.S_ISSOCK(mode) else "a device")
+        raise OutputError(path, f"is {what}, not a regular file; give a file name")
+    return path
 
 
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; rename it to ``path`` on success.
 
-    The parent directory is created.  On any exception (Ctrl-C included) the
+    The parent directory is created; a symbolic link is followed (its target
+    is written, see :func:`target_file`).  On any exception (Ctrl-C included) the
     temporary file is removed and ``path`` is left as it was; an
     :class:`OSError` (full disk, no permission, file-size limit, …) is raised
     again as :class:`OutputError` naming ``path``.  The temporary file is
@@ -84,14 +128,16 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     OutputError
         The file could not be written; nothing was left behind.
     """
-    path = Path(path)
+    user_path = Path(path)
+    path = target_file(user_path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):  # a file where a directory is needed
+        raise OutputError(user_path, f"'{_file_in_the_way(path.parent)}' is a file, not a "
+                          "directory") from None
     except OSError as exc:
-        raise OutputError(path, describe_os_error(exc)) from None
-    if path.is_dir():
-        raise OutputError(path, "is a directory")
-    tmp = _tmp_name(path)
+        raise OutputError(user_path, describe_os_error(exc)) from None
+    tmp = temp_name(path)
     try:
         yield tmp
         os.replace(tmp, path)
@@ -99,7 +145,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         _remove(tmp)
         if isinstance(exc, OutputError):
             raise
-        raise OutputError(path, describe_os_error(exc)) from None
+        raise OutputError(user_path, describe_os_error(exc)) from None
     except BaseException:
         _remove(tmp)
         raise
@@ -179,6 +225,13 @@ def _reason(exc: OSError) -> str:
     return exc.reason if isinstance(exc, OutputError) else describe_os_error(exc)
 
 
+def _file_in_the_way(directory: Path) -> Path:
+    """The nearest ancestor of ``directory`` (or itself) that exists: a file, when mkdir failed."""
+    while not directory.exists() and directory.parent != directory:
+        directory = directory.parent
+    return directory
+
+
 def make_dir(path: str | Path) -> Path:
     """Create a directory (and its parents); :class:`OutputError` naming it if that fails."""
     path = Path(path)
@@ -204,19 +257,44 @@ def check_writable(path: str | Path, *, directory: bool = False) -> None:
     The nearest existing ancestor must be a directory in which a file (or, if
     directories are still to be made, a directory) can be created; the check
     creates and removes a probe there, so it also catches read-only and
-    pseudo file systems such as ``/proc``.  Nothing is left behind.
+    pseudo file systems such as ``/proc``.  An empty path, a name longer than
+    the file system allows, and an existing FIFO, device or socket (which a
+    new file would replace) are refused too.  Nothing is left behind.
 
     Raises
     ------
     OutputError
         The reason, naming ``path``.
     """
+    if not str(path):
+        raise OutputError(path, "an empty path; give a " + ("directory" if directory else "file")
+                          + " name")
     path = Path(path)
+    for name in path.parts:  # checked first: looking up a longer name fails
+        size = len(name.encode("utf-8", "surrogateescape"))
+        if size > _NAME_MAX:
+            raise OutputError(path, f"a name in the path is too long ({size} bytes; file "
+                              f"systems allow {_NAME_MAX})")
+    try:
+        _check_writable(path, directory)
+    except OutputError as exc:
+        if exc.path != path:  # a link's target, named by the user's path
+            raise OutputError(path, exc.reason) from None
+        raise
+    except OSError as exc:  # a lookup that failed (e.g. a name too long for the system)
+        raise OutputError(path, describe_os_error(exc)) from None
+
+
+def _check_writable(path: Path, directory: bool) -> None:
     if directory:
         if path.exists() and not path.is_dir():
             raise OutputError(path, "exists and is not a directory")
-    elif path.is_dir():
-        raise OutputError(path, "is a directory, expected a file name")
+    else:
+        if path.is_dir():
+            raise OutputError(path, "is a directory, expected a file name")
+        target_file(path)  # a FIFO, a device: refused
+        if path.is_symlink():
+            path = Path(os.path.realpath(path))
     target_dir = path if directory else path.parent
     existing = target_dir
     while not existing.exists():

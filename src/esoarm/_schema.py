@@ -10,7 +10,10 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict
 from pydantic.json_schema import JsonDict
 
-__all__ = ["Section", "joint_values", "show_joint_values", "unit"]
+__all__ = ["PER_JOINT_KEYS", "Section", "joint_values", "show_joint_values", "unit"]
+
+#: Observer and controller keys that may be one number or a list of one per joint.
+PER_JOINT_KEYS = ("eps", "k1", "k2")
 
 
 class Section(BaseModel):

@@ -1,4 +1,8 @@
-"""A small TOML writer for nested dicts of scalars and lists (scenarios, fitted twins)."""
+"""A small TOML writer for nested dicts of scalars and lists (scenarios, fitted twins).
+
+Tables are written as ``[section]`` headers; a table inside a list (the per-joint
+references ``reference.joints``) as an inline table ``{kind = "multisine", ...}``.
+"""
 
 from __future__ import annotations
 
@@ -23,6 +27,9 @@ def _toml_value(value: Any) -> str:
         return f'"{escaped}"'
     if isinstance(value, list | tuple):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):  # a table inside a list (reference.joints): an inline table
+        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()
+                               if v is not None) + "}"
     raise TypeError(f"cannot write {type(value).__name__} as TOML")
 
 

@@ -528,7 +528,12 @@ def _check_key(key: str, source: str) -> None:
         return
     if not key.strip():
         raise ScenarioError(f"{source}: empty key; give a dotted key such as 'observer.eps'")
-    # a whole table given to --set is not allowed either; suggest a leaf key
+    # a whole table given to --set is not allowed either: say so and name its keys
+    inside = [k for k in valid if k.startswith(key + ".")]
+    if inside:
+        shown = ", ".join(inside[:6]) + (", ..." if len(inside) > 6 else "")
+        raise ScenarioError(f"{source}: key '{key}' is a table; set its keys one at a time "
+                            f"({shown})")
     close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
     hint = f"; did you mean '{close[0]}'?" if close else ""
     raise ScenarioError(f"{source}: unknown key '{key}'{hint}")

@@ -18,6 +18,7 @@ from pydantic import ValidationError
 
 from esoarm import kinds as _kinds
 from esoarm._limits import MAX_SAMPLES
+from esoarm._schema import PER_JOINT_KEYS
 from esoarm.scenario import (
     KIND_SECTIONS,
     Multisine,
@@ -35,9 +36,35 @@ __all__ = ["scenario_warnings", "timing_warnings"]
 _UNION_MEMBER = re.compile(r"^(constrained-)?(float|int|str|bool)$|^list\[.*\]$")
 
 
+#: Errors that only say the input is not of a union member's type (a list is not a number).
+_TYPE_MISMATCH = ("float_type", "int_type", "list_type", "string_type", "bool_type",
+                  "float_parsing", "int_parsing")
+
+
+def _first_error(exc: ValidationError) -> Any:
+    """The error to report: for a number-or-list key, the one of the member the input is.
+
+    A per-joint list ``[0.05, -1]`` fails both members of ``float | list[float]``; the
+    float member's "not a valid number" hides the list member's error at entry 1.
+    """
+    errors = exc.errors()
+    first = errors[0]
+    if first["type"] in _TYPE_MISMATCH:
+        base = [p for p in first["loc"] if not _UNION_MEMBER.match(str(p))]
+        for other in errors[1:]:
+            loc = other["loc"]
+            same_key = [p for p in loc if not _UNION_MEMBER.match(str(p))
+                        and not isinstance(p, int)] == base
+            # an error at an entry of the list, or a member's error other than its type
+            if same_key and (isinstance(loc[-1], int) and isinstance(first.get("input"), list)
+                             or other["type"] not in _TYPE_MISMATCH):
+                return other
+    return first
+
+
 def _format_validation_error(exc: ValidationError, source: str,
                              origin: Callable[[str], str] | None = None) -> str:
-    err = exc.errors()[0]
+    err = _first_error(exc)
     loc = [str(p) for p in err["loc"] if not isinstance(p, int)]
     # drop the discriminator tag pydantic inserts for tagged unions
     section = loc[0] if loc else ""
@@ -65,6 +92,9 @@ def _format_validation_error(exc: ValidationError, source: str,
         hint = f"; did you mean '{close[0]}'?" if close else ""
         return f"{source}: unknown key '{key}'{hint}{tail}"
     where = f"{key}[{']['.join(map(str, idx))}]" if idx else key
+    joint = ""
+    if idx and key.rsplit(".", 1)[-1] in PER_JOINT_KEYS and section in ("observer", "controller"):
+        joint = f" (joint {idx[0]}, counting from 0)"
     value = err.get("input")
     msg = err["msg"]
     if kind in ("finite_number",):
@@ -75,7 +105,7 @@ def _format_validation_error(exc: ValidationError, source: str,
         allowed = ", ".join(f"'{t}'" for t in tags)
         return f"{source}: key '{key}.kind' must be one of {allowed}{tail}"
     shown = repr(value) if not isinstance(value, dict) else "a table"
-    return f"{source}: key '{where}' = {shown}: {msg}{tail}"
+    return f"{source}: key '{where}'{joint} = {shown}: {msg}{tail}"
 
 
 def _check_consistency(scn: Scenario, source: str,
@@ -124,6 +154,13 @@ def _check_consistency(scn: Scenario, source: str,
         if isinstance(ref, PerJoint) and len(ref.joints) != 1:
             fail("reference.joints", f"{len(ref.joints)} entries, but plant kind "
                  f"'{scn.plant.kind}' has one joint")
+        for section in ("observer", "controller"):  # a per-joint list: one entry
+            values = getattr(scn, section).model_dump()
+            for key in PER_JOINT_KEYS:
+                value = values.get(key)
+                if isinstance(value, list) and len(value) != 1:
+                    fail(f"{section}.{key}", f"{len(value)} entries, but plant kind "
+                         f"'{scn.plant.kind}' has one joint (give one number)")
 
 
 def _check_moves(ref: QuinticSteps | RangeMoves, where: str, fail: Any) -> None:
@@ -163,8 +200,8 @@ def _check_computable(scn: Scenario, fail: Callable[[str, str], None]) -> None:
          "plant.inertia · rig.inertia_scale (the true inertia)", True),
         ("rig.inertia_scale", lambda: 1.0 / (p.inertia * rig.inertia_scale),
          "1/(plant.inertia · rig.inertia_scale)", True),
-        ("observer.eps", lambda: 1.0 / np.float64(
-            min(obs.eps) if isinstance(obs.eps, list) else obs.eps) ** 3,
+        ("observer.eps", lambda: 1.0 / np.float64(  # an empty list: its length is checked later
+            min(obs.eps, default=1.0) if isinstance(obs.eps, list) else obs.eps) ** 3,
          "the observer gain β3 = 1/ε³", True),
         ("plant.g", lambda: (p.m1 * p.l1 - p.m2 * p.l2) * p.g, "the gravity torque amplitude",
          False),

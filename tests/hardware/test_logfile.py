@@ -25,7 +25,7 @@ def _read(path, lost_ok=("theta",)):
 
 
 def test_reads_the_picked_columns_in_order_skipping_blank_lines(tmp_path):
-    path = _log(tmp_path, "u, extra ,t,theta\n1,9,0,0.5\n\n2,9,0.1,nan\n")
+    path = _log(tmp_path, "u, extra ,t,theta,extra\n1,9,0,0.5,8\n\n2,9,0.1,nan,8\n")
     names, data = _read(path)
     assert names == ["t", "theta", "u"]
     np.testing.assert_array_equal(data[:, [0, 2]], [[0.0, 1.0], [0.1, 2.0]])
@@ -45,6 +45,7 @@ def test_pick_may_choose_from_the_header(tmp_path):
     ("t,theta,u\n\n\n", ["no data rows"]),
     ("t,theta\n0,0\n", ["missing column(s) u", NEED]),
     ("theta\n0\n", ["missing column(s) t, u"]),
+    ("t,theta,u,t\n0,0,0,5\n", ["column t appears 2 times in the header"]),
     ("t,theta,u\n0,0,0\n0.1,x,0\n", ["line 3", "expected numbers in columns t, theta, u"]),
     ("t,theta,u\n0,0,0\n\n0.1,0\n", ["line 4", "expected numbers"]),  # a short row
     ("t,theta,u\n0,0,0\n0.1,0,nan\n", ["line 3", "u = nan", "only theta may be nan"]),

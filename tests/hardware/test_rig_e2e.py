@@ -222,11 +222,17 @@ def test_scenario_that_does_not_match_the_device_is_bad_input(tmp_path):
     assert not log.exists()
 
 
-def test_missing_port_fails_in_one_line():
+def test_missing_port_fails_in_one_line(tmp_path):
     res = esoarm("run", "test-1", "--port", "/dev/does-not-exist-esoarm")
     assert res.returncode == 1
     assert res.stderr.startswith("esoarm: failed: cannot open port") and \
         len(res.stderr.splitlines()) == 1
+    # the reason once, in words (pyserial's text repeated the errno and the path)
+    assert res.stderr.count("does-not-exist") == 1 and "no such device" in res.stderr
+    plain = tmp_path / "plain"
+    plain.write_text("", encoding="utf-8")
+    res = esoarm("run", "test-1", "--port", str(plain))
+    assert res.returncode == 1 and "not a serial device" in res.stderr, res.stderr
 
 
 @pytest.mark.parametrize("args, key", [

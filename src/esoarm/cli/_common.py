@@ -225,16 +225,14 @@ def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Pa
                        f"run{path.name.lower()}")
     if path.suffix.lower() not in suffixes:
         raise BadInput(f"{option} '{value}': the file name must end in {' or '.join(suffixes)}")
-    if path.is_dir():
-        raise BadInput(f"{option} '{value}': is a directory, expected a file name")
-    if path.parent.exists() and not path.parent.is_dir():
-        raise BadInput(f"{option} '{value}': '{path.parent}' is not a directory")
-    _check(path, option, directory=False)
+    _check(path, option, directory=False)  # a directory, a parent that is a file, /proc, ...
     return path
 
 
 def output_dir(value: str, option: str) -> Path:
-    """Check an output directory before any work (it may not exist yet)."""
+    """Check an output directory before any work (it may not exist yet; not the empty path)."""
+    if not value:
+        raise BadInput(f"{option} '': give a directory name (. for the current directory)")
     path = Path(value)
     _check(path, option, directory=True)
     return path

@@ -25,10 +25,11 @@ from esoarm.cli._common import (
 @click.command()
 @scenario_argument
 @set_option
-@click.option("--vary", "vary", metavar="KEY=SPEC",
+@click.option("--vary", "varies", metavar="KEY=SPEC", multiple=True,
               help="Analyze the loop for each value of one key: a list (observer.eps=0.05,0.09,0.2"
               ") or lin:START:STOP:NUM / geom:START:STOP:NUM (observer.eps=geom:0.03:0.3:12). "
-              "The figure then shows the margins against the key.")
+              "The figure then shows the margins against the key. Once (a grid of keys: "
+              "'esoarm sweep').")
 @click.option("--theta0", type=float, default=None, metavar="RAD",
               help="Operating angle of the linearization [rad] (default: rig.theta0). The "
               "worst margins over the reference's range are reported beside it.")
@@ -45,8 +46,8 @@ from esoarm.cli._common import (
               "delay_margin [s], ms, mt, bandwidths [rad/s], ... (with --vary: 'points', one "
               "object per value).")
 @bad_input_guard
-def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0: float | None,
-            friction: str, plot: str | None, as_json: bool) -> None:
+def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
+            theta0: float | None, friction: str, plot: str | None, as_json: bool) -> None:
     """Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.
 
     The rig is linearized at the operating angle θ0 (gravity becomes a spring,
@@ -67,6 +68,10 @@ def analyze(scenario: str, overrides: tuple[str, ...], vary: str | None, theta0:
     from esoarm.studies.frequency import analyze as run_analysis
     from esoarm.studies.linearization import check_supported
 
+    if len(varies) > 1:  # click would keep the last one without a word
+        raise BadInput(f"--vary given {len(varies)} times: analyze varies one key (for a grid "
+                       "of keys use 'esoarm sweep')")
+    vary = varies[0] if varies else None
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     if theta0 is not None and not math.isfinite(theta0):
         raise BadInput(f"--theta0 {theta0}: must be a finite angle [rad]")

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
 from esoarm.cli._common import (
     BadInput,
     bad_input_guard,
+    output_dir,
     resolve_scenario,
     scenario_argument,
     set_option,
@@ -50,18 +49,18 @@ def arm_study(scenario: str, overrides: tuple[str, ...], out_dir: str, eps: str 
     paper's Fig. 7 baseline), prints the RMS tracking error [rad] per joint and
     its ratio, then sweeps ε [s] (the paper's Table II trade-off) and writes
     DIR/report.html (self-contained), summary.json, runs/*.csv and figures with
-    one panel per joint.  Runs go to worker processes (Pinocchio cannot be
-    called from the compiled engine).
+    one panel per joint (all at the end: if a file cannot be written, DIR is
+    left as it was).  Runs go to worker processes (Pinocchio cannot be called
+    from the compiled engine).
     """
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
+    from esoarm._io import staged_dir
     from esoarm.studies.arm_study import VARIANTS, run_arm_study, write_arm_study
 
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise BadInput(f"--out '{out_dir}': exists and is not a directory")
+    out = output_dir(out_dir, "--out")  # before the runs: an unwritable DIR is bad input
     grid = _eps_list(eps)
     scn = resolve_scenario(scenario, overrides)
     if scn.plant.kind != "urdf":
@@ -70,7 +69,10 @@ def arm_study(scenario: str, overrides: tuple[str, ...], out_dir: str, eps: str 
     console = Console(stderr=True)
     with console.status(f"simulating {len(VARIANTS)} controllers and the ε sweep"):
         study = run_arm_study(scn, grid, workers)
-        write_arm_study(study, out, fmt)
+        # written into a temporary directory, moved into DIR once all is complete: a
+        # failure halfway (a full disk, Ctrl-C) leaves DIR as it was
+        with staged_dir(out) as staging:
+            write_arm_study(study, staging, fmt)
     table = Table(title=f"{scn.name}: RMS tracking error per joint [rad]")
     table.add_column("controller")
     for name in study.names:

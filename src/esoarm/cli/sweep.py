@@ -128,7 +128,8 @@ def _fmt(value: Any) -> str:
 @scenario_argument
 @click.option("--vary", "vary", multiple=True, metavar="KEY=SPEC",
               help="Vary a dotted scenario key (in its own unit, e.g. observer.eps in s). "
-              "SPEC: a comma list 0.05,0.09,0.2 (strings allowed: euler,zoh,current), "
+              "SPEC: a comma list 0.05,0.09,0.2 (strings allowed: euler,zoh,current; an "
+              "arm's per-joint lists: [0.02,0.03],[0.04,0.06]), "
               "lin:START:STOP:NUM or geom:START:STOP:NUM. Repeatable: the grid is the cross "
               "product, first --vary slowest.")
 @set_option
@@ -420,8 +421,9 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     if seed < 0:
         raise BadInput(f"--seed {seed}: must be >= 0")
     w = DEFAULT_WEIGHT if weight is None else weight
-    if not math.isfinite(w):
-        raise BadInput(f"--weight {weight}: must be a finite number")
+    if not (math.isfinite(w) and w >= 0):
+        raise BadInput(f"--weight {weight}: must be a finite number >= 0 [rad/(N·m)] (the price "
+                       "of control effort; a negative one rewards it)")
     obj = Objective(objective or DEFAULT_OBJECTIVE, w)
     base = load_scenario(scenario, list(overrides))
     bounds = [parse_bound(item, base, "--vary") for item in vary]

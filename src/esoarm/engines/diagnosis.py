@@ -90,6 +90,6 @@ def saturation_warning(fraction: float, torque_limit: float) -> str | None:
     if not fraction > SATURATION_WARNING:  # also None for NaN
         return None
     return (f"the command sat at the torque limit ±{torque_limit:g} N·m in "
-            f"{100 * fraction:.0f} % of the samples (saturated_fraction = {fraction:.3g}): the "
+            f"{100 * fraction:.3g} % of the samples (saturated_fraction = {fraction:.3g}): the "
             "loop is not the linearized one the FLC assumes; raise actuator.torque_limit or ask "
             "for a gentler reference")

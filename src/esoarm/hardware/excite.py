@@ -22,7 +22,7 @@ import numpy as np
 
 from esoarm.hardware.controller import SampleController
 from esoarm.hardware.emulator import Twin
-from esoarm.hardware.loop import LOG_COLUMNS, RunSummary, SafetyLimits, _LogWriter
+from esoarm.hardware.loop import LOG_COLUMNS, RunSummary, SafetyLimits, _LogWriter, _Stop
 from esoarm.scenario import Scenario
 from esoarm.studies.excitation import ExcitationController, ExcitationPlan
 
@@ -33,7 +33,7 @@ TWIN_LOG_COLUMNS = (*LOG_COLUMNS, "theta_true")
 
 
 class ExcitationFault(RuntimeError):
-    """The twin experiment hit a safety limit; the log keeps every row written."""
+    """The twin experiment hit a safety limit or its log failed; the log keeps every row written."""
 
     def __init__(self, message: str, summary: RunSummary) -> None:
         super().__init__(message)
@@ -71,7 +71,8 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
     Raises
     ------
     ExcitationFault
-        The measured angle left ±angle_limit; the log keeps the rows written.
+        The measured angle left ±angle_limit, or the log could not be written (a
+        full disk); the log keeps the rows written, each whole.
     """
     limits = limits or SafetyLimits()
     ctl: SampleController = (controller if controller is not None
@@ -85,7 +86,7 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
     saturated = 0
     fmt = repr
     summary = RunSummary(mode="twin", log=str(log_path) if log_path else "")
-    message = None
+    message = log_failed = None
     try:
         for k in range(n):
             theta = twin.theta
@@ -110,8 +111,13 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
             u_log[k] = u_applied
             theta_max = max(theta_max, abs(theta))
             ref = ctl.reference(k)
-            log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(y - ref)},{fmt(u_applied)},"
-                      f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},nan,nan,nan,0,{duty},{fmt(y)},{fmt(theta)}\n")
+            try:
+                log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(y - ref)},{fmt(u_applied)},"
+                          f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},nan,nan,nan,0,{duty},{fmt(y)},"
+                          f"{fmt(theta)}\n")
+            except _Stop as exc:  # the log cannot be written (a full disk): stop, keep the rows
+                log_failed = str(exc)
+                break
     finally:
         log.close()
     rows = log.rows
@@ -120,6 +126,8 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
         summary.rms_u = float(np.sqrt(np.mean(u_log[:rows] ** 2)))
     preview = {"max_abs_theta": theta_max, "rms_u": summary.rms_u,
                "saturated": saturated / max(rows, 1)}
+    if log_failed is not None:
+        raise ExcitationFault(f"{log_failed}; {rows} rows kept", summary)
     if message is not None:
         kept = f"; {rows} rows in {log_path}" if log_path else ""
         raise ExcitationFault(f"{message}: motor off{kept}", summary)

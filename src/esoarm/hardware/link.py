@@ -8,6 +8,8 @@ is imported only when a link is opened.
 
 from __future__ import annotations
 
+import errno
+import os
 import select
 import time
 
@@ -125,5 +127,12 @@ class SerialLink:
 
 
 def _reason(exc: BaseException) -> str:
+    errno_ = getattr(exc, "errno", None)
+    if isinstance(errno_, int) and errno_ > 0:  # pyserial repeats the errno and the path
+        if errno_ == errno.ENOENT:
+            return "no such device (is the rig plugged in, or 'esoarm emulate' running?)"
+        return os.strerror(errno_)
     text = str(exc).strip().splitlines()
+    if text and f"({errno.ENOTTY}," in text[0]:  # pyserial's termios error on a plain file
+        return "not a serial device (a terminal's settings cannot be applied to it)"
     return text[0] if text else type(exc).__name__

@@ -8,7 +8,8 @@ is a :class:`~esoarm.scenario.ScenarioError` with one line naming the file
 and, where it applies, the line and the column:
 
 - the file is missing or unreadable, or has no header or no data rows;
-- a needed column is missing (the message says what the consumer needs);
+- a needed column is missing (the message says what the consumer needs), or
+  named twice in the header;
 - a cell of a needed column is not a number;
 - a value is not finite -- except ``nan`` in a measured-angle column after
   the first row, which marks a sample lost on the link (``esoarm run`` logs
@@ -78,6 +79,11 @@ def read_log_columns(path: str | Path, pick: Pick, need: str,
             missing = [c for c in names if c not in header]
             if missing:
                 raise ScenarioError(f"{src}: missing column(s) {', '.join(missing)}; {need}")
+            twice = [c for c in dict.fromkeys(names) if header.count(c) > 1]
+            if twice:
+                raise ScenarioError(f"{src}: column {twice[0]} appears "
+                                    f"{header.count(twice[0])} times in the header; which one "
+                                    "to read is unclear (rename or remove the others)")
             idx = [header.index(c) for c in names]
             rows, lines = [], []
             for row in reader:

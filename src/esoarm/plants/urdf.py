@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from pydantic import Field
 
-from esoarm._schema import Section, unit
+from esoarm._schema import PER_JOINT_KEYS, Section, unit
 from esoarm.contract import PlantDesign, read_only
 from esoarm.plants.urdf_model import ArmModel, UrdfError, load_arm
 from esoarm.plants.urdf_twin import TwinParams, pack_params, twin_acceleration, twin_advance
@@ -47,10 +47,6 @@ CODE = 1
 JIT = False
 
 HANDLE, _FEEDFORWARD, _TWIN = 1, 2, 3
-
-#: Keys of ``[observer]`` and ``[controller]`` that take one value per joint.
-PER_JOINT_KEYS = ("eps", "k1", "k2")
-
 
 class Params(Section):
     """``[plant]`` of kind "urdf": a serial arm from a URDF file (Pinocchio)."""

@@ -25,6 +25,7 @@ angles to Pinocchio's configuration vector.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import tempfile
 import xml.etree.ElementTree as ET
@@ -220,6 +221,64 @@ def _check_xml(path: Path, source: str) -> None:
                         "expected <robot>")
 
 
+def _body_name(model: Any, jid: int) -> str:
+    """The URDF link moved by joint ``jid`` (its child link)."""
+    for frame in model.frames:
+        if str(frame.type).endswith("BODY") and frame.parentJoint == jid:
+            return str(frame.name)
+    return str(model.names[jid])  # pragma: no cover - every joint has a child link
+
+
+def _check_masses(pin: Any, model: Any, names: list[str], lower: np.ndarray,
+                  upper: np.ndarray, source: str) -> None:
+    """Physical masses, inertias and limits: the dynamics must be defined and invertible.
+
+    Every moved body (a link with the links fixed to it) needs a finite mass >= 0 and a
+    positive semi-definite inertia tensor, an inertia only with a mass, and every joint
+    something to move: the mass matrix M(q) must be invertible (a joint whose links are
+    massless has a zero row; the arm's acceleration would be 0/0).  A massless link
+    inside the chain, carrying links with mass, is an ideal massless rod and allowed.
+    """
+    for i, name in enumerate(names):
+        if lower[i] > upper[i]:
+            raise UrdfError(f"{source}: joint '{name}': lower limit {lower[i]:g} is above "
+                            f"the upper limit {upper[i]:g}")
+    for jid in range(1, model.njoints):
+        body = model.inertias[jid]
+        link = _body_name(model, jid)
+        mass = float(body.mass)
+        rot = np.asarray(body.inertia, dtype=float)
+        if not (math.isfinite(mass) and np.isfinite(rot).all()
+                and np.isfinite(np.asarray(body.lever)).all()):
+            raise UrdfError(f"{source}: link '{link}': its mass or inertia is not finite")
+        if mass < 0:
+            raise UrdfError(f"{source}: link '{link}' has mass {mass:g} kg; a mass must be "
+                            ">= 0")
+        moments = np.linalg.eigvalsh(0.5 * (rot + rot.T))
+        scale = max(float(np.abs(moments).max()), 1e-300)
+        if moments.min() < -1e-9 * scale:
+            raise UrdfError(f"{source}: link '{link}': its inertia tensor is not positive "
+                            f"semi-definite (principal moments "
+                            f"{', '.join(f'{m:.3g}' for m in moments)} kg·m²)")
+        if mass == 0 and moments.max() > 0:
+            raise UrdfError(f"{source}: link '{link}' has an inertia tensor but mass 0; give "
+                            "it its mass (an inertia needs one)")
+    m = np.array(pin.crba(model, model.createData(), pin.neutral(model)))
+    m = np.triu(m) + np.triu(m, 1).T  # CRBA fills the upper triangle
+    diag = np.diag(m)
+    for i, name in enumerate(names):
+        if not diag[i] > 1e-12 * max(float(diag.max()), 0.0):
+            raise UrdfError(f"{source}: joint '{name}' moves no mass: link "
+                            f"'{_body_name(model, i + 1)}' and the links it carries are "
+                            "massless, so the arm's mass matrix is singular; give the link an "
+                            "<inertial> with mass > 0")
+    try:
+        np.linalg.cholesky(m)
+    except np.linalg.LinAlgError:
+        raise UrdfError(f"{source}: the arm's mass matrix is singular at q = 0 (the links' "
+                        "masses and inertias leave a motion without inertia)") from None
+
+
 def load_arm(
     path: str | Path,
     *,
@@ -250,11 +309,15 @@ def load_arm(
     Raises
     ------
     UrdfError
-        Missing file, malformed XML or URDF, no actuated joint, or a joint
-        type other than revolute, continuous or prismatic; one line.
+        Missing file, malformed XML or URDF, no actuated joint, a joint
+        type other than revolute, continuous or prismatic, a lower limit above
+        the upper one, a mass or inertia that is not physical, or a joint that
+        moves no mass (a singular mass matrix); one line.
     """
     path = Path(path)
     source = source or f"file '{path}'"
+    if path.is_dir():
+        raise UrdfError(f"{source}: is a directory, not a URDF file")
     if not path.is_file():
         raise UrdfError(f"{source}: no such URDF file")
     _check_xml(path, source)
@@ -264,7 +327,9 @@ def load_arm(
             nominal = pin.buildModelFromUrdf(str(path))
         except (ValueError, RuntimeError):
             nominal = None
-    if nominal is None:
+    if nominal is None or any(line.strip().startswith("Error:") for line in errors):
+        # urdfdom reports some errors and builds the model anyway, without the part it
+        # could not read (an <inertial> with mass "nan": a massless link)
         raise UrdfError(f"{source}: not a valid URDF: {_urdf_problem(errors)}")
     if nominal.njoints < 2:
         raise UrdfError(f"{source}: the URDF has no movable joint")
@@ -292,6 +357,7 @@ def load_arm(
             idx = nominal.idx_qs[jid]
             lower[i] = nominal.lowerPositionLimit[idx]
             upper[i] = nominal.upperPositionLimit[idx]
+    _check_masses(pin, nominal, names, lower, upper, source)
     nominal.gravity.linear = np.array([0.0, 0.0, -g])
     true = pin.Model(nominal)
     if payload_mass > 0.0:

@@ -191,24 +191,27 @@ def parse_scheduler(address: str) -> tuple[str, str, int]:
 
 
 def probe_scheduler(address: str, timeout: float = PROBE_TIMEOUT) -> None:
-    """Check within ``timeout`` seconds that something accepts connections at ``address``.
+    """Check within ``timeout`` seconds that something at ``address`` answers like Dask.
 
     Done before a Dask client is made: a client that cannot connect takes
-    tens of seconds to give up and complains again when garbage-collected.
+    tens of seconds to give up and complains again when garbage-collected,
+    and one connected to a server that never answers waits for ever.  Over
+    tcp:// the scheduler must send the first bytes of its handshake (it does
+    on accepting); over tls:// only the connection is checked.
 
     Raises
     ------
     ScenarioError
         The address is malformed.
     ClusterError
-        The host is unknown or nothing answers there.
+        The host is unknown, nothing accepts connections there, or what does
+        sends nothing.
     """
     import socket
 
-    _, host, port = parse_scheduler(address)
+    scheme, host, port = parse_scheduler(address)
     try:
-        with socket.create_connection((host, port), timeout=timeout):
-            pass
+        sock = socket.create_connection((host, port), timeout=timeout)
     except socket.gaierror as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: unknown host "
                            f"'{host}' ({exc.strerror})") from None
@@ -218,6 +221,24 @@ def probe_scheduler(address: str, timeout: float = PROBE_TIMEOUT) -> None:
     except OSError as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: "
                            f"{exc.strerror or exc} (is 'dask scheduler' running there?)") from None
+    with sock:
+        if scheme != "tcp":  # TLS: the client speaks first
+            return
+        # a Dask scheduler sends its handshake as soon as it accepts; a server that accepts
+        # and stays silent would keep distributed's Client waiting for ever (its handshake
+        # read has no timeout)
+        try:
+            first = sock.recv(1)
+        except TimeoutError:
+            raise ClusterError(f"cannot use the Dask scheduler at {address}: something accepts "
+                               f"connections there but sends nothing within {timeout:g} s (not a "
+                               "Dask scheduler, or a hung one)") from None
+        except OSError as exc:
+            raise ClusterError(f"cannot use the Dask scheduler at {address}: "
+                               f"{exc.strerror or exc}") from None
+        if not first:
+            raise ClusterError(f"cannot use the Dask scheduler at {address}: the connection was "
+                               "closed at once (not a Dask scheduler?)")
 
 
 def _iter_dask(grid: SweepGrid, address: str, threads: int,

@@ -1,6 +1,7 @@
 """The grid of a sweep: ``--vary KEY=SPEC`` parsed into values, points built per chunk.
 
-SPEC is a comma list (each item a TOML value, else a string), ``lin:START:STOP:NUM``
+SPEC is a comma list (each item a TOML value, else a string; commas inside ``[...]`` do not
+split, so an item may be an arm's per-joint list), ``lin:START:STOP:NUM``
 (:func:`numpy.linspace`) or ``geom:START:STOP:NUM`` (:func:`numpy.geomspace`).  The grid is
 the cross product in the order given (first key slowest), each point with ``sensor.seed`` =
 0 … K−1 (seed fastest).  Its size is checked against a limit before anything is allocated.
@@ -106,11 +107,33 @@ def parse_vary(item: str, base: Scenario | None = None, max_values: int = MAX_RU
             if all(v == round(v) for v in values):
                 values = [int(round(v)) for v in values]
         return VarySpec(key, tuple(values), head)
-    items = [s.strip() for s in spec.split(",")]
+    items = [s.strip() for s in _split_top_level(spec)]
     if any(not s for s in items):
         raise ScenarioError(f"vary {key}: '{spec}' has an empty item")
     values = [parse_override(f"{key}={s}")[1] for s in items]
     return VarySpec(key, tuple(values), "list")
+
+
+def _split_top_level(spec: str) -> list[str]:
+    """Split a comma list, not at commas inside [...] or quotes (per-joint lists, strings).
+
+    ``[0.02,0.02],[0.03,0.04]`` is two values, each a list of one ε per joint.
+    """
+    items, depth, quote, start = [], 0, "", 0
+    for i, c in enumerate(spec):
+        if quote:
+            quote = "" if c == quote else quote
+        elif c in "\"'":
+            quote = c
+        elif c in "[{":
+            depth += 1
+        elif c in "]}":
+            depth = max(depth - 1, 0)
+        elif c == "," and depth == 0:
+            items.append(spec[start:i])
+            start = i + 1
+    items.append(spec[start:])
+    return items
 
 
 class GridPoints(Sequence[Scenario]):

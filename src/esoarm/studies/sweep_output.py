@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from esoarm._io import OutputError, atomic_path, describe_os_error
+from esoarm._io import OutputError, atomic_path, describe_os_error, target_file, temp_name
 from esoarm.engines.metrics import METRICS
 
 if TYPE_CHECKING:
@@ -79,11 +79,13 @@ class SweepWriter:
         self._pending: dict[int, np.ndarray] = {}
         self._seed_col = None if grid.seeds else grid.keys.index("sensor.seed")
         self._tmp: Path | None = None
+        self._target: Path | None = None
         self._fh: Any = None
         if self.path is not None:
-            self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+            self._target = target_file(self.path)  # a symbolic link: its target is written
+            self._tmp = temp_name(self._target)
             try:
-                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._target.parent.mkdir(parents=True, exist_ok=True)
                 self._fh = self._tmp.open("w", encoding="utf-8", newline="")
                 self._csv = csv.writer(self._fh, lineterminator="\n")
                 self._csv.writerow([*grid.keys, "seed", *METRICS])
@@ -195,8 +197,8 @@ class SweepWriter:
                 self._write(start, self._pending.pop(start))
             self._fh.close()
             self._fh = None
-            assert self._tmp is not None and self.path is not None
-            os.replace(self._tmp, self.path)
+            assert self._tmp is not None and self._target is not None
+            os.replace(self._tmp, self._target)
         except OSError as exc:
             self._fail(exc)
         return self.rows_written

@@ -164,6 +164,9 @@ class Objective:
     _PROBE_RANGE = (1e-6, 1e3)
 
     def __init__(self, text: str, weight: float = DEFAULT_WEIGHT) -> None:
+        if not (math.isfinite(weight) and weight >= 0):
+            raise ScenarioError(f"weight {weight!r}: must be a finite number >= 0 [rad/(N·m)] "
+                                "(the price of control effort; a negative one rewards it)")
         self.text = text
         self.weight = weight
         try:
