@@ -31,18 +31,19 @@ from numba import njit
 from esoarm.engines.batch import cover_with_physics_stamp  # registers the physics with numba
 from esoarm.hardware.logfile import read_log_columns, sample_period
 from esoarm.plants.lever_arm import advance
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import ScenarioError
 
 # the compiled segment simulator is cached on disk, keyed on the physics sources too
 cover_with_physics_stamp(__file__)
 
 __all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "check_supported", "read_ident_log",
-           "simulate_segments"]
+           "saturated_share", "simulate_segments"]
 
 #: Shortest log accepted [s] and fewest samples.
 MIN_DURATION = 4.0
 MIN_SAMPLES = 150
-#: Largest share of samples with |u| at the torque limit (a saturated log is bad input).
+#: Largest share of saturated samples (a saturated log is bad input; see saturated_share).
 MAX_SATURATED = 0.25
 #: Largest share of lost samples (theta = nan).
 MAX_LOST = 0.05
@@ -95,16 +96,18 @@ def check_supported(scn: object, what: str = "identification") -> None:
                             "needs the linear ESO (observer.eps) for its rate estimate")
 
 
-def read_ident_log(path: str | Path, torque_limit: float, need_duty: bool = False) -> IdentLog:
+def read_ident_log(path: str | Path, torque_limit: float,
+                   motor: MotorParams | None = None) -> IdentLog:
     """Read and check one log; raise :class:`ScenarioError` with one line naming the file.
 
-    Checks: the file exists and parses, has columns t, theta, u (and duty when
-    ``need_duty``), no non-finite t or u, a uniform time column, at most
+    Checks: the file exists and parses, has columns t, theta, u (and duty with
+    a ``motor``), no non-finite t or u, a uniform time column, at most
     :data:`MAX_LOST` lost samples, at least :data:`MIN_DURATION` s and
     :data:`MIN_SAMPLES` rows, some excitation, and at most :data:`MAX_SATURATED`
-    of the samples at ±``torque_limit`` [N·m].
+    of the samples saturated (:func:`saturated_share`).
     """
     src = f"log '{path}'"
+    need_duty = motor is not None
     want = ["t", "theta", "u"] + (["duty"] if need_duty else [])
     need = "need t [s], theta [rad], u [N·m]" + (
         " and duty [counts] (the scenario has a [motor] table)" if need_duty else "")
@@ -130,14 +133,35 @@ def read_ident_log(path: str | Path, torque_limit: float, need_duty: bool = Fals
     if np.nanmax(y) - np.nanmin(y) < 1e-3:
         raise ScenarioError(f"{src}: not exciting enough: the angle moved less than 1e-3 rad; "
                             "raise the excitation amplitude ('esoarm excite --amplitude')")
-    if duty is None:
-        sat = np.mean(np.abs(u) >= 0.999 * torque_limit)
-        if sat > MAX_SATURATED:
-            raise ScenarioError(
-                f"{src}: saturated: {sat:.0%} of the samples at the torque limit "
-                f"±{torque_limit:g} N·m (at most {MAX_SATURATED:.0%}); lower the excitation "
-                "amplitude")
+    sat, where = saturated_share(u, duty, torque_limit, motor)
+    if sat > MAX_SATURATED:
+        raise ScenarioError(f"{src}: saturated: {sat:.0%} of the samples {where} (at most "
+                            f"{MAX_SATURATED:.0%}); lower the excitation amplitude")
     return IdentLog(str(path), t, y, u, duty, ts)
+
+
+def saturated_share(u: np.ndarray, duty: np.ndarray | None, torque_limit: float,
+                    motor: MotorParams | None) -> tuple[float, str]:
+    """Share of saturated samples and where they saturate (for the message).
+
+    Without a motor: |u| at the torque limit [N·m] (within 0.1 %).  With one, in
+    the motor's terms: the duty at ±pwm_max (full supply, the driver's limit), or
+    the logged u -- the torque the duty gives, which the duty's rounding puts
+    within one duty count of the limit when the command was clipped -- within
+    one count's torque N·Kt·Vs/(R·pwm_max·(1 − deadband)) of the torque limit.
+    """
+    if motor is None or duty is None:
+        at_torque = np.abs(u) >= 0.999 * torque_limit
+        return float(np.mean(at_torque)), f"at the torque limit ±{torque_limit:g} N·m"
+    count = motor.stall_gain / (motor.pwm_max * (1.0 - motor.deadband))
+    full = np.abs(duty) >= motor.pwm_max
+    at_torque = np.abs(u) >= torque_limit - count
+    parts = []
+    if full.any():
+        parts.append(f"at full duty (|duty| = {motor.pwm_max} counts, the motor's limit)")
+    if (at_torque & ~full).any() or not parts:
+        parts.append(f"at the torque limit ±{torque_limit:g} N·m")
+    return float(np.mean(full | at_torque)), " or ".join(parts)
 
 
 def segments(n: int, length: int, start: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,75 @@
+"""Identification: logs that must be refused (or accepted) before any fit.
+
+Each bad log gets one line naming the file and what is wrong, exit status 2,
+and nothing written; each log made on a twin as a user would make it
+(``excite_twin``) is built in memory from a short experiment.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from esoarm.hardware.excite import excite_twin
+from esoarm.plants.motor import MotorParams
+from esoarm.scenario import ScenarioError, load_scenario
+from esoarm.studies.excitation import ExcitationPlan
+from esoarm.studies.identify_data import MAX_SATURATED, read_ident_log
+
+#: A weak motor: 50 · 0.02 N·m/A · 2 V / 2 Ω = 1 N·m at full duty, below the 2 N·m torque
+#: limit, so a strong excitation drives the duty to ±pwm_max while |u| stays below the limit.
+WEAK_MOTOR = ["motor.supply_voltage=2"]
+
+
+def _motor_log(tmp_path, sets, amplitude, name):
+    scn = load_scenario("test-1", sets)
+    path = tmp_path / name
+    excite_twin(scn, ExcitationPlan(duration=8.0, amplitude=amplitude), path)
+    return scn, path
+
+
+def _column(path, name):
+    return np.genfromtxt(path, delimiter=",", names=True)[name]
+
+
+def test_saturated_motor_log_is_refused(run_cli, tmp_path):
+    """Saturation with a [motor] table is judged on the duty (full supply), not on |u|."""
+    scn, path = _motor_log(tmp_path, WEAK_MOTOR, 0.8, "sat.csv")
+    duty, u = _column(path, "duty"), _column(path, "u")
+    assert np.mean(np.abs(duty) >= scn.motor.pwm_max) > MAX_SATURATED  # the log is saturated
+    assert np.max(np.abs(u)) < 0.999 * scn.actuator.torque_limit  # ... but not in torque terms
+    out = tmp_path / "never.toml"
+    res = run_cli("identify", str(path), "--set", WEAK_MOTOR[0], "--out", str(out))
+    assert res.exit_code == 2, res.stdout + res.stderr
+    line = res.stderr.strip()
+    assert len(line.splitlines()) == 1
+    assert "saturated" in line and "duty" in line and "255" in line and str(path) in line
+    assert not out.exists()
+
+
+def test_unsaturated_motor_log_is_accepted(tmp_path):
+    scn, path = _motor_log(tmp_path, WEAK_MOTOR, 0.2, "ok.csv")
+    duty = _column(path, "duty")
+    assert 0 < np.mean(np.abs(duty) >= scn.motor.pwm_max) < MAX_SATURATED  # touches the limit
+    log = read_ident_log(path, scn.actuator.torque_limit, MotorParams.from_scenario(scn))
+    assert log.duty is not None and log.n == 400
+
+
+def test_motor_log_at_the_torque_limit_is_refused(tmp_path):
+    """With a motor the logged u is the torque the duty gives (within a duty count of the
+    limit when the command was clipped): judged with that count as the tolerance."""
+    scn, path = _motor_log(tmp_path, ["motor.torque_constant=0.02"], 0.2, "m.csv")
+    motor = MotorParams.from_scenario(scn)
+    data = np.genfromtxt(path, delimiter=",", names=True)
+    count = motor.stall_gain / motor.pwm_max
+    u = data["u"].copy()
+    u[::2] = np.sign(u[::2]) * (scn.actuator.torque_limit - 0.4 * count)
+    lines = path.read_text().splitlines()
+    col = lines[0].split(",").index("u")
+    rows = [line.split(",") for line in lines[1:]]
+    for row, value in zip(rows, u, strict=True):
+        row[col] = repr(float(value))
+    path.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    with pytest.raises(ScenarioError,
+                       match=r"saturated: 50% of the samples at the torque limit ±2 N·m"):
+        read_ident_log(path, scn.actuator.torque_limit, motor)
