@@ -73,3 +73,52 @@ def test_motor_log_at_the_torque_limit_is_refused(tmp_path):
     with pytest.raises(ScenarioError,
                        match=r"saturated: 50% of the samples at the torque limit ±2 N·m"):
         read_ident_log(path, scn.actuator.torque_limit, motor)
+
+
+def _with_column(src, dst, name, value):
+    lines = src.read_text().splitlines()
+    col = lines[0].split(",").index(name)
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[col] = value
+    dst.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    return dst
+
+
+@pytest.fixture(scope="module")
+def torque_log(tmp_path_factory):
+    """A log of an ideal torque source (no [motor] table): its duty column is nan."""
+    path = tmp_path_factory.mktemp("input") / "torque.csv"
+    excite_twin(load_scenario("test-1"), ExcitationPlan(duration=8.0), path)
+    return path
+
+
+@pytest.mark.parametrize("column, sets, words", [
+    ("duty", ["--set", "motor.torque_constant=0.02"], "without a [motor] table"),
+    ("u", [], "the torque applied"),
+])
+def test_all_nan_column_is_named(run_cli, torque_log, tmp_path, column, sets, words):
+    """A column that is nan in every row: one line naming the column and the file."""
+    path = torque_log if column == "duty" else _with_column(torque_log, tmp_path / "nan.csv",
+                                                            column, "nan")
+    out = tmp_path / "never.toml"
+    res = run_cli("identify", str(path), *sets, "--out", str(out))
+    assert res.exit_code == 2, res.stdout + res.stderr
+    line = res.stderr.strip()
+    assert len(line.splitlines()) == 1 and res.exception is None
+    assert f"column {column} is nan in every row" in line and str(path) in line
+    assert words in line
+    assert not out.exists()
+
+
+def test_one_nan_in_u_still_names_its_line(run_cli, torque_log, tmp_path):
+    lines = torque_log.read_text().splitlines()
+    col = lines[0].split(",").index("u")
+    row = lines[10].split(",")
+    row[col] = "nan"
+    lines[10] = ",".join(row)
+    path = tmp_path / "one.csv"
+    path.write_text("\n".join(lines) + "\n")
+    res = run_cli("identify", str(path))
+    assert res.exit_code == 2
+    assert "line 11: non-finite value u = nan" in res.stderr

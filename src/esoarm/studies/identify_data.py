@@ -111,7 +111,14 @@ def read_ident_log(path: str | Path, torque_limit: float,
     want = ["t", "theta", "u"] + (["duty"] if need_duty else [])
     need = "need t [s], theta [rad], u [N·m]" + (
         " and duty [counts] (the scenario has a [motor] table)" if need_duty else "")
-    _, data = read_log_columns(path, want, need, lost_ok=("theta",))
+    try:
+        _, data = read_log_columns(path, want, need, lost_ok=("theta",))
+    except ScenarioError:
+        empty = _nan_column(path, want[2:])
+        if empty is None:
+            raise
+        raise ScenarioError(f"{src}: column {empty} is nan in every row: "
+                            f"{_NAN_COLUMN_WHY[empty]}") from None
     t, y, u = data[:, 0], data[:, 1], data[:, 2]
     duty = data[:, 3] if need_duty else None
     n = len(t)
@@ -138,6 +145,42 @@ def read_ident_log(path: str | Path, torque_limit: float,
         raise ScenarioError(f"{src}: saturated: {sat:.0%} of the samples {where} (at most "
                             f"{MAX_SATURATED:.0%}); lower the excitation amplitude")
     return IdentLog(str(path), t, y, u, duty, ts)
+
+
+#: Why a column can be nan in every row, and what to do (the message of read_ident_log).
+_NAN_COLUMN_WHY = {
+    "duty": "the log was made without a [motor] table (an ideal torque source) but the "
+            "scenario has one; identify it with a scenario without the [motor] table, or "
+            "record the log with the [motor] table",
+    "u": "the torque applied [N·m] was not logged, and identification needs it; record "
+         "the log with 'esoarm excite' or 'esoarm run'",
+}
+
+
+def _nan_column(path: str | Path, names: list[str]) -> str | None:
+    """The first of ``names`` that is nan in every data row of the CSV at ``path``, if any.
+
+    Only called once reading has failed, to say why: any error here means no.
+    """
+    import csv
+
+    try:
+        with open(path, encoding="utf-8", newline="") as fh:
+            reader = csv.reader(fh)
+            header = [h.strip() for h in next(reader, [])]
+            idx = {n: header.index(n) for n in names if n in header}
+            nan_only = dict.fromkeys(idx, True)
+            seen = False
+            for row in reader:
+                if not row:
+                    continue
+                seen = True
+                for name, i in idx.items():
+                    if nan_only[name] and row[i].strip().lower() != "nan":
+                        nan_only[name] = False
+    except (OSError, UnicodeDecodeError, csv.Error, IndexError):
+        return None
+    return next((n for n in names if seen and nan_only.get(n)), None)
 
 
 def saturated_share(u: np.ndarray, duty: np.ndarray | None, torque_limit: float,
