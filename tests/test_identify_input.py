@@ -122,3 +122,42 @@ def test_one_nan_in_u_still_names_its_line(run_cli, torque_log, tmp_path):
     res = run_cli("identify", str(path))
     assert res.exit_code == 2
     assert "line 11: non-finite value u = nan" in res.stderr
+
+
+def _with_angle(src, dst, theta):
+    lines = src.read_text().splitlines()
+    header = lines[0].split(",")
+    cols = [header.index(c) for c in ("theta", "y") if c in header]
+    rows = [line.split(",") for line in lines[1:]]
+    for row, value in zip(rows, theta, strict=True):
+        for c in cols:
+            row[c] = repr(float(value))
+    dst.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    return dst
+
+
+@pytest.mark.parametrize("case", ["constant", "encoder noise only"])
+def test_arm_that_never_moved_is_refused(run_cli, torque_log, tmp_path, case):
+    """The torque varied but the arm did not move: the angle is constant, or only its
+    encoder noise (0.2°, quantized to 0.05°) -- which the fit would happily explain."""
+    n = len(torque_log.read_text().splitlines()) - 1
+    q = np.radians(0.05)
+    noise = np.radians(0.2) * np.random.default_rng(0).standard_normal(n)
+    theta = np.full(n, 0.3) if case == "constant" else q * np.round((0.3 + noise) / q)
+    path = _with_angle(torque_log, tmp_path / "still.csv", theta)
+    out = tmp_path / "never.toml"
+    res = run_cli("identify", str(path), "--out", str(out))
+    assert res.exit_code == 2, res.stdout + res.stderr
+    line = res.stderr.strip()
+    assert len(line.splitlines()) == 1 and str(path) in line
+    assert "the experiment did not excite the arm" in line and "--amplitude" in line
+    assert not out.exists()
+
+
+def test_a_moving_arm_with_a_noisy_encoder_is_accepted(tmp_path):
+    """The motion check compares the angle's spread with its sample-to-sample jitter: a
+    real experiment seen through 4° of encoder noise (the paper twin's) still passes."""
+    path = tmp_path / "noisy.csv"
+    excite_twin(load_scenario("test-1", ["sensor.noise_deg=4"]), ExcitationPlan(duration=8.0),
+                path)
+    assert read_ident_log(path, 2.0).n == 400

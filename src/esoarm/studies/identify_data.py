@@ -47,6 +47,8 @@ MIN_SAMPLES = 150
 MAX_SATURATED = 0.25
 #: Largest share of lost samples (theta = nan).
 MAX_LOST = 0.05
+#: The angle's RMS spread must exceed this many times its sample-to-sample jitter (motion).
+MIN_MOTION_RATIO = 2.0
 
 
 @dataclass(frozen=True)
@@ -137,14 +139,35 @@ def read_ident_log(path: str | Path, torque_limit: float,
     if np.std(excitation) < 1e-9 + 1e-3 * (np.max(np.abs(excitation)) if duty is None else 1):
         raise ScenarioError(f"{src}: not exciting enough: the input is (nearly) constant; "
                             "record an experiment with 'esoarm excite'")
-    if np.nanmax(y) - np.nanmin(y) < 1e-3:
-        raise ScenarioError(f"{src}: not exciting enough: the angle moved less than 1e-3 rad; "
-                            "raise the excitation amplitude ('esoarm excite --amplitude')")
+    _check_the_arm_moved(src, y)
     sat, where = saturated_share(u, duty, torque_limit, motor)
     if sat > MAX_SATURATED:
         raise ScenarioError(f"{src}: saturated: {sat:.0%} of the samples {where} (at most "
                             f"{MAX_SATURATED:.0%}); lower the excitation amplitude")
     return IdentLog(str(path), t, y, u, duty, ts)
+
+
+def _check_the_arm_moved(src: str, y: np.ndarray) -> None:
+    """One-line :class:`ScenarioError` unless the measured angle ``y`` [rad] shows motion.
+
+    Motion, not noise: the angle's RMS spread must exceed :data:`MIN_MOTION_RATIO`
+    times its sample-to-sample jitter RMS(Δy)/√2 -- equal for white encoder noise
+    on an arm at rest, tens of times larger for an arm that moves.
+    """
+    what = ""
+    if np.nanmax(y) - np.nanmin(y) < 1e-3:
+        what = "the measured angle stays within 1e-3 rad"
+    else:
+        spread = float(np.nanstd(y))
+        jitter = float(np.nanstd(np.diff(y))) / math.sqrt(2.0)
+        if spread <= MIN_MOTION_RATIO * jitter:
+            what = (f"the measured angle varies by {spread:.2g} rad RMS, no more than its "
+                    f"sample-to-sample jitter {jitter:.2g} rad: encoder noise, not motion")
+    if what:
+        raise ScenarioError(
+            f"{src}: not exciting enough: the arm did not move ({what}); the experiment did "
+            "not excite the arm: check that the motor drives it (power, wiring, no brake or "
+            "block), then record again with more torque ('esoarm excite --amplitude')")
 
 
 #: Why a column can be nan in every row, and what to do (the message of read_ident_log).
