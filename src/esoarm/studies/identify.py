@@ -68,7 +68,14 @@ POOR_REL = 0.25
 
 
 class FitFailed(RuntimeError):
-    """The fit did not converge (nothing is written)."""
+    """The fit did not converge, or its result is not trustworthy (nothing is written).
+
+    ``result`` holds the untrustworthy result when there is one (for inspection).
+    """
+
+    def __init__(self, message: str, result: IdentResult | None = None) -> None:
+        super().__init__(message)
+        self.result = result
 
 
 @dataclass(frozen=True)
@@ -83,11 +90,23 @@ class Estimate:
     fitted: bool = True
     identifiable: bool = True
     advice: str = ""
+    #: "lower" or "upper" when the value ended at that bound of the fit (the log pulls
+    #: it beyond); "" inside the bounds.
+    bound: str = ""
+    #: Whether the 95 % interval was clipped to the bounds of the fit.
+    ci_clipped: bool = False
+
+    @property
+    def at_bound(self) -> bool:
+        """The fit ended at a bound (the value is that bound)."""
+        return bool(self.bound)
 
     def to_dict(self) -> dict:
         """JSON-ready."""
         return {"value": self.value, "ci95": list(self.ci95), "unit": self.unit,
                 "fitted": self.fitted, "identifiable": self.identifiable,
+                "at_bound": self.at_bound, "ci95_clipped": self.ci_clipped,
+                **({"bound": self.bound} if self.bound else {}),
                 **({"advice": self.advice} if self.advice else {})}
 
 
@@ -127,7 +146,24 @@ class IdentResult:
                     "logs": self.fit_logs},
             "validation": {**self.validation, "logs": self.validation_logs},
             "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
+            "at_bound": [k for k, e in self.estimates.items() if e.at_bound],
         }
+
+    def untrustworthy(self) -> str:
+        """Why the result is not trustworthy ("" if it is): a parameter ended at a bound of
+        the fit and the validation residual is not white (the model does not explain the
+        log, and the intervals mean nothing)."""
+        pinned = [e for e in self.estimates.values() if e.at_bound]
+        white = self.validation.get("whiteness", {}).get("white", True)
+        if not pinned or white:
+            return ""
+        w = self.validation["whiteness"]
+        ends = ", ".join(f"{e.key} at the {e.bound} bound {e.value:g} {e.unit}" for e in pinned)
+        return (f"the fit is not trustworthy: it ended with {ends}, and the validation residual "
+                f"is not white ({w['outside']} of {w['lags']} autocorrelation lags outside "
+                f"±{w['band']:.3g}): the model does not explain this log; check the rig and "
+                "the log (a blocked or unusual arm), hold that parameter (--fix, --set) or "
+                "record a richer experiment (esoarm excite)")
 
     def fitted_scenario(self) -> Scenario:
         """The scenario with the fitted rig as the twin and the plant updated to the fit.
@@ -195,7 +231,9 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     ScenarioError
         Bad input (unknown key to fix, a log at another rate, too short a part).
     FitFailed
-        The solver did not converge.
+        The solver did not converge, or the result is not trustworthy: a
+        parameter ended at a bound of the fit and the validation residual is not
+        white (:meth:`IdentResult.untrustworthy`; the result is in the exception).
     """
     t_start = time.perf_counter()
     check_supported(scn)
@@ -290,12 +328,16 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     curves = {"fit": (prob.t, prob.y, np.where(mask, y_fit, np.nan))}
     if val:
         curves["validation"] = val.pop("_curves")
-    return IdentResult(
+    res = IdentResult(
         scenario=scn, estimates=estimates, gravity=gravity, fit_percent=fit_pct,
         validation=val, residual_rms=resid_s, cost_by_delay=cost, n_fit=m,
         segment_seconds=seg_samples * ts, elapsed=time.perf_counter() - t_start,
         iterations=int(sol.iterations), fit_logs=sorted({lg.path for lg in fit_logs}),
         validation_logs=sorted({lg.path for lg in val_logs}), curves=curves)
+    why = res.untrustworthy()
+    if why:
+        raise FitFailed(why, res)
+    return res
 
 
 def _lag_lowers_cost(prob: Problem, sol, lag_lo: float, probe: float) -> bool:  # type: ignore[no-untyped-def]
@@ -324,6 +366,7 @@ def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: 
     cov = s2 * np.linalg.pinv(jac.T @ jac)
     se = np.sqrt(np.maximum(np.diag(cov)[: prob.n_phys], 0.0))
     corr = cov[: prob.n_phys, : prob.n_phys] / np.maximum(np.outer(se, se), 1e-300)
+    lower, upper = prob.bounds()
     out: dict[str, Estimate] = {}
     for i, key in enumerate(prob.free):
         label, unit, scale, _b, advice = PARAMS[key]
@@ -335,8 +378,14 @@ def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: 
             advice = ("with a [motor] table b adds to the back-EMF damping (N·Kt)²/R; only "
                       "their sum is well determined")
         note = advice + (f"; strongly correlated with {', '.join(others)}" if others else "")
-        out[key] = Estimate(key, v, (v - half, v + half), unit, label, True, not poor,
-                            note if poor else "")
+        # a value at a bound of the fit: the interval (a local linearization) runs past it;
+        # clip it to the bounds and say so (the value is then a limit, not an optimum)
+        lo_b, hi_b = float(lower[i]), float(upper[i])
+        tol = 1e-9 * max(scale, abs(lo_b), abs(hi_b) if math.isfinite(hi_b) else 0.0)
+        bound = "lower" if v <= lo_b + tol else "upper" if v >= hi_b - tol else ""
+        ci = (max(v - half, lo_b), min(v + half, hi_b))
+        out[key] = Estimate(key, v, ci, unit, label, True, not poor, note if poor else "",
+                            bound, ci != (v - half, v + half))
     for key in PARAMS:
         if key not in out and (scn.motor is not None or key != "motor.torque_constant"):
             label, unit, *_ = PARAMS[key]
@@ -350,11 +399,15 @@ def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: 
             "")
     best = cost[d_best] if d_best in cost else min(cost.values())
     inside = [d for d in delays if m * math.log(cost[d] / best) <= CHI2_95] or [d_best]
+    searched = len(delays) > 1
+    at_end = searched and d_best == max(delays)  # the upper end of the search: may be longer
     out[DELAY_KEY] = Estimate(DELAY_KEY, float(d_best), (float(min(inside)), float(max(inside))),
-                              "samples", "transport delay", len(delays) > 1,
-                              len(inside) == 1 or len(delays) == 1,
-                              "" if len(inside) == 1 or len(delays) == 1 else
-                              "more high-frequency torque (raise --f-max)")
+                              "samples", "transport delay", searched,
+                              len(inside) == 1 or not searched,
+                              "raise --max-delay" if at_end else
+                              "" if len(inside) == 1 or not searched else
+                              "more high-frequency torque (raise --f-max)",
+                              "upper" if at_end else "", at_end)
     q = math.radians(scn.sensor.resolution_deg)
     s = math.sqrt(s2)
     lo, hi = s * (1 - 1.96 / math.sqrt(2 * dof)), s * (1 + 1.96 / math.sqrt(2 * dof))
