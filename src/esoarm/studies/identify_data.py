@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from esoarm.engines.batch import cover_with_physics_stamp  # registers the physics with numba
 from esoarm.hardware.logfile import read_log_columns, sample_period
@@ -38,7 +38,7 @@ from esoarm.scenario import ScenarioError
 cover_with_physics_stamp(__file__)
 
 __all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "check_supported", "read_ident_log",
-           "saturated_share", "simulate_segments"]
+           "saturated_share", "simulate_columns", "simulate_segments"]
 
 #: Shortest log accepted [s] and fewest samples.
 MIN_DURATION = 4.0
@@ -265,3 +265,16 @@ def simulate_segments(out, plant, src, t, seg_start, seg_len, x0, h, nsub):  # p
                 for m in range(k + 1, k0 + seg_len[s]):
                     out[m] = math.inf
                 break
+
+
+@njit(cache=True, parallel=True)
+def simulate_columns(outs, plants, srcs, t, seg_start, seg_len, x0s, h, nsub):  # pragma: no cover
+    """:func:`simulate_segments` for several parameter sets at once, in parallel on all cores.
+
+    Row c of ``outs`` gets the simulation with design vector ``plants[c]``, applied
+    torque ``srcs[c]`` and initial states ``x0s[c]`` -- the columns of a
+    finite-difference Jacobian.  Each row is computed exactly as one call of
+    :func:`simulate_segments` would (the same numbers, bit for bit).
+    """
+    for c in prange(outs.shape[0]):
+        simulate_segments(outs[c], plants[c], srcs[c], t, seg_start, seg_len, x0s[c], h, nsub)
