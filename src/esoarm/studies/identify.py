@@ -28,10 +28,15 @@ log with each segment's initial angle and rate estimated
 (:mod:`esoarm.studies.identify_data`); Levenberg-Marquardt
 (:func:`esoarm.studies.identify_fit.levenberg_marquardt`) with a
 finite-difference Jacobian that costs one simulation per rig parameter plus
-two for all initial states.  The delay (integer) is chosen by the cost over
-0 … ``max_delay``; the lag by a likelihood-ratio test of T > 0 against T = 0,
-after a screen (a quarter-sample lag with everything else held must lower the
-cost, else T = 0 is kept without a fit).  95 % intervals: ±1.96 standard
+two for all initial states (run together, in parallel over the columns).  The
+delay (integer) is chosen by the cost over 0 … ``max_delay``: the scenario's
+delay gets :data:`FIRST_ITER` iterations from the scenario's values, every
+other delay :data:`TRY_ITER` from there, and only the best is carried to
+convergence (a delay whose cost comes within :data:`CLOSE_DELAY` thresholds
+of it is tried again from the converged fit).  The lag is kept by a
+likelihood-ratio test of T > 0 against T = 0, after a screen (a quarter-sample
+lag with everything else held must lower the cost, else T = 0 is kept without
+a fit).  95 % intervals: ±1.96 standard
 errors from σ̂² (JᵀJ)⁻¹ (rig parameters, the initial states profiled out); for
 the delay, every delay whose cost is within the χ²₁ 95 % threshold of the
 best.  The intervals assume the model structure is right and the residual is
@@ -65,6 +70,13 @@ MOTOR_SCALE_NOTE = (
 CHI2_95 = 3.841458820694124
 #: A parameter is flagged poorly identifiable beyond this relative 95 % half-width.
 POOR_REL = 0.25
+#: Levenberg-Marquardt iterations of the first fit (the scenario's delay, from the
+#: scenario's values) before the other delays are tried from it, and of each try.
+FIRST_ITER = 6
+TRY_ITER = 4
+#: A tried delay whose cost is within this many χ²₁ 95 % thresholds of the best is tried
+#: again from the best fit (its cost after a few iterations is only an upper bound).
+CLOSE_DELAY = 10.0
 
 
 class FitFailed(RuntimeError):
@@ -269,23 +281,50 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
 
     base_free = [k for k in free if k != "actuator.lag"]
     fixed0 = {**nominal, **({"actuator.lag": 0.0} if fit_lag else {})}
-    # 1. the scenario's delay, from the scenario's values
+    # 1. the scenario's delay, from the scenario's values: a few iterations, enough to rank it
     d_nom = scn.actuator.delay_samples if scn.actuator.delay_samples in delays else delays[0]
     say(f"fitting {', '.join(base_free)} with delay {d_nom} sample(s)")
-    prob, sol = fit(d_nom, base_free, fixed0, [nominal[k] for k in base_free], None)
-    cost = {d_nom: 2.0 * sol.cost}
+    tried = {d_nom: fit(d_nom, base_free, fixed0, [nominal[k] for k in base_free], None,
+                        max_iter=FIRST_ITER)}
     # 2. the other delays, warm-started from that fit (a few iterations: an upper bound)
     for d in delays:
         if d != d_nom:
             say(f"trying delay {d} sample(s)")
-            cost[d] = 2.0 * fit(d, base_free, fixed0, list(sol.x[: prob.n_phys]),
-                                sol.x[prob.n_phys:], max_iter=4)[1].cost
-    d_best = min(cost, key=lambda d: cost[d])
-    if d_best != d_nom:
-        say(f"fitting with delay {d_best} sample(s)")
-        prob, sol = fit(d_best, base_free, fixed0, list(sol.x[: prob.n_phys]),
-                        sol.x[prob.n_phys:])
-        cost[d_best] = 2.0 * sol.cost
+            p0, s0 = tried[d_nom]
+            tried[d] = fit(d, base_free, fixed0, list(s0.x[: p0.n_phys]), s0.x[p0.n_phys:],
+                           max_iter=TRY_ITER)
+    cost = {d: 2.0 * sol.cost for d, (_p, sol) in tried.items()}
+    # 3. the best delay to convergence; a delay whose cost (an upper bound) comes close to
+    # it gets a few more iterations from the converged fit, and the best is decided again
+    refined: set[int] = set()
+    full: set[int] = set()  # delays fitted to the end (each at most once: no endless loop)
+    while True:
+        d_best = min(cost, key=lambda d: cost[d])
+        prob, sol = tried[d_best]
+        if not sol.converged and d_best not in full:
+            say(f"fitting with delay {d_best} sample(s)")
+            full.add(d_best)
+            before = sol.iterations
+            prob, sol = tried[d_best] = fit(d_best, base_free, fixed0,
+                                            list(sol.x[: prob.n_phys]), sol.x[prob.n_phys:])
+            sol.iterations += before  # reported: all iterations of this model
+            cost[d_best] = 2.0 * sol.cost
+            continue
+        if not sol.converged:
+            break  # reported below as a fit that did not converge
+        m = int(prob.mask.sum())
+        close = [d for d in delays if d != d_best and d not in refined
+                 and m * math.log(cost[d] / cost[d_best]) <= CLOSE_DELAY * CHI2_95]
+        if not close:
+            break
+        for d in close:
+            refined.add(d)
+            if tried[d][1].converged:
+                continue
+            say(f"trying delay {d} sample(s) again")
+            tried[d] = fit(d, base_free, fixed0, list(sol.x[: prob.n_phys]),
+                           sol.x[prob.n_phys:], max_iter=TRY_ITER)
+            cost[d] = min(cost[d], 2.0 * tried[d][1].cost)
     m = int(prob.mask.sum())
     # 3. the actuator lag: T > 0 kept only if it lowers the cost significantly (χ²₁ test)
     if fit_lag:
@@ -308,8 +347,10 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
             prob, sol, d_best = best_lag
             lag_rejected = None
             if not sol.converged:
+                before = sol.iterations
                 prob, sol = fit(d_best, names, nominal, list(sol.x[: prob.n_phys]),
                                 sol.x[prob.n_phys:])
+                sol.iterations += before
             cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
         elif best_lag is not None:
             lag_rejected = max(float(best_lag[1].x[len(base_free)]), lag_rejected or 0.0)
