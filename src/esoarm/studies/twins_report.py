@@ -122,8 +122,11 @@ def standing_in_the_way(reps: Mapping[str, Reproduction]) -> str:
     count = {n: sum(c.reproduced for c in rep.claims) for n, rep in reps.items()}
     if gains and GAINS_FREE in reps and twin_loss is not None:
         k1, k2 = gains["values"]["controller.k1"], gains["values"]["controller.k2"]
+        first_rep = next(iter(reps.values()))  # every twin runs the built-in controller
+        built_in = next(iter(first_rep.scenarios.values())).controller
         text.append(
-            f"The gains k1 = 10 1/s, k2 = 25 1/s² are the built-in scenarios' assumption (the "
+            f"The gains k1 = {built_in.k1:g} 1/s, k2 = {built_in.k2:g} 1/s² are the built-in "
+            "scenarios' assumption (the "
             f"paper does not give them). Calibrated with them free as well, the loss falls to "
             f"{gains['loss']:.2f} (k1 = {k1:.3g} 1/s, k2 = {k2:.3g} 1/s²): the gains stand in "
             f"the way of the magnitudes. They do not stand in the way of the claims: that twin "
