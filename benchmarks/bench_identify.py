@@ -52,6 +52,14 @@ CASES = {
 }
 
 
+TIME_HEAD = ("| twin | `identify()` in-process, median of 3 (max) [s] | "
+             "`esoarm identify LOG --json`, new process [s] | simulations of the log |\n"
+             "|---|---|---|---|")
+FOUND_HEAD = ("| twin | `rig.inertia_scale` | `rig.coulomb_friction` [N·m] | `actuator.lag` [s] | "
+              "delay [samples] | iterations of the final fit | validation fit [%] |\n"
+              "|---|---|---|---|---|---|---|")
+
+
 class _Count:
     """Counts the simulations of the log (one per parameter set) while installed."""
 
@@ -140,15 +148,13 @@ test-1 with `rig.inertia_scale = 1.25`, `rig.coulomb_friction = 0.08`,
 options of `esoarm identify` from test-1's values (delay 0 … 2 samples tried, the lag
 tested, the last 25 % kept for validation).
 
-| twin | `identify()` in-process, median of 3 (max) [s] | `esoarm identify LOG --json`, new process [s] | simulations of the log |
-|---|---|---|---|
+{TIME_HEAD}
 {rows}
 
 What the fits found (95 % intervals in brackets; the truth is 1.25, 0.08 N·m, and 0 or
 0.03 s with 0 or 1 sample of delay):
 
-| twin | `rig.inertia_scale` | `rig.coulomb_friction` [N·m] | `actuator.lag` [s] | delay [samples] | iterations of the final fit | validation fit [%] |
-|---|---|---|---|---|---|---|
+{FOUND_HEAD}
 {found}
 """
     Path(args.out).write_text(text, encoding="utf-8")
