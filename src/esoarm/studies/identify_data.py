@@ -1,10 +1,11 @@
 """Logs for identification: reading, checking, and the segment simulator of the fit.
 
-A log is a CSV with at least ``t`` [s, uniform], ``theta`` [rad, measured] and
-``u`` [N·m, the torque applied from that row on] -- the logs of ``esoarm
-excite``, ``esoarm run`` and ``esoarm simulate --out`` all qualify.  With a
+A log is a CSV with at least ``t`` [s, uniform], ``theta`` or ``y`` [rad,
+measured: ``y`` when the log has it, since a simulated series' ``theta`` is the
+true angle] and ``u`` [N·m, the torque applied from that row on] -- the logs of
+``esoarm excite``, ``esoarm run`` and ``esoarm simulate --out`` all qualify.  With a
 ``[motor]`` table the column ``duty`` [counts] is used instead of ``u``.  A row
-whose ``theta`` is ``nan`` is a sample lost on the link (``esoarm run`` logs
+whose angle is ``nan`` is a sample lost on the link (``esoarm run`` logs
 them); it is left out of the residuals.  Any other non-finite value is bad input.
 
 The fit simulates the rig over *segments* of the log (output error with the
@@ -45,7 +46,7 @@ MIN_DURATION = 4.0
 MIN_SAMPLES = 150
 #: Largest share of saturated samples (a saturated log is bad input; see saturated_share).
 MAX_SATURATED = 0.25
-#: Largest share of lost samples (theta = nan).
+#: Largest share of lost samples (measured angle nan).
 MAX_LOST = 0.05
 #: The angle's RMS spread must exceed this many times its sample-to-sample jitter (motion).
 MIN_MOTION_RATIO = 2.0
@@ -102,7 +103,7 @@ def read_ident_log(path: str | Path, torque_limit: float,
                    motor: MotorParams | None = None) -> IdentLog:
     """Read and check one log; raise :class:`ScenarioError` with one line naming the file.
 
-    Checks: the file exists and parses, has columns t, theta, u (and duty with
+    Checks: the file exists and parses, has columns t, y or theta, u (and duty with
     a ``motor``), no non-finite t or u, a uniform time column, at most
     :data:`MAX_LOST` lost samples, at least :data:`MIN_DURATION` s and
     :data:`MIN_SAMPLES` rows, some excitation, and at most :data:`MAX_SATURATED`
@@ -110,13 +111,19 @@ def read_ident_log(path: str | Path, torque_limit: float,
     """
     src = f"log '{path}'"
     need_duty = motor is not None
-    want = ["t", "theta", "u"] + (["duty"] if need_duty else [])
-    need = "need t [s], theta [rad], u [N·m]" + (
+    duty_col = ["duty"] if need_duty else []
+
+    def want(header: list[str]) -> list[str]:
+        # the measured angle: y when the log has it (a simulated series' theta is the true
+        # angle; in the logs of run and excite, y and theta are both the measurement)
+        return ["t", "y" if "y" in header else "theta", "u", *duty_col]
+
+    need = "need t [s], theta or y [rad, measured], u [N·m]" + (
         " and duty [counts] (the scenario has a [motor] table)" if need_duty else "")
     try:
-        _, data = read_log_columns(path, want, need, lost_ok=("theta",))
+        names, data = read_log_columns(path, want, need, lost_ok=("theta", "y"))
     except ScenarioError:
-        empty = _nan_column(path, want[2:])
+        empty = _nan_column(path, ["u", *duty_col])
         if empty is None:
             raise
         raise ScenarioError(f"{src}: column {empty} is nan in every row: "
@@ -133,7 +140,7 @@ def read_ident_log(path: str | Path, torque_limit: float,
                             f"needs at least {MIN_DURATION:g} s and {MIN_SAMPLES} samples")
     lost = np.isnan(y)  # never the first row (read_log_columns)
     if lost.mean() > MAX_LOST:
-        raise ScenarioError(f"{src}: {int(lost.sum())} rows with theta = nan "
+        raise ScenarioError(f"{src}: {int(lost.sum())} rows with {names[1]} = nan "
                             f"(at most {MAX_LOST:.0%} lost samples)")
     excitation = duty if duty is not None else u
     if np.std(excitation) < 1e-9 + 1e-3 * (np.max(np.abs(excitation)) if duty is None else 1):
