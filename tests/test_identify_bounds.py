@@ -47,6 +47,23 @@ def test_value_at_a_bound_is_reported_and_its_interval_clipped(run_cli, friction
     assert "interval is clipped to the bounds" in text.stdout
 
 
+def test_a_physical_zero_alone_does_not_make_the_fit_untrustworthy(frictionless_log) -> None:
+    import dataclasses
+
+    from esoarm.studies.identify import identify
+    from esoarm.studies.identify_data import read_ident_log
+
+    scn = load_scenario("test-1")
+    log = read_ident_log(frictionless_log, scn.actuator.torque_limit)
+    res = identify(scn, [log], max_delay=0, fix=("actuator.lag",))
+    visc = res.estimates["rig.viscous_friction"]
+    assert visc.bound == "lower" and visc.value == 0.0
+    res.validation["whiteness"] = {**res.validation["whiteness"], "white": False}
+    assert res.untrustworthy() == ""  # "no viscous friction" is an answer
+    res.estimates["rig.viscous_friction"] = dataclasses.replace(visc, bound="upper")
+    assert "rig.viscous_friction at the upper bound" in res.untrustworthy()
+
+
 def test_at_a_bound_and_not_white_is_not_trustworthy(run_cli, tmp_path):
     """Friction far above the model's range (the arm creeps, sticks and slips): the fit runs
     the viscous friction into its upper bound and cannot whiten the residual."""

@@ -164,8 +164,14 @@ class IdentResult:
     def untrustworthy(self) -> str:
         """Why the result is not trustworthy ("" if it is): a parameter ended at a bound of
         the fit and the validation residual is not white (the model does not explain the
-        log, and the intervals mean nothing)."""
-        pinned = [e for e in self.estimates.values() if e.at_bound]
+        log, and the intervals mean nothing).
+
+        A value at a lower bound of 0 (no gravity term, no friction, no lag) is a physical
+        answer, not a sign of a model that does not fit: it is reported but does not make the
+        fit untrustworthy (the whiteness test alone flags a few per cent of white residuals,
+        which refused exact fits of frictionless twins)."""
+        pinned = [e for e in self.estimates.values()
+                  if e.at_bound and not (e.bound == "lower" and e.value == 0.0)]
         white = self.validation.get("whiteness", {}).get("white", True)
         if not pinned or white:
             return ""
