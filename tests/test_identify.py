@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from esoarm.hardware.excite import TWIN_LOG_COLUMNS, excite_twin
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import load_scenario
 from esoarm.studies.excitation import ExcitationPlan
 from esoarm.studies.identify import identify
@@ -49,7 +50,7 @@ def test_recovers_known_twin(case, tmp_path):
     sets, nominal_sets = TRUTHS[case]
     truth, path = _twin_log(tmp_path, sets)
     nominal = load_scenario("test-1", nominal_sets)
-    log = read_ident_log(path, nominal.actuator.torque_limit, nominal.motor is not None)
+    log = read_ident_log(path, nominal.actuator.torque_limit, MotorParams.from_scenario(nominal))
     res = identify(nominal, [log])
     for key, est in res.estimates.items():
         if not est.fitted or key == "sensor.noise_deg":

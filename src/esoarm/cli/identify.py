@@ -192,6 +192,7 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     determine, and validates on data not used for fitting (fit %, residual
     whiteness). Closed-loop logs work: the fit uses the torque actually logged.
     """
+    from esoarm.plants.motor import MotorParams
     from esoarm.studies.identify import FitFailed
     from esoarm.studies.identify import identify as run_fit
     from esoarm.studies.identify_data import read_ident_log
@@ -207,7 +208,7 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     scn = resolve_scenario(scenario, overrides)
     lever_only(scn, "identify")
     limit = scn.actuator.torque_limit
-    motor = scn.motor is not None
+    motor = MotorParams.from_scenario(scn)
     fit_logs = [read_ident_log(p, limit, motor) for p in logs]
     val_logs = [read_ident_log(p, limit, motor) for p in validate]
     say = _progress() if stderr_is_tty() and not as_json else None

@@ -43,11 +43,11 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
     from esoarm.engines.simulation import SimulationDiverged
     from esoarm.studies.paper_twin import twin_overrides
     from esoarm.studies.reproduce import figure_specs, plan_runs, run_reproduction, write_outputs
-    from esoarm.studies.twins_report import compared_twins, twins_section
+    from esoarm.studies.twins_report import NOISE_SCAN, compared_twins, twins_section
 
     out = output_dir(out_dir, "--out")
     overrides = twin_overrides(twin)
-    n_runs = len(plan_runs(overrides)) + 2 * len(plan_runs(compare=False))
+    n_runs = len(plan_runs(overrides)) + (2 + len(NOISE_SCAN)) * len(plan_runs(compare=False))
     console = Console(stderr=True)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())

@@ -28,10 +28,15 @@ log with each segment's initial angle and rate estimated
 (:mod:`esoarm.studies.identify_data`); Levenberg-Marquardt
 (:func:`esoarm.studies.identify_fit.levenberg_marquardt`) with a
 finite-difference Jacobian that costs one simulation per rig parameter plus
-two for all initial states.  The delay (integer) is chosen by the cost over
-0 … ``max_delay``; the lag by a likelihood-ratio test of T > 0 against T = 0,
-after a screen (a quarter-sample lag with everything else held must lower the
-cost, else T = 0 is kept without a fit).  95 % intervals: ±1.96 standard
+two for all initial states (run together, in parallel over the columns).  The
+delay (integer) is chosen by the cost over 0 … ``max_delay``: the scenario's
+delay gets :data:`FIRST_ITER` iterations from the scenario's values, every
+other delay :data:`TRY_ITER` from there, and only the best is carried to
+convergence (a delay whose cost comes within :data:`CLOSE_DELAY` thresholds
+of it is tried again from the converged fit).  The lag is kept by a
+likelihood-ratio test of T > 0 against T = 0, after a screen (a quarter-sample
+lag with everything else held must lower the cost, else T = 0 is kept without
+a fit).  95 % intervals: ±1.96 standard
 errors from σ̂² (JᵀJ)⁻¹ (rig parameters, the initial states profiled out); for
 the delay, every delay whose cost is within the χ²₁ 95 % threshold of the
 best.  The intervals assume the model structure is right and the residual is
@@ -65,10 +70,24 @@ MOTOR_SCALE_NOTE = (
 CHI2_95 = 3.841458820694124
 #: A parameter is flagged poorly identifiable beyond this relative 95 % half-width.
 POOR_REL = 0.25
+#: Levenberg-Marquardt iterations of the first fit (the scenario's delay, from the
+#: scenario's values) before the other delays are tried from it, and of each try.
+FIRST_ITER = 6
+TRY_ITER = 4
+#: A tried delay whose cost is within this many χ²₁ 95 % thresholds of the best is tried
+#: again from the best fit (its cost after a few iterations is only an upper bound).
+CLOSE_DELAY = 10.0
 
 
 class FitFailed(RuntimeError):
-    """The fit did not converge (nothing is written)."""
+    """The fit did not converge, or its result is not trustworthy (nothing is written).
+
+    ``result`` holds the untrustworthy result when there is one (for inspection).
+    """
+
+    def __init__(self, message: str, result: IdentResult | None = None) -> None:
+        super().__init__(message)
+        self.result = result
 
 
 @dataclass(frozen=True)
@@ -83,11 +102,23 @@ class Estimate:
     fitted: bool = True
     identifiable: bool = True
     advice: str = ""
+    #: "lower" or "upper" when the value ended at that bound of the fit (the log pulls
+    #: it beyond); "" inside the bounds.
+    bound: str = ""
+    #: Whether the 95 % interval was clipped to the bounds of the fit.
+    ci_clipped: bool = False
+
+    @property
+    def at_bound(self) -> bool:
+        """The fit ended at a bound (the value is that bound)."""
+        return bool(self.bound)
 
     def to_dict(self) -> dict:
         """JSON-ready."""
         return {"value": self.value, "ci95": list(self.ci95), "unit": self.unit,
                 "fitted": self.fitted, "identifiable": self.identifiable,
+                "at_bound": self.at_bound, "ci95_clipped": self.ci_clipped,
+                **({"bound": self.bound} if self.bound else {}),
                 **({"advice": self.advice} if self.advice else {})}
 
 
@@ -127,7 +158,30 @@ class IdentResult:
                     "logs": self.fit_logs},
             "validation": {**self.validation, "logs": self.validation_logs},
             "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
+            "at_bound": [k for k, e in self.estimates.items() if e.at_bound],
         }
+
+    def untrustworthy(self) -> str:
+        """Why the result is not trustworthy ("" if it is): a parameter ended at a bound of
+        the fit and the validation residual is not white (the model does not explain the
+        log, and the intervals mean nothing).
+
+        A value at a lower bound of 0 (no gravity term, no friction, no lag) is a physical
+        answer, not a sign of a model that does not fit: it is reported but does not make the
+        fit untrustworthy (the whiteness test alone flags a few per cent of white residuals,
+        which refused exact fits of frictionless twins)."""
+        pinned = [e for e in self.estimates.values()
+                  if e.at_bound and not (e.bound == "lower" and e.value == 0.0)]
+        white = self.validation.get("whiteness", {}).get("white", True)
+        if not pinned or white:
+            return ""
+        w = self.validation["whiteness"]
+        ends = ", ".join(f"{e.key} at the {e.bound} bound {e.value:g} {e.unit}" for e in pinned)
+        return (f"the fit is not trustworthy: it ended with {ends}, and the validation residual "
+                f"is not white ({w['outside']} of {w['lags']} autocorrelation lags outside "
+                f"±{w['band']:.3g}): the model does not explain this log; check the rig and "
+                "the log (a blocked or unusual arm), hold that parameter (--fix, --set) or "
+                "record a richer experiment (esoarm excite)")
 
     def fitted_scenario(self) -> Scenario:
         """The scenario with the fitted rig as the twin and the plant updated to the fit.
@@ -195,7 +249,9 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     ScenarioError
         Bad input (unknown key to fix, a log at another rate, too short a part).
     FitFailed
-        The solver did not converge.
+        The solver did not converge, or the result is not trustworthy: a
+        parameter ended at a bound of the fit and the validation residual is not
+        white (:meth:`IdentResult.untrustworthy`; the result is in the exception).
     """
     t_start = time.perf_counter()
     check_supported(scn)
@@ -231,23 +287,50 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
 
     base_free = [k for k in free if k != "actuator.lag"]
     fixed0 = {**nominal, **({"actuator.lag": 0.0} if fit_lag else {})}
-    # 1. the scenario's delay, from the scenario's values
+    # 1. the scenario's delay, from the scenario's values: a few iterations, enough to rank it
     d_nom = scn.actuator.delay_samples if scn.actuator.delay_samples in delays else delays[0]
     say(f"fitting {', '.join(base_free)} with delay {d_nom} sample(s)")
-    prob, sol = fit(d_nom, base_free, fixed0, [nominal[k] for k in base_free], None)
-    cost = {d_nom: 2.0 * sol.cost}
+    tried = {d_nom: fit(d_nom, base_free, fixed0, [nominal[k] for k in base_free], None,
+                        max_iter=FIRST_ITER)}
     # 2. the other delays, warm-started from that fit (a few iterations: an upper bound)
     for d in delays:
         if d != d_nom:
             say(f"trying delay {d} sample(s)")
-            cost[d] = 2.0 * fit(d, base_free, fixed0, list(sol.x[: prob.n_phys]),
-                                sol.x[prob.n_phys:], max_iter=4)[1].cost
-    d_best = min(cost, key=lambda d: cost[d])
-    if d_best != d_nom:
-        say(f"fitting with delay {d_best} sample(s)")
-        prob, sol = fit(d_best, base_free, fixed0, list(sol.x[: prob.n_phys]),
-                        sol.x[prob.n_phys:])
-        cost[d_best] = 2.0 * sol.cost
+            p0, s0 = tried[d_nom]
+            tried[d] = fit(d, base_free, fixed0, list(s0.x[: p0.n_phys]), s0.x[p0.n_phys:],
+                           max_iter=TRY_ITER)
+    cost = {d: 2.0 * sol.cost for d, (_p, sol) in tried.items()}
+    # 3. the best delay to convergence; a delay whose cost (an upper bound) comes close to
+    # it gets a few more iterations from the converged fit, and the best is decided again
+    refined: set[int] = set()
+    full: set[int] = set()  # delays fitted to the end (each at most once: no endless loop)
+    while True:
+        d_best = min(cost, key=lambda d: cost[d])
+        prob, sol = tried[d_best]
+        if not sol.converged and d_best not in full:
+            say(f"fitting with delay {d_best} sample(s)")
+            full.add(d_best)
+            before = sol.iterations
+            prob, sol = tried[d_best] = fit(d_best, base_free, fixed0,
+                                            list(sol.x[: prob.n_phys]), sol.x[prob.n_phys:])
+            sol.iterations += before  # reported: all iterations of this model
+            cost[d_best] = 2.0 * sol.cost
+            continue
+        if not sol.converged:
+            break  # reported below as a fit that did not converge
+        m = int(prob.mask.sum())
+        close = [d for d in delays if d != d_best and d not in refined
+                 and m * math.log(cost[d] / cost[d_best]) <= CLOSE_DELAY * CHI2_95]
+        if not close:
+            break
+        for d in close:
+            refined.add(d)
+            if tried[d][1].converged:
+                continue
+            say(f"trying delay {d} sample(s) again")
+            tried[d] = fit(d, base_free, fixed0, list(sol.x[: prob.n_phys]),
+                           sol.x[prob.n_phys:], max_iter=TRY_ITER)
+            cost[d] = min(cost[d], 2.0 * tried[d][1].cost)
     m = int(prob.mask.sum())
     # 3. the actuator lag: T > 0 kept only if it lowers the cost significantly (χ²₁ test)
     if fit_lag:
@@ -270,8 +353,10 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
             prob, sol, d_best = best_lag
             lag_rejected = None
             if not sol.converged:
+                before = sol.iterations
                 prob, sol = fit(d_best, names, nominal, list(sol.x[: prob.n_phys]),
                                 sol.x[prob.n_phys:])
+                sol.iterations += before
             cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
         elif best_lag is not None:
             lag_rejected = max(float(best_lag[1].x[len(base_free)]), lag_rejected or 0.0)
@@ -290,12 +375,16 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     curves = {"fit": (prob.t, prob.y, np.where(mask, y_fit, np.nan))}
     if val:
         curves["validation"] = val.pop("_curves")
-    return IdentResult(
+    res = IdentResult(
         scenario=scn, estimates=estimates, gravity=gravity, fit_percent=fit_pct,
         validation=val, residual_rms=resid_s, cost_by_delay=cost, n_fit=m,
         segment_seconds=seg_samples * ts, elapsed=time.perf_counter() - t_start,
         iterations=int(sol.iterations), fit_logs=sorted({lg.path for lg in fit_logs}),
         validation_logs=sorted({lg.path for lg in val_logs}), curves=curves)
+    why = res.untrustworthy()
+    if why:
+        raise FitFailed(why, res)
+    return res
 
 
 def _lag_lowers_cost(prob: Problem, sol, lag_lo: float, probe: float) -> bool:  # type: ignore[no-untyped-def]
@@ -324,6 +413,7 @@ def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: 
     cov = s2 * np.linalg.pinv(jac.T @ jac)
     se = np.sqrt(np.maximum(np.diag(cov)[: prob.n_phys], 0.0))
     corr = cov[: prob.n_phys, : prob.n_phys] / np.maximum(np.outer(se, se), 1e-300)
+    lower, upper = prob.bounds()
     out: dict[str, Estimate] = {}
     for i, key in enumerate(prob.free):
         label, unit, scale, _b, advice = PARAMS[key]
@@ -335,8 +425,14 @@ def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: 
             advice = ("with a [motor] table b adds to the back-EMF damping (N·Kt)²/R; only "
                       "their sum is well determined")
         note = advice + (f"; strongly correlated with {', '.join(others)}" if others else "")
-        out[key] = Estimate(key, v, (v - half, v + half), unit, label, True, not poor,
-                            note if poor else "")
+        # a value at a bound of the fit: the interval (a local linearization) runs past it;
+        # clip it to the bounds and say so (the value is then a limit, not an optimum)
+        lo_b, hi_b = float(lower[i]), float(upper[i])
+        tol = 1e-9 * max(scale, abs(lo_b), abs(hi_b) if math.isfinite(hi_b) else 0.0)
+        bound = "lower" if v <= lo_b + tol else "upper" if v >= hi_b - tol else ""
+        ci = (max(v - half, lo_b), min(v + half, hi_b))
+        out[key] = Estimate(key, v, ci, unit, label, True, not poor, note if poor else "",
+                            bound, ci != (v - half, v + half))
     for key in PARAMS:
         if key not in out and (scn.motor is not None or key != "motor.torque_constant"):
             label, unit, *_ = PARAMS[key]
@@ -350,11 +446,15 @@ def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: 
             "")
     best = cost[d_best] if d_best in cost else min(cost.values())
     inside = [d for d in delays if m * math.log(cost[d] / best) <= CHI2_95] or [d_best]
+    searched = len(delays) > 1
+    at_end = searched and d_best == max(delays)  # the upper end of the search: may be longer
     out[DELAY_KEY] = Estimate(DELAY_KEY, float(d_best), (float(min(inside)), float(max(inside))),
-                              "samples", "transport delay", len(delays) > 1,
-                              len(inside) == 1 or len(delays) == 1,
-                              "" if len(inside) == 1 or len(delays) == 1 else
-                              "more high-frequency torque (raise --f-max)")
+                              "samples", "transport delay", searched,
+                              len(inside) == 1 or not searched,
+                              "raise --max-delay" if at_end else
+                              "" if len(inside) == 1 or not searched else
+                              "more high-frequency torque (raise --f-max)",
+                              "upper" if at_end else "", at_end)
     q = math.radians(scn.sensor.resolution_deg)
     s = math.sqrt(s2)
     lo, hi = s * (1 - 1.96 / math.sqrt(2 * dof)), s * (1 + 1.96 / math.sqrt(2 * dof))

@@ -1,10 +1,11 @@
 """Logs for identification: reading, checking, and the segment simulator of the fit.
 
-A log is a CSV with at least ``t`` [s, uniform], ``theta`` [rad, measured] and
-``u`` [N·m, the torque applied from that row on] -- the logs of ``esoarm
-excite``, ``esoarm run`` and ``esoarm simulate --out`` all qualify.  With a
+A log is a CSV with at least ``t`` [s, uniform], ``theta`` or ``y`` [rad,
+measured: ``y`` when the log has it, since a simulated series' ``theta`` is the
+true angle] and ``u`` [N·m, the torque applied from that row on] -- the logs of
+``esoarm excite``, ``esoarm run`` and ``esoarm simulate --out`` all qualify.  With a
 ``[motor]`` table the column ``duty`` [counts] is used instead of ``u``.  A row
-whose ``theta`` is ``nan`` is a sample lost on the link (``esoarm run`` logs
+whose angle is ``nan`` is a sample lost on the link (``esoarm run`` logs
 them); it is left out of the residuals.  Any other non-finite value is bad input.
 
 The fit simulates the rig over *segments* of the log (output error with the
@@ -26,26 +27,29 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from esoarm.engines.batch import cover_with_physics_stamp  # registers the physics with numba
 from esoarm.hardware.logfile import read_log_columns, sample_period
 from esoarm.plants.lever_arm import advance
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import ScenarioError
 
 # the compiled segment simulator is cached on disk, keyed on the physics sources too
 cover_with_physics_stamp(__file__)
 
 __all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "check_supported", "read_ident_log",
-           "simulate_segments"]
+           "saturated_share", "simulate_columns", "simulate_segments"]
 
 #: Shortest log accepted [s] and fewest samples.
 MIN_DURATION = 4.0
 MIN_SAMPLES = 150
-#: Largest share of samples with |u| at the torque limit (a saturated log is bad input).
+#: Largest share of saturated samples (a saturated log is bad input; see saturated_share).
 MAX_SATURATED = 0.25
-#: Largest share of lost samples (theta = nan).
+#: Largest share of lost samples (measured angle nan).
 MAX_LOST = 0.05
+#: The angle's RMS spread must exceed this many times its sample-to-sample jitter (motion).
+MIN_MOTION_RATIO = 2.0
 
 
 @dataclass(frozen=True)
@@ -95,20 +99,35 @@ def check_supported(scn: object, what: str = "identification") -> None:
                             "needs the linear ESO (observer.eps) for its rate estimate")
 
 
-def read_ident_log(path: str | Path, torque_limit: float, need_duty: bool = False) -> IdentLog:
+def read_ident_log(path: str | Path, torque_limit: float,
+                   motor: MotorParams | None = None) -> IdentLog:
     """Read and check one log; raise :class:`ScenarioError` with one line naming the file.
 
-    Checks: the file exists and parses, has columns t, theta, u (and duty when
-    ``need_duty``), no non-finite t or u, a uniform time column, at most
+    Checks: the file exists and parses, has columns t, y or theta, u (and duty with
+    a ``motor``), no non-finite t or u, a uniform time column, at most
     :data:`MAX_LOST` lost samples, at least :data:`MIN_DURATION` s and
     :data:`MIN_SAMPLES` rows, some excitation, and at most :data:`MAX_SATURATED`
-    of the samples at ±``torque_limit`` [N·m].
+    of the samples saturated (:func:`saturated_share`).
     """
     src = f"log '{path}'"
-    want = ["t", "theta", "u"] + (["duty"] if need_duty else [])
-    need = "need t [s], theta [rad], u [N·m]" + (
+    need_duty = motor is not None
+    duty_col = ["duty"] if need_duty else []
+
+    def want(header: list[str]) -> list[str]:
+        # the measured angle: y when the log has it (a simulated series' theta is the true
+        # angle; in the logs of run and excite, y and theta are both the measurement)
+        return ["t", "y" if "y" in header else "theta", "u", *duty_col]
+
+    need = "need t [s], theta or y [rad, measured], u [N·m]" + (
         " and duty [counts] (the scenario has a [motor] table)" if need_duty else "")
-    _, data = read_log_columns(path, want, need, lost_ok=("theta",))
+    try:
+        names, data = read_log_columns(path, want, need, lost_ok=("theta", "y"))
+    except ScenarioError:
+        empty = _nan_column(path, ["u", *duty_col])
+        if empty is None:
+            raise
+        raise ScenarioError(f"{src}: column {empty} is nan in every row: "
+                            f"{_NAN_COLUMN_WHY[empty]}") from None
     t, y, u = data[:, 0], data[:, 1], data[:, 2]
     duty = data[:, 3] if need_duty else None
     n = len(t)
@@ -121,23 +140,101 @@ def read_ident_log(path: str | Path, torque_limit: float, need_duty: bool = Fals
                             f"needs at least {MIN_DURATION:g} s and {MIN_SAMPLES} samples")
     lost = np.isnan(y)  # never the first row (read_log_columns)
     if lost.mean() > MAX_LOST:
-        raise ScenarioError(f"{src}: {int(lost.sum())} rows with theta = nan "
+        raise ScenarioError(f"{src}: {int(lost.sum())} rows with {names[1]} = nan "
                             f"(at most {MAX_LOST:.0%} lost samples)")
     excitation = duty if duty is not None else u
     if np.std(excitation) < 1e-9 + 1e-3 * (np.max(np.abs(excitation)) if duty is None else 1):
         raise ScenarioError(f"{src}: not exciting enough: the input is (nearly) constant; "
                             "record an experiment with 'esoarm excite'")
-    if np.nanmax(y) - np.nanmin(y) < 1e-3:
-        raise ScenarioError(f"{src}: not exciting enough: the angle moved less than 1e-3 rad; "
-                            "raise the excitation amplitude ('esoarm excite --amplitude')")
-    if duty is None:
-        sat = np.mean(np.abs(u) >= 0.999 * torque_limit)
-        if sat > MAX_SATURATED:
-            raise ScenarioError(
-                f"{src}: saturated: {sat:.0%} of the samples at the torque limit "
-                f"±{torque_limit:g} N·m (at most {MAX_SATURATED:.0%}); lower the excitation "
-                "amplitude")
+    _check_the_arm_moved(src, y)
+    sat, where = saturated_share(u, duty, torque_limit, motor)
+    if sat > MAX_SATURATED:
+        raise ScenarioError(f"{src}: saturated: {sat:.0%} of the samples {where} (at most "
+                            f"{MAX_SATURATED:.0%}); lower the excitation amplitude")
     return IdentLog(str(path), t, y, u, duty, ts)
+
+
+def _check_the_arm_moved(src: str, y: np.ndarray) -> None:
+    """One-line :class:`ScenarioError` unless the measured angle ``y`` [rad] shows motion.
+
+    Motion, not noise: the angle's RMS spread must exceed :data:`MIN_MOTION_RATIO`
+    times its sample-to-sample jitter RMS(Δy)/√2 -- equal for white encoder noise
+    on an arm at rest, tens of times larger for an arm that moves.
+    """
+    what = ""
+    if np.nanmax(y) - np.nanmin(y) < 1e-3:
+        what = "the measured angle stays within 1e-3 rad"
+    else:
+        spread = float(np.nanstd(y))
+        jitter = float(np.nanstd(np.diff(y))) / math.sqrt(2.0)
+        if spread <= MIN_MOTION_RATIO * jitter:
+            what = (f"the measured angle varies by {spread:.2g} rad RMS, no more than its "
+                    f"sample-to-sample jitter {jitter:.2g} rad: encoder noise, not motion")
+    if what:
+        raise ScenarioError(
+            f"{src}: not exciting enough: the arm did not move ({what}); the experiment did "
+            "not excite the arm: check that the motor drives it (power, wiring, no brake or "
+            "block), then record again with more torque ('esoarm excite --amplitude')")
+
+
+#: Why a column can be nan in every row, and what to do (the message of read_ident_log).
+_NAN_COLUMN_WHY = {
+    "duty": "the log was made without a [motor] table (an ideal torque source) but the "
+            "scenario has one; identify it with a scenario without the [motor] table, or "
+            "record the log with the [motor] table",
+    "u": "the torque applied [N·m] was not logged, and identification needs it; record "
+         "the log with 'esoarm excite' or 'esoarm run'",
+}
+
+
+def _nan_column(path: str | Path, names: list[str]) -> str | None:
+    """The first of ``names`` that is nan in every data row of the CSV at ``path``, if any.
+
+    Only called once reading has failed, to say why: any error here means no.
+    """
+    import csv
+
+    try:
+        with open(path, encoding="utf-8", newline="") as fh:
+            reader = csv.reader(fh)
+            header = [h.strip() for h in next(reader, [])]
+            idx = {n: header.index(n) for n in names if n in header}
+            nan_only = dict.fromkeys(idx, True)
+            seen = False
+            for row in reader:
+                if not row:
+                    continue
+                seen = True
+                for name, i in idx.items():
+                    if nan_only[name] and row[i].strip().lower() != "nan":
+                        nan_only[name] = False
+    except (OSError, UnicodeDecodeError, csv.Error, IndexError):
+        return None
+    return next((n for n in names if seen and nan_only.get(n)), None)
+
+
+def saturated_share(u: np.ndarray, duty: np.ndarray | None, torque_limit: float,
+                    motor: MotorParams | None) -> tuple[float, str]:
+    """Share of saturated samples and where they saturate (for the message).
+
+    Without a motor: |u| at the torque limit [N·m] (within 0.1 %).  With one, in
+    the motor's terms: the duty at ±pwm_max (full supply, the driver's limit), or
+    the logged u -- the torque the duty gives, which the duty's rounding puts
+    within one duty count of the limit when the command was clipped -- within
+    one count's torque N·Kt·Vs/(R·pwm_max·(1 − deadband)) of the torque limit.
+    """
+    if motor is None or duty is None:
+        at_torque = np.abs(u) >= 0.999 * torque_limit
+        return float(np.mean(at_torque)), f"at the torque limit ±{torque_limit:g} N·m"
+    count = motor.stall_gain / (motor.pwm_max * (1.0 - motor.deadband))
+    full = np.abs(duty) >= motor.pwm_max
+    at_torque = np.abs(u) >= torque_limit - count
+    parts = []
+    if full.any():
+        parts.append(f"at full duty (|duty| = {motor.pwm_max} counts, the motor's limit)")
+    if (at_torque & ~full).any() or not parts:
+        parts.append(f"at the torque limit ±{torque_limit:g} N·m")
+    return float(np.mean(full | at_torque)), " or ".join(parts)
 
 
 def segments(n: int, length: int, start: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -175,3 +272,16 @@ def simulate_segments(out, plant, src, t, seg_start, seg_len, x0, h, nsub):  # p
                 for m in range(k + 1, k0 + seg_len[s]):
                     out[m] = math.inf
                 break
+
+
+@njit(cache=True, parallel=True)
+def simulate_columns(outs, plants, srcs, t, seg_start, seg_len, x0s, h, nsub):  # pragma: no cover
+    """:func:`simulate_segments` for several parameter sets at once, in parallel on all cores.
+
+    Row c of ``outs`` gets the simulation with design vector ``plants[c]``, applied
+    torque ``srcs[c]`` and initial states ``x0s[c]`` -- the columns of a
+    finite-difference Jacobian.  Each row is computed exactly as one call of
+    :func:`simulate_segments` would (the same numbers, bit for bit).
+    """
+    for c in prange(outs.shape[0]):
+        simulate_segments(outs[c], plants[c], srcs[c], t, seg_start, seg_len, x0s[c], h, nsub)

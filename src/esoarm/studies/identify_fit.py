@@ -9,7 +9,8 @@ Jacobian, bounds and scales.  :func:`levenberg_marquardt` minimizes it.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,7 +30,7 @@ from esoarm.plants.lever_arm import (
 )
 from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario
-from esoarm.studies.identify_data import IdentLog, segments, simulate_segments
+from esoarm.studies.identify_data import IdentLog, segments, simulate_columns, simulate_segments
 
 __all__ = ["PARAMS", "Problem", "Solution", "levenberg_marquardt"]
 
@@ -91,13 +92,17 @@ class Problem:
         self.mask = rows & np.isfinite(self.y)
         self.n_phys = len(free)
         self.n_seg = len(self.seg_start)
-        self._out = np.empty(len(self.y))
+        self._out = np.zeros(len(self.y))
+        # the last prediction (x, θ̂): the Jacobian at the point the solver just accepted
+        # starts from the prediction that accepted it, instead of simulating it again
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
 
     def with_fixed(self, changes: dict[str, float]) -> Problem:
         """The same problem (data, segments, delay) with some held values changed."""
         other = copy.copy(self)
         other.fixed = {**self.fixed, **changes}
-        other._out = np.empty(len(self.y))
+        other._out = np.zeros(len(self.y))
+        other._last = None
         return other
 
     # -- parameters ----------------------------------------------------------
@@ -140,21 +145,40 @@ class Problem:
         return x0
 
     # -- model ---------------------------------------------------------------
-    def predict(self, x: np.ndarray) -> np.ndarray:
+    def design(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(design vector of the lever-arm kind, applied torque) at parameters ``x``."""
         rig, src = self.rig_and_source(self.phys(x))
+        return np.concatenate([[float(CODE)], rig]), src
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """Simulated angle θ̂ [rad] at every sample (rows outside the segments are 0)."""
+        last = self._last
+        if last is not None and np.array_equal(last[0], x):
+            return last[1]
+        plant, src = self.design(x)
         out = self._out
-        plant = np.concatenate([[float(CODE)], rig])  # the lever-arm kind's design vector
         simulate_segments(out, plant, src, self.t, self.seg_start, self.seg_len,
                           np.ascontiguousarray(x[self.n_phys:]), self.h, self.nsub)
-        return out.copy()
+        pred = out.copy()
+        pred.flags.writeable = False  # shared with the cache
+        self._last = (x.copy(), pred)
+        return pred
 
     def residual(self, x: np.ndarray) -> np.ndarray:
         r = (self.predict(x) - self.y)[self.mask]
         return np.where(np.isfinite(r), r, 1e3)
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """Forward differences: one simulation per rig parameter and two for all initial
+        states (the segments are independent), run together on all cores."""
         base = self.predict(x)
-        cols = np.zeros((len(self.y), len(x)))
+        n_cols = self.n_phys + 2
+        states = np.ascontiguousarray(x[self.n_phys:])
+        plant0, src0 = self.design(x)
+        plants = np.empty((n_cols, len(plant0)))
+        srcs = np.empty((n_cols, len(src0)))
+        x0s = np.empty((n_cols, len(states)))
+        steps = np.empty(n_cols)
         scales = self.scales()
         for i in range(self.n_phys):
             step = 1e-6 * max(abs(x[i]), scales[i])
@@ -162,14 +186,25 @@ class Problem:
                 step = -step
             xp = x.copy()
             xp[i] += step
-            cols[:, i] = (self.predict(xp) - base) / step
+            plants[i], srcs[i] = self.design(xp)
+            x0s[i] = states
+            steps[i] = step
+        for j, step in ((0, 1e-6), (1, 1e-5)):
+            plants[self.n_phys + j], srcs[self.n_phys + j] = plant0, src0
+            x0s[self.n_phys + j] = states
+            x0s[self.n_phys + j, j::2] += step
+            steps[self.n_phys + j] = step
+        outs = np.zeros((n_cols, len(self.y)))
+        simulate_columns(outs, plants, srcs, self.t, self.seg_start, self.seg_len, x0s,
+                         self.h, self.nsub)
+        cols = np.zeros((len(self.y), len(x)))
+        for i in range(self.n_phys):
+            cols[:, i] = (outs[i] - base) / steps[i]
         seg_of = np.repeat(np.arange(self.n_seg), self.seg_len)
         rows = np.concatenate([np.arange(s, s + n) for s, n in zip(self.seg_start, self.seg_len,
                                                                    strict=True)])
-        for j, step in ((0, 1e-6), (1, 1e-5)):
-            xp = x.copy()
-            xp[self.n_phys + j::2] += step
-            diff = (self.predict(xp) - base) / step
+        for j in (0, 1):
+            diff = (outs[self.n_phys + j] - base) / steps[self.n_phys + j]
             cols[rows, self.n_phys + 2 * seg_of + j] = diff[rows]
         jac = cols[self.mask]
         return np.where(np.isfinite(jac), jac, 0.0)
@@ -194,13 +229,25 @@ class Problem:
 
 @dataclass
 class Solution:
+    """Where :func:`levenberg_marquardt` stopped; ``jac`` (the Jacobian there, for the
+    intervals) is computed when first asked for: a fit that only warm-starts another
+    never needs it."""
+
     x: np.ndarray
     fun: np.ndarray
-    jac: np.ndarray
     cost: float  # ½‖r‖²
     converged: bool
     iterations: int
     message: str
+    jac_at: Callable[[np.ndarray], np.ndarray] = field(repr=False)
+    _jac: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def jac(self) -> np.ndarray:
+        """The Jacobian of the residual at ``x``."""
+        if self._jac is None:
+            self._jac = self.jac_at(self.x)
+        return self._jac
 
 
 def levenberg_marquardt(fun, jac, x, lo, hi, max_iter):  # type: ignore[no-untyped-def]
@@ -219,6 +266,7 @@ def levenberg_marquardt(fun, jac, x, lo, hi, max_iter):  # type: ignore[no-untyp
     it = 0
     message = "iteration limit reached"
     converged = False
+    J_final = None
     for it in range(1, max_iter + 1):  # noqa: B007
         J = jac(x)
         A = J.T @ J
@@ -240,6 +288,7 @@ def levenberg_marquardt(fun, jac, x, lo, hi, max_iter):  # type: ignore[no-untyp
         if not (np.isfinite(cn) and cn <= cost):
             converged = True  # no damping lowers the cost: a (local) minimum
             message = "no further decrease"
+            J_final = J  # x did not move
             break
         # stop when the step is a hundredth of a standard error (its statistical size)
         s2 = cn / max(len(r) - len(x), 1)
@@ -255,4 +304,4 @@ def levenberg_marquardt(fun, jac, x, lo, hi, max_iter):  # type: ignore[no-untyp
             converged = True
             message = "converged"
             break
-    return Solution(x, r, jac(x), 0.5 * cost, converged, it, message)
+    return Solution(x, r, 0.5 * cost, converged, it, message, jac, J_final)

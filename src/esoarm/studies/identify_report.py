@@ -26,10 +26,12 @@ def result_text(res: IdentResult) -> str:
     for key, est in res.estimates.items():
         if not est.fitted:
             note = "held"
+        elif est.at_bound:
+            note = f"AT THE {est.bound.upper()} BOUND"
         elif not est.identifiable:
             note = "POORLY DETERMINED"
         else:
-            note = ""
+            note = "interval clipped to the bounds" if est.ci_clipped else ""
         rows.append((key, _num(est.value), f"[{_num(est.ci95[0])}, {_num(est.ci95[1])}]",
                      est.unit, note))
     g = res.gravity
@@ -42,7 +44,16 @@ def result_text(res: IdentResult) -> str:
     held = [e for e in res.estimates.values() if not e.fitted and e.advice.startswith("held:")]
     for e in held:
         lines.append(f"{e.key} {e.advice}")
-    poor = [e for e in res.estimates.values() if e.fitted and not e.identifiable]
+    pinned = [e for e in res.estimates.values() if e.at_bound]
+    if pinned:
+        lines.append("")
+        lines.append("at a bound of the fit (the log pulls the value beyond it: the value is a "
+                     "limit, not an optimum, and its interval is clipped to the bounds):")
+        for e in pinned:
+            lines.append(f"  {e.key} = {_num(e.value)} {e.unit}, the {e.bound} bound"
+                         + (f"; {e.advice}" if e.advice else ""))
+    poor = [e for e in res.estimates.values()
+            if e.fitted and not e.identifiable and not e.at_bound]
     if poor:
         lines.append("")
         lines.append("poorly determined by this log (the interval is wider than ±25 % or the "
@@ -80,5 +91,7 @@ def scenario_toml(res: IdentResult, fitted: Scenario) -> str:
     for key, est in res.estimates.items():
         if est.fitted:
             head.append(f"#   {key} = {est.value:.6g} [{est.ci95[0]:.6g}, {est.ci95[1]:.6g}] "
-                        f"{est.unit}" + ("" if est.identifiable else "  (poorly determined)"))
+                        f"{est.unit}" + (f"  (at the {est.bound} bound of the fit)"
+                                         if est.at_bound else "" if est.identifiable
+                                         else "  (poorly determined)"))
     return "\n".join(head) + "\n\n" + fitted.to_toml()

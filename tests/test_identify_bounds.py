@@ -1,0 +1,79 @@
+"""Identification: a parameter that ends at a bound of the fit.
+
+It is reported as at the bound (text and JSON), its interval is clipped to the
+bounds and that is said; with a validation residual that is not white as well,
+the fit is not trustworthy: exit status 1 and nothing written.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from esoarm.hardware.excite import excite_twin
+from esoarm.scenario import load_scenario
+from esoarm.studies.excitation import ExcitationPlan
+from esoarm.studies.identify_fit import PARAMS
+
+
+@pytest.fixture(scope="module")
+def frictionless_log(tmp_path_factory):
+    """A twin without viscous friction (truth at the lower bound 0 of the fit)."""
+    path = tmp_path_factory.mktemp("bounds") / "b0.csv"
+    excite_twin(load_scenario("test-1", ["rig.viscous_friction=0", "sensor.seed=2"]),
+                ExcitationPlan(duration=12.0, seed=2), path)
+    return path
+
+
+def test_value_at_a_bound_is_reported_and_its_interval_clipped(run_cli, frictionless_log):
+    args = (str(frictionless_log), "--max-delay", "0", "--fix", "actuator.lag")
+    res = run_cli("identify", *args, "--json")
+    assert res.exit_code == 0, res.stderr
+    data = json.loads(res.stdout)
+    visc = data["parameters"]["rig.viscous_friction"]
+    low = PARAMS["rig.viscous_friction"][3][0]
+    assert visc["value"] == low and visc["at_bound"] is True and visc["bound"] == "lower"
+    assert visc["ci95"][0] == low < visc["ci95"][1] and visc["ci95_clipped"] is True
+    assert data["at_bound"] == ["rig.viscous_friction"]
+    assert data["validation"]["whiteness"]["white"]  # so the fit stands (exit 0)
+    inside = data["parameters"]["rig.inertia_scale"]
+    assert inside["at_bound"] is False and inside["ci95_clipped"] is False
+    text = run_cli("identify", *args)
+    assert text.exit_code == 0, text.stderr
+    row = next(line for line in text.stdout.splitlines()
+               if line.startswith("rig.viscous_friction"))
+    assert "AT THE LOWER BOUND" in row
+    assert "interval is clipped to the bounds" in text.stdout
+
+
+def test_a_physical_zero_alone_does_not_make_the_fit_untrustworthy(frictionless_log) -> None:
+    import dataclasses
+
+    from esoarm.studies.identify import identify
+    from esoarm.studies.identify_data import read_ident_log
+
+    scn = load_scenario("test-1")
+    log = read_ident_log(frictionless_log, scn.actuator.torque_limit)
+    res = identify(scn, [log], max_delay=0, fix=("actuator.lag",))
+    visc = res.estimates["rig.viscous_friction"]
+    assert visc.bound == "lower" and visc.value == 0.0
+    res.validation["whiteness"] = {**res.validation["whiteness"], "white": False}
+    assert res.untrustworthy() == ""  # "no viscous friction" is an answer
+    res.estimates["rig.viscous_friction"] = dataclasses.replace(visc, bound="upper")
+    assert "rig.viscous_friction at the upper bound" in res.untrustworthy()
+
+
+def test_at_a_bound_and_not_white_is_not_trustworthy(run_cli, tmp_path):
+    """Friction far above the model's range (the arm creeps, sticks and slips): the fit runs
+    the viscous friction into its upper bound and cannot whiten the residual."""
+    log = tmp_path / "stuck.csv"
+    excite_twin(load_scenario("test-1", ["rig.coulomb_friction=5"]),
+                ExcitationPlan(duration=20.0), log)
+    out, fig = tmp_path / "fit.toml", tmp_path / "fit.png"
+    res = run_cli("identify", str(log), "--out", str(out), "--plot", str(fig))
+    assert res.exit_code == 1, res.stdout + res.stderr
+    line = res.stderr.strip()
+    assert len(line.splitlines()) == 1 and "not trustworthy" in line
+    assert "rig.viscous_friction at the upper bound 10" in line and "not white" in line
+    assert not out.exists() and not fig.exists() and list(tmp_path.iterdir()) == [log]
