@@ -255,7 +255,12 @@ def test_interrupt_keeps_finished_rows(tmp_path: Path, monkeypatch) -> None:  # 
 def test_real_ctrl_c_exits_130_with_a_valid_csv(tmp_path: Path) -> None:
     """Ctrl-C once the first chunk is done (a condition, not a time: robust under load)."""
     out = tmp_path / "sig.csv"
-    cmd = [sys.executable, "-c", "from esoarm.cli import main; main()", "sweep", "test-1",
+    # SIGINT as in a terminal: a job started in the background by a non-interactive shell
+    # (nohup, `cmd &` in a script) inherits SIGINT ignored, and Python then raises no
+    # KeyboardInterrupt; Ctrl-C is only meaningful with the default handler.
+    child = ("import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+             "from esoarm.cli import main; main()")
+    cmd = [sys.executable, "-c", child, "sweep", "test-1",
            "--vary", "observer.eps=geom:0.03:0.3:400", "--seeds", "10", "--chunk", "40",
            "--workers", "1", "--out", str(out), "--verbose"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
