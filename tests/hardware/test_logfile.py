@@ -117,6 +117,7 @@ CONSUMERS = {
     ("t,theta\n0,0\n0.02,0\n", "missing column(s) u"),
     ("t,theta,u\n0,0,0\n0.02,0,nan\n", "line 3: non-finite value u = nan"),
     ("t,theta,u\n0,nan,0\n0.02,0,0\n", "line 2: theta must be finite in the first row"),
+    ("t,theta,u\n0,0,nan\n0.02,0,nan\n", "column u is nan in every row"),
 ])
 def test_every_consumer_gives_the_shared_messages(tmp_path, consumer, text, words):
     path = tmp_path / "log.csv"
@@ -125,6 +126,16 @@ def test_every_consumer_gives_the_shared_messages(tmp_path, consumer, text, word
     with pytest.raises(ScenarioError) as info:
         CONSUMERS[consumer](path)
     assert words in str(info.value) and str(info.value).startswith(f"log '{path}'")
+
+
+def test_a_column_nan_in_every_row_is_named_with_the_consumers_why(tmp_path):
+    path = _log(tmp_path, "t,theta,u\n0,0,nan\n0.02,0,nan\n0.04,0,nan\n")
+    with pytest.raises(ScenarioError) as info:
+        read_log_columns(path, ["t", "theta", "u"], "need u", all_nan_why={"u": "log u"})
+    assert str(info.value) == f"log '{path}': column u is nan in every row: log u"
+    one_row = _log(tmp_path, "t,theta,u\n0,0,nan\n")  # one row: the line is named
+    with pytest.raises(ScenarioError, match="line 2: non-finite value u = nan"):
+        read_log_columns(one_row, ["t", "theta", "u"], "need u")
 
 
 def test_arm_log_names_the_joint_column(tmp_path):

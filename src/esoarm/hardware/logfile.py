@@ -22,7 +22,7 @@ spaced and increasing) and returns the sample period [s].
 from __future__ import annotations
 
 import csv
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TypeAlias
 
@@ -37,7 +37,9 @@ Pick: TypeAlias = Sequence[str] | Callable[[list[str]], Sequence[str]]
 
 
 def read_log_columns(path: str | Path, pick: Pick, need: str,
-                     lost_ok: Sequence[str] = ()) -> tuple[list[str], np.ndarray]:
+                     lost_ok: Sequence[str] = (),
+                     all_nan_why: Mapping[str, str] | None = None,
+                     ) -> tuple[list[str], np.ndarray]:
     """Read the columns ``pick`` of the CSV log at ``path``; return (names, data).
 
     Parameters
@@ -54,6 +56,9 @@ def read_log_columns(path: str | Path, pick: Pick, need: str,
     lost_ok : sequence of str
         Chosen columns in which ``nan`` marks a lost sample (allowed after the
         first row); every other value of every chosen column must be finite.
+    all_nan_why : mapping of str to str, optional
+        For a column that is nan in every row (of two or more), why that happens and
+        what to do, added to the message that says so.
 
     Returns
     -------
@@ -104,12 +109,12 @@ def read_log_columns(path: str | Path, pick: Pick, need: str,
     if not rows:
         raise ScenarioError(f"{src}: no data rows (only the header)")
     data = np.array(rows, dtype=float)
-    _check_finite(src, data, names, lines, lost_ok)
+    _check_finite(src, data, names, lines, lost_ok, all_nan_why or {})
     return names, data
 
 
 def _check_finite(src: str, data: np.ndarray, names: list[str], lines: list[int],
-                  lost_ok: Sequence[str]) -> None:
+                  lost_ok: Sequence[str], all_nan_why: Mapping[str, str]) -> None:
     """One-line error for the first non-finite value not allowed (see the module)."""
     lost_cols = [j for j, c in enumerate(names) if c in lost_ok]
     allowed = np.zeros(data.shape, dtype=bool)
@@ -119,6 +124,10 @@ def _check_finite(src: str, data: np.ndarray, names: list[str], lines: list[int]
         return
     k, j = (int(i) for i in np.argwhere(bad)[0])
     col, value = names[j], data[k, j]
+    if j not in lost_cols and len(data) > 1 and np.isnan(data[:, j]).all():
+        why = all_nan_why.get(col)
+        raise ScenarioError(f"{src}: column {col} is nan in every row"
+                            + (f": {why}" if why else ""))
     if j in lost_cols and np.isnan(value):  # only in the first row
         raise ScenarioError(f"{src}: line {lines[k]}: {col} must be finite in the first row "
                             "(nan marks a lost sample, allowed after the first row)")

@@ -120,14 +120,8 @@ def read_ident_log(path: str | Path, torque_limit: float,
 
     need = "need t [s], theta or y [rad, measured], u [N·m]" + (
         " and duty [counts] (the scenario has a [motor] table)" if need_duty else "")
-    try:
-        names, data = read_log_columns(path, want, need, lost_ok=("theta", "y"))
-    except ScenarioError:
-        empty = _nan_column(path, ["u", *duty_col])
-        if empty is None:
-            raise
-        raise ScenarioError(f"{src}: column {empty} is nan in every row: "
-                            f"{_NAN_COLUMN_WHY[empty]}") from None
+    names, data = read_log_columns(path, want, need, lost_ok=("theta", "y"),
+                                   all_nan_why=_NAN_COLUMN_WHY)
     t, y, u = data[:, 0], data[:, 1], data[:, 2]
     duty = data[:, 3] if need_duty else None
     n = len(t)
@@ -185,32 +179,6 @@ _NAN_COLUMN_WHY = {
     "u": "the torque applied [N·m] was not logged, and identification needs it; record "
          "the log with 'esoarm excite' or 'esoarm run'",
 }
-
-
-def _nan_column(path: str | Path, names: list[str]) -> str | None:
-    """The first of ``names`` that is nan in every data row of the CSV at ``path``, if any.
-
-    Only called once reading has failed, to say why: any error here means no.
-    """
-    import csv
-
-    try:
-        with open(path, encoding="utf-8", newline="") as fh:
-            reader = csv.reader(fh)
-            header = [h.strip() for h in next(reader, [])]
-            idx = {n: header.index(n) for n in names if n in header}
-            nan_only = dict.fromkeys(idx, True)
-            seen = False
-            for row in reader:
-                if not row:
-                    continue
-                seen = True
-                for name, i in idx.items():
-                    if nan_only[name] and row[i].strip().lower() != "nan":
-                        nan_only[name] = False
-    except (OSError, UnicodeDecodeError, csv.Error, IndexError):
-        return None
-    return next((n for n in names if seen and nan_only.get(n)), None)
 
 
 def saturated_share(u: np.ndarray, duty: np.ndarray | None, torque_limit: float,
