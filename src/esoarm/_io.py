@@ -78,9 +78,6 @@ def temp_name(path: Path) -> Path:
     return path.with_name(name)
 
 
-_tmp_name = temp_name
-
-
 def target_file(path: str | Path) -> Path:
     """The regular file that writing ``path`` replaces: a symbolic link is followed.
 
