@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.emulator import Twin
+from esoarm.hardware.host_control import DeploymentController
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.scenario import load_scenario
 

@@ -187,7 +187,7 @@ class _LockstepLink:
 
 
 def inprocess(args: argparse.Namespace) -> None:
-    from esoarm.hardware.loop import run_rig
+    from esoarm.hardware.realtime import run_rig
     from esoarm.hardware.scope import scope_for_run
     from esoarm.scenario import load_scenario
 

@@ -9,7 +9,7 @@ Measures, warm (kernels built and cached, Python bytecode compiled as after
 * the wall and CPU time of ``esoarm --help``, a one-run sweep on each engine and the
   canonical sweep (``--vary observer.eps=geom:0.03:0.3:100 --seeds 20``, 2,000 runs)
   on each engine;
-* the same canonical sweep run in this process (:func:`esoarm.studies.sweep.iter_sweep`,
+* the same canonical sweep run in this process (:func:`esoarm.studies.sweeps.sweep.iter_sweep`,
   kernels already loaded): the whole command minus this is the command's fixed cost;
 * the phases of that fixed cost, each timed in a fresh interpreter.
 
@@ -40,7 +40,7 @@ def mark(name):
     marks.append((name, time.perf_counter()))
 import esoarm.cli, esoarm.cli.sweep; mark("import esoarm.cli (click)")
 from esoarm.scenario import load_scenario; mark("import esoarm.scenario (numpy, pydantic, kinds)")
-from esoarm.studies.sweep import build_grid; mark("import studies.sweep")
+from esoarm.studies.sweeps.sweep import build_grid; mark("import studies.sweep")
 grid = build_grid(load_scenario("test-1"), ["observer.eps=geom:0.03:0.3:100"], 20)
 mark("load test-1, build and check the grid (100 points)")
 engine = sys.argv[1]
@@ -76,7 +76,7 @@ def best(cmd: list[str], reps: int) -> tuple[float, float]:
 def in_process(engine: str) -> float:
     """The canonical sweep in this process, kernels loaded first [s]."""
     from esoarm.scenario import load_scenario
-    from esoarm.studies.sweep import build_grid, iter_sweep
+    from esoarm.studies.sweeps.sweep import build_grid, iter_sweep
 
     grid = build_grid(load_scenario("test-1"), ["observer.eps=geom:0.03:0.3:100"], 20)
     small = build_grid(load_scenario("test-1"), ["observer.eps=0.09"], 4)

@@ -180,7 +180,7 @@ class CLoop:
 
 def canonical_grid(extra: tuple[str, ...] = ()):  # type: ignore[no-untyped-def]
     from esoarm.scenario import load_scenario
-    from esoarm.studies.sweep import build_grid
+    from esoarm.studies.sweeps.sweep import build_grid
 
     return build_grid(load_scenario("test-1", list(extra)), [VARY], seeds=20)
 
@@ -369,7 +369,7 @@ def bench_million(work: Path, runs: int) -> dict:  # type: ignore[type-arg]
 def bench_tune() -> list[dict]:  # type: ignore[type-arg]
     """What ``esoarm tune`` finds for ε on the twin, for several prices w of control."""
     from esoarm.scenario import load_scenario
-    from esoarm.studies.tune import DEFAULT_OBJECTIVE, Objective, parse_bound, tune
+    from esoarm.studies.sweeps.tune import DEFAULT_OBJECTIVE, Objective, parse_bound, tune
 
     out = []
     cases = [("test-1", 0.1, ()), ("test-1", 1.0, ()), ("test-1", 10.0, ()), ("test-2", 1.0, ()),

@@ -4,7 +4,7 @@ Placeholders in the Markdown sources are replaced while the site is built,
 so the published reference cannot drift from the code:
 
 ``<!-- esoarm:scenario-keys -->``
-    the scenario key table, :func:`esoarm.schema_doc.scenario_keys_markdown`;
+    the scenario key table, :func:`esoarm.scenario.keys_doc.scenario_keys_markdown`;
 ``<!-- esoarm:cli-reference -->``
     ``--help`` of ``esoarm`` and of every subcommand, walked from
     :data:`esoarm.cli.cli` (:func:`cli_reference_markdown`);
@@ -87,7 +87,7 @@ _REPRODUCTION: list = []
 def reproduction():  # type: ignore[no-untyped-def]
     """One reproduction per build (cached): the numbers and figures of the results pages."""
     if not _REPRODUCTION:
-        from esoarm.studies.reproduce import run_reproduction
+        from esoarm.studies.reproduction.run import run_reproduction
 
         _REPRODUCTION.append(run_reproduction())
     return _REPRODUCTION[0]
@@ -101,15 +101,15 @@ def _md_table(head: list[str], rows: list[list[str]]) -> str:
 
 def _results_markdown(name: str) -> str:
     """Markdown for one results placeholder (see the module docstring)."""
-    from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
+    from esoarm.studies.reproduction.run import EPS_SET, PAPER_TABLES, TABLE_NAMES
 
     if name == "pole-table":
         ts = 0.02
         return "\n".join(f"| {e:g} | {ts / e:.3g} | {1 - ts / e:.4f} | {math.exp(-ts / e):.4f} |"
                          for e in (0.01, 0.015, 0.02, 0.03, 0.05, 0.09, 0.2)) + "\n"
     if name == "assumptions":
-        from esoarm.studies.report import assumption_rows
-        from esoarm.studies.reproduce import experiment_set
+        from esoarm.studies.reproduction.report import assumption_rows
+        from esoarm.studies.reproduction.run import experiment_set
 
         return _md_table(["key", "value", "unit", "why it is an assumption"],
                          [[f"`{k}`", f"`{v}`", u, w]
@@ -140,15 +140,15 @@ def _results_markdown(name: str) -> str:
                 "|f − z3| [rad/s²]; Theorem 2: max |e| [rad] against μ/k2.\n\n"
                 + _md_table(["theorem", "run", "measured", "bound", "verdict"], rows))
     if name == "summary":
-        from esoarm.studies.report import summary_text
+        from esoarm.studies.reproduction.report import summary_text
 
         return summary_text(rep) + "\n"
     if name == "twins":
-        from esoarm.studies.twins_report import compared_twins, twins_markdown
+        from esoarm.studies.reproduction.twins import compared_twins, twins_markdown
 
         return twins_markdown(compared_twins({"nominal": rep}))
     if name == "findings":
-        from esoarm.studies.reproduce import discretization_findings
+        from esoarm.studies.reproduction.run import discretization_findings
 
         return "\n".join(f"- {s}" for s in discretization_findings(rep)) + "\n"
     raise DocsError(f"unknown placeholder esoarm:{name}")
@@ -161,8 +161,8 @@ _RESULTS = re.compile(
 
 def generated_figures() -> dict[str, bytes]:
     """PNG bytes of the reproduction's figures, by stem (fig4 … fig7, theorem2, ...)."""
-    from esoarm.plotting import figure_bytes
-    from esoarm.studies.reproduce import figure_specs
+    from esoarm.plotting.run import figure_bytes
+    from esoarm.studies.reproduction.run import figure_specs
 
     return {stem: figure_bytes(draw(), "png", dpi=100)
             for stem, _caption, draw in figure_specs(reproduction())}
@@ -172,7 +172,7 @@ def render_placeholders(markdown: str, page: str) -> str:
     """Replace the placeholders of one page and check its ``esoarm.*`` names."""
     markdown = _RESULTS.sub(lambda m: _results_markdown(m.group(1)), markdown)
     if "<!-- esoarm:scenario-keys -->" in markdown:
-        from esoarm.schema_doc import scenario_keys_markdown
+        from esoarm.scenario.keys_doc import scenario_keys_markdown
 
         markdown = markdown.replace("<!-- esoarm:scenario-keys -->", scenario_keys_markdown())
     if "<!-- esoarm:cli-reference -->" in markdown:

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from esoarm import load_scenario, simulate
-from esoarm.plotting import figure_ablation
+from esoarm.plotting.run import figure_ablation
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else "example-output")
 out.mkdir(parents=True, exist_ok=True)

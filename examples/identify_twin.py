@@ -9,11 +9,11 @@ from pathlib import Path
 
 from esoarm.hardware.excite import excite_twin
 from esoarm.scenario import load_scenario
-from esoarm.studies.excitation import ExcitationPlan
-from esoarm.studies.identify import identify
-from esoarm.studies.identify_data import read_ident_log
-from esoarm.studies.identify_plots import figure_identification
-from esoarm.studies.identify_report import scenario_toml
+from esoarm.studies.identification.data import read_ident_log
+from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.identify import identify
+from esoarm.studies.identification.plots import figure_identification
+from esoarm.studies.identification.report import scenario_toml
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else "example-output")
 out.mkdir(parents=True, exist_ok=True)

@@ -10,7 +10,7 @@ Run:  python examples/observer_design.py
 import numpy as np
 
 from esoarm.observers.linear import ExtendedStateObserver, design_observer
-from esoarm.studies.analysis import analyze_observer, theorem1_bound
+from esoarm.observers.stability import analyze_observer, theorem1_bound
 
 ts = 1.0 / 50.0  # s, the paper's encoder rate
 b0 = 1.0 / 0.0225  # 1/(kg·m²), 1/I0 of Table I

@@ -11,8 +11,7 @@ from scipy import integrate, signal
 
 from esoarm.engines.simulation import SimulationDiverged, simulate
 from esoarm.observers.linear import DISCRETIZATIONS, design_observer
-from esoarm.scenario import load_scenario, scenario_warnings
-from esoarm.studies.analysis import (
+from esoarm.observers.stability import (
     analyze_observer,
     characteristic_polynomial,
     error_matrix,
@@ -25,6 +24,7 @@ from esoarm.studies.analysis import (
     theorem2_bound,
     tracking_l1_gain,
 )
+from esoarm.scenario import load_scenario, scenario_warnings
 
 TS = 0.02  # the paper's 50 Hz
 

@@ -23,7 +23,7 @@ pytest.importorskip("distributed", reason="the 'cluster' extra (dask[distributed
 
 from esoarm.cli import cli  # noqa: E402
 from esoarm.scenario import load_scenario  # noqa: E402
-from esoarm.studies import sweep  # noqa: E402
+from esoarm.studies.sweeps import sweep  # noqa: E402
 
 START_TIMEOUT = 60.0
 

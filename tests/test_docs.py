@@ -67,7 +67,7 @@ def test_no_placeholder_left_and_nothing_fetched_from_the_network(site):
 
 
 def test_scenario_reference_lists_every_key(site):
-    from esoarm.schema_doc import scenario_keys
+    from esoarm.scenario.keys_doc import scenario_keys
 
     text = _text(site / "scenarios" / "index.html")
     for key, _default, unit, _desc in scenario_keys():
@@ -117,7 +117,7 @@ def test_examples_are_included_verbatim(site):
 def test_reference_check_can_fail():
     hooks = _hooks()
     hooks.check_reference("esoarm.observers.linear.design_observer")
-    hooks.check_reference("esoarm.studies.analysis.theorem2_bound")
+    hooks.check_reference("esoarm.observers.stability.theorem2_bound")
     with pytest.raises(hooks.DocsError, match="no_such_function"):
         hooks.check_reference("esoarm.observers.linear.no_such_function")
     with pytest.raises(hooks.DocsError):

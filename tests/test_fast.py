@@ -143,7 +143,7 @@ def test_without_a_compiler_it_falls_back(monkeypatch: pytest.MonkeyPatch) -> No
 
 
 def test_tune_with_the_fast_engine_finds_the_same_optimum() -> None:
-    from esoarm.studies.tune import parse_bound, tune
+    from esoarm.studies.sweeps.tune import parse_bound, tune
 
     base = load_scenario("test-1", {"duration": 3.0, "sensor.resolution_deg": 0.0})
     bounds = [parse_bound("observer.eps=0.03:0.3", base)]

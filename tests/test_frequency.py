@@ -27,8 +27,8 @@ from esoarm.plants.actuator import LIMIT, MOTOR_BLOCK, actuate, saturate
 from esoarm.plants.lever_arm import design, rig_advance
 from esoarm.plants.motor import PWM_MAX, MotorParams
 from esoarm.scenario import Scenario, builtin_names, load_scenario
-from esoarm.studies import frequency as F
-from esoarm.studies import linearization as L
+from esoarm.studies.frequency import linearization as L
+from esoarm.studies.frequency import margins as F
 
 control = pytest.importorskip("control")
 
@@ -424,7 +424,7 @@ def test_docstring_examples() -> None:
     import doctest
 
     import esoarm.analysis
-    from esoarm.studies import linearization
+    from esoarm.studies.frequency import linearization
 
     for mod in (esoarm.analysis, linearization):
         res = doctest.testmod(mod, raise_on_error=False)
@@ -432,7 +432,7 @@ def test_docstring_examples() -> None:
 
 
 def test_report_section_states_the_trade_off_from_the_numbers() -> None:
-    from esoarm.studies.frequency_report import frequency_section
+    from esoarm.studies.frequency.report import frequency_section
 
     class Rep:  # the two things the section reads from a reproduction
         scenarios = {"test-1/eso": load_scenario("test-1")}

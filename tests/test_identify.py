@@ -16,9 +16,9 @@ import pytest
 from esoarm.hardware.excite import TWIN_LOG_COLUMNS, excite_twin
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import load_scenario
-from esoarm.studies.excitation import ExcitationPlan
-from esoarm.studies.identify import identify
-from esoarm.studies.identify_data import read_ident_log
+from esoarm.studies.identification.data import read_ident_log
+from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.identify import identify
 
 #: True rigs (scenario overrides of test-1) and the nominal scenario given to the fit.
 TRUTHS = {
@@ -79,7 +79,7 @@ def test_interval_coverage_over_50_seeds():
     truth_sets = {"rig.inertia_scale": 1.25, "rig.coulomb_friction": 0.07,
                   "rig.viscous_friction": 0.015}
     hits = {k: 0 for k in (*truth_sets, "plant.m2")}
-    from esoarm.studies.identify_data import IdentLog
+    from esoarm.studies.identification.data import IdentLog
 
     for seed in range(50):
         truth = nominal.with_overrides({**truth_sets, "sensor.seed": seed})
@@ -147,7 +147,7 @@ def test_fitted_scenario_loads_and_simulates(tmp_path):
     assert fitted.rig.inertia_scale == 1.0
     assert fitted.plant.inertia == pytest.approx(1.2 * 0.0225, rel=0.05)
     assert fitted.rig.coulomb_friction == res.value("rig.coulomb_friction")
-    from esoarm.studies.identify_report import scenario_toml
+    from esoarm.studies.identification.report import scenario_toml
 
     out = tmp_path / "fitted.toml"
     out.write_text(scenario_toml(res, fitted))
@@ -243,7 +243,7 @@ def test_cli_identify_bad_options(run_cli, excite_log, tmp_path, args, words):
 
 
 def test_cli_identify_not_converged_writes_nothing(run_cli, excite_log, tmp_path, monkeypatch):
-    from esoarm.studies import identify_fit
+    from esoarm.studies.identification import fit as identify_fit
 
     real = identify_fit.levenberg_marquardt
 
@@ -293,7 +293,7 @@ def test_cli_excite_twin_angle_guard(run_cli, tmp_path):
 
 def test_closed_loop_log_of_the_flc_is_identified(tmp_path):
     """A log of the ESO + FLC itself (as 'esoarm run' writes it) identifies too."""
-    from esoarm.hardware.controller import DeploymentController
+    from esoarm.hardware.host_control import DeploymentController
 
     truth = load_scenario("test-2", ["rig.inertia_scale=1.25", "rig.coulomb_friction=0.08",
                                      "duration=30", "sensor.seed=9"])

@@ -13,8 +13,8 @@ import pytest
 
 from esoarm.hardware.excite import excite_twin
 from esoarm.scenario import load_scenario
-from esoarm.studies.excitation import ExcitationPlan
-from esoarm.studies.identify_fit import PARAMS
+from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.fit import PARAMS
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +50,8 @@ def test_value_at_a_bound_is_reported_and_its_interval_clipped(run_cli, friction
 def test_a_physical_zero_alone_does_not_make_the_fit_untrustworthy(frictionless_log) -> None:
     import dataclasses
 
-    from esoarm.studies.identify import identify
-    from esoarm.studies.identify_data import read_ident_log
+    from esoarm.studies.identification.data import read_ident_log
+    from esoarm.studies.identification.identify import identify
 
     scn = load_scenario("test-1")
     log = read_ident_log(frictionless_log, scn.actuator.torque_limit)

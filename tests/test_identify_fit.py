@@ -9,10 +9,10 @@ import pytest
 from esoarm.hardware.excite import excite_twin
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import load_scenario
-from esoarm.studies.excitation import ExcitationPlan
-from esoarm.studies.identify import _values
-from esoarm.studies.identify_data import read_ident_log, simulate_segments
-from esoarm.studies.identify_fit import PARAMS, Problem
+from esoarm.studies.identification.data import read_ident_log, simulate_segments
+from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.fit import PARAMS, Problem
+from esoarm.studies.identification.identify import _values
 
 
 @pytest.fixture(scope="module", params=["torque", "motor"])
@@ -86,8 +86,8 @@ def test_lag_and_delay_fit_simulates_no_more_than_it_needs(tmp_path, monkeypatch
     the others are tried, and the Jacobian's columns reuse the accepted prediction.  The
     work is counted in simulations of the log (timings belong to benchmarks/): 448 for
     this log before, 178 now; the fit finds the twin back either way."""
-    from esoarm.studies import identify_fit
-    from esoarm.studies.identify import identify
+    from esoarm.studies.identification import fit as identify_fit
+    from esoarm.studies.identification.identify import identify
 
     truth = load_scenario("test-1", ["actuator.lag=0.03", "actuator.delay_samples=1",
                                      "rig.inertia_scale=1.25", "rig.coulomb_friction=0.08"])

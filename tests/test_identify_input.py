@@ -13,8 +13,8 @@ import pytest
 from esoarm.hardware.excite import excite_twin
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import ScenarioError, load_scenario
-from esoarm.studies.excitation import ExcitationPlan
-from esoarm.studies.identify_data import MAX_SATURATED, read_ident_log
+from esoarm.studies.identification.data import MAX_SATURATED, read_ident_log
+from esoarm.studies.identification.excitation import ExcitationPlan
 
 #: A weak motor: 50 · 0.02 N·m/A · 2 V / 2 Ω = 1 N·m at full duty, below the 2 N·m torque
 #: limit, so a strong excitation drives the duty to ±pwm_max while |u| stays below the limit.
@@ -167,7 +167,7 @@ def test_a_simulated_series_is_fitted_on_its_measured_angle(tmp_path):
     """'esoarm simulate --out' writes the true angle as theta and the measurement as y:
     the fit uses y (it fitted the noise-free theta: σ = 0, residual 1e-16 rad)."""
     from esoarm.engines.simulation import simulate
-    from esoarm.studies.identify import identify
+    from esoarm.studies.identification.identify import identify
 
     truth = load_scenario("test-2", ["duration=20", "rig.inertia_scale=1.25"])
     path = tmp_path / "sim.csv"

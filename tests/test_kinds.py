@@ -13,8 +13,8 @@ from esoarm.cli import cli
 from esoarm.controllers.pid import pid_command
 from esoarm.engines import batch
 from esoarm.engines.simulation import prepare, run_reference
-from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.emulator import Twin
+from esoarm.hardware.host_control import DeploymentController
 from esoarm.hardware.replay import replay
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.observers.nonlinear import fal

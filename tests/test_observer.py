@@ -21,9 +21,9 @@ from esoarm.observers.linear import (
     eso_estimate,
     extended_plant,
 )
+from esoarm.observers.stability import characteristic_polynomial
 from esoarm.plants.sensor import measure
 from esoarm.scenario import load_scenario
-from esoarm.studies.analysis import characteristic_polynomial
 
 EPS = [0.05, 0.09, 0.2, 0.013, 1.0]
 TS = [0.02, 0.001, 0.005]

@@ -86,7 +86,7 @@ def test_arm_study_checks_out_before_the_runs_and_writes_all_or_nothing(run_cli,
                                                                        monkeypatch):
     """arm-study's DIR: bad input before any run (was an internal error after them), and a
     write failing halfway leaves DIR as it was (files staged, moved in at the end)."""
-    from esoarm.studies import arm_study
+    from esoarm.studies import arms as arm_study
 
     def no_runs(*args, **kwargs):
         raise AssertionError("the runs started before --out was checked")
@@ -190,7 +190,7 @@ def test_reproduce_out_that_is_a_file(run_cli, tmp_path):
 @pytest.mark.skipif(not LINUX or not os.path.isdir("/proc/self"), reason="needs Linux /proc")
 def test_api_writers_raise_output_error_naming_the_path(tmp_path):
     from esoarm.hardware.replay import ReplayResult
-    from esoarm.studies.sweep import build_grid, run_sweep
+    from esoarm.studies.sweeps.sweep import build_grid, run_sweep
 
     res = simulate(load_scenario("test-1", {"duration": 0.2}))
     grid = build_grid(load_scenario("test-1", {"duration": 0.2}), ["observer.eps=0.05"])
@@ -391,7 +391,7 @@ def test_full_tmpfs_is_one_line_exit_1(tmp_path):
 
 def test_run_log_that_cannot_be_written_stops_the_run_cleanly(tmp_path):
     """The streamed rig log: a failed write is a fault; the file keeps whole rows only."""
-    from esoarm.hardware import loop
+    from esoarm.hardware import realtime as loop
 
     path = tmp_path / "log.csv"
     log = loop._LogWriter(path)

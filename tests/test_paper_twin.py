@@ -8,7 +8,7 @@ import math
 import pytest
 
 from esoarm.scenario import ScenarioError, load_scenario
-from esoarm.studies.paper_twin import (
+from esoarm.studies.reproduction.paper_twin import (
     SEARCH,
     SEEDS,
     TWIN_NAMES,
@@ -16,8 +16,8 @@ from esoarm.studies.paper_twin import (
     paper_residuals,
     twin_overrides,
 )
-from esoarm.studies.reproduce import run_reproduction
-from esoarm.studies.twins_report import GAINS_FREE, compared_twins, twin_rows, twins_section
+from esoarm.studies.reproduction.run import run_reproduction
+from esoarm.studies.reproduction.twins import GAINS_FREE, compared_twins, twin_rows, twins_section
 
 
 def test_twins_are_valid_overlays():
@@ -101,8 +101,8 @@ def test_paper_twin_page_states_the_computed_numbers():
     import numpy as np
 
     from esoarm.reference import evaluate_reference
-    from esoarm.studies.paper_twin import SEARCH, evidence_overrides
-    from esoarm.studies.reproduce import PAPER_TABLES
+    from esoarm.studies.reproduction.paper_twin import SEARCH, evidence_overrides
+    from esoarm.studies.reproduction.run import PAPER_TABLES
 
     doc = Path(__file__).resolve().parents[1].joinpath("docs", "paper-twin.md").read_text()
     doc = " ".join(doc.split())  # line breaks inside sentences
@@ -157,7 +157,7 @@ def test_paper_twin_page_states_the_computed_numbers():
 def test_report_names_what_stands_in_the_way_of_each_unreproduced_claim():
     """Per claim the paper twin does not reproduce: an assumption and its evidence, and the
     evidence holds when rerun independently."""
-    from esoarm.studies.twins_report import NOISE_SCAN, obstacles, twins_markdown
+    from esoarm.studies.reproduction.twins import NOISE_SCAN, obstacles, twins_markdown
 
     paper = run_reproduction(twin_overrides("paper"), compare=False)
     reps = compared_twins({"paper": paper})

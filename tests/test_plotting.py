@@ -5,9 +5,9 @@ from __future__ import annotations
 import matplotlib.colors as mcolors
 import pytest
 
-from esoarm import plotting
 from esoarm.engines.simulation import simulate
-from esoarm.studies.reproduce import EPS_SET
+from esoarm.plotting import run as plotting
+from esoarm.studies.reproduction.run import EPS_SET
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from esoarm.schema_doc import scenario_keys_markdown
+from esoarm.scenario.keys_doc import scenario_keys_markdown
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
@@ -17,7 +17,7 @@ def test_scenario_key_table_matches_schema() -> None:
     assert block is not None, "README lost its scenario-keys markers"
     assert block.group(1) == scenario_keys_markdown(), (
         "README scenario table drifted from the schema: regenerate with "
-        "`python -m esoarm.schema_doc`"
+        "`python -m esoarm.scenario.keys_doc`"
     )
 
 

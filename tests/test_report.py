@@ -24,8 +24,8 @@ from pathlib import Path
 import pytest
 
 from esoarm import __version__
-from esoarm.studies.report import ASSUMPTIONS, assumption_rows
-from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, run_reproduction, write_outputs
+from esoarm.studies.reproduction.report import ASSUMPTIONS, assumption_rows
+from esoarm.studies.reproduction.run import EPS_SET, PAPER_TABLES, run_reproduction, write_outputs
 
 ROOT = Path(__file__).resolve().parents[1]
 ARTIFACTS = ROOT / "test-artifacts"
@@ -233,8 +233,8 @@ def test_checker_catches_a_broken_image(tmp_path: Path) -> None:
 
 
 def test_summary_is_computed_from_the_runs(outputs):
-    from esoarm.studies.report import summary_text
-    from esoarm.studies.reproduce import TABLE_NAMES
+    from esoarm.studies.reproduction.report import summary_text
+    from esoarm.studies.reproduction.run import TABLE_NAMES
 
     rep = outputs[0]
     text = summary_text(rep)
@@ -251,16 +251,17 @@ def test_report_depends_only_on_the_reproduction_data() -> None:
     import subprocess
     import sys
 
-    code = ("import sys, esoarm.studies.report as r, esoarm.studies.reproduction; "
+    code = ("import sys, esoarm.studies.reproduction.report as r; "
+            "import esoarm.studies.reproduction.data; "
             "import inspect; inspect.getsource(r); "
             "print(sorted(m for m in sys.modules if m.startswith('esoarm.studies.')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
-    assert "esoarm.studies.reproduce'" not in out and "reproduce_outputs" not in out
+    assert "esoarm.studies.reproduction.run'" not in out and "reproduce_outputs" not in out
     import ast
 
-    tree = ast.parse((ROOT / "src/esoarm/studies/report.py").read_text())
+    tree = ast.parse((ROOT / "src/esoarm/studies/reproduction/report.py").read_text())
     imported = {node.module for node in ast.walk(tree)
                 if isinstance(node, ast.ImportFrom) and node.module}
     assert {m for m in imported if m.startswith("esoarm.studies")} == {
-        "esoarm.studies.reproduction"}
+        "esoarm.studies.reproduction.data"}

@@ -12,7 +12,7 @@ import pytest
 from esoarm.engines.metrics import LOG_ROWS
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.result import SimResult
-from esoarm.studies.reproduce import (
+from esoarm.studies.reproduction.run import (
     EPS_SET,
     SWEEP_EPS,
     Reproduction,
@@ -138,7 +138,7 @@ def test_bound_checks_follow_the_theorems(paper_runs):
         res = paper_runs.runs[c.run]
         scn = res.scenario
         win = res.t >= 2.0
-        # κ of eq. 17 written out independently of esoarm.studies.analysis
+        # κ of eq. 17 written out independently of esoarm.observers.stability
         kappa = (res.f_true - res.z[:, 2]) + scn.controller.k1 * (res.omega - res.z[:, 1]) \
             + scn.controller.k2 * (res.theta - res.z[:, 0])
         mu = np.max(np.abs(kappa[win & (np.abs(res.u) < scn.actuator.torque_limit)]))
@@ -219,7 +219,7 @@ def test_run_ids():
 
 def test_cli_reproduce_diverged_run_is_exit_1_and_writes_nothing(run_cli, tmp_path, monkeypatch):
     from esoarm.engines.simulation import SimulationDiverged
-    from esoarm.studies import reproduce
+    from esoarm.studies.reproduction import run as reproduce
 
     def diverge(scenarios, progress):
         raise SimulationDiverged("simulation of 'test-1' diverged at t = 0.1 s", None)
@@ -246,7 +246,8 @@ def test_pid_baseline_rows() -> None:
 
 def _short_reproductions(monkeypatch):  # type: ignore[no-untyped-def]
     """Every reproduction of the command at duration = 4 s without the comparisons (fast)."""
-    from esoarm.studies import reproduce, twins_report
+    from esoarm.studies.reproduction import run as reproduce
+    from esoarm.studies.reproduction import twins as twins_report
 
     real = reproduce.run_reproduction
 
@@ -264,7 +265,7 @@ def test_cli_reproduce_failing_halfway_leaves_dir_as_it_was(tmp_path, monkeypatc
     import errno
 
     from esoarm.cli import main
-    from esoarm.studies import reproduce_outputs
+    from esoarm.studies.reproduction import outputs as reproduce_outputs
 
     _short_reproductions(monkeypatch)
     out = tmp_path / "res"

@@ -324,8 +324,8 @@ def test_cli_words_the_same_error_for_its_option(run_cli):
 
 
 def test_library_study_errors_name_arguments_not_options():
-    from esoarm.studies import sweep, tune
-    from esoarm.studies.sweep import parse_scheduler
+    from esoarm.studies.sweeps import sweep, tune
+    from esoarm.studies.sweeps.sweep import parse_scheduler
 
     base = load_scenario("test-1")
     calls = [

@@ -52,7 +52,7 @@ def test_small_sweep_loads_no_compiled_engine() -> None:
 def test_grid_warnings_need_no_scipy() -> None:
     # ε = 0.03 s < 2·Ts warns (zoh); the observer check must not pull in the linearization
     code = ("from esoarm.scenario import load_scenario\n"
-            "from esoarm.studies.sweep_grid import build_grid\n"
+            "from esoarm.studies.sweeps.grid import build_grid\n"
             "g = build_grid(load_scenario('test-1', {'observer.discretization': 'zoh'}), "
             "['observer.eps=0.03,0.09'])\n"
             "assert g.warnings(), g.warnings()")
@@ -72,7 +72,8 @@ def test_fast_engine_loads_no_numba() -> None:
 
 
 def test_analysis_still_offers_the_linearization() -> None:
-    from esoarm.studies import analysis, linearization
+    from esoarm.observers import stability as analysis
+    from esoarm.studies.frequency import linearization
 
     assert analysis.to_control is linearization.to_control
     assert analysis.ControlLoop is linearization.ControlLoop

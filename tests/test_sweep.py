@@ -18,7 +18,7 @@ from esoarm.cli import cli
 from esoarm.engines import batch
 from esoarm.engines.simulation import prepare, run_reference
 from esoarm.scenario import ScenarioError, load_scenario
-from esoarm.studies import sweep
+from esoarm.studies.sweeps import sweep
 
 SHORT = ["--set", "duration=2.0"]
 
@@ -205,7 +205,7 @@ def test_diverged_runs_are_rows_with_a_warning(tmp_path: Path) -> None:
 
 def test_divergence_warning_names_the_first_points_in_grid_order(base) -> None:  # type: ignore[no-untyped-def]
     from esoarm.engines.metrics import METRICS
-    from esoarm.studies.sweep_output import DIVERGED_SHOWN, SweepWriter
+    from esoarm.studies.sweeps.output import DIVERGED_SHOWN, SweepWriter
 
     grid = sweep.build_grid(base, ["observer.eps=0.01,0.02,0.03,0.04,0.05,0.06"], 2)
     writer = SweepWriter(grid)

@@ -18,8 +18,8 @@ from click.testing import CliRunner
 from esoarm.cli import cli
 from esoarm.engines.metrics import METRICS
 from esoarm.scenario import load_scenario
-from esoarm.studies import sweep
-from esoarm.studies.sweep_output import SweepWriter
+from esoarm.studies.sweeps import sweep
+from esoarm.studies.sweeps.output import SweepWriter
 
 SHORT = {"duration": 2.0}
 

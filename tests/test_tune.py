@@ -16,8 +16,8 @@ from hypothesis import strategies as st
 from esoarm.cli import cli
 from esoarm.engines import batch
 from esoarm.scenario import ScenarioError, load_scenario
-from esoarm.studies.sweep_plots import pareto_mask
-from esoarm.studies.tune import (
+from esoarm.studies.sweeps.plots import pareto_mask
+from esoarm.studies.sweeps.tune import (
     DIVERGED_PENALTY,
     Bound,
     Objective,

@@ -4,9 +4,9 @@
   operating angle and sampled at Ts as python-control ``StateSpace`` systems
   (``.plant``, ``.controller``, ``.loop``; needs ``pip install 'esoarm[analyze]'``);
   :func:`analyze` computes margins, sensitivities and bandwidths
-  (:mod:`esoarm.studies.frequency`, :mod:`esoarm.studies.linearization`).
+  (:mod:`esoarm.studies.frequency.margins`, :mod:`esoarm.studies.frequency.linearization`).
 - Observer and tracking bounds: gains, poles, Theorem 1 and 2
-  (:mod:`esoarm.studies.analysis`).
+  (:mod:`esoarm.observers.stability`).
 
 Example
 -------
@@ -19,7 +19,7 @@ Example
 True
 """
 
-from esoarm.studies.analysis import (
+from esoarm.observers.stability import (
     CONTINUOUS,
     ObserverAnalysis,
     analyze_observer,
@@ -30,8 +30,8 @@ from esoarm.studies.analysis import (
     theorem2_bound,
     tracking_l1_gain,
 )
-from esoarm.studies.frequency import FrequencyAnalysis, Margins, analyze, margins
-from esoarm.studies.linearization import ControlLoop, LinearLoop, linearize, to_control
+from esoarm.studies.frequency.linearization import ControlLoop, LinearLoop, linearize, to_control
+from esoarm.studies.frequency.margins import FrequencyAnalysis, Margins, analyze, margins
 
 __all__ = [
     "CONTINUOUS",

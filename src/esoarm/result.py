@@ -224,7 +224,7 @@ class SimResult:
         return out
 
     def plot(self, path: str | Path | None = None, **kwargs: Any):  # type: ignore[no-untyped-def]
-        """Plot angle, error, control and estimates; see :func:`esoarm.plotting.plot_run`."""
-        from esoarm.plotting import plot_run
+        """Plot angle, error, control and estimates; see :func:`esoarm.plotting.run.plot_run`."""
+        from esoarm.plotting.run import plot_run
 
         return plot_run(self, path=path, **kwargs)

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from esoarm.engines.simulation import prepare, run_reference
-from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.emulator import NoiseStream, Twin
+from esoarm.hardware.host_control import DeploymentController
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.plants.sensor import measure, noise_sequence
 from esoarm.scenario import builtin_names, load_scenario

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from esoarm.hardware.loop import LOG_COLUMNS
+from esoarm.hardware.realtime import LOG_COLUMNS
 
 from .rig_helpers import emulator, esoarm, needs_pty
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from esoarm.hardware import protocol as P
-from esoarm.hardware.controller import DeploymentController
 from esoarm.hardware.emulator import Twin
-from esoarm.hardware.loop import LOG_COLUMNS, RigFault, SafetyLimits, run_rig
+from esoarm.hardware.host_control import DeploymentController
+from esoarm.hardware.realtime import LOG_COLUMNS, RigFault, SafetyLimits, run_rig
 from esoarm.hardware.replay import read_log, replay
 from esoarm.scenario import ScenarioError, load_scenario
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from esoarm.engines.simulation import simulate
-from esoarm.hardware.loop import LOG_COLUMNS
+from esoarm.hardware.realtime import LOG_COLUMNS
 
 from .rig_helpers import CLI, emulator, esoarm, needs_pty
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from esoarm.hardware.loop import LOG_COLUMNS, run_rig
+from esoarm.hardware.realtime import LOG_COLUMNS, run_rig
 from esoarm.hardware.scope import Scope, ScopeError, run_panels, scope_for_run
 from esoarm.scenario import load_scenario
 

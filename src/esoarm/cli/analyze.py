@@ -65,8 +65,8 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
     the FLC and either ESO kind (the nonlinear one in fal's linear zone,
     innovations within ±δ).
     """
-    from esoarm.studies.frequency import analyze as run_analysis
-    from esoarm.studies.linearization import check_supported
+    from esoarm.studies.frequency.linearization import check_supported
+    from esoarm.studies.frequency.margins import analyze as run_analysis
 
     if len(varies) > 1:  # click would keep the last one without a word
         raise BadInput(f"--vary given {len(varies)} times: analyze varies one key (for a grid "
@@ -80,7 +80,7 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
     if vary is None:
         res = run_analysis(scn, theta0=theta0, friction=friction)
         if plot_path is not None:
-            from esoarm.studies.frequency_plots import figure_frequency
+            from esoarm.studies.frequency.plots import figure_frequency
 
             figure_frequency(res, plot_path)
         if as_json:
@@ -91,7 +91,7 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
                 click.echo(f"figure: {plot_path}")
         return
     from esoarm.scenario import ScenarioError
-    from esoarm.studies.sweep import parse_vary
+    from esoarm.studies.sweeps.sweep import parse_vary
 
     spec = parse_vary(vary, scn)
     scenarios = []
@@ -108,7 +108,7 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
             points.append(run_analysis(point, theta0=theta0, friction=friction))
             advance()
     if plot_path is not None:
-        from esoarm.studies.frequency_plots import figure_vary
+        from esoarm.studies.frequency.plots import figure_vary
 
         figure_vary(spec.key, spec.values, points, plot_path)
     if as_json:
@@ -143,7 +143,7 @@ def _print_one(a: Any) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from esoarm.studies.frequency import eso_label, motor_note
+    from esoarm.studies.frequency.margins import eso_label, motor_note
 
     table = Table(title=f"{a.scenario}  (ε = {a.eps:g} s, {a.discretization} {eso_label(a)}; "
                   f"linearized at θ0 = {a.theta0:g} rad, friction '{a.friction}', Ts = {a.ts:g} s)")
@@ -192,7 +192,7 @@ def _print_vary(key: str, values: Any, points: Any) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from esoarm.studies.frequency import motor_note
+    from esoarm.studies.frequency.margins import motor_note
 
     a = points[0]
     table = Table(title=f"{a.scenario}: margins against {key} (linearized at θ0 = {a.theta0:g} "

@@ -58,7 +58,7 @@ def arm_study(scenario: str, overrides: tuple[str, ...], out_dir: str, eps: str 
     from rich.table import Table
 
     from esoarm._io import staged_dir
-    from esoarm.studies.arm_study import VARIANTS, run_arm_study, write_arm_study
+    from esoarm.studies.arms import VARIANTS, run_arm_study, write_arm_study
 
     out = output_dir(out_dir, "--out")  # before the runs: an unwritable DIR is bad input
     grid = _eps_list(eps)

@@ -76,8 +76,8 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
     stop on any fault, every row logged and flushed). Feed the log to
     'esoarm identify'.
     """
-    from esoarm.hardware.loop import SafetyLimits
-    from esoarm.studies.excitation import ExcitationPlan, plan_text
+    from esoarm.hardware.realtime import SafetyLimits
+    from esoarm.studies.identification.excitation import ExcitationPlan, plan_text
 
     plan = ExcitationPlan(duration=duration, amplitude=amplitude, f_min=f_min, f_max=f_max,
                           n_tones=tones, sweep=sweep, sweep_period=sweep_period, kp=kp, kd=kd,
@@ -127,8 +127,8 @@ def _excite_twin(scn, plan, log_path: Path, limits) -> None:  # type: ignore[no-
 def _excite_rig(scn, plan, port: str, log_path: Path, limits, baud: int) -> None:  # type: ignore[no-untyped-def]
     from esoarm.cli.rig import Interrupted
     from esoarm.hardware.link import LinkError, SerialLink
-    from esoarm.hardware.loop import RigFault, RigInterrupted, run_rig
-    from esoarm.studies.excitation import ExcitationController
+    from esoarm.hardware.realtime import RigFault, RigInterrupted, run_rig
+    from esoarm.studies.identification.excitation import ExcitationController
 
     ctl = ExcitationController(scn, plan)
     try:
@@ -193,9 +193,9 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     whiteness). Closed-loop logs work: the fit uses the torque actually logged.
     """
     from esoarm.plants.motor import MotorParams
-    from esoarm.studies.identify import FitFailed
-    from esoarm.studies.identify import identify as run_fit
-    from esoarm.studies.identify_data import read_ident_log
+    from esoarm.studies.identification.data import read_ident_log
+    from esoarm.studies.identification.identify import FitFailed
+    from esoarm.studies.identification.identify import identify as run_fit
 
     out_path = output_path(out, "--out", (".toml",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
@@ -223,19 +223,19 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
             say.close()
     fitted = res.fitted_scenario()
     if plot_path is not None:
-        from esoarm.studies.identify_plots import figure_identification
+        from esoarm.studies.identification.plots import figure_identification
 
         figure_identification(res, plot_path)
     if out_path is not None:
         from esoarm._io import atomic_path
-        from esoarm.studies.identify_report import scenario_toml
+        from esoarm.studies.identification.report import scenario_toml
 
         with atomic_path(out_path) as tmp:
             tmp.write_text(scenario_toml(res, fitted), encoding="utf-8")
     if as_json:
         click.echo(json.dumps(res.to_json()))
         return
-    from esoarm.studies.identify_report import result_text
+    from esoarm.studies.identification.report import result_text
 
     click.echo(result_text(res))
     for label, path in (("scenario", out_path), ("figure", plot_path)):

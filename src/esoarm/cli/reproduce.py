@@ -41,9 +41,14 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
 
     from esoarm._io import staged_dir
     from esoarm.engines.simulation import SimulationDiverged
-    from esoarm.studies.paper_twin import twin_overrides
-    from esoarm.studies.reproduce import figure_specs, plan_runs, run_reproduction, write_outputs
-    from esoarm.studies.twins_report import NOISE_SCAN, compared_twins, twins_section
+    from esoarm.studies.reproduction.paper_twin import twin_overrides
+    from esoarm.studies.reproduction.run import (
+        figure_specs,
+        plan_runs,
+        run_reproduction,
+        write_outputs,
+    )
+    from esoarm.studies.reproduction.twins import NOISE_SCAN, compared_twins, twins_section
 
     out = output_dir(out_dir, "--out")
     overrides = twin_overrides(twin)
@@ -81,7 +86,7 @@ def _print(rep, out: Path, fmt: str, twin: str) -> None:  # type: ignore[no-unty
     from rich.markup import escape
     from rich.table import Table
 
-    from esoarm.studies.reproduce import EPS_SET, PAPER_TABLES, TABLE_NAMES
+    from esoarm.studies.reproduction.run import EPS_SET, PAPER_TABLES, TABLE_NAMES
 
     console = Console()
     for test, table_name in TABLE_NAMES.items():

@@ -186,7 +186,7 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
     printed on stderr).
     """
     from esoarm.hardware.link import LinkError, SerialLink
-    from esoarm.hardware.loop import RigFault, RigInterrupted, SafetyLimits, run_rig
+    from esoarm.hardware.realtime import RigFault, RigInterrupted, SafetyLimits, run_rig
 
     log_path = output_path(log, "--log", (".csv",))
     for name, value in (("--angle-limit", angle_limit), ("--max-jump", max_jump),
@@ -368,7 +368,7 @@ def _replay_arm(scn, log_file: str, out_path: Path | None,  # type: ignore[no-un
     else:
         result.to_csv(out_path)
     if plot_path is not None:
-        from esoarm.plotting_arms import figure_arm_replay
+        from esoarm.plotting.arms import figure_arm_replay
 
         figure_arm_replay(result, names, plot_path)
     for label, path in (("estimates", out_path), ("figure", plot_path)):

@@ -182,8 +182,8 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
       esoarm sweep test-1 --vary observer.eps=geom:0.03:0.3:100 --seeds 20 --out eps.csv
     """
     from esoarm.scenario import load_scenario
-    from esoarm.studies import sweep as sweep_mod
-    from esoarm.studies.sweep import (
+    from esoarm.studies.sweeps import sweep as sweep_mod
+    from esoarm.studies.sweeps.sweep import (
         ClusterError,
         SweepResult,
         SweepWriter,
@@ -237,7 +237,7 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
     writer.seconds = time.perf_counter() - start
     writer.close()
     if plot_path is not None and kept is not None:
-        from esoarm.studies.sweep_plots import figure_sweep
+        from esoarm.studies.sweeps.plots import figure_sweep
 
         figure_sweep(kept, plot_path)
     divergence = writer.divergence_warning()
@@ -255,7 +255,7 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
 def _grid_points(base: Any, vary: tuple[str, ...], max_runs: int) -> int:
     """Number of grid points (for the checking bar); 0 when the grid is invalid."""
     from esoarm.scenario import ScenarioError
-    from esoarm.studies.sweep import parse_vary
+    from esoarm.studies.sweeps.sweep import parse_vary
 
     try:
         return math.prod(len(parse_vary(v, base, max_values=max_runs).values) for v in vary)
@@ -402,7 +402,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
       esoarm tune test-1 --vary observer.eps=0.02:0.3 --robust rig.inertia_scale=0.8:1.2
     """
     from esoarm.scenario import load_scenario
-    from esoarm.studies.tune import (
+    from esoarm.studies.sweeps.tune import (
         DEFAULT_OBJECTIVE,
         DEFAULT_WEIGHT,
         Objective,
@@ -410,7 +410,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
         describe_nonfinite,
         parse_bound,
     )
-    from esoarm.studies.tune import tune as run_tune
+    from esoarm.studies.sweeps.tune import tune as run_tune
 
     out_path = output_path(out, "--out", (".csv",))
     plot_path = None if no_plot else output_path(plot, "--plot", PLOT_SUFFIXES)
@@ -445,7 +445,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
         if line is not None:
             warn_line(line)
     if out_path is not None:
-        from esoarm.studies.sweep_output import write_rows_atomic
+        from esoarm.studies.sweeps.output import write_rows_atomic
 
         header = list(res.evaluations[0]) if res.evaluations else list(res.keys)
         write_rows_atomic(out_path, header, iter([list(r.values()) for r in res.evaluations]))
@@ -476,7 +476,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
 
 
 def _plot_tune(res: Any, name: str, objective: str, w: float, path: Path) -> None:
-    from esoarm.studies.sweep_plots import figure_pareto
+    from esoarm.studies.sweeps.plots import figure_pareto
 
     ev = [r for r in res.evaluations if r["diverged_runs"] == 0]
     first = res.keys[0]

@@ -7,7 +7,7 @@ proposed method) or β̂ = −G(ẑ1)/I0 (``"model"``: the initial model without
 perturbation estimate, the baseline of Fig. 7).  The result is saturated to
 ±torque_limit.  With perfect estimates the tracking error e = θ − θd obeys
 ë + k1 ė + k2 e = κ (eq. 17), κ the estimation error; Theorem 2 bounds the
-steady-state error by μ/k2 for |κ| ≤ μ (see :mod:`esoarm.studies.analysis`).
+steady-state error by μ/k2 for |κ| ≤ μ (see :mod:`esoarm.observers.stability`).
 
 As a kind (see :mod:`esoarm.contract`): :class:`Params` is the ``[controller]``
 table, :func:`design` gives (CODE, :attr:`FLCParams.vector`) and :func:`control`

@@ -40,7 +40,7 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
     scenario stands out.
     """
     from esoarm._schema import joint_values, show_joint_values
-    from esoarm.studies.analysis import observer_warnings
+    from esoarm.observers.stability import observer_warnings
 
     causes: list[str] = []
     ts = scn.sample_time

@@ -1,7 +1,7 @@
 """Run an identification experiment (``esoarm excite``) on a rig or on the twin.
 
-On a rig the experiment goes through :func:`esoarm.hardware.loop.run_rig` with an
-:class:`~esoarm.studies.excitation.ExcitationController` in place of the FLC, so
+On a rig the experiment goes through :func:`esoarm.hardware.realtime.run_rig` with an
+:class:`~esoarm.studies.identification.excitation.ExcitationController` in place of the FLC, so
 it has every safety check of ``esoarm run`` (torque limit, angle limit, encoder
 jump, watchdog, NaN guard, STOP on any fault) and the same streamed, flushed log.
 
@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from esoarm.hardware.controller import SampleController
 from esoarm.hardware.emulator import Twin
-from esoarm.hardware.loop import LOG_COLUMNS, RunSummary, SafetyLimits, _LogWriter, _Stop
+from esoarm.hardware.host_control import SampleController
+from esoarm.hardware.realtime import LOG_COLUMNS, RunSummary, SafetyLimits, _LogWriter, _Stop
 from esoarm.scenario import Scenario
-from esoarm.studies.excitation import ExcitationController, ExcitationPlan
+from esoarm.studies.identification.excitation import ExcitationController, ExcitationPlan
 
 __all__ = ["TWIN_LOG_COLUMNS", "ExcitationFault", "excite_twin"]
 
@@ -58,7 +58,7 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
         Angle limit [rad] and encoder-jump limit [rad] as on a rig.
     controller : optional
         Another per-sample controller with the same interface, e.g. the
-        scenario's ESO + FLC (:class:`~esoarm.hardware.controller.DeploymentController`):
+        scenario's ESO + FLC (:class:`~esoarm.hardware.host_control.DeploymentController`):
         the twin then logs a closed-loop run exactly as ``esoarm run`` would.
 
     Returns

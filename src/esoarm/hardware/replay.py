@@ -102,7 +102,7 @@ def replay(scn: Scenario, t: np.ndarray, theta: np.ndarray, u: np.ndarray,
 
 
 def plot_replay(result: ReplayResult, path: str | Path) -> None:
-    """Draw the replay; see :func:`esoarm.plotting.figure_replay`."""
-    from esoarm.plotting import figure_replay
+    """Draw the replay; see :func:`esoarm.plotting.run.figure_replay`."""
+    from esoarm.plotting.run import figure_replay
 
     figure_replay(result, path)

@@ -58,7 +58,7 @@ class Panel:
 
 
 def run_panels() -> tuple[Panel, ...]:
-    """Panels of ``esoarm run`` (columns of :data:`esoarm.hardware.loop.LOG_COLUMNS`)."""
+    """Panels of ``esoarm run`` (columns of :data:`esoarm.hardware.realtime.LOG_COLUMNS`)."""
     return (
         Panel("angle", "rad", ("theta", "theta_ref", "z1"), ("θ measured", "θd", "ẑ1")),
         Panel("control", "N·m", ("u",), ("u",)),
@@ -285,7 +285,7 @@ EMULATOR_COLUMNS = ("t", "theta", "theta_measured", "omega", "u")
 
 def scope_for_run(name: str, rate_hz: float, window: float, port: int) -> Scope:
     """The scope of ``esoarm run``: rows are the run log's CSV lines."""
-    from esoarm.hardware.loop import LOG_COLUMNS
+    from esoarm.hardware.realtime import LOG_COLUMNS
 
     return Scope(LOG_COLUMNS, run_panels(), window, rate_hz, port, title=f"esoarm run {name}")
 

@@ -1,0 +1,480 @@
+"""The real-time run loop on a rig (``esoarm run``), with its safety layer.
+
+The device is the clock: it sends sample k (device time, encoder count) every
+Ts (or, in lockstep, after each command).  For every sample the host does
+the sampled-data loop, steps 1-5 with :class:`~esoarm.hardware.host_control.DeploymentController`:
+
+1. y_k = q · count_k   (q = radians(sensor.resolution_deg); exact, see emulator)
+2.-3. ẑ_k, u_k = sat(FLC(ẑ_k, reference at t_k))
+   send u_k: float64 TORQUE to an ideal-torque device, else a DUTY from
+   :meth:`~esoarm.plants.motor.MotorParams.torque_to_duty` with the rate ẑ2
+4. log row k (streamed to disk, one line per sample, flushed)
+5. ESO update with the torque applied from t_k on
+
+Safety: |u| ≤ torque_limit (the FLC saturates; checked again), |y| ≤ angle
+limit, |y_k − y_{k−1}| ≤ max jump (encoder glitches), |y_k − θd(t_k)| ≤ max
+following error (a dead driver or encoder line), a host watchdog on
+incoming samples, and a NaN guard on u and ẑ.  Any fault, a device FAULT
+report, a lost port or Ctrl-C ends the run the same way: STOP is sent (the
+device turns the motor off; its own 100 ms watchdog does so too if the link is
+dead), the log keeps every row written, and :class:`RigFault` or
+:class:`RigInterrupted` carries the summary of the rows logged.
+
+A sample that never arrives (a gap in the device's sample index) is bridged by
+an observer prediction with zero innovation; its row has ``theta = nan`` and
+is counted in ``lost_samples``.  Deadline: the command for sample k must leave
+before t_dev,k + offset + Ts, offset the smallest arrival delay seen
+(a host-side estimate of the device clock).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from esoarm._io import OutputError, describe_os_error
+from esoarm.engines.metrics import series_metrics
+from esoarm.hardware import protocol as P
+from esoarm.hardware.host_control import DeploymentController, SampleController
+from esoarm.hardware.link import LinkError, SerialLink
+from esoarm.plants.actuator import actuate, actuator_vector
+from esoarm.plants.motor import MotorParams
+from esoarm.scenario import Scenario, ScenarioError
+
+__all__ = ["LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",
+           "check_device", "run_rig"]
+
+#: Columns of the run log (docs/semantics.md, "Output files and columns"): the time-series
+#: columns, but ``theta`` and ``error`` from the *measured* angle (a rig's true angle is
+#: unknown) and no ``f_true``; then timing, the duty sent, and ``y``, the measured angle
+#: under the name it has in every file (here equal to ``theta``).
+LOG_COLUMNS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3",
+               "k", "t_device", "t_host", "latency", "late", "duty", "y")
+
+
+@dataclass(frozen=True)
+class SafetyLimits:
+    """Host-side safety limits.
+
+    Attributes
+    ----------
+    angle_limit : float
+        Largest allowed |θ| measured [rad].
+    max_jump : float
+        Largest allowed change of the measured angle between two samples [rad].
+    watchdog : float
+        Longest wait for the next sample [s].
+    max_error : float
+        Largest allowed following error |θ − θd| measured [rad]: a driver that no
+        longer drives or an encoder line that no longer counts leaves the arm
+        behind its reference. Off (inf) by default here; ``esoarm run`` sets it
+        (``--max-error``, 0.5 rad).
+    """
+
+    angle_limit: float = math.pi
+    max_jump: float = 0.5
+    watchdog: float = 0.25
+    max_error: float = math.inf
+
+
+@dataclass
+class RunSummary:
+    """Metrics of a run over the samples received, on the measured angle (engines.metrics)."""
+
+    samples: int = 0
+    lost_samples: int = 0
+    rms_error: float = math.nan
+    rms_u: float = math.nan
+    max_abs_error: float = math.nan
+    deadline_misses: int = 0
+    jitter_p50_us: float = math.nan
+    jitter_p99_us: float = math.nan
+    latency_p50_us: float = math.nan
+    latency_p99_us: float = math.nan
+    bad_frames: int = 0
+    lost_frames: int = 0
+    mode: str = ""
+    log: str = ""
+    stop_acknowledged: bool = False
+
+    def to_dict(self) -> dict:
+        """JSON-ready (NaN as None)."""
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                for k, v in asdict(self).items()}
+
+
+class RigFault(RuntimeError):
+    """A run ended by a fault; STOP sent, log intact. ``summary`` covers the rows logged."""
+
+    def __init__(self, message: str, summary: RunSummary) -> None:
+        super().__init__(message)
+        self.summary = summary
+
+
+class RigInterrupted(RuntimeError):
+    """A run ended by Ctrl-C; STOP sent, log intact."""
+
+    def __init__(self, message: str, summary: RunSummary) -> None:
+        super().__init__(message)
+        self.summary = summary
+
+
+def check_device(info: P.Info, scn: Scenario) -> float:
+    """Check the device against the scenario; return the quantization step q [rad].
+
+    Raises :class:`ScenarioError` (bad input) when the device's sample period or
+    encoder resolution differs from ``sensor.rate_hz`` / ``sensor.resolution_deg``.
+    """
+    ts = scn.sample_time
+    if abs(info.period_us * 1e-6 - ts) > 1e-6:
+        raise ScenarioError(
+            f"sensor.rate_hz = {scn.sensor.rate_hz:g} Hz does not match the device, which "
+            f"samples every {info.period_us} µs ({1e6 / max(info.period_us, 1):g} Hz)")
+    res = scn.sensor.resolution_deg
+    dev = 360.0 / info.counts_per_rev if info.counts_per_rev else math.inf
+    if not abs(dev - res) <= 1e-9 * dev:
+        raise ScenarioError(
+            f"sensor.resolution_deg = {res:g} does not match the device's "
+            f"{info.counts_per_rev} counts/rev; use --set sensor.resolution_deg={dev!r}")
+    return math.radians(res)
+
+
+class _LogWriter:
+    """CSV rows streamed to disk, one flushed line per sample.
+
+    If the disk fills up (or any write fails) the run stops like any other
+    fault, and the file is cut back to its last whole row.
+    """
+
+    def __init__(self, path: Path | None, columns: tuple[str, ...] = LOG_COLUMNS,
+                 tee: Callable[[str], None] | None = None) -> None:
+        self.path = path
+        self.tee = tee  # e.g. the live scope: gets every row as written
+        self.rows = 0
+        self._fh = None
+        self._good = 0  # bytes of whole rows written
+        if path is not None:
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
+            except OSError as exc:
+                raise OutputError(path, describe_os_error(exc)) from None
+            self.write(",".join(columns) + "\n", row=False)
+
+    def write(self, line: str, row: bool = True) -> None:
+        if self._fh is not None:
+            try:
+                self._fh.write(line)
+            except OSError as exc:
+                self._fail(exc)
+            self._good += len(line)  # ASCII: characters are bytes
+        if row:
+            self.rows += 1
+            if self.tee is not None:
+                self.tee(line)
+
+    def _fail(self, exc: OSError) -> None:
+        fh, self._fh = self._fh, None
+        try:
+            assert fh is not None
+            fh.close()
+        except OSError:
+            pass
+        try:
+            os.truncate(str(self.path), self._good)
+        except OSError:
+            pass
+        raise _Stop(f"cannot write the log '{self.path}': {describe_os_error(exc)} "
+                    f"(log cut back to its last whole row)")
+
+    def close(self) -> None:
+        if self._fh is not None:
+            try:
+                self._fh.flush()
+                self._fh.close()
+            except OSError:
+                try:
+                    os.truncate(str(self.path), self._good)
+                except OSError:
+                    pass
+            self._fh = None
+
+
+class _SigintFlag:
+    """Turn Ctrl-C into a flag checked between samples (never a half-written row)."""
+
+    def __init__(self) -> None:
+        self.hit = False
+        self._old: Any = None
+
+    def __enter__(self) -> _SigintFlag:
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum, frame) -> None:  # type: ignore[no-untyped-def]
+        self.hit = True
+
+    def __exit__(self, *exc: object) -> None:
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+
+
+class _Stop(Exception):
+    def __init__(self, message: str, interrupted: bool = False) -> None:
+        super().__init__(message)
+        self.interrupted = interrupted
+
+
+def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
+            limits: SafetyLimits | None = None,
+            status: Callable[[dict], None] | None = None,
+            controller: SampleController | None = None,
+            monitor: Callable[[str], None] | None = None) -> RunSummary:
+    """Drive the device on ``link`` through one run of ``scn``.
+
+    Parameters
+    ----------
+    scn : Scenario
+        Scenario (rate, duration, controller, reference, optional motor).
+    link : SerialLink
+        An open link (handshake not yet done).
+    log_path : Path, optional
+        CSV log (:data:`LOG_COLUMNS`), streamed and flushed per row.
+    limits : SafetyLimits, optional
+        Host safety limits.
+    status : callable, optional
+        Called about ten times a second with a dict (t, theta, error, u,
+        deadline_misses, k, n) for a live display, and once more when the run
+        ends (after STOP) with the last sample logged.
+    controller : optional
+        What computes u_k from y_k (``step``, ``commit``, ``predict``, ``zhat``,
+        ``reference``, ``t``, ``n_samples``, ``ts``, ``torque_limit``); default the
+        scenario's ESO + FLC.  The identification experiment passes its
+        :class:`~esoarm.studies.identification.excitation.ExcitationController`.
+    monitor : callable, optional
+        Receives every log row (the CSV line of :data:`LOG_COLUMNS`) as it is
+        written, e.g. :meth:`esoarm.hardware.scope.Scope.push`; it must not block.
+
+    Returns
+    -------
+    RunSummary
+
+    Raises
+    ------
+    ScenarioError
+        The device does not match the scenario (rate, resolution, protocol).
+    RigFault, RigInterrupted
+        The run ended early; STOP was sent and the log keeps every row.
+    LinkError
+        No device answered the handshake.
+    """
+    limits = limits or SafetyLimits()
+    info = link.handshake()
+    q = check_device(info, scn)
+    motor = MotorParams.from_scenario(scn)
+    use_torque = info.accepts_torque and motor is None
+    if not use_torque and motor is None:
+        raise ScenarioError(
+            "the device takes PWM duties, not torques: add a [motor] table to the scenario "
+            "(supply_voltage, resistance, torque_constant, gear_ratio, pwm_max, deadband)")
+    if motor is not None and info.accepts_torque:
+        raise ScenarioError(
+            "the scenario has a [motor] table but the device is an ideal torque source "
+            "(an emulator started without [motor]): give both the same scenario")
+    if motor is not None and motor.pwm_max != info.pwm_max:
+        raise ScenarioError(
+            f"motor.pwm_max = {motor.pwm_max} does not match the device's PWM range "
+            f"±{info.pwm_max}")
+    ctl = controller if controller is not None else DeploymentController(scn)
+    n, ts = ctl.n_samples, ctl.ts
+    log = _LogWriter(log_path, tee=monitor)
+    summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
+                         log=str(log_path) if log_path else "")
+    acc: dict[str, list[float]] = {"e": [], "u": []}  # error and u of the samples received
+    periods: list[float] = []
+    latencies: list[float] = []
+    error_message = None
+    interrupted = False
+    last: list[Any] = [-1, math.nan, -1]  # k logged last, its measured θ, k of the last status
+    with _SigintFlag() as sigint:
+        try:
+            _loop(scn, link, ctl, q, motor if not use_torque else None, limits, log, summary,
+                  acc, periods, latencies, sigint, status, n, ts, info.lockstep, last)
+        except _Stop as exc:
+            error_message, interrupted = str(exc), exc.interrupted
+        except LinkError as exc:
+            error_message = str(exc)
+        finally:
+            link.stop()
+            summary.stop_acknowledged = _wait_stopped(link, 0.5)
+            log.close()
+    k_last, y_last, k_shown = last
+    if status is not None and k_last > k_shown:
+        # the status is rate-limited (10/s): once more with the last sample logged, after
+        # STOP went out, so that a display ends where the log ends
+        status({"t": ctl.t[k_last], "theta": y_last, "error": acc["e"][-1], "u": acc["u"][-1],
+                "deadline_misses": summary.deadline_misses, "k": k_last, "n": n})
+    _finish(summary, acc, periods, latencies, log.rows, link, ts)
+    if error_message is not None:
+        kept = f"; {log.rows} rows in {log_path}" if log_path else ""
+        off = "stop sent, motor off" if summary.stop_acknowledged else \
+            "stop sent (not acknowledged; the device watchdog turns the motor off)"
+        text = f"{error_message}: {off}{kept}"
+        if interrupted:
+            raise RigInterrupted(text, summary)
+        raise RigFault(text, summary)
+    return summary
+
+
+def _wait_stopped(link: SerialLink, timeout: float) -> bool:
+    deadline = time.perf_counter() + timeout
+    try:
+        while (left := deadline - time.perf_counter()) > 0:
+            if any(f.kind == P.STOPPED for f in link.receive(left)):
+                return True
+    except LinkError:
+        return False
+    return False
+
+
+def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencies,  # type: ignore[no-untyped-def]
+          sigint, status, n, ts, lockstep, last) -> None:
+    fmt = repr
+    nan = math.nan
+    isfinite = math.isfinite
+    perf = time.perf_counter
+    limit = ctl.torque_limit
+    act = actuator_vector(scn)
+    k_next = 0
+    y_prev = nan
+    u_last = 0.0
+    offset = math.inf
+    t_prev_rx = nan
+    t_start = perf()
+    t_last_rx = t_start
+    next_status = t_start
+    t_us_last, wraps = 0, 0
+    link.send(P.START)
+    while k_next < n:
+        if sigint.hit:
+            raise _Stop(f"interrupted at sample {k_next}", interrupted=True)
+        frames = link.receive(0.05)
+        now = perf()
+        if not frames:
+            if now - t_last_rx > limits.watchdog:
+                raise _Stop(f"watchdog: no sample from the device for "
+                            f"{(now - t_last_rx) * 1e3:.0f} ms at sample {k_next}")
+            continue
+        for frame in frames:
+            kind = frame.kind
+            if kind == P.FAULT:
+                code, detail = frame.fields()
+                name = {P.FAULT_WATCHDOG: "command watchdog", P.FAULT_OVERRUN: "overrun",
+                        P.FAULT_BAD_COMMAND: "bad command",
+                    P.FAULT_ENCODER: "encoder"}.get(code, f"code {code}")
+                raise _Stop(f"device reported a fault: {name} (detail {detail})")
+            if kind == P.STOPPED:
+                raise _Stop(f"device stopped unexpectedly at sample {k_next}")
+            if kind != P.SAMPLE:
+                continue
+            k_dev, t_us, count = frame.fields()
+            if k_dev < k_next:
+                continue  # stale
+            t_last_rx = now
+            if t_us < t_us_last:
+                wraps += 1
+            t_us_last = t_us
+            t_dev = (t_us + wraps * 4294967296) * 1e-6
+            offset = min(offset, now - t_dev)
+            if t_prev_rx == t_prev_rx:
+                periods.append(now - t_prev_rx)
+            t_prev_rx = now
+            while k_next < k_dev and k_next < n:  # lost samples: observer prediction
+                z1, z2, z3 = ctl.predict(u_last)
+                log.write(f"{fmt(ctl.t[k_next])},nan,{fmt(ctl.reference(k_next))},nan,"
+                          f"{fmt(u_last)},{fmt(z1)},{fmt(z2)},{fmt(z3)},{k_next},nan,nan,nan,0,"
+                          f"nan,nan\n")
+                summary.lost_samples += 1
+                k_next += 1
+            if k_next >= n:
+                break
+            k = k_next
+            y = q * count
+            # -- safety on the measurement
+            if abs(y - y_prev) > limits.max_jump:
+                raise _Stop(f"encoder jump: θ changed by {y - y_prev:.4g} rad in one sample "
+                            f"at sample {k} (limit {limits.max_jump:g} rad)")
+            if abs(y) > limits.angle_limit:
+                raise _Stop(f"angle limit: measured θ = {y:.4g} rad at sample {k} "
+                            f"(limit ±{limits.angle_limit:g} rad)")
+            if abs(y - ctl.reference(k)) > limits.max_error:
+                raise _Stop(f"following error: θ − θd = {y - ctl.reference(k):.4g} rad at "
+                            f"sample {k} (limit {limits.max_error:g} rad)")
+            u = ctl.step(k, y)
+            z1, z2, z3 = ctl.zhat
+            if not (isfinite(u) and isfinite(z1) and isfinite(z2) and isfinite(z3)):
+                raise _Stop(f"NaN guard: non-finite control or estimate at sample {k}")
+            if abs(u) > limit:  # the FLC saturates; a violation is a bug: stop
+                raise _Stop(f"torque limit: u = {u:.4g} N·m at sample {k}")
+            # the actuator of every engine: with a motor, the duty and the torque it gives
+            u_host, _, d = actuate(u, z2, act)
+            u_applied = float(u_host)
+            if motor is None:
+                link.send(P.TORQUE, k, u)
+                duty = "nan"
+            else:
+                link.send(P.DUTY, k, int(d))
+                duty = str(int(d))
+            t_sent = perf()
+            ctl.commit(u_applied)
+            latency = t_sent - now
+            late = 0 if lockstep or t_sent <= t_dev + offset + ts else 1
+            summary.deadline_misses += late
+            latencies.append(latency)
+            ref = ctl.reference(k)
+            e = y - ref
+            log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u_applied)},"
+                      f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},{fmt(t_dev)},{fmt(now - t_start)},"
+                      f"{fmt(latency)},{late},{duty},{fmt(y)}\n")
+            acc["e"].append(e)
+            acc["u"].append(u_applied)
+            y_prev = y
+            u_last = u_applied
+            k_next = k + 1
+            last[0] = k
+            last[1] = y
+            if status is not None and now >= next_status:
+                next_status = now + 0.1
+                last[2] = k
+                status({"t": ctl.t[k], "theta": y, "error": e, "u": u_applied,
+                        "deadline_misses": summary.deadline_misses, "k": k, "n": n})
+
+
+def _finish(summary: RunSummary, acc: dict[str, list[float]], periods: list[float],
+            latencies: list[float], rows: int, link: SerialLink, ts: float) -> None:
+    summary.samples = rows
+    if acc["e"]:
+        m = series_metrics(np.array(acc["e"]), np.array(acc["u"]))
+        summary.rms_error = m["rms_error"]
+        summary.rms_u = m["rms_u"]
+        summary.max_abs_error = m["max_abs_error"]
+    if periods and summary.mode != "lockstep":  # lockstep has no period to jitter around
+        jit = np.abs(np.asarray(periods) - ts) * 1e6
+        summary.jitter_p50_us = float(np.percentile(jit, 50))
+        summary.jitter_p99_us = float(np.percentile(jit, 99))
+    if latencies:
+        lat = np.asarray(latencies) * 1e6
+        summary.latency_p50_us = float(np.percentile(lat, 50))
+        summary.latency_p99_us = float(np.percentile(lat, 99))
+    summary.bad_frames = link.parser.bad_frames
+    summary.lost_frames = link.rx_lost

@@ -1,0 +1,1 @@
+"""Figures of runs (numerics never import this package; results forward to it)."""

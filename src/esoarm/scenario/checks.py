@@ -1,0 +1,286 @@
+"""Checks and warnings of a scenario: validation messages, consistency, computability, timing.
+
+:func:`esoarm.scenario.load_scenario` runs :func:`_check_consistency` on every scenario it
+builds (a failure is a :class:`~esoarm.scenario.ScenarioError` naming the key);
+:func:`scenario_warnings` lists legal but risky settings, one line each.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from pydantic import ValidationError
+
+from esoarm import kinds as _kinds
+from esoarm._limits import MAX_SAMPLES
+from esoarm._schema import PER_JOINT_KEYS
+from esoarm.scenario import (
+    KIND_SECTIONS,
+    Multisine,
+    PerJoint,
+    QuinticSteps,
+    RangeMoves,
+    Scenario,
+    ScenarioError,
+    _valid_keys,
+)
+
+__all__ = ["scenario_warnings", "timing_warnings"]
+
+
+_UNION_MEMBER = re.compile(r"^(constrained-)?(float|int|str|bool)$|^list\[.*\]$")
+
+
+#: Errors that only say the input is not of a union member's type (a list is not a number).
+_TYPE_MISMATCH = ("float_type", "int_type", "list_type", "string_type", "bool_type",
+                  "float_parsing", "int_parsing")
+
+
+def _first_error(exc: ValidationError) -> Any:
+    """The error to report: for a number-or-list key, the one of the member the input is.
+
+    A per-joint list ``[0.05, -1]`` fails both members of ``float | list[float]``; the
+    float member's "not a valid number" hides the list member's error at entry 1.
+    """
+    errors = exc.errors()
+    first = errors[0]
+    if first["type"] in _TYPE_MISMATCH:
+        base = [p for p in first["loc"] if not _UNION_MEMBER.match(str(p))]
+        for other in errors[1:]:
+            loc = other["loc"]
+            same_key = [p for p in loc if not _UNION_MEMBER.match(str(p))
+                        and not isinstance(p, int)] == base
+            # an error at an entry of the list, or a member's error other than its type
+            if same_key and (isinstance(loc[-1], int) and isinstance(first.get("input"), list)
+                             or other["type"] not in _TYPE_MISMATCH):
+                return other
+    return first
+
+
+def _format_validation_error(exc: ValidationError, source: str,
+                             origin: Callable[[str], str] | None = None) -> str:
+    err = _first_error(exc)
+    loc = [str(p) for p in err["loc"] if not isinstance(p, int)]
+    # drop the discriminator tag pydantic inserts for tagged unions
+    section = loc[0] if loc else ""
+    tags = {m.model_fields["kind"].default: m for m in KIND_SECTIONS.get(section, ())}
+    tag_in_loc = [p for p in loc[1:2] if p in tags]
+    loc = [p for i, p in enumerate(loc) if not (i == 1 and p in tags)]
+    # and the member names of a plain union (a number or a per-joint list: "float", "list[…]")
+    loc = [p for p in loc if not _UNION_MEMBER.match(p)]
+    idx = [p for p in err["loc"] if isinstance(p, int)]
+    key = ".".join(loc)
+    keys = {tuple(str(p) for p in e["loc"] if not isinstance(p, int)
+                  and not _UNION_MEMBER.match(str(p))) for e in exc.errors()}
+    more = len(keys) - 1
+    tail = f" (and {more} more error{'s' if more > 1 else ''})" if more else ""
+    kind = err["type"]
+    if origin is not None:
+        source = origin(key if kind != "union_tag_invalid" else key + ".kind")
+    if kind == "extra_forbidden":
+        valid = _valid_keys()
+        if key in valid and tag_in_loc:  # a key of another kind of this section
+            model = tags[tag_in_loc[0]]
+            return (f"{source}: key '{key}' does not apply to {section} kind "
+                    f"'{tag_in_loc[0]}' (its keys: {', '.join(model.model_fields)}){tail}")
+        close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        return f"{source}: unknown key '{key}'{hint}{tail}"
+    where = f"{key}[{']['.join(map(str, idx))}]" if idx else key
+    joint = ""
+    if idx and key.rsplit(".", 1)[-1] in PER_JOINT_KEYS and section in ("observer", "controller"):
+        joint = f" (joint {idx[0]}, counting from 0)"
+    value = err.get("input")
+    msg = err["msg"]
+    if kind in ("finite_number",):
+        msg = "must be a finite number (no NaN or inf)"
+    elif kind.startswith(("float", "int", "string", "list", "bool", "model")):
+        msg = f"{msg.lower()}"
+    if kind in ("union_tag_invalid", "union_tag_not_found"):
+        allowed = ", ".join(f"'{t}'" for t in tags)
+        return f"{source}: key '{key}.kind' must be one of {allowed}{tail}"
+    shown = repr(value) if not isinstance(value, dict) else "a table"
+    return f"{source}: key '{where}'{joint} = {shown}: {msg}{tail}"
+
+
+def _check_consistency(scn: Scenario, source: str,
+                       origin: Callable[[str], str] | None = None) -> None:
+    def fail(key: str, msg: str) -> None:
+        where = origin(key) if origin else source
+        raise ScenarioError(f"{where}: key '{key}': {msg}")
+
+    ts = scn.sample_time
+    ratio = ts / scn.rig.step
+    if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+        fail(
+            "rig.step",
+            f"{scn.rig.step:g} s must divide the sample period Ts = 1/rate_hz = {ts:g} s "
+            "into a whole number of RK4 steps",
+        )
+    _check_computable(scn, fail)
+    samples = scn.duration * scn.sensor.rate_hz
+    if not samples <= MAX_SAMPLES:  # also catches an overflow to inf
+        fail("duration", f"{scn.duration:g} s at {scn.sensor.rate_hz:g} Hz is {samples:.3g} "
+             f"samples; at most {MAX_SAMPLES:.0e} are allowed")
+    if scn.n_samples < 1:
+        fail("duration", f"{scn.duration:g} s is shorter than one sample period ({ts:g} s)")
+    ref = scn.reference
+    parts = ([(f"reference.joints[{i}]", r) for i, r in enumerate(ref.joints)]
+             if isinstance(ref, PerJoint) else [("reference", ref)])
+    for where, part in parts:
+        if isinstance(part, QuinticSteps | RangeMoves):
+            _check_moves(part, where, fail)
+        else:
+            n = len(part.amplitudes)
+            if len(part.frequencies) != n:
+                fail(f"{where}.frequencies", f"needs one entry per amplitude ({n})")
+            if part.phases and len(part.phases) != n:
+                fail(f"{where}.phases", f"needs one entry per amplitude ({n}) or none")
+    kinds = _kinds.kinds_of(scn)
+    for module in kinds:  # a kind's own checks against the rest of the scenario
+        check = getattr(module, "check", None)
+        message = check(scn) if check is not None else None
+        if message:
+            raise ScenarioError(f"{source}: {message}")
+    if not hasattr(kinds.plant, "joint_limits"):  # one joint, no limits (the lever arm)
+        if isinstance(ref, RangeMoves):
+            fail("reference.kind", f"'range' moves through joint limits; plant kind "
+                 f"'{scn.plant.kind}' has none (use quintic-steps or multisine)")
+        if isinstance(ref, PerJoint) and len(ref.joints) != 1:
+            fail("reference.joints", f"{len(ref.joints)} entries, but plant kind "
+                 f"'{scn.plant.kind}' has one joint")
+        for section in ("observer", "controller"):  # a per-joint list: one entry
+            values = getattr(scn, section).model_dump()
+            for key in PER_JOINT_KEYS:
+                value = values.get(key)
+                if isinstance(value, list) and len(value) != 1:
+                    fail(f"{section}.{key}", f"{len(value)} entries, but plant kind "
+                         f"'{scn.plant.kind}' has one joint (give one number)")
+
+
+def _check_moves(ref: QuinticSteps | RangeMoves, where: str, fail: Any) -> None:
+    what = "position −1…1" if isinstance(ref, RangeMoves) else "target rad"
+    end = -math.inf
+    for i, move in enumerate(ref.moves):
+        key = f"{where}.moves[{i}]"
+        if len(move) != 3:
+            fail(key, f"each move is [start s, duration s, {what}]")
+        t0, dur, target = move
+        if not all(math.isfinite(v) for v in move):
+            fail(key, "must be finite numbers")
+        if dur <= 0:
+            fail(key, f"duration {dur:g} s must be > 0")
+        if t0 < 0:
+            fail(key, f"start {t0:g} s must be >= 0")
+        if t0 < end - 1e-12:
+            fail(key, f"starts at {t0:g} s, before the previous move ends ({end:g} s): "
+                 "moves must be in time order and not overlap")
+        if isinstance(ref, RangeMoves) and not -1.0 <= target <= 1.0:
+            fail(key, f"position {target:g} must be within −1…1 (the joint's limits)")
+        end = t0 + dur
+
+
+def _check_computable(scn: Scenario, fail: Callable[[str, str], None]) -> None:
+    """Values each legal alone whose derived quantities overflow double precision.
+
+    The input gain 1/I0, the true inertia, the observer gains up to 1/ε³, the
+    gravity torque and the tanh friction slope 1/vs must be finite and the
+    divisors non-zero; otherwise the engines would compute inf or NaN (or fail)
+    from the first sample on.
+    """
+    p, rig, obs, ctl = scn.plant, scn.rig, scn.observer, scn.controller
+    checks: list[tuple[str, Callable[[], float], str, bool]] = [  # key, value, what, divisor
+        ("plant.inertia", lambda: 1.0 / p.inertia, "1/plant.inertia (the input gain b0)", True),
+        ("rig.inertia_scale", lambda: p.inertia * rig.inertia_scale,
+         "plant.inertia · rig.inertia_scale (the true inertia)", True),
+        ("rig.inertia_scale", lambda: 1.0 / (p.inertia * rig.inertia_scale),
+         "1/(plant.inertia · rig.inertia_scale)", True),
+        ("observer.eps", lambda: 1.0 / np.float64(  # an empty list: its length is checked later
+            min(obs.eps, default=1.0) if isinstance(obs.eps, list) else obs.eps) ** 3,
+         "the observer gain β3 = 1/ε³", True),
+        ("plant.g", lambda: (p.m1 * p.l1 - p.m2 * p.l2) * p.g, "the gravity torque amplitude",
+         False),
+        ("rig.friction_velocity", lambda: rig.coulomb_friction / rig.friction_velocity,
+         "the friction slope Fc/vs", False),
+        ("actuator.lag", lambda: 1.0 / scn.actuator.lag if scn.actuator.lag else 0.0,
+         "1/actuator.lag", False),
+        ("controller.k2", lambda: ctl.k2 * p.inertia * 10.0, "the control gain I0 · k2", False),
+    ]
+    for key, compute, what, divisor in checks:
+        try:
+            with np.errstate(all="ignore"):
+                value = float(compute())
+        except AttributeError:  # another plant, observer or controller kind: not its key
+            continue
+        except ZeroDivisionError:
+            value = math.inf
+        if not (math.isfinite(value) and (value != 0 or not divisor)):
+            fail(key, f"out of the range double precision can compute with: {what} "
+                 f"is {value:g}")
+
+
+def scenario_warnings(scn: Scenario) -> list[str]:
+    """Legal but risky settings of ``scn``, as one-line messages.
+
+    A discrete observer whose error poles are unstable or poorly damped at
+    this sample rate, or faster than the samples support (see
+    :func:`esoarm.observers.stability.observer_warnings`); and settings that
+    silently do nothing or less than asked (:func:`timing_warnings`).
+    """
+    from esoarm.observers.stability import observer_warnings
+
+    obs = scn.observer
+    eps, disc = getattr(obs, "eps", None), getattr(obs, "discretization", None)
+    observer: list[str] = []
+    if eps is not None and disc is not None:
+        for value in dict.fromkeys(eps if isinstance(eps, list) else [eps]):  # each ε once
+            observer.extend(m for m in observer_warnings(value, scn.sample_time, disc)
+                            if m not in observer)
+    return [*observer, *timing_warnings(scn)]
+
+
+def timing_warnings(scn: Scenario) -> list[str]:
+    """Settings that the run's length or sample rate makes (partly) ineffective.
+
+    A transport delay as long as the run (no command ever acts), a reference
+    move that starts after the run has ended, a multisine tone at or above
+    the Nyquist frequency of the samples, and a duration that is not a whole
+    number of sample periods (the run is rounded to N samples).
+    """
+    out: list[str] = []
+    ts, n = scn.sample_time, scn.n_samples
+    end = n * ts
+    delay = scn.actuator.delay_samples
+    if delay >= n:
+        out.append(f"actuator.delay_samples = {delay} ({delay * ts:g} s) is as long as the run "
+                   f"({n} samples, {end:g} s): no command ever reaches the arm")
+    ref = scn.reference
+    if isinstance(ref, QuinticSteps | RangeMoves):
+        late = [i for i, move in enumerate(ref.moves) if len(move) == 3 and move[0] >= end]
+        if late:
+            i = late[0]
+            more = f" (and {len(late) - 1} later moves)" if len(late) > 1 else ""
+            out.append(f"reference.moves[{i}] starts at {ref.moves[i][0]:g} s, when the run has "
+                       f"ended ({end:g} s): it is never tracked{more}; raise duration")
+    elif isinstance(ref, Multisine):
+        nyquist = math.pi / ts
+        fast = [i for i, w in enumerate(ref.frequencies) if abs(w) >= nyquist]
+        if fast:
+            i = fast[0]
+            out.append(f"reference.frequencies[{i}] = {ref.frequencies[i]:g} rad/s is at or above "
+                       f"the Nyquist frequency of the samples (π·rate_hz = {nyquist:g} rad/s): "
+                       "the loop sees an aliased reference")
+    steps = n * scn.substeps
+    if scn.substeps > 10_000 or steps > 100_000_000:
+        out.append(f"rig.step = {scn.rig.step:g} s is {scn.substeps:,} RK4 steps per sample, "
+                   f"{steps:,} for the run: that takes hours in esoarm simulate; a step of "
+                   f"about Ts/20 = {ts / 20:g} s is usually enough")
+    if abs(end - scn.duration) > 1e-9 * max(scn.duration, 1.0):
+        out.append(f"duration = {scn.duration:g} s is not a whole number of sample periods "
+                   f"(Ts = {ts:g} s): the run has {n} samples ({end:g} s)")
+    return out

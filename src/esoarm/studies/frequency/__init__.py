@@ -1,0 +1,1 @@
+"""Frequency-domain analysis of the sampled-data loop: linearization, margins, figures."""

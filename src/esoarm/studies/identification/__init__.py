@@ -1,0 +1,1 @@
+"""Identification of a rig from logs: data, fit, report, figures, excitation."""

@@ -1,0 +1,499 @@
+"""Grey-box identification of the rig from logs (``esoarm identify``).
+
+The model is the twin's rig (:mod:`esoarm.plants.lever_arm`), its parameters read as
+scenario keys:
+
+=========================  =======================================  ============
+key                        meaning                                  unit
+=========================  =======================================  ============
+``rig.inertia_scale``      I / plant.inertia                        1
+``plant.m2``               sets the gravity coefficient             kg
+                           (m1 l1 − m2 l2) g, m1, l1, l2, g held
+``rig.coulomb_friction``   Fc                                       N·m
+``rig.viscous_friction``   b                                        N·m·s/rad
+``actuator.lag``           first-order torque lag T                 s
+``actuator.delay_samples`` transport delay                          samples
+``motor.torque_constant``  Kt (with a ``[motor]`` table; R, Vs, N   N·m/A
+                           held: only N·Kt/R and the total damping
+                           b + (N·Kt)²/R are identifiable)
+``sensor.noise_deg``       encoder noise σ (from the residual)      deg
+=========================  =======================================  ============
+
+Held at the scenario's values: ``rig.friction_velocity`` (the tanh smoothing
+is far below what 50 Hz data resolves), the disturbance d(t) (taken as known,
+as in the paper's eq. 6), the motor's other constants.
+
+Fit: least squares on the measured angle, y_k − θ̂(t_k), over segments of the
+log with each segment's initial angle and rate estimated
+(:mod:`esoarm.studies.identification.data`); Levenberg-Marquardt
+(:func:`esoarm.studies.identification.fit.levenberg_marquardt`) with a
+finite-difference Jacobian that costs one simulation per rig parameter plus
+two for all initial states (run together, in parallel over the columns).  The
+delay (integer) is chosen by the cost over 0 … ``max_delay``: the scenario's
+delay gets :data:`FIRST_ITER` iterations from the scenario's values, every
+other delay :data:`TRY_ITER` from there, and only the best is carried to
+convergence (a delay whose cost comes within :data:`CLOSE_DELAY` thresholds
+of it is tried again from the converged fit).  The lag is kept by a
+likelihood-ratio test of T > 0 against T = 0, after a screen (a quarter-sample
+lag with everything else held must lower the cost, else T = 0 is kept without
+a fit).  95 % intervals: ±1.96 standard
+errors from σ̂² (JᵀJ)⁻¹ (rig parameters, the initial states profiled out); for
+the delay, every delay whose cost is within the χ²₁ 95 % threshold of the
+best.  The intervals assume the model structure is right and the residual is
+white: the validation's whiteness test says whether that holds.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from esoarm.plants.model import gravity_coefficient
+from esoarm.scenario import Scenario, ScenarioError
+from esoarm.studies.identification.data import IdentLog, check_supported
+from esoarm.studies.identification.fit import PARAMS, Problem
+
+__all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
+
+DELAY_KEY = "actuator.delay_samples"
+NOISE_KEY = "sensor.noise_deg"
+FREE_KEYS = (*PARAMS, DELAY_KEY)
+#: Why the inertia is held by default with a ``[motor]`` table.
+MOTOR_SCALE_NOTE = (
+    "held: with a [motor] table the angle determines only ratios to the inertia (stall torque, "
+    "friction and gravity scale with it; the known disturbance alone anchors the scale); give "
+    "the inertia, or --fix motor.torque_constant to fit the inertia instead")
+#: χ²₁ 95 % quantile (likelihood-ratio tests of the delay and the lag).
+CHI2_95 = 3.841458820694124
+#: A parameter is flagged poorly identifiable beyond this relative 95 % half-width.
+POOR_REL = 0.25
+#: Levenberg-Marquardt iterations of the first fit (the scenario's delay, from the
+#: scenario's values) before the other delays are tried from it, and of each try.
+FIRST_ITER = 6
+TRY_ITER = 4
+#: A tried delay whose cost is within this many χ²₁ 95 % thresholds of the best is tried
+#: again from the best fit (its cost after a few iterations is only an upper bound).
+CLOSE_DELAY = 10.0
+
+
+class FitFailed(RuntimeError):
+    """The fit did not converge, or its result is not trustworthy (nothing is written).
+
+    ``result`` holds the untrustworthy result when there is one (for inspection).
+    """
+
+    def __init__(self, message: str, result: IdentResult | None = None) -> None:
+        super().__init__(message)
+        self.result = result
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One fitted parameter: value, 95 % interval, and whether the log determines it."""
+
+    key: str
+    value: float
+    ci95: tuple[float, float]
+    unit: str
+    label: str
+    fitted: bool = True
+    identifiable: bool = True
+    advice: str = ""
+    #: "lower" or "upper" when the value ended at that bound of the fit (the log pulls
+    #: it beyond); "" inside the bounds.
+    bound: str = ""
+    #: Whether the 95 % interval was clipped to the bounds of the fit.
+    ci_clipped: bool = False
+
+    @property
+    def at_bound(self) -> bool:
+        """The fit ended at a bound (the value is that bound)."""
+        return bool(self.bound)
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        return {"value": self.value, "ci95": list(self.ci95), "unit": self.unit,
+                "fitted": self.fitted, "identifiable": self.identifiable,
+                "at_bound": self.at_bound, "ci95_clipped": self.ci_clipped,
+                **({"bound": self.bound} if self.bound else {}),
+                **({"advice": self.advice} if self.advice else {})}
+
+
+@dataclass
+class IdentResult:
+    """What :func:`identify` found (see the module docstring for the method)."""
+
+    scenario: Scenario
+    estimates: dict[str, Estimate]
+    gravity: Estimate
+    fit_percent: float
+    validation: dict
+    residual_rms: float
+    cost_by_delay: dict[int, float]
+    n_fit: int
+    segment_seconds: float
+    elapsed: float
+    iterations: int
+    fit_logs: list[str]
+    validation_logs: list[str]
+    curves: dict = field(default_factory=dict, repr=False)
+
+    def value(self, key: str) -> float:
+        """Fitted value of a scenario key."""
+        return self.estimates[key].value
+
+    def to_json(self) -> dict:
+        """One JSON object: parameters by scenario key, then the fit quality."""
+        return {
+            "scenario": self.scenario.name,
+            "parameters": {k: e.to_dict() for k, e in self.estimates.items()},
+            "gravity_coefficient": self.gravity.to_dict(),
+            "fit": {"fit_percent": self.fit_percent, "residual_rms_rad": self.residual_rms,
+                    "samples": self.n_fit, "segment_s": self.segment_seconds,
+                    "cost_by_delay": {str(d): c for d, c in self.cost_by_delay.items()},
+                    "iterations": self.iterations, "elapsed_s": self.elapsed,
+                    "logs": self.fit_logs},
+            "validation": {**self.validation, "logs": self.validation_logs},
+            "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
+            "at_bound": [k for k, e in self.estimates.items() if e.at_bound],
+        }
+
+    def untrustworthy(self) -> str:
+        """Why the result is not trustworthy ("" if it is): a parameter ended at a bound of
+        the fit and the validation residual is not white (the model does not explain the
+        log, and the intervals mean nothing).
+
+        A value at a lower bound of 0 (no gravity term, no friction, no lag) is a physical
+        answer, not a sign of a model that does not fit: it is reported but does not make the
+        fit untrustworthy (the whiteness test alone flags a few per cent of white residuals,
+        which refused exact fits of frictionless twins)."""
+        pinned = [e for e in self.estimates.values()
+                  if e.at_bound and not (e.bound == "lower" and e.value == 0.0)]
+        white = self.validation.get("whiteness", {}).get("white", True)
+        if not pinned or white:
+            return ""
+        w = self.validation["whiteness"]
+        ends = ", ".join(f"{e.key} at the {e.bound} bound {e.value:g} {e.unit}" for e in pinned)
+        return (f"the fit is not trustworthy: it ended with {ends}, and the validation residual "
+                f"is not white ({w['outside']} of {w['lags']} autocorrelation lags outside "
+                f"±{w['band']:.3g}): the model does not explain this log; check the rig and "
+                "the log (a blocked or unusual arm), hold that parameter (--fix, --set) or "
+                "record a richer experiment (esoarm excite)")
+
+    def fitted_scenario(self) -> Scenario:
+        """The scenario with the fitted rig as the twin and the plant updated to the fit.
+
+        plant.inertia = Î (so rig.inertia_scale = 1), plant.m2 from the gravity
+        fit (twin and model share G), friction, lag, delay, noise and Kt fitted.
+        """
+        scn = self.scenario
+        over: dict[str, object] = {"name": f"{scn.name}-fitted",
+                                   "plant.inertia": self.value("rig.inertia_scale")
+                                   * scn.plant.inertia,
+                                   "rig.inertia_scale": 1.0}
+        for key, est in self.estimates.items():
+            if key != "rig.inertia_scale" and (scn.motor is not None
+                                               or not key.startswith("motor.")):
+                over[key] = int(est.value) if key == DELAY_KEY else float(est.value)
+        return scn.with_overrides(over)
+
+
+def _values(scn: Scenario) -> dict[str, float]:
+    """The scenario's values of every fittable key (the starting point of the fit)."""
+    motor = scn.motor
+    return {"rig.inertia_scale": scn.rig.inertia_scale, "plant.m2": scn.plant.m2,
+            "rig.coulomb_friction": scn.rig.coulomb_friction,
+            "rig.viscous_friction": scn.rig.viscous_friction, "actuator.lag": scn.actuator.lag,
+            "motor.torque_constant": motor.torque_constant if motor else 0.0}
+
+
+def _split(logs: list[IdentLog], validation: list[IdentLog] | None,
+           fraction: float) -> tuple[list[IdentLog], list[IdentLog]]:
+    if validation:
+        return logs, validation
+    if len(logs) > 1:
+        return logs[:-1], logs[-1:]
+    log = logs[0]
+    cut = int(round(log.n * (1.0 - fraction)))
+    return [log.part(0, cut)], ([log.part(cut, log.n)] if fraction > 0 else [])
+
+
+def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] | None = None,
+             validate_fraction: float = 0.25, segment: float = 2.0, max_delay: int = 2,
+             fix: tuple[str, ...] = (), progress=None) -> IdentResult:  # type: ignore[no-untyped-def]
+    """Fit the rig model of ``scn`` to logs (see the module docstring).
+
+    Parameters
+    ----------
+    scn : Scenario
+        Nominal values (the starting point and the held parameters), the motor.
+    logs : list of IdentLog
+        Logs to fit; with one log and no ``validation``, its last
+        ``validate_fraction`` is kept for validation; with several, the last one.
+    validation : list of IdentLog, optional
+        Logs used only for validation.
+    segment : float
+        Simulation horizon of one segment [s].
+    max_delay : int
+        Largest transport delay tried [samples].
+    fix : tuple of str
+        Keys held at the scenario's values.
+    progress : callable, optional
+        Called with a one-line description before each fit.
+
+    Raises
+    ------
+    ScenarioError
+        Bad input (unknown key to fix, a log at another rate, too short a part).
+    FitFailed
+        The solver did not converge, or the result is not trustworthy: a
+        parameter ended at a bound of the fit and the validation residual is not
+        white (:meth:`IdentResult.untrustworthy`; the result is in the exception).
+    """
+    t_start = time.perf_counter()
+    check_supported(scn)
+    for key in fix:
+        if key not in FREE_KEYS:
+            raise ScenarioError(f"fix {key}: not a fitted key (one of {', '.join(FREE_KEYS)})")
+    ts = logs[0].ts
+    for log in [*logs, *(validation or [])]:
+        if abs(log.ts - scn.sample_time) > 1e-9 * scn.sample_time:
+            raise ScenarioError(f"log '{log.path}': sampled every {log.ts:g} s but "
+                                f"sensor.rate_hz = {scn.sensor.rate_hz:g}; use --set "
+                                f"sensor.rate_hz={1.0 / log.ts:g}")
+    if scn.motor is not None and not {"rig.inertia_scale", "motor.torque_constant"} & set(fix):
+        fix = (*fix, "rig.inertia_scale")  # see MOTOR_SCALE_NOTE
+    fit_logs, val_logs = _split(logs, validation, validate_fraction)
+    seg_samples = max(5, int(round(segment / ts)))
+    if min(log.n for log in fit_logs) < max_delay + seg_samples:
+        raise ScenarioError(f"log '{fit_logs[0].path}': the part used for fitting is shorter "
+                            f"than one segment ({segment:g} s); use a longer log or --segment")
+    free = [k for k in PARAMS if k not in fix and (scn.motor is not None
+                                                   or k != "motor.torque_constant")]
+    fit_lag = "actuator.lag" in free
+    nominal = _values(scn)
+    delays = [scn.actuator.delay_samples] if DELAY_KEY in fix else list(range(max_delay + 1))
+    start = max(delays)
+    say = progress or (lambda _msg: None)
+
+    def fit(delay: int, names: list[str], fixed: dict[str, float], x_phys: list[float],
+            x_states: np.ndarray | None, max_iter: int = 200):  # type: ignore[no-untyped-def]
+        prob = Problem(scn, fit_logs, seg_samples, delay, start, names, fixed)
+        states = prob.initial_states() if x_states is None else x_states
+        return prob, prob.solve(np.concatenate([x_phys, states]), max_iter)
+
+    base_free = [k for k in free if k != "actuator.lag"]
+    fixed0 = {**nominal, **({"actuator.lag": 0.0} if fit_lag else {})}
+    # 1. the scenario's delay, from the scenario's values: a few iterations, enough to rank it
+    d_nom = scn.actuator.delay_samples if scn.actuator.delay_samples in delays else delays[0]
+    say(f"fitting {', '.join(base_free)} with delay {d_nom} sample(s)")
+    tried = {d_nom: fit(d_nom, base_free, fixed0, [nominal[k] for k in base_free], None,
+                        max_iter=FIRST_ITER)}
+    # 2. the other delays, warm-started from that fit (a few iterations: an upper bound)
+    for d in delays:
+        if d != d_nom:
+            say(f"trying delay {d} sample(s)")
+            p0, s0 = tried[d_nom]
+            tried[d] = fit(d, base_free, fixed0, list(s0.x[: p0.n_phys]), s0.x[p0.n_phys:],
+                           max_iter=TRY_ITER)
+    cost = {d: 2.0 * sol.cost for d, (_p, sol) in tried.items()}
+    # 3. the best delay to convergence; a delay whose cost (an upper bound) comes close to
+    # it gets a few more iterations from the converged fit, and the best is decided again
+    refined: set[int] = set()
+    full: set[int] = set()  # delays fitted to the end (each at most once: no endless loop)
+    while True:
+        d_best = min(cost, key=lambda d: cost[d])
+        prob, sol = tried[d_best]
+        if not sol.converged and d_best not in full:
+            say(f"fitting with delay {d_best} sample(s)")
+            full.add(d_best)
+            before = sol.iterations
+            prob, sol = tried[d_best] = fit(d_best, base_free, fixed0,
+                                            list(sol.x[: prob.n_phys]), sol.x[prob.n_phys:])
+            sol.iterations += before  # reported: all iterations of this model
+            cost[d_best] = 2.0 * sol.cost
+            continue
+        if not sol.converged:
+            break  # reported below as a fit that did not converge
+        m = int(prob.mask.sum())
+        close = [d for d in delays if d != d_best and d not in refined
+                 and m * math.log(cost[d] / cost[d_best]) <= CLOSE_DELAY * CHI2_95]
+        if not close:
+            break
+        for d in close:
+            refined.add(d)
+            if tried[d][1].converged:
+                continue
+            say(f"trying delay {d} sample(s) again")
+            tried[d] = fit(d, base_free, fixed0, list(sol.x[: prob.n_phys]),
+                           sol.x[prob.n_phys:], max_iter=TRY_ITER)
+            cost[d] = min(cost[d], 2.0 * tried[d][1].cost)
+    m = int(prob.mask.sum())
+    # 3. the actuator lag: T > 0 kept only if it lowers the cost significantly (χ²₁ test)
+    if fit_lag:
+        names = [*base_free, "actuator.lag"]
+        lag_lo = 2.0 * prob.h
+        best_lag = None
+        lag_rejected = None
+        probe = ts / 4.0
+        for d in [dd for dd in (d_best, d_best - 1) if dd in cost]:
+            if d == d_best and not _lag_lowers_cost(prob, sol, lag_lo, probe):
+                lag_rejected = lag_lo + probe  # screened out: no fit needed
+                continue
+            say(f"fitting the actuator lag with delay {d} sample(s)")
+            x_phys = [*sol.x[: prob.n_phys], max(ts / 2.0, 3.0 * lag_lo)]
+            pl, sl = fit(d, names, nominal, x_phys, sol.x[prob.n_phys:], max_iter=8)
+            if best_lag is None or sl.cost < best_lag[1].cost:
+                best_lag = (pl, sl, d)
+        if best_lag is not None and best_lag[1].x[len(base_free)] > 1.05 * lag_lo and \
+                m * math.log(2.0 * sol.cost / max(2.0 * best_lag[1].cost, 1e-300)) > CHI2_95:
+            prob, sol, d_best = best_lag
+            lag_rejected = None
+            if not sol.converged:
+                before = sol.iterations
+                prob, sol = fit(d_best, names, nominal, list(sol.x[: prob.n_phys]),
+                                sol.x[prob.n_phys:])
+                sol.iterations += before
+            cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
+        elif best_lag is not None:
+            lag_rejected = max(float(best_lag[1].x[len(base_free)]), lag_rejected or 0.0)
+    else:
+        lag_rejected = None
+    if not (sol.converged and np.isfinite(sol.cost)) or np.any(sol.fun >= 1e3):
+        raise FitFailed(f"the fit did not converge ({sol.message} after {sol.iterations} "
+                        "iterations); try other starting values (--set) or a longer, richer "
+                        "log (esoarm excite)")
+    estimates, gravity, resid_s = _estimates(scn, prob, sol, m, cost, d_best, delays,
+                                             lag_rejected)
+    val = _validate(scn, prob.phys(sol.x), val_logs, seg_samples, d_best, start) if val_logs else {}
+    y_fit = prob.predict(sol.x)
+    mask = prob.mask
+    fit_pct = _fit_percent(prob.y[mask], y_fit[mask])
+    curves = {"fit": (prob.t, prob.y, np.where(mask, y_fit, np.nan))}
+    if val:
+        curves["validation"] = val.pop("_curves")
+    res = IdentResult(
+        scenario=scn, estimates=estimates, gravity=gravity, fit_percent=fit_pct,
+        validation=val, residual_rms=resid_s, cost_by_delay=cost, n_fit=m,
+        segment_seconds=seg_samples * ts, elapsed=time.perf_counter() - t_start,
+        iterations=int(sol.iterations), fit_logs=sorted({lg.path for lg in fit_logs}),
+        validation_logs=sorted({lg.path for lg in val_logs}), curves=curves)
+    why = res.untrustworthy()
+    if why:
+        raise FitFailed(why, res)
+    return res
+
+
+def _lag_lowers_cost(prob: Problem, sol, lag_lo: float, probe: float) -> bool:  # type: ignore[no-untyped-def]
+    """Screen: does a lag of ``lag_lo + probe`` [s] lower the cost of the T = 0 fit?
+
+    Everything else held at the T = 0 fit; if a lag of a quarter sample does not
+    help there, the lag is not worth a fit (T = 0 is kept).
+    """
+    def cost(lag: float) -> float:
+        r = prob.with_fixed({"actuator.lag": lag}).residual(sol.x)
+        return float(r @ r)
+
+    return cost(lag_lo + probe) < cost(lag_lo)
+
+
+def _fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:
+    """100·(1 − ‖y − ŷ‖/‖y − ȳ‖) [%]."""
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / np.linalg.norm(y - np.mean(y))))
+
+
+def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: ignore[no-untyped-def]
+    jac = sol.jac
+    p = jac.shape[1]
+    dof = max(m - p, 1)
+    s2 = 2.0 * sol.cost / dof
+    cov = s2 * np.linalg.pinv(jac.T @ jac)
+    se = np.sqrt(np.maximum(np.diag(cov)[: prob.n_phys], 0.0))
+    corr = cov[: prob.n_phys, : prob.n_phys] / np.maximum(np.outer(se, se), 1e-300)
+    lower, upper = prob.bounds()
+    out: dict[str, Estimate] = {}
+    for i, key in enumerate(prob.free):
+        label, unit, scale, _b, advice = PARAMS[key]
+        v = float(sol.x[i])
+        half = 1.96 * float(se[i])
+        others = [prob.free[j] for j in range(prob.n_phys) if j != i and abs(corr[i, j]) > 0.98]
+        poor = not half <= POOR_REL * max(abs(v), 0.1 * scale) or bool(others)
+        if key == "rig.viscous_friction" and scn.motor is not None:
+            advice = ("with a [motor] table b adds to the back-EMF damping (N·Kt)²/R; only "
+                      "their sum is well determined")
+        note = advice + (f"; strongly correlated with {', '.join(others)}" if others else "")
+        # a value at a bound of the fit: the interval (a local linearization) runs past it;
+        # clip it to the bounds and say so (the value is then a limit, not an optimum)
+        lo_b, hi_b = float(lower[i]), float(upper[i])
+        tol = 1e-9 * max(scale, abs(lo_b), abs(hi_b) if math.isfinite(hi_b) else 0.0)
+        bound = "lower" if v <= lo_b + tol else "upper" if v >= hi_b - tol else ""
+        ci = (max(v - half, lo_b), min(v + half, hi_b))
+        out[key] = Estimate(key, v, ci, unit, label, True, not poor, note if poor else "",
+                            bound, ci != (v - half, v + half))
+    for key in PARAMS:
+        if key not in out and (scn.motor is not None or key != "motor.torque_constant"):
+            label, unit, *_ = PARAMS[key]
+            v = prob.fixed[key]
+            note = MOTOR_SCALE_NOTE if key == "rig.inertia_scale" and scn.motor else \
+                "held at the scenario's value"
+            out[key] = Estimate(key, v, (v, v), unit, label, False, True, note)
+    if lag_rejected is not None:  # fitted, and T = 0 won the likelihood-ratio test
+        out["actuator.lag"] = Estimate(
+            "actuator.lag", 0.0, (0.0, lag_rejected), "s", PARAMS["actuator.lag"][0], True, True,
+            "")
+    best = cost[d_best] if d_best in cost else min(cost.values())
+    inside = [d for d in delays if m * math.log(cost[d] / best) <= CHI2_95] or [d_best]
+    searched = len(delays) > 1
+    at_end = searched and d_best == max(delays)  # the upper end of the search: may be longer
+    out[DELAY_KEY] = Estimate(DELAY_KEY, float(d_best), (float(min(inside)), float(max(inside))),
+                              "samples", "transport delay", searched,
+                              len(inside) == 1 or not searched,
+                              "raise --max-delay" if at_end else
+                              "" if len(inside) == 1 or not searched else
+                              "more high-frequency torque (raise --f-max)",
+                              "upper" if at_end else "", at_end)
+    q = math.radians(scn.sensor.resolution_deg)
+    s = math.sqrt(s2)
+    lo, hi = s * (1 - 1.96 / math.sqrt(2 * dof)), s * (1 + 1.96 / math.sqrt(2 * dof))
+
+    def sigma_deg(x: float) -> float:
+        return math.degrees(math.sqrt(max(x * x - q * q / 12.0, 0.0)))
+
+    out[NOISE_KEY] = Estimate(NOISE_KEY, sigma_deg(s), (sigma_deg(lo), sigma_deg(hi)), "deg",
+                              "encoder noise σ (residual, quantization removed)")
+    pl = scn.plant
+    m2 = out["plant.m2"]
+    g_of = lambda mass: gravity_coefficient(pl.m1, mass, pl.l1, pl.l2, pl.g)  # noqa: E731
+    gvals = sorted((g_of(m2.ci95[0]), g_of(m2.ci95[1])))
+    gravity = Estimate("gravity_coefficient", g_of(m2.value), (gvals[0], gvals[1]), "N·m",
+                       "gravity coefficient (m1 l1 − m2 l2) g", m2.fitted, m2.identifiable,
+                       m2.advice)
+    return out, gravity, s
+
+
+def _validate(scn, values, logs, seg_samples, delay, start):  # type: ignore[no-untyped-def]
+    """The fitted rig on logs not used for fitting; only the segments' initial states are fitted.
+
+    Returns fit % of the measured angle, the residual RMS [rad] and a whiteness
+    test: the residual's autocorrelation at lags 1 … 20 against ±1.96/√M.
+    """
+    prob = Problem(scn, logs, seg_samples, delay, start, [], values)
+    sol = prob.solve(prob.initial_states())
+    yhat = prob.predict(sol.x)
+    mask = prob.mask
+    r = (prob.y - yhat)[mask]
+    m = len(r)
+    lags = np.arange(1, 21)
+    denom = float(np.dot(r, r)) or 1.0
+    rho = np.array([float(np.dot(r[:-k], r[k:])) / denom for k in lags])
+    band = 1.96 / math.sqrt(m)
+    outside = int(np.sum(np.abs(rho) > band))
+    return {"fit_percent": _fit_percent(prob.y[mask], yhat[mask]),
+            "residual_rms_rad": float(np.sqrt(np.mean(r**2))), "samples": m,
+            "whiteness": {"lags": len(lags), "band": band, "outside": outside,
+                          "max_abs_autocorrelation": float(np.max(np.abs(rho))),
+                          "white": outside <= 2},
+            "_curves": (prob.t, prob.y, np.where(mask, yhat, np.nan), lags, rho, band)}

@@ -1,0 +1,1 @@
+"""The paper's reproduction: its numbers, the runs, the checks, the outputs and report."""
