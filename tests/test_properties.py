@@ -18,9 +18,10 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from esoarm.engines.simulation import SimulationDiverged, simulate
-from esoarm.scenario import Scenario, ScenarioError, ScenarioWarning, _valid_keys, load_scenario
+from esoarm.scenario import Scenario, ScenarioError, ScenarioWarning, load_scenario
+from esoarm.scenario.schema import valid_keys
 
-KEYS = _valid_keys()
+KEYS = valid_keys()
 DEFAULTS = Scenario().to_dict()
 #: Runs longer than this many RK4 steps are only loaded, not run (keeps the test quick).
 MAX_STEPS = 40_000

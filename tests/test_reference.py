@@ -7,8 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from esoarm.reference import evaluate_reference
-from esoarm.scenario import Multisine, QuinticSteps
+from esoarm.reference import Multisine, QuinticSteps, evaluate_reference
 
 
 def _fd_check(ref, t, h=1e-5):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from esoarm.cli import COMMANDS, SUMMARIES, cli
-from esoarm.engines.metrics import reference_metrics
+from esoarm.engines.simulation import reference_metrics
 from esoarm.scenario import load_scenario
 
 HEAVY = ("numba", "pydantic", "numpy", "rich", "matplotlib", "dask", "distributed", "scipy")
@@ -72,7 +72,9 @@ def test_fast_engine_loads_no_numba() -> None:
 
 
 def test_analysis_still_offers_the_linearization() -> None:
-    from esoarm.observers import stability as analysis
+    """The one-import API offers the linearization (the observer's stability module, which
+    every scenario check imports, no longer re-exports it: that was an import cycle)."""
+    from esoarm import analysis
     from esoarm.studies.frequency import linearization
 
     assert analysis.to_control is linearization.to_control

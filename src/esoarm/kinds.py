@@ -31,7 +31,7 @@ from esoarm.plants import lever_arm, urdf
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "kinds_of", "tagged_union"]
+__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "kind_labels", "kinds_of", "tagged_union"]
 
 #: Registered kinds per component; the first is the default.
 PLANTS: tuple[ModuleType, ...] = (lever_arm, urdf)
@@ -93,6 +93,21 @@ def kinds_of(scn: Scenario) -> Kinds:
     """
     return Kinds(by_name(PLANTS, scn.plant.kind), by_name(OBSERVERS, scn.observer.kind),
                  by_name(CONTROLLERS, scn.controller.kind))
+
+
+def kind_labels(scn: Scenario) -> tuple[str, str]:
+    """Short descriptions of the observer and the controller of ``scn`` for titles.
+
+    ("euler", "eso compensation") for the paper's linear ESO and FLC; the kind
+    is named for the others ("euler nonlinear ESO", "pid controller").
+    """
+    obs, ctl = scn.observer, scn.controller
+    disc = getattr(obs, "discretization", None)
+    obs_text = (str(disc) if obs.kind == "linear" else f"{disc} {obs.kind} ESO") if disc \
+        else f"{obs.kind} observer"
+    comp = getattr(ctl, "compensation", None)
+    ctl_text = f"{comp} compensation" if comp is not None else f"{ctl.kind} controller"
+    return obs_text, ctl_text
 
 
 # ---------------------------------------------------------------------------

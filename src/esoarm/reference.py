@@ -22,11 +22,92 @@ joint, and two more kinds exist:
 
 from __future__ import annotations
 
+from typing import Annotated, Literal
+
 import numpy as np
+from pydantic import Field
 
-from esoarm.scenario import Multisine, PerJoint, QuinticSteps, RangeMoves
+from esoarm._schema import Section as _Section
+from esoarm._schema import unit as _unit
 
-__all__ = ["evaluate_reference", "joint_count", "needs_limits", "reference_rows"]
+__all__ = ["REFERENCE_KINDS", "Multisine", "PerJoint", "QuinticSteps", "RangeMoves", "Reference",
+           "evaluate_reference", "joint_count", "needs_limits", "reference_rows"]
+
+
+# ---------------------------------------------------------------------------
+# the scenario's [reference] table: one model per kind
+
+class QuinticSteps(_Section):
+    """Rest-to-rest quintic moves, the angle held between moves."""
+
+    kind: Literal["quintic-steps"] = "quintic-steps"
+    start: float = Field(
+        0.0, description="angle before the first move", json_schema_extra=_unit("rad")
+    )
+    moves: list[list[float]] = Field(
+        default_factory=lambda: [[1.0, 2.0, 1.0], [10.0, 2.0, 0.0]],
+        description="[start s, duration s, target rad] per move, in time order",
+    )
+
+
+class Multisine(_Section):
+    """θd(t) = offset + Σ amplitudes[i] · sin(frequencies[i] · t + phases[i])."""
+
+    kind: Literal["multisine"] = "multisine"
+    amplitudes: list[float] = Field(
+        default_factory=lambda: [0.5], description="amplitudes", json_schema_extra=_unit("rad")
+    )
+    frequencies: list[float] = Field(
+        default_factory=lambda: [0.5], description="angular frequencies",
+        json_schema_extra=_unit("rad/s"),
+    )
+    phases: list[float] = Field(
+        default_factory=list, description="phases (empty: all zero)", json_schema_extra=_unit("rad")
+    )
+    offset: float = Field(0.0, description="constant offset", json_schema_extra=_unit("rad"))
+
+
+class RangeMoves(_Section):
+    """An arm's joints through their limits: rest-to-rest quintic moves, all joints at once.
+
+    Positions are fractions of each joint's half range around its middle:
+    position p of joint j is mid_j + p · fraction · half_j (needs joint limits).
+    """
+
+    kind: Literal["range"] = "range"
+    fraction: float = Field(0.75, gt=0, le=1, description="share of each joint's half range used",
+                            json_schema_extra=_unit("1"))
+    start: float = Field(0.0, ge=-1, le=1, description="position before the first move (−1…1)",
+                         json_schema_extra=_unit("1"))
+    moves: list[list[float]] = Field(
+        default_factory=lambda: [[1.0, 3.0, 1.0], [8.0, 3.0, -1.0], [15.0, 3.0, 0.0]],
+        description="[start s, duration s, position −1…1] per move, in time order",
+    )
+
+
+SingleReference = Annotated[QuinticSteps | Multisine, Field(discriminator="kind")]
+
+
+class PerJoint(_Section):
+    """One reference per joint of an arm, in URDF order."""
+
+    kind: Literal["per-joint"] = "per-joint"
+    joints: list[SingleReference] = Field(
+        default_factory=lambda: [QuinticSteps()],  # type: ignore[arg-type]
+        min_length=1,
+        description="one [[reference.joints]] table (quintic-steps or multisine) per joint",
+    )
+
+
+Reference = Annotated[QuinticSteps | Multisine | RangeMoves | PerJoint,
+                      Field(discriminator="kind")]
+
+#: The ``[reference]`` table's kinds (the scenario's tagged union :data:`Reference`).
+REFERENCE_KINDS = (QuinticSteps, Multisine, RangeMoves, PerJoint)
+
+
+# ---------------------------------------------------------------------------
+# evaluation
 
 
 def _quintic_steps(

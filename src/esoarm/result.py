@@ -29,22 +29,7 @@ from esoarm.engines.metrics import (
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CSV_COLUMNS", "SimResult", "kind_labels", "write_csv_atomic"]
-
-def kind_labels(scn: Scenario) -> tuple[str, str]:
-    """Short descriptions of the observer and the controller of ``scn`` for titles.
-
-    ("euler", "eso compensation") for the paper's linear ESO and FLC; the kind
-    is named for the others ("euler nonlinear ESO", "pid controller").
-    """
-    obs, ctl = scn.observer, scn.controller
-    disc = getattr(obs, "discretization", None)
-    obs_text = (str(disc) if obs.kind == "linear" else f"{disc} {obs.kind} ESO") if disc \
-        else f"{obs.kind} observer"
-    comp = getattr(ctl, "compensation", None)
-    ctl_text = f"{comp} compensation" if comp is not None else f"{ctl.kind} controller"
-    return obs_text, ctl_text
-
+__all__ = ["CSV_COLUMNS", "SimResult", "write_csv_atomic"]
 
 #: Time-series CSV columns, SI units (see :data:`esoarm.engines.metrics.SERIES_COLUMNS`).
 CSV_COLUMNS = SERIES_COLUMNS

@@ -76,7 +76,7 @@ def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
     from rich.console import Console
     from rich.table import Table
 
-    from esoarm.result import kind_labels
+    from esoarm.kinds import kind_labels
 
     s = result.summary()
     obs_text, ctl_text = kind_labels(result.scenario)

@@ -2,7 +2,8 @@
 
 This module imports neither numba nor the compiled engines, so code that only
 handles metrics (sweep tables, tuning objectives) and small sweeps start
-quickly (:func:`reference_metrics` runs a few runs on the reference engine).
+quickly (:func:`esoarm.engines.simulation.reference_metrics` runs a few runs on the
+reference engine).
 
 Every engine writes the same log, one block of :data:`LOG_ROWS` per joint and
 one column per sample (:func:`esoarm.engines.loop.closed_loop`); the
@@ -31,7 +32,6 @@ run diverged):
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -41,10 +41,10 @@ from esoarm._jit import jitable
 from esoarm.plants.sensor import noise_sequence
 
 if TYPE_CHECKING:
-    from esoarm.scenario import Scenario
+    pass
 
 __all__ = ["LOG_ROWS", "METRICS", "SERIES_COLUMNS", "MetricsTable", "NoiseCache", "combine_joints",
-           "log_metrics", "reference_metrics", "series_metrics"]
+           "log_metrics", "series_metrics"]
 
 #: Rows of the engine log per joint (joint j occupies rows j·len(LOG_ROWS) …).
 LOG_ROWS: tuple[str, ...] = ("theta", "theta_ref", "error", "u", "z1", "z2", "z3", "f_true",
@@ -323,35 +323,3 @@ class NoiseCache:
         if key not in self._store:
             self._store[key] = noise_sequence(seed, n, noise_deg)
         return key, self._store[key]
-
-
-def reference_metrics(
-    points: Sequence[Scenario],
-    seeds: Sequence[int] | None = None,
-    *,
-    progress: Callable[[int], None] | None = None,
-    **_ignored: object,
-) -> MetricsTable:
-    """Metrics of every point (× every seed) from the plain-Python reference engine.
-
-    Same arguments and result as :func:`esoarm.engines.batch.run_metrics`, and
-    the same numbers; about 0.1 s per 20 s run, so meant for a handful of runs
-    (no compiled kernel to load).
-    """
-    from esoarm.engines.simulation import SimulationDiverged, prepare, run_reference
-
-    if seeds is None:
-        runs = [scn for scn in points]
-    else:
-        runs = [scn.with_overrides({"sensor.seed": int(s)}) if s != scn.sensor.seed else scn
-                for scn in points for s in seeds]
-    out = np.empty((len(runs), len(METRICS)))
-    for i, scn in enumerate(runs):
-        try:
-            res = run_reference(scn, prepare(scn))
-        except SimulationDiverged as exc:  # the partial run's metrics, diverged = 1
-            res = exc.result
-        out[i] = [res.metrics[name] for name in METRICS]
-        if progress is not None:
-            progress(1)
-    return MetricsTable(out)

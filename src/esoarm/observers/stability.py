@@ -38,7 +38,6 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -52,12 +51,8 @@ from esoarm.observers.linear import (
 )
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
 
-if TYPE_CHECKING:
-    from esoarm.studies.frequency.linearization import ControlLoop, to_control
-
 __all__ = [
     "CONTINUOUS",
-    "ControlLoop",
     "ObserverAnalysis",
     "analyze_observer",
     "characteristic_polynomial",
@@ -70,21 +65,7 @@ __all__ = [
     "theorem1_bound",
     "theorem2_bound",
     "tracking_l1_gain",
-    "to_control",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    """``ControlLoop`` and ``to_control``, imported on first use.
-
-    They live in :mod:`esoarm.studies.frequency.linearization`, which imports SciPy
-    (~0.25 s): the observer warnings every scenario check runs need neither.
-    """
-    if name in ("ControlLoop", "to_control"):
-        from esoarm.studies.frequency import linearization
-
-        return getattr(linearization, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 #: The continuous observer of eq. 8 (Theorem 1), besides the sampled-data discretizations.

@@ -10,12 +10,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from esoarm.plotting.run import REF_STYLE, TRUE_STYLE, finish_figure
-from esoarm.result import SimResult
+from esoarm.plotting.style import REF_STYLE, TRUE_STYLE, finish_figure
+
+if TYPE_CHECKING:
+    from esoarm.result import SimResult
 
 __all__ = ["figure_arm_ablation", "figure_arm_eps_sweep", "figure_arm_replay", "plot_arm_run"]
 

@@ -1,114 +1,31 @@
 """Checks and warnings of a scenario: validation messages, consistency, computability, timing.
 
-:func:`esoarm.scenario.load_scenario` runs :func:`_check_consistency` on every scenario it
+:func:`esoarm.scenario.load_scenario` runs :func:`check_consistency` on every scenario it
 builds (a failure is a :class:`~esoarm.scenario.ScenarioError` naming the key);
 :func:`scenario_warnings` lists legal but risky settings, one line each.
 """
 
 from __future__ import annotations
 
-import difflib
 import math
-import re
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from pydantic import ValidationError
 
 from esoarm import kinds as _kinds
 from esoarm._limits import MAX_SAMPLES
 from esoarm._schema import PER_JOINT_KEYS
-from esoarm.scenario import (
-    KIND_SECTIONS,
-    Multisine,
-    PerJoint,
-    QuinticSteps,
-    RangeMoves,
-    Scenario,
-    ScenarioError,
-    _valid_keys,
-)
+from esoarm.reference import Multisine, PerJoint, QuinticSteps, RangeMoves
+from esoarm.scenario.errors import ScenarioError
 
-__all__ = ["scenario_warnings", "timing_warnings"]
+if TYPE_CHECKING:
+    from esoarm.scenario.schema import Scenario
+
+__all__ = ["check_consistency", "scenario_warnings", "timing_warnings"]
 
 
-_UNION_MEMBER = re.compile(r"^(constrained-)?(float|int|str|bool)$|^list\[.*\]$")
-
-
-#: Errors that only say the input is not of a union member's type (a list is not a number).
-_TYPE_MISMATCH = ("float_type", "int_type", "list_type", "string_type", "bool_type",
-                  "float_parsing", "int_parsing")
-
-
-def _first_error(exc: ValidationError) -> Any:
-    """The error to report: for a number-or-list key, the one of the member the input is.
-
-    A per-joint list ``[0.05, -1]`` fails both members of ``float | list[float]``; the
-    float member's "not a valid number" hides the list member's error at entry 1.
-    """
-    errors = exc.errors()
-    first = errors[0]
-    if first["type"] in _TYPE_MISMATCH:
-        base = [p for p in first["loc"] if not _UNION_MEMBER.match(str(p))]
-        for other in errors[1:]:
-            loc = other["loc"]
-            same_key = [p for p in loc if not _UNION_MEMBER.match(str(p))
-                        and not isinstance(p, int)] == base
-            # an error at an entry of the list, or a member's error other than its type
-            if same_key and (isinstance(loc[-1], int) and isinstance(first.get("input"), list)
-                             or other["type"] not in _TYPE_MISMATCH):
-                return other
-    return first
-
-
-def _format_validation_error(exc: ValidationError, source: str,
-                             origin: Callable[[str], str] | None = None) -> str:
-    err = _first_error(exc)
-    loc = [str(p) for p in err["loc"] if not isinstance(p, int)]
-    # drop the discriminator tag pydantic inserts for tagged unions
-    section = loc[0] if loc else ""
-    tags = {m.model_fields["kind"].default: m for m in KIND_SECTIONS.get(section, ())}
-    tag_in_loc = [p for p in loc[1:2] if p in tags]
-    loc = [p for i, p in enumerate(loc) if not (i == 1 and p in tags)]
-    # and the member names of a plain union (a number or a per-joint list: "float", "list[…]")
-    loc = [p for p in loc if not _UNION_MEMBER.match(p)]
-    idx = [p for p in err["loc"] if isinstance(p, int)]
-    key = ".".join(loc)
-    keys = {tuple(str(p) for p in e["loc"] if not isinstance(p, int)
-                  and not _UNION_MEMBER.match(str(p))) for e in exc.errors()}
-    more = len(keys) - 1
-    tail = f" (and {more} more error{'s' if more > 1 else ''})" if more else ""
-    kind = err["type"]
-    if origin is not None:
-        source = origin(key if kind != "union_tag_invalid" else key + ".kind")
-    if kind == "extra_forbidden":
-        valid = _valid_keys()
-        if key in valid and tag_in_loc:  # a key of another kind of this section
-            model = tags[tag_in_loc[0]]
-            return (f"{source}: key '{key}' does not apply to {section} kind "
-                    f"'{tag_in_loc[0]}' (its keys: {', '.join(model.model_fields)}){tail}")
-        close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
-        hint = f"; did you mean '{close[0]}'?" if close else ""
-        return f"{source}: unknown key '{key}'{hint}{tail}"
-    where = f"{key}[{']['.join(map(str, idx))}]" if idx else key
-    joint = ""
-    if idx and key.rsplit(".", 1)[-1] in PER_JOINT_KEYS and section in ("observer", "controller"):
-        joint = f" (joint {idx[0]}, counting from 0)"
-    value = err.get("input")
-    msg = err["msg"]
-    if kind in ("finite_number",):
-        msg = "must be a finite number (no NaN or inf)"
-    elif kind.startswith(("float", "int", "string", "list", "bool", "model")):
-        msg = f"{msg.lower()}"
-    if kind in ("union_tag_invalid", "union_tag_not_found"):
-        allowed = ", ".join(f"'{t}'" for t in tags)
-        return f"{source}: key '{key}.kind' must be one of {allowed}{tail}"
-    shown = repr(value) if not isinstance(value, dict) else "a table"
-    return f"{source}: key '{where}'{joint} = {shown}: {msg}{tail}"
-
-
-def _check_consistency(scn: Scenario, source: str,
+def check_consistency(scn: Scenario, source: str,
                        origin: Callable[[str], str] | None = None) -> None:
     def fail(key: str, msg: str) -> None:
         where = origin(key) if origin else source

@@ -51,7 +51,7 @@ def _kind_rows(section: str, models: tuple[type[BaseModel], ...]) -> list[tuple[
 
 def scenario_keys() -> list[tuple[str, str, str, str]]:
     """(dotted key, default, unit, description) for every scenario key."""
-    from esoarm.scenario import KIND_SECTIONS
+    from esoarm.scenario.schema import KIND_SECTIONS
 
     rows: list[tuple[str, str, str, str]] = []
 
@@ -65,7 +65,7 @@ def scenario_keys() -> list[tuple[str, str, str, str]]:
                 walk(type(value), value, prefix + name + ".")
                 continue
             if value is None and name == "motor":  # optional table, absent by default
-                from esoarm.scenario import Motor
+                from esoarm.scenario.schema import Motor
 
                 rows.append(("motor", "absent", "", (field.description or "")
                              + "; give a `[motor]` table to enable it, with these defaults:"))

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from esoarm.engines.metrics import MetricsTable, NoiseCache, reference_metrics
+from esoarm.engines.metrics import MetricsTable, NoiseCache
 from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.sweeps.grid import SweepGrid, VarySpec, build_grid, parse_vary
 from esoarm.studies.sweeps.output import SweepResult, SweepWriter
@@ -80,6 +80,8 @@ def _run_exact(points: Sequence[Scenario], seeds: Sequence[int] | None = None,
                **kwargs: Any) -> MetricsTable:
     runs = len(points) * (len(seeds) if seeds is not None else 1)
     if runs <= REFERENCE_RUNS:
+        from esoarm.engines.simulation import reference_metrics  # no compiled kernel to load
+
         return reference_metrics(points, seeds, progress=kwargs.get("progress"))
     from esoarm.engines.batch import run_metrics
 
