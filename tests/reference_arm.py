@@ -12,7 +12,7 @@ on purpose:
 * the observers are NumPy state-space matrices (Euler: z⁺ = z + Ts (A z + B v + L (y − z1)));
 * RK4, friction, disturbance, noise and quantization are typed again, all in NumPy.
 
-It is the second engine of ``tests/test_arms.py`` and the "plain Python"
+It is the second engine of ``tests/plants/test_arms.py`` and the "plain Python"
 baseline of ``benchmarks/bench_arms.py``.  Revolute/prismatic joints only
 (no continuous joint), Euler observers, no lag or delay.
 """

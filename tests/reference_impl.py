@@ -13,7 +13,7 @@ engine, on purpose:
 * the rig state is a NumPy vector (θ, θ̇, τ) integrated with its own RK4;
 * the reference trajectories and the FLC are typed again from docs/semantics.md.
 
-It is the second engine of ``tests/test_simulation.py``: both must agree to
+It is the second engine of ``tests/engines/test_simulation.py``: both must agree to
 round-off (the sampled-data loop: relative 1e-9 on RMS values).
 """
 

@@ -21,7 +21,7 @@ argument by Horner's rule, and the result is rebuilt.  Round to the nearest
 integer is done by adding and subtracting 1.5·2⁵² (exact for |v| < 2⁵¹,
 ties to even); powers of two are built by exact multiplications.
 
-Accuracy against 200-bit references (``tests/test_elementary.py`` checks the
+Accuracy against 200-bit references (``tests/plants/test_elementary.py`` checks the
 bounds below on random and special arguments):
 
 ========  ===================  =====================================================
@@ -178,7 +178,7 @@ def _cos_vec(x: float) -> float:
 # The public functions: the forms above, written for the interpreter.  Compiled
 # kernels use the forms above (jitable_as); the interpreter runs these, which take
 # the same floating-point operations in the same order on the arguments they
-# handle (so the same bits; tests/test_elementary.py compares the two) and hand
+# handle (so the same bits; tests/plants/test_elementary.py compares the two) and hand
 # everything else (NaN, ±inf, huge arguments) to the forms above.  The differences:
 # 2^k from a table or math.ldexp instead of ten exact products, n mod 4 by an
 # integer, and only the series that is needed -- about twice as fast in CPython.

@@ -27,7 +27,7 @@ from esoarm import __version__
 from esoarm.studies.reproduction.report import ASSUMPTIONS, assumption_rows
 from esoarm.studies.reproduction.run import EPS_SET, PAPER_TABLES, run_reproduction, write_outputs
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 ARTIFACTS = ROOT / "test-artifacts"
 CHROMIUM_FLAGS = (
     "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

@@ -104,7 +104,7 @@ def test_paper_twin_page_states_the_computed_numbers():
     from esoarm.studies.reproduction.paper_twin import SEARCH, evidence_overrides
     from esoarm.studies.reproduction.run import PAPER_TABLES
 
-    doc = Path(__file__).resolve().parents[1].joinpath("docs", "paper-twin.md").read_text()
+    doc = Path(__file__).resolve().parents[3].joinpath("docs", "paper-twin.md").read_text()
     doc = " ".join(doc.split())  # line breaks inside sentences
     values, record = load_twin("paper")
     gains = record["with_gains_free"]
