@@ -400,6 +400,7 @@ def test_command_line_syntax_errors(run_cli, args, fragment):
     assert len(errors) == 1 and fragment in errors[0], res.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS semantics")
 def test_out_of_memory_is_one_line_exit_1(tmp_path):
     """A run too large for the machine fails in one line, not with a traceback."""
