@@ -14,8 +14,8 @@ Time stamps
 The rate is 1/Ts with Ts the least-squares slope of t_k against k (once
 the steps, compared with their median, show no gap).  The *jitter* is the
 largest deviation of a stamp from that uniform grid, t_k − (t_0 + k·Ts),
-relative to Ts.  A jitter up to
-:data:`MAX_JITTER` (a tenth of a sample) is the clock's or the storage's
+relative to Ts.  A jitter up to :data:`MAX_JITTER` (a tenth of a sample) is the
+clock's or the storage's
 rounding on a uniform grid (EMPS: 2e-5 relative, float32-stored stamps): the
 log is accepted and written on the exact grid t_0 + k·Ts, and the jitter is
 reported.  A step between two stamps larger than (1 + :data:`MAX_JITTER`)·Ts,
