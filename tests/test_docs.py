@@ -48,6 +48,7 @@ def site(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_site_has_every_page(site):
     for page in ("index.html", "getting-started/index.html", "theory/index.html",
                  "reproduction/index.html", "choosing-eps/index.html", "scenarios/index.html",

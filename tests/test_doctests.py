@@ -33,6 +33,7 @@ def test_docstring_examples(name: str) -> None:
 def test_examples_exist() -> None:
     """The public entry points and the contract's kinds carry runnable examples."""
     names = [m for m in MODULES if _has_examples(m)]
-    for expected in ("esoarm.scenario.loading", "esoarm.engines.simulation", "esoarm.engines.metrics",
-                     "esoarm.observers.nonlinear", "esoarm.controllers.pid", "esoarm.kinds"):
+    for expected in ("esoarm.scenario.loading", "esoarm.engines.simulation",
+                     "esoarm.engines.metrics", "esoarm.observers.nonlinear",
+                     "esoarm.controllers.pid", "esoarm.kinds"):
         assert expected in names

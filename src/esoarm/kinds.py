@@ -26,7 +26,7 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm.controllers import computed_torque, flc, pid
 from esoarm.observers import linear, nonlinear
-from esoarm.plants import lever_arm, urdf
+from esoarm.plants import axis, lever_arm, urdf
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
@@ -34,7 +34,7 @@ if TYPE_CHECKING:
 __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "kind_labels", "kinds_of", "tagged_union"]
 
 #: Registered kinds per component; the first is the default.
-PLANTS: tuple[ModuleType, ...] = (lever_arm, urdf)
+PLANTS: tuple[ModuleType, ...] = (lever_arm, urdf, axis)
 OBSERVERS: tuple[ModuleType, ...] = (linear, nonlinear)
 CONTROLLERS: tuple[ModuleType, ...] = (flc, pid, computed_torque)
 
@@ -118,27 +118,39 @@ def kind_labels(scn: Scenario) -> tuple[str, str]:
 def plant_advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
                   p: np.ndarray) -> None:
     """``advance`` of the plant kind whose CODE is p[0]."""
-    lever_arm.advance(x, u, t0, h, nsub, p)
+    if p[0] == axis.CODE:
+        axis.advance(x, u, t0, h, nsub, p)
+    else:
+        lever_arm.advance(x, u, t0, h, nsub, p)
 
 
 @jitable
 def plant_advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
                         nsub: int, p: np.ndarray) -> None:
     """``advance_block`` of the plant kind whose CODE is p[0] (a block of runs, same p)."""
-    lever_arm.advance_block(xs, us, live, t0, h, nsub, p)
+    if p[0] == axis.CODE:
+        axis.advance_block(xs, us, live, t0, h, nsub, p)
+    else:
+        lever_arm.advance_block(xs, us, live, t0, h, nsub, p)
 
 
 @jitable
 def plant_acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                        out: np.ndarray) -> None:
     """``acceleration`` of the plant kind whose CODE is p[0]."""
-    lever_arm.acceleration(x, u, t, p, out)
+    if p[0] == axis.CODE:
+        axis.acceleration(x, u, t, p, out)
+    else:
+        lever_arm.acceleration(x, u, t, p, out)
 
 
 @jitable
 def plant_observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
     """``observer_input`` of the plant kind whose CODE is p[0]."""
-    lever_arm.observer_input(zhat, u, p, v)
+    if p[0] == axis.CODE:
+        axis.observer_input(zhat, u, p, v)
+    else:
+        lever_arm.observer_input(zhat, u, p, v)
 
 
 @jitable

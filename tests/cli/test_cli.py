@@ -272,7 +272,7 @@ def test_scenarios_lists_builtins(run_cli):
     assert res.exit_code == 0
     lines = res.stdout.strip().splitlines()
     names = [line.split()[0] for line in lines]
-    assert names == builtin_names() == ["test-1", "test-1-urdf", "test-2", "two-link",
+    assert names == builtin_names() == ["emps", "test-1", "test-1-urdf", "test-2", "two-link",
                                         "uno-rig"]
     # one column of descriptions after the longest name, each a complete sentence
     column = max(map(len, names)) + 2
@@ -400,6 +400,7 @@ def test_command_line_syntax_errors(run_cli, args, fragment):
     assert len(errors) == 1 and fragment in errors[0], res.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS semantics")
 def test_out_of_memory_is_one_line_exit_1(tmp_path):
     """A run too large for the machine fails in one line, not with a traceback."""

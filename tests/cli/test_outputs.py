@@ -325,6 +325,7 @@ def _limited(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
 @pytest.mark.skipif(not LINUX, reason="RLIMIT_FSIZE and SIGXFSZ semantics")
 @pytest.mark.parametrize("kind", ["simulate-csv", "simulate-plot", "sweep-csv", "replay-csv",
                                   "reproduce"])
+@pytest.mark.slow
 def test_file_size_limit_is_one_line_exit_1(kind, tmp_path, log_csv):
     out = tmp_path / "out"
     out.mkdir()

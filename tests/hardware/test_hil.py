@@ -31,6 +31,7 @@ if MISSING and os.environ.get("ESOARM_REQUIRE_HIL"):  # CI: the firmware tests m
     raise RuntimeError(f"ESOARM_REQUIRE_HIL is set but not installed: {', '.join(MISSING)}")
 
 pytestmark = [
+    pytest.mark.slow,  # end to end: the firmware built and run in simavr
     pytest.mark.hil,
     pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}"),
 ]

@@ -6,12 +6,13 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from esoarm.hardware.realtime import LOG_COLUMNS
 
 from .rig_helpers import emulator, esoarm, needs_pty
 
-pytestmark = needs_pty
+pytestmark = [needs_pty, pytest.mark.slow]  # end to end: a device and a loop in real time
 
 TRUE = ["rig.inertia_scale=1.25", "rig.coulomb_friction=0.08", "sensor.seed=2"]
 

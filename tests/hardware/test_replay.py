@@ -35,6 +35,7 @@ def test_replay_recovers_the_controllers_estimates(tmp_path, disc):
     assert np.array_equal(rep.z, res.z)
 
 
+@pytest.mark.slow
 def test_replay_cli(tmp_path):
     sets = ["duration=2", "observer.eps=0.05"]
     _, res = _measured_log(tmp_path / "log.csv", sets)

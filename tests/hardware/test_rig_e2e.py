@@ -22,7 +22,7 @@ from esoarm.hardware.realtime import LOG_COLUMNS
 
 from .rig_helpers import CLI, emulator, esoarm, needs_pty
 
-pytestmark = needs_pty
+pytestmark = [needs_pty, pytest.mark.slow]  # end to end: a device and a loop in real time
 
 
 def _sets(items):

@@ -147,6 +147,7 @@ def test_pages_coming_and_going_do_not_disturb_the_loop() -> None:
     assert scope.clients == 0
 
 
+@pytest.mark.slow
 def test_page_in_headless_chromium_shows_a_lockstep_run(tmp_path: Path) -> None:
     browser = _browser()
     if browser is None:
@@ -176,6 +177,7 @@ def test_page_in_headless_chromium_shows_a_lockstep_run(tmp_path: Path) -> None:
         assert check["last"][col] == last[LOG_COLUMNS.index(col)], col
 
 
+@pytest.mark.slow
 @needs_pty
 def test_cli_run_and_emulate_with_scope_match_the_run_without(tmp_path: Path) -> None:
     logs = []

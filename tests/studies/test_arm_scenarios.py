@@ -164,6 +164,7 @@ CONTINUOUS = """<robot name="c"><link name="a"/><link name="b"><inertial><origin
     ("two-link", "[reference]\nkind = \"per-joint\"\n[[reference.joints]]\nkind = \"multisine\"\n",
      "key 'reference.joints': 1 entries"),
 ])
+@pytest.mark.slow
 def test_bad_arm_input_is_one_line_exit_2_nothing_written(tmp_path, urdf, extra, needle):
     if urdf == "two-link":
         shutil.copy(builtin_robot("two-link"), tmp_path / "arm.urdf")
@@ -201,6 +202,7 @@ def test_missing_pinocchio_names_the_extra(monkeypatch):
 # commands
 
 
+@pytest.mark.slow
 def test_simulate_json_has_joints_and_csv_per_joint_columns(tmp_path):
     res = _cli("simulate", "two-link", "--set", "duration=0.5", "--json", "--out",
                str(tmp_path / "r.csv"), "--plot", str(tmp_path / "r.png"))
@@ -215,6 +217,7 @@ def test_simulate_json_has_joints_and_csv_per_joint_columns(tmp_path):
     assert (tmp_path / "r.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_sweep_runs_an_arm_in_processes(tmp_path):
     out = tmp_path / "s.csv"
     res = _cli("sweep", "two-link", "--vary", "observer.eps=0.01,0.02", "--set", "duration=0.5",
@@ -224,6 +227,7 @@ def test_sweep_runs_an_arm_in_processes(tmp_path):
     assert len(rows) == 3
 
 
+@pytest.mark.slow
 def test_arm_study_writes_a_report(tmp_path):
     out = tmp_path / "study"
     res = _cli("arm-study", "two-link", "--set", "duration=1.0", "--eps", "0.01,0.02",
@@ -241,6 +245,7 @@ def test_rig_commands_refuse_an_arm():
     assert len(res.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_replay_of_an_arms_simulate_csv_gives_back_its_estimates(tmp_path):
     sim = tmp_path / "sim.csv"
     assert _cli("simulate", "two-link", "--set", "duration=0.5", "--out", str(sim)).returncode == 0

@@ -48,6 +48,7 @@ COMMANDS: dict[str, str] = {
     "hil": "esoarm.cli.hil:hil",
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
+    "log": "esoarm.cli.log:log",
 }
 
 
@@ -64,6 +65,7 @@ SUMMARIES: dict[str, str] = {
            "pins.",
     "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "
                 "error).",
+    "log": "Bring logs recorded elsewhere into esoarm's CSV format.",
     "replay": "Run the ESO offline over LOG.csv to recover velocity and perturbation estimates.",
     "reproduce": "Run the paper's experiments on the digital twin and compare with its tables.",
     "run": "Drive the rig on PORT through SCENARIO at its rate for its duration.",

@@ -353,6 +353,7 @@ def test_cli_json(run_cli) -> None:  # type: ignore[no-untyped-def]
     assert out["range"]["theta_max"] == pytest.approx(1.0)
 
 
+@pytest.mark.slow
 def test_cli_vary_and_plot(run_cli, tmp_path) -> None:  # type: ignore[no-untyped-def]
     fig = tmp_path / "m.png"
     res = run_cli("analyze", "test-1", "--vary", "observer.eps=0.05,0.2", "--plot", str(fig),

@@ -45,6 +45,7 @@ def _twin_log(tmp_path, sets, plan=None, name="ex.csv"):
     return truth, path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(TRUTHS))
 def test_recovers_known_twin(case, tmp_path):
     sets, nominal_sets = TRUTHS[case]
@@ -72,6 +73,7 @@ def test_recovers_known_twin(case, tmp_path):
         assert res.estimates["actuator.lag"].fitted
 
 
+@pytest.mark.slow
 def test_interval_coverage_over_50_seeds():
     """≥ 90 % of 50 seeded fits (short logs, structure known) contain the truth."""
     plan = ExcitationPlan(duration=8.0, f_min=0.25, sweep=0.5, sweep_period=8.0)

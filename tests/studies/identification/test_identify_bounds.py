@@ -64,6 +64,7 @@ def test_a_physical_zero_alone_does_not_make_the_fit_untrustworthy(frictionless_
     assert "rig.viscous_friction at the upper bound" in res.untrustworthy()
 
 
+@pytest.mark.slow
 def test_at_a_bound_and_not_white_is_not_trustworthy(run_cli, tmp_path):
     """Friction far above the model's range (the arm creeps, sticks and slips): the fit runs
     the viscous friction into its upper bound and cannot whiten the residual."""

@@ -76,6 +76,7 @@ def test_twins_section_shows_both_twins():
         assert "stand in the way" in text
 
 
+@pytest.mark.slow
 def test_cli_reproduce_on_the_paper_twin(run_cli, tmp_path):
     import json
 

@@ -27,6 +27,8 @@ from esoarm import __version__
 from esoarm.studies.reproduction.report import ASSUMPTIONS, assumption_rows
 from esoarm.studies.reproduction.run import EPS_SET, PAPER_TABLES, run_reproduction, write_outputs
 
+pytestmark = pytest.mark.slow  # end to end (the fast tier is -m 'not slow')
+
 ROOT = Path(__file__).resolve().parents[3]
 ARTIFACTS = ROOT / "test-artifacts"
 CHROMIUM_FLAGS = (

@@ -173,6 +173,7 @@ def test_discretization_findings_quote_the_sweep():
 # -- the command line ------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_cli_reproduce_writes_everything(run_cli, tmp_path):
     out = tmp_path / "res"
     res = run_cli("reproduce", "--out", str(out), "--format", "svg")
@@ -258,6 +259,7 @@ def _short_reproductions(monkeypatch):  # type: ignore[no-untyped-def]
     monkeypatch.setattr(twins_report, "run_reproduction", short)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("earlier", [False, True], ids=["new DIR", "DIR with earlier results"])
 def test_cli_reproduce_failing_halfway_leaves_dir_as_it_was(tmp_path, monkeypatch, capsys,
                                                             earlier):

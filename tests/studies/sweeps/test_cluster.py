@@ -25,6 +25,8 @@ from esoarm.cli import cli  # noqa: E402
 from esoarm.scenario import load_scenario  # noqa: E402
 from esoarm.studies.sweeps import sweep  # noqa: E402
 
+pytestmark = pytest.mark.slow  # end to end (see pyproject: the fast tier is -m 'not slow')
+
 START_TIMEOUT = 60.0
 
 

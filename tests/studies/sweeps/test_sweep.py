@@ -251,6 +251,7 @@ def test_interrupt_keeps_finished_rows(tmp_path: Path, monkeypatch) -> None:  # 
     np.testing.assert_array_equal(got, full.values[:8])
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(os.name != "posix", reason="SIGINT delivery is POSIX-specific")
 def test_real_ctrl_c_exits_130_with_a_valid_csv(tmp_path: Path) -> None:
     """Ctrl-C once the first chunk is done (a condition, not a time: robust under load)."""

@@ -72,6 +72,7 @@ def test_interrupted_writer_keeps_rows_held_behind_a_gap(tmp_path: Path) -> None
     assert float(rows[1][0]) == grid.vary[0].values[4]
 
 
+@pytest.mark.slow
 def test_memory_does_not_grow_with_the_runs(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """The CLI holds no per-run array: 10× the runs, the same peak (synthetic rows)."""
 
@@ -100,6 +101,7 @@ def test_memory_does_not_grow_with_the_runs(tmp_path: Path, monkeypatch) -> None
     assert large < small + 2_000_000, (small, large)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(os.name != "posix", reason="signals are POSIX-specific")
 def test_sigterm_keeps_a_valid_csv(tmp_path: Path) -> None:
     out = tmp_path / "term.csv"
