@@ -158,6 +158,18 @@ def evaluate_reference(
         The scenario's ``reference`` section.
     t : array_like
         Times [s].
+
+    Returns
+    -------
+    (ndarray, ndarray, ndarray)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²], each of the shape of ``t`` (at least 1-D).
+
+    Examples
+    --------
+    >>> from esoarm.reference import Multisine
+    >>> pos, vel, acc = evaluate_reference(Multisine(amplitudes=[1.0], frequencies=[2.0]), 0.0)
+    >>> float(pos[0]), float(vel[0]), float(acc[0])
+    (0.0, 2.0, 0.0)
     """
     t_arr = np.atleast_1d(np.asarray(t, dtype=float))
     if isinstance(ref, QuinticSteps):
@@ -166,12 +178,36 @@ def evaluate_reference(
 
 
 def joint_count(ref: object) -> int | None:
-    """Joints a reference is written for (``per-joint``), None if it fits any number."""
+    """Joints a reference is written for (``per-joint``), None if it fits any number.
+
+    Parameters
+    ----------
+    ref : reference section
+        Any ``[reference]`` kind.
+
+    Returns
+    -------
+    int or None
+        The number of ``[[reference.joints]]`` tables of a ``per-joint`` reference, else None.
+    """
     return len(ref.joints) if isinstance(ref, PerJoint) else None
 
 
 def needs_limits(ref: object, n_joints: int) -> list[int]:
-    """Joints whose reference is defined by their limits (all of them for ``range``)."""
+    """Joints whose reference is defined by their limits (all of them for ``range``).
+
+    Parameters
+    ----------
+    ref : reference section
+        Any ``[reference]`` kind.
+    n_joints : int
+        Joints of the plant.
+
+    Returns
+    -------
+    list of int
+        Joint indices (0-based) whose position limits the reference needs.
+    """
     return list(range(n_joints)) if isinstance(ref, RangeMoves) else []
 
 
@@ -189,6 +225,16 @@ def reference_rows(ref: object, t: np.ndarray, n_joints: int,
         Joints n.
     limits : (lower, upper), optional
         Joint position limits [rad or m], needed by the ``range`` kind.
+
+    Returns
+    -------
+    ndarray, shape (3·n, N)
+        θd [rad or m], θ̇d, θ̈d of joint j in rows 3j, 3j+1, 3j+2.
+
+    Raises
+    ------
+    ValueError
+        A ``range`` reference without ``limits``.
     """
     if isinstance(ref, PerJoint):
         parts = [np.stack(evaluate_reference(r, t)) for r in ref.joints]

@@ -50,7 +50,22 @@ def _joint_names(scenario: Scenario, n_joints: int) -> tuple[str, ...]:
 def write_csv_atomic(
     path: str | Path, header: list[str] | tuple[str, ...], data: np.ndarray
 ) -> None:
-    """Write a numeric table as CSV; the file appears only once complete."""
+    """Write a numeric table as CSV; the file appears only once complete.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file; written beside it, then renamed (no half-written file on failure).
+    header : sequence of str
+        Column names, one per column of ``data``.
+    data : ndarray, shape (N, len(header))
+        The numbers, written with ``repr`` precision (they read back bit for bit).
+
+    Raises
+    ------
+    esoarm._io.OutputError
+        The path cannot be written (a one-line message naming it).
+    """
     with atomic_path(path) as tmp, tmp.open("w", encoding="utf-8", newline="") as fh:
         fh.write(",".join(header) + "\n")
         np.savetxt(fh, data, delimiter=",", fmt="%.17g")
@@ -116,7 +131,24 @@ class SimResult:
     def from_log(cls, scenario: Scenario, t: np.ndarray, log: np.ndarray,
                  diverged: bool = False) -> SimResult:
         """Build from an engine log: :data:`esoarm.engines.metrics.LOG_ROWS` per joint, one
-        column per sample (the rows are copied out of ``log``)."""
+        column per sample (the rows are copied out of ``log``).
+
+        Parameters
+        ----------
+        scenario : Scenario
+            The scenario that was run.
+        t : ndarray, shape (N,)
+            Sample times t_k = k·Ts [s].
+        log : ndarray, shape (n·NROW, N)
+            The engine's log, :data:`~esoarm.engines.metrics.LOG_ROWS` rows per joint.
+        diverged : bool
+            True when the run stopped early because the state left the finite range.
+
+        Returns
+        -------
+        SimResult
+            The series as attributes (θ, θ̇, u, ẑ, f, ...) and :attr:`metrics` computed from them.
+        """
         log = np.asarray(log, dtype=float)
         if log.shape[0] % NROW or not log.shape[0]:
             raise ValueError(f"an engine log has {NROW} rows per joint, got {log.shape[0]}")
@@ -174,7 +206,13 @@ class SimResult:
         return self.metrics["max_abs_error"]
 
     def table(self) -> np.ndarray:
-        """The time series in :meth:`columns` order: (N, 11), more for an arm."""
+        """The time series in :meth:`columns` order: (N, 11), more for an arm.
+
+        Returns
+        -------
+        ndarray, shape (N, len(columns))
+            One row per sample, SI units.
+        """
         blocks = [self.t[:, None]]
         for part in (self, *self.joints):
             blocks.append(np.column_stack(
@@ -184,18 +222,43 @@ class SimResult:
 
     def columns(self) -> tuple[str, ...]:
         """CSV header: :data:`CSV_COLUMNS`, then for an arm every joint's columns suffixed
-        ``_1`` … ``_n`` in URDF order (the unsuffixed columns are joint 1's)."""
+        ``_1`` … ``_n`` in URDF order (the unsuffixed columns are joint 1's).
+
+        Returns
+        -------
+        tuple of str
+            Column names, as written by :meth:`to_csv`.
+        """
         extra = tuple(f"{name}_{j}" for j in range(1, len(self.joints) + 1)
                       for name in CSV_COLUMNS[1:])
         return tuple(CSV_COLUMNS) + extra
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the time series (:meth:`columns`, SI units); atomic."""
+        """Write the time series (:meth:`columns`, SI units); atomic.
+
+        Parameters
+        ----------
+        path : str or Path
+            The CSV file to write.
+
+        Returns
+        -------
+        Path
+            ``path``, complete.
+        """
         write_csv_atomic(path, self.columns(), self.table())
         return Path(path)
 
     def summary(self) -> dict[str, Any]:
-        """Metrics plus the identifying settings, JSON-ready."""
+        """Metrics plus the identifying settings, JSON-ready.
+
+        Returns
+        -------
+        dict
+            The scenario's name and kinds, the observer's and controller's settings, every metric
+            of :data:`~esoarm.engines.metrics.METRICS` and the number of samples (an arm adds one
+            entry per joint under ``"joints"``).
+        """
         scn = self.scenario
         settings = {"scenario": scn.name, "plant": scn.plant.kind, "observer": scn.observer.kind,
                     "controller": scn.controller.kind}
@@ -209,7 +272,20 @@ class SimResult:
         return out
 
     def plot(self, path: str | Path | None = None, **kwargs: Any):  # type: ignore[no-untyped-def]
-        """Plot angle, error, control and estimates; see :func:`esoarm.plotting.run.plot_run`."""
+        """Plot angle, error, control and estimates; see :func:`esoarm.plotting.run.plot_run`.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Save the figure there (.png, .pdf or .svg); None only returns it.
+        **kwargs
+            Passed on to :func:`esoarm.plotting.run.plot_run`.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure (needs matplotlib; numerics never import it).
+        """
         from esoarm.plotting.run import plot_run
 
         return plot_run(self, path=path, **kwargs)

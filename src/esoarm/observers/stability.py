@@ -122,6 +122,20 @@ def error_matrix(eps: float, ts: float | None = None, discretization: str = CONT
     """Estimation-error matrix: A − βC (eq. 10) or the discrete recursion matrix.
 
     "euler": I + Ts (A − βC); "zoh": Φ − Lp C; "current": Φ − Lc C Φ.
+
+    Parameters
+    ----------
+    eps : float
+        Observer time constant ε > 0 [s].
+    ts : float, optional
+        Sample period Ts > 0 [s]; needed by the discrete forms.
+    discretization : str
+        ``"continuous"`` (the default), ``"euler"``, ``"zoh"`` or ``"current"``.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        The matrix whose eigenvalues are the estimation-error poles.
     """
     _check_disc(discretization)
     if discretization == CONTINUOUS:
@@ -137,6 +151,25 @@ def observer_poles(eps: float, ts: float | None = None, discretization: str = CO
     1 − Ts/ε; "zoh"/"current": e^{−Ts/ε}).  Eigenvalues computed numerically
     from :func:`error_matrix` agree only to about ∛(machine ε) because the
     pole is triple; compare :func:`characteristic_polynomial` instead.
+
+    Parameters
+    ----------
+    eps : float
+        Observer time constant ε > 0 [s].
+    ts : float, optional
+        Sample period Ts > 0 [s]; needed by the discrete forms.
+    discretization : str
+        ``"continuous"`` (the default), ``"euler"``, ``"zoh"`` or ``"current"``.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        The triple pole, s-plane [1/s] or z-plane.
+
+    Examples
+    --------
+    >>> observer_poles(0.1).tolist(), observer_poles(0.1, 0.02, "euler").tolist()
+    ([-10.0, -10.0, -10.0], [0.8, 0.8, 0.8])
     """
     _check_disc(discretization)
     if discretization == CONTINUOUS:
@@ -152,6 +185,16 @@ def characteristic_polynomial(matrix: np.ndarray) -> np.ndarray:
     Computed from traces and the determinant (Faddeev–LeVerrier), which is
     well conditioned for repeated eigenvalues, unlike ``np.poly`` of the
     eigenvalues.
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (3, 3)
+        Any square matrix of order 3.
+
+    Returns
+    -------
+    ndarray, shape (4,)
+        Coefficients [1, c2, c1, c0] of λ³ + c2 λ² + c1 λ + c0.
     """
     m = np.asarray(matrix, dtype=float)
     if m.shape != (3, 3):
@@ -168,6 +211,18 @@ def pole_damping(pole: complex, ts: float | None = None) -> float:
     real z-pole (ringing at the Nyquist frequency, Euler with Ts/ε > 1)
     gives ζ = −ln|z| / √(ln²|z| + π²) < 1.  ζ = 1 for a positive real pole
     and for z = 0 (deadbeat); ζ ≤ 0 on or outside the stability boundary.
+
+    Parameters
+    ----------
+    pole : complex
+        The pole, s-plane [1/s] when ``ts`` is None, else z-plane.
+    ts : float, optional
+        Sample period [s] of a z-plane pole.
+
+    Returns
+    -------
+    float
+        ζ (1 for a real stable pole; below 0 when unstable).
     """
     if ts is None:
         s = complex(pole)
@@ -224,7 +279,24 @@ class ObserverAnalysis:
 
 def analyze_observer(eps: float, ts: float | None = None, discretization: str = CONTINUOUS,
                      b0: float = 1.0) -> ObserverAnalysis:
-    """Gains, error matrix, poles, damping and stability of an ESO design."""
+    """Gains, error matrix, poles, damping and stability of an ESO design.
+
+    Parameters
+    ----------
+    eps : float
+        Observer time constant ε > 0 [s].
+    ts : float, optional
+        Sample period Ts > 0 [s]; needed by the discrete forms.
+    discretization : str
+        ``"continuous"`` (the default), ``"euler"``, ``"zoh"`` or ``"current"``.
+    b0 : float
+        Nominal input gain b0 [1/(kg·m²)] of the observer model.
+
+    Returns
+    -------
+    ObserverAnalysis
+        The record of gains, matrix, poles, damping ratio and a stability verdict.
+    """
     poles = observer_poles(eps, ts, discretization)
     gains = observer_gains(eps, ts, discretization, b0)
     mat = error_matrix(eps, ts, discretization)
@@ -328,6 +400,16 @@ def tracking_l1_gain(k1: float, k2: float) -> float:
         Error-rate gain > 0 [1/s].
     k2 : float
         Error gain > 0 [1/s²].
+
+    Returns
+    -------
+    float
+        The gain [s²]: sup|e| ≤ gain · sup|κ| in steady state.
+
+    Examples
+    --------
+    >>> tracking_l1_gain(10.0, 25.0)  # critically damped: 1/k2
+    0.04
     """
     if not (k1 > 0 and k2 > 0):
         raise ValueError(f"k1 and k2 must be > 0, got {k1!r}, {k2!r}")

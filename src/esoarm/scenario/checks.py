@@ -27,6 +27,25 @@ __all__ = ["check_consistency", "scenario_warnings", "timing_warnings"]
 
 def check_consistency(scn: Scenario, source: str,
                        origin: Callable[[str], str] | None = None) -> None:
+    """Check what no single key can: the keys of one scenario against each other.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario, already valid key by key.
+    source : str
+        Where the keys came from ("file 'x.toml'", "built-in scenario 'test-1'"), for the message.
+    origin : callable, optional
+        Maps an offending key to the source to blame (an override that set it, else ``source``).
+
+    Raises
+    ------
+    ScenarioError
+        One line naming the key: a step that does not divide Ts, a run too long or shorter
+        than a sample, reference moves out of order or out of range, a kind's own check, or
+        numbers double precision cannot compute with.
+    """
+
     def fail(key: str, msg: str) -> None:
         where = origin(key) if origin else source
         raise ScenarioError(f"{where}: key '{key}': {msg}")
@@ -148,6 +167,22 @@ def scenario_warnings(scn: Scenario) -> list[str]:
     this sample rate, or faster than the samples support (see
     :func:`esoarm.observers.stability.observer_warnings`); and settings that
     silently do nothing or less than asked (:func:`timing_warnings`).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    list of str
+        One message per risky setting; empty when there is none.
+
+    Examples
+    --------
+    >>> from esoarm.scenario import load_scenario
+    >>> scenario_warnings(load_scenario("test-1"))
+    []
     """
     from esoarm.observers.stability import observer_warnings
 
@@ -168,6 +203,16 @@ def timing_warnings(scn: Scenario) -> list[str]:
     move that starts after the run has ended, a multisine tone at or above
     the Nyquist frequency of the samples, and a duration that is not a whole
     number of sample periods (the run is rounded to N samples).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    list of str
+        One message per setting the timing makes ineffective; empty when there is none.
     """
     out: list[str] = []
     ts, n = scn.sample_time, scn.n_samples

@@ -50,7 +50,13 @@ def _kind_rows(section: str, models: tuple[type[BaseModel], ...]) -> list[tuple[
 
 
 def scenario_keys() -> list[tuple[str, str, str, str]]:
-    """(dotted key, default, unit, description) for every scenario key."""
+    """(dotted key, default, unit, description) for every scenario key.
+
+    Returns
+    -------
+    list of (str, str, str, str)
+        One row per key, in the order of the schema; kind tables list every kind's keys.
+    """
     from esoarm.scenario.schema import KIND_SECTIONS
 
     rows: list[tuple[str, str, str, str]] = []
@@ -78,7 +84,13 @@ def scenario_keys() -> list[tuple[str, str, str, str]]:
 
 
 def scenario_keys_markdown() -> str:
-    """The scenario keys as a Markdown table."""
+    """The scenario keys as a Markdown table.
+
+    Returns
+    -------
+    str
+        A Markdown table (key, default, unit, meaning), one row per key, ending in a newline.
+    """
     lines = ["| key | default | unit | meaning |", "|---|---|---|---|"]
     for key, default, unit, desc in scenario_keys():
         lines.append(f"| `{key}` | {default} | {unit} | {desc.replace('|', chr(92) + '|')} |")

@@ -16,7 +16,23 @@ __all__ = ["builtin_names", "load_scenario"]
 
 
 def builtin_names(plant: str | None = None) -> list[str]:
-    """Names of the scenarios shipped with the package (only those of plant kind ``plant``)."""
+    """Names of the scenarios shipped with the package (only those of plant kind ``plant``).
+
+    Parameters
+    ----------
+    plant : str, optional
+        A plant kind (``"lever-arm"``, ``"urdf"``, ...); None lists every built-in.
+
+    Returns
+    -------
+    list of str
+        Names, sorted, each loadable with :func:`load_scenario`.
+
+    Examples
+    --------
+    >>> "test-1" in builtin_names() and "test-1" in builtin_names("lever-arm")
+    True
+    """
     root = resources.files("esoarm") / "scenarios"
     names = sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
     if plant is None:
@@ -51,6 +67,11 @@ def load_scenario(
     overrides : dict or list of str, optional
         Dotted keys to change, e.g. ``{"observer.eps": 0.05}`` or
         ``["observer.eps=0.05", "observer.discretization=zoh"]``.
+
+    Returns
+    -------
+    Scenario
+        The validated, immutable scenario.
 
     Raises
     ------

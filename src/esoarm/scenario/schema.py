@@ -213,15 +213,42 @@ class Scenario(_Section):
 
         ``overrides`` is a mapping ``{"observer.eps": 0.05}`` or a list of
         ``"KEY=VALUE"`` strings as given to ``--set``.
+
+        Parameters
+        ----------
+        overrides : dict or list of str
+            Dotted keys and values, e.g. ``{"observer.eps": 0.05}`` or ``["observer.eps=0.05"]``.
+
+        Returns
+        -------
+        Scenario
+            A new, validated scenario; ``self`` is unchanged.
+
+        Raises
+        ------
+        ScenarioError
+            An unknown key or an invalid value, in one line naming the key.
         """
         return build(self.to_dict(), overrides, source=f"scenario '{self.name}'")
 
     def to_dict(self) -> dict[str, Any]:
-        """The fully resolved scenario as plain nested dicts."""
+        """The fully resolved scenario as plain nested dicts.
+
+        Returns
+        -------
+        dict
+            Every key of every table, with defaults filled in (JSON- and TOML-ready).
+        """
         return self.model_dump()
 
     def to_toml(self) -> str:
-        """The fully resolved scenario as TOML text (all keys)."""
+        """The fully resolved scenario as TOML text (all keys).
+
+        Returns
+        -------
+        str
+            TOML that :func:`esoarm.scenario.load_scenario` reads back to an equal scenario.
+        """
         return to_toml(self.to_dict())
 
 
@@ -270,6 +297,26 @@ def parse_override(item: str) -> tuple[str, Any]:
 
     Messages speak of the override (``override 'x': …``); the command line
     words them for its ``--set`` option.
+
+    Parameters
+    ----------
+    item : str
+        ``"KEY=VALUE"``, e.g. ``"observer.eps=0.05"`` or ``"observer.discretization=zoh"``.
+
+    Returns
+    -------
+    (str, object)
+        The dotted key and its value (a number, bool, list or string).
+
+    Raises
+    ------
+    ScenarioError
+        Not a string, no ``=``, or an empty key.
+
+    Examples
+    --------
+    >>> parse_override("observer.eps=0.05"), parse_override("observer.discretization=zoh")
+    (('observer.eps', 0.05), ('observer.discretization', 'zoh'))
     """
     if not isinstance(item, str):
         raise ScenarioError(f"override {item!r}: expected a 'KEY=VALUE' string")
@@ -303,7 +350,13 @@ def _valid_keys_cached() -> tuple[str, ...]:
 
 
 def valid_keys() -> list[str]:
-    """Every dotted key a scenario accepts (all kinds' keys included), sorted."""
+    """Every dotted key a scenario accepts (all kinds' keys included), sorted.
+
+    Returns
+    -------
+    list of str
+        Dotted keys such as ``"observer.eps"``; a kind table lists the keys of all its kinds.
+    """
     return list(_valid_keys_cached())
 
 
@@ -330,6 +383,28 @@ def _walk_keys() -> list[str]:
 
 
 def build(data: dict[str, Any], overrides: dict[str, Any] | list[str], source: str) -> Scenario:
+    """Merge ``data`` over the defaults, apply ``overrides``, validate and check: the edge.
+
+    Parameters
+    ----------
+    data : dict
+        Nested tables as read from TOML (missing keys take their defaults).
+    overrides : dict or list of str
+        Dotted keys applied after ``data`` (see :func:`parse_override`).
+    source : str
+        Where ``data`` came from, named in every message.
+
+    Returns
+    -------
+    Scenario
+        The validated, immutable scenario.
+
+    Raises
+    ------
+    ScenarioError
+        One line naming the offending key and its source (file or override).
+    """
+
     if isinstance(overrides, list | tuple):
         pairs = [parse_override(item) for item in overrides]
     elif isinstance(overrides, dict):
