@@ -49,6 +49,7 @@ COMMANDS: dict[str, str] = {
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
     "log": "esoarm.cli.log:log",
+    "codegen": "esoarm.cli.codegen:codegen",
 }
 
 
@@ -56,6 +57,7 @@ COMMANDS: dict[str, str] = {
 # importing the command (tests/test_cli_startup.py checks they match the
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
+    "codegen": "Generate self-contained C99 for SCENARIO's observer and controller on a target.",
     "arm-study": "Compare controllers and sweep ε on the arm SCENARIO (plant.kind = \"urdf\").",
     "analyze": "Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.",
     "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",

@@ -157,9 +157,27 @@ class IdentResult:
                     "iterations": self.iterations, "elapsed_s": self.elapsed,
                     "logs": self.fit_logs},
             "validation": {**self.validation, "logs": self.validation_logs},
+            "physical": self.physical(),
             "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
             "at_bound": [k for k, e in self.estimates.items() if e.at_bound],
         }
+
+    def physical(self) -> dict[str, dict]:
+        """The fit in SI names: inertia [kg·m²], viscous_friction [N·m·s/rad],
+        coulomb_friction [N·m], offset [N·m] (none in the lever-arm model: 0, not fitted)
+        and gravity (the coefficient (m1 l1 − m2 l2) g [N·m]), each {value, ci95, unit}."""
+        i0 = self.scenario.plant.inertia
+        scale = self.estimates["rig.inertia_scale"]
+        out = {"inertia": {"value": scale.value * i0,
+                           "ci95": [scale.ci95[0] * i0, scale.ci95[1] * i0], "unit": "kg·m²"}}
+        for name, key in (("viscous_friction", "rig.viscous_friction"),
+                          ("coulomb_friction", "rig.coulomb_friction")):
+            e = self.estimates[key]
+            out[name] = {"value": e.value, "ci95": list(e.ci95), "unit": e.unit}
+        out["offset"] = {"value": 0.0, "ci95": [0.0, 0.0], "unit": "N·m", "fitted": False}
+        out["gravity"] = {"value": self.gravity.value, "ci95": list(self.gravity.ci95),
+                          "unit": "N·m"}
+        return out
 
     def untrustworthy(self) -> str:
         """Why the result is not trustworthy ("" if it is): a parameter ended at a bound of
