@@ -50,6 +50,7 @@ COMMANDS: dict[str, str] = {
     "identify": "esoarm.cli.identify:identify",
     "log": "esoarm.cli.log:log",
     "codegen": "esoarm.cli.codegen:codegen",
+    "pil": "esoarm.cli.pil:pil",
 }
 
 
@@ -68,6 +69,7 @@ SUMMARIES: dict[str, str] = {
     "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "
                 "error).",
     "log": "Bring logs recorded elsewhere into esoarm's CSV format.",
+    "pil": "Run SCENARIO's generated controller on an emulated chip in lockstep with the twin.",
     "replay": "Run the ESO offline over LOG.csv to recover velocity and perturbation estimates.",
     "reproduce": "Run the paper's experiments on the digital twin and compare with its tables.",
     "run": "Drive the rig on PORT through SCENARIO at its rate for its duration.",

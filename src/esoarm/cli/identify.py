@@ -194,6 +194,15 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     [motor] table), each with a 95 % interval, flags what the log does not
     determine, and validates on data not used for fitting (fit %, residual
     whiteness). Closed-loop logs work: the fit uses the torque actually logged.
+    The inverse-dynamic-model least squares (IDIM-LS) estimate is computed
+    beside it; logs whose angles cannot be in rad are refused.
+
+    With plant.kind = "axis" (a rotary or prismatic axis in SI units, e.g.
+    --scenario emps): IDIM-LS gives mass or inertia, viscous and Coulomb
+    friction and offset with Newey-West 95 % intervals, checked between the
+    halves of the data, beside an output-error fit over --segment pieces, and
+    validated on the force (cross-test) and the simulated position. --json
+    has "physical": {name: {value, ci95, unit}} in SI names for every plant.
     """
     from esoarm.plants.motor import MotorParams
     from esoarm.studies.identification.data import read_ident_log

@@ -149,7 +149,8 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
               "(0/1), duty [counts], y (measured angle [rad]). See docs/semantics.md.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the metrics as one JSON object: rms_error [rad, measured angle], "
-              "rms_u [N·m], deadline_misses, jitter_p50_us/jitter_p99_us [µs], ...")
+              "rms_u [N·m], rms_du [N·m: RMS of u_k − u_k−1], deadline_misses, "
+              "jitter_p50_us/jitter_p99_us [µs], ...")
 @click.option("--angle-limit", type=float, default=math.pi, show_default=True,
               metavar="RAD", help="Stop when |measured angle| exceeds this [rad].")
 @click.option("--max-jump", type=float, default=0.5, show_default=True, metavar="RAD",
@@ -314,6 +315,7 @@ def _print_summary(name: str, s, wall: float, ts: float) -> None:  # type: ignor
 
     table.add_row("RMS tracking error (measured θ)", fmt(s.rms_error, ".5f"), "rad")
     table.add_row("RMS control", fmt(s.rms_u, ".5f"), "N·m")
+    table.add_row("RMS control step |u_k − u_k−1|", fmt(s.rms_du, ".5f"), "N·m")
     table.add_row("max |error|", fmt(s.max_abs_error, ".5f"), "rad")
     table.add_row("samples logged", str(s.samples), "")
     table.add_row("lost samples", str(s.lost_samples), "")

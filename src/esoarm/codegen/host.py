@@ -49,7 +49,7 @@ class HostChip:
         self.target, self.precision = "host", gen.precision
         lib = build("gcc", {HEADER: gen.header, SOURCE: gen.source, "pil_host.c": _WRAPPER},
                     ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror",
-                     "-shared", "-fPIC", "-lm"], "controller.so", "esoarm-codegen-host")
+                     "-shared", "-fPIC"], "controller.so", "esoarm-codegen-host", ["-lm"])
         self._lib = ctypes.CDLL(str(lib))
         self._lib.pil_step.argtypes = [ctypes.c_double, ctypes.POINTER(ctypes.c_double)]
         self._lib.pil_step.restype = None
