@@ -523,3 +523,11 @@ def test_sweep_shows_progress_lines_in_a_log_at_normal_verbosity(run_cli, monkey
     res = run_cli("sweep", "test-1", "--vary", "observer.eps=0.05,0.09", "--set", "duration=1")
     assert res.exit_code == 0, res.stderr
     assert "esoarm: sweep: 2 of 2 runs" in res.stderr
+
+
+def test_missing_choice_option_is_one_clean_line(run_esoarm):
+    res = run_esoarm("codegen", "test-1")
+    assert res.exit_code == 2
+    line, = res.stderr.strip().splitlines()
+    assert "\\n" not in line and "\\t" not in line
+    assert "--target" in line and "avr, cortex-m4, host" in line
