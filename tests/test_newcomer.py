@@ -531,3 +531,18 @@ def test_missing_choice_option_is_one_clean_line(run_esoarm):
     line, = res.stderr.strip().splitlines()
     assert "\\n" not in line and "\\t" not in line
     assert "--target" in line and "avr, cortex-m4, host" in line
+
+
+def test_status_lines_for_logs(monkeypatch, capsys):
+    from esoarm.cli import _common
+
+    _common.reset_verbosity()
+    say = _common.status_lines("identify")
+    say("fitting")  # sooner than PROGRESS_LINE_S: nothing
+    monkeypatch.setattr(_common, "PROGRESS_LINE_S", 0.0)
+    say("trying delay 1 sample(s)")
+    assert capsys.readouterr().err == "esoarm: identify: trying delay 1 sample(s)\n"
+    _common._state["level"] = _common.QUIET
+    say("quiet")
+    assert capsys.readouterr().err == ""
+    _common.reset_verbosity()
