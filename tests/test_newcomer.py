@@ -546,3 +546,21 @@ def test_status_lines_for_logs(monkeypatch, capsys):
     say("quiet")
     assert capsys.readouterr().err == ""
     _common.reset_verbosity()
+
+
+def test_fast_engine_and_hil_use_the_writable_cache(monkeypatch, tmp_path):
+    from esoarm import _cache
+    from esoarm.engines import fast
+    from esoarm.hardware.hil import build
+
+    for var in ("ESOARM_CACHE_DIR", "ESOARM_CACHE", "XDG_CACHE_HOME"):
+        monkeypatch.delenv(var, raising=False)
+    home = tmp_path / "home"
+    home.mkdir()
+    monkeypatch.setenv("HOME", str(home))
+    real = _cache.writable
+    monkeypatch.setattr(_cache, "writable", lambda p: not str(p).startswith(str(home)) and real(p))
+    assert not str(fast.cache_dir()).startswith(str(home))
+    assert not str(build._cache_dir()).startswith(str(home))
+    monkeypatch.setenv("ESOARM_CACHE_DIR", str(tmp_path / "mine"))
+    assert fast.cache_dir() == build._cache_dir() == tmp_path / "mine"
