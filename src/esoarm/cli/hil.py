@@ -9,12 +9,14 @@ import click
 
 from esoarm.cli._common import (
     BadInput,
+    Interrupted,
     RunFailure,
     bad_input_guard,
     lever_only,
     resolve_scenario,
     scenario_argument,
     set_option,
+    warn_line,
 )
 
 
@@ -35,16 +37,23 @@ def _say(line: str) -> None:
               "measurements by the host). Default: the AVR's time runs at wall-clock speed "
               "while the host owes an answer and free in between.")
 @click.option("--elf", "elf", metavar="FILE.elf", type=click.Path(dir_okay=False),
-              help="Firmware to run (default: build firmware/ of this checkout with "
-              "'make -C firmware' and use build/uno-DRIVER/esoarm_rig.elf).")
+              help="Firmware to run (default: build the firmware sources -- firmware/ of this "
+              "checkout, else the copy the installed package carries -- with make and the AVR "
+              "toolchain, into firmware/build/uno-DRIVER/ of a checkout or esoarm's cache "
+              "directory, and run that).")
 @click.option("--driver", type=click.Choice(["l298n", "bts7960"]), default="l298n",
               show_default=True, help="Driver variant to build when --elf is not given.")
+@click.option("--onboard", is_flag=True,
+              help="On-board mode: build the firmware with SCENARIO's generated observer and "
+              "controller (esoarm codegen ... --target avr; make -C firmware ONBOARD=DIR at the "
+              "scenario's rate, 1 Mbit/s), which step at every sample tick and drive the motor "
+              "themselves; the host's DUTY frames are then only the watchdog's heartbeat.")
 @click.option("--once", is_flag=True,
               help="Exit after the first run: once the motor pins are off and the host has "
               "sent STOP (or the link is unplugged, or the host is silent for 5 s).")
 @bad_input_guard
 def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], realtime: bool,
-        elf: str | None, driver: str, once: bool) -> None:
+        elf: str | None, driver: str, onboard: bool, once: bool) -> None:
     """Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its pins.
 
     The first line printed is 'device: PATH'; pass PATH to 'esoarm run SCENARIO
@@ -66,7 +75,18 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
     if elf is not None and not Path(elf).is_file():
         raise BadInput(f"--elf '{elf}': no such file")
     try:
-        elf_path = Path(elf) if elf else firmware_elf(driver)
+        if onboard:
+            from esoarm.codegen import CodegenError
+            from esoarm.codegen.onboard import onboard_firmware
+
+            if elf is not None:
+                raise BadInput("--onboard builds its own firmware: drop --elf")
+            try:
+                elf_path = onboard_firmware(scn)
+            except CodegenError as exc:
+                raise BadInput(str(exc)) from None
+        else:
+            elf_path = Path(elf) if elf else firmware_elf(driver)
         server = HilServer(scn, elf_path, faults=specs, realtime=realtime, echo=_say)
     except ToolchainMissing as exc:
         raise RunFailure(str(exc)) from None
@@ -96,10 +116,11 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         return bool(server.device_faults) or server.board.cycle - server.unplug_cycle > F_CPU
 
     old = signal.signal(signal.SIGTERM, on_term)
+    interrupted = False
     try:
         server.serve(until=done)
     except KeyboardInterrupt:
-        pass
+        interrupted = True
     except BoardError as exc:
         raise RunFailure(f"simavr: {exc}") from None
     finally:
@@ -113,12 +134,14 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         _say(f"encoder interrupts: {stats['n']}, {stats['isr_sum'] / stats['n']:.0f} cycles "
              f"mean, {stats['isr_max']} max in the handler")
     if server.slips:
-        _say(f"warning: the simulation fell behind real time {server.slips} times (worst "
+        warn_line(f"the simulation fell behind real time {server.slips} times (worst "
              f"{server.worst_slip * 1e3:.0f} ms; the machine is busy): period jitter the host "
              "measured includes it")
     if server.lags:
-        _say(f"warning: the simulated AVR fell more than {SLIP_S * 1e3:.0f} ms behind the wall "
+        warn_line(f"the simulated AVR fell more than {SLIP_S * 1e3:.0f} ms behind the wall "
              f"clock at {server.lags} of {server.samples_tracked} samples (worst "
              f"{server.worst_lag * 1e3:.0f} ms; the machine is busy): the deadline misses and "
              "period jitter 'run' reports measure the simulator, not the host")
+    if interrupted:  # Ctrl-C: the summary above, then exit status 130
+        raise Interrupted("simulated board stopped, port closed")
     _say("stopped: port closed")

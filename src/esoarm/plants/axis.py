@@ -51,6 +51,8 @@ JIT = True
 #: Driven by the actuator's motor when the scenario has a ``[motor]`` table (its back-EMF
 #: damping, :func:`esoarm.plants.actuator.back_emf_damping`, joins Fv in both directions).
 MOTOR = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "axis.c"
 
 # layout of the design vector after its CODE
 MASS, FVP, FVN, FCP, FCN, OFFSET, GRAV, VS, LAG = range(9)

@@ -52,6 +52,8 @@ JIT = True
 #: Driven by the actuator's motor when the scenario has a ``[motor]`` table (its back-EMF
 #: damping, :func:`esoarm.plants.actuator.back_emf_damping`, joins the viscous friction).
 MOTOR = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "lever_arm.c"
 
 
 class Params(Section):
