@@ -15,6 +15,7 @@ from esoarm.cli._common import (
     bad_input_guard,
     lever_only,
     output_path,
+    require_extra,
     resolve_scenario,
     scenario_argument,
     set_option,
@@ -106,6 +107,8 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
     log_path = output_path(log, "--log", (".csv",))
     if log_path is None:
         raise BadInput("--log FILE.csv is required (the experiment is only useful logged)")
+    if port is not None:
+        require_extra("serial", "'esoarm excite --port' (the serial link)")
     if twin:
         _excite_twin(scn, plan, log_path, limits)
     else:
@@ -125,7 +128,7 @@ def _excite_twin(scn, plan, log_path: Path, limits) -> None:  # type: ignore[no-
 
 
 def _excite_rig(scn, plan, port: str, log_path: Path, limits, baud: int) -> None:  # type: ignore[no-untyped-def]
-    from esoarm.cli.rig import Interrupted
+    from esoarm.cli._common import Interrupted
     from esoarm.hardware.link import LinkError, SerialLink
     from esoarm.hardware.realtime import RigFault, RigInterrupted, run_rig
     from esoarm.studies.identification.excitation import ExcitationController
