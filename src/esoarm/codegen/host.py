@@ -49,7 +49,7 @@ class HostChip:
         self.target, self.precision = "host", gen.precision
         lib = build("gcc", {HEADER: gen.header, SOURCE: gen.source, "pil_host.c": _WRAPPER},
                     ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror",
-                     "-shared", "-fPIC", "-lm"], "controller.so", "esoarm-codegen-host")
+                     "-shared", "-fPIC"], "controller.so", "esoarm-codegen-host", ["-lm"])
         self._lib = ctypes.CDLL(str(lib))
         self._lib.pil_step.argtypes = [ctypes.c_double, ctypes.POINTER(ctypes.c_double)]
         self._lib.pil_step.restype = None
@@ -60,11 +60,11 @@ class HostChip:
         self.ram_bytes = 0
         self.last: tuple[float, ...] = ()
 
-    def step(self, y: float) -> tuple[float, float]:
-        """One sample: y_k [rad] -> (u_k [N·m], the torque driving the plant [N·m])."""
+    def step(self, y: float) -> tuple[float, float, float]:
+        """One sample: y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty)."""
         self._lib.pil_step(float(y), self._out)
         self.last = tuple(self._out)
-        return self._out[0], self._out[1]
+        return self._out[0], self._out[1], self._out[2]
 
     def close(self) -> None:
         """Nothing to release (the library stays loaded)."""

@@ -36,7 +36,7 @@ def tool(name: str) -> str:
 
 
 def build(compiler: str, files: dict[str, str], flags: Sequence[str], output: str,
-          tag: str) -> Path:
+          tag: str, libs: Sequence[str] = ()) -> Path:
     """Compile ``files`` (name -> text) with ``compiler`` and ``flags`` into the cache.
 
     Parameters
@@ -46,11 +46,13 @@ def build(compiler: str, files: dict[str, str], flags: Sequence[str], output: st
     files : dict
         Source files by name; the ``.c`` ones are compiled, all are written.
     flags : sequence of str
-        Compiler and linker flags (``{out}`` is not substituted: ``-o`` is added).
+        Compiler and linker flags, given before the sources.
     output : str
         Output file name (``controller.so``, ``pil.elf``).
     tag : str
         A prefix of the cache folder's name.
+    libs : sequence of str
+        Libraries, given after the sources (``-lm``).
 
     Returns
     -------
@@ -61,7 +63,7 @@ def build(compiler: str, files: dict[str, str], flags: Sequence[str], output: st
     digest = hashlib.sha256()
     for name in sorted(files):
         digest.update(name.encode() + b"\0" + files[name].encode() + b"\0")
-    digest.update(" ".join([compiler, *flags]).encode())
+    digest.update(" ".join([compiler, *flags, "|", *libs]).encode())
     folder = _cache_dir() / f"{tag}-{digest.hexdigest()[:16]}"
     out = folder / output
     if out.exists():
@@ -71,7 +73,7 @@ def build(compiler: str, files: dict[str, str], flags: Sequence[str], output: st
         (folder / name).write_text(text, encoding="utf-8")
     sources = [str(folder / n) for n in sorted(files) if n.endswith((".c", ".s", ".S"))]
     tmp = folder / f"{output}.{os.getpid()}.tmp"
-    res = subprocess.run([cc, *flags[:1], *sources, *flags[1:], "-o", str(tmp)],
+    res = subprocess.run([cc, *flags, *sources, *libs, "-o", str(tmp)],
                          capture_output=True, text=True, cwd=folder)
     if res.returncode != 0:
         lines = [ln for ln in res.stderr.splitlines() if "error" in ln] or \
