@@ -42,13 +42,15 @@ from esoarm.plants.motor import MotorParams
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "Params", "RigParams", "acceleration", "advance",
+__all__ = ["CODE", "FAST", "JIT", "KIND", "Params", "RigParams", "acceleration", "advance",
            "advance_block", "design", "observer_input", "rig_acceleration", "rig_advance",
            "rig_derivative", "rig_rk4_step"]
 
 KIND = "lever-arm"
 CODE = 0
 JIT = True
+#: The fast engine's C kernel models this plant.
+FAST = True
 
 
 class Params(Section):
