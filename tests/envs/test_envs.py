@@ -156,3 +156,20 @@ def test_bad_arguments() -> None:
     assert truncated
     with pytest.raises(RuntimeError, match="reset"):
         env.step(np.zeros(1))
+
+
+@pytest.mark.parametrize("over", [{}, {"actuator.delay_samples": 1, "duration": 4.0}])
+def test_an_arm_whose_observer_input_is_not_u_reproduces_simulate(over: dict) -> None:
+    """test-1 as a one-joint URDF arm: the observer input is M̂⁻¹(u − n̂), not u.
+
+    The environment takes the sample of every engine (esoarm.engines.sample), so the
+    observer advances with the plant kind's observer input and f_true = θ̈ − b0·v: the
+    simulator's numbers bit for bit (an environment that fed u to the observer, as
+    this one once did, drifts from the first sample on).
+    """
+    pytest.importorskip("pinocchio")
+    env = envs.LeverArmEnv("test-1-urdf", over, action_mode="residual")
+    rows, _, terminated = _episode(env, lambda obs: np.zeros(1))
+    sim = esoarm.simulate("test-1-urdf", over)
+    assert not terminated
+    np.testing.assert_array_equal(rows, sim.table())

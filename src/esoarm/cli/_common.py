@@ -58,6 +58,15 @@ class RunFailure(click.ClickException):
         click.echo(f"esoarm: failed: {one_line(self.format_message())}", err=True)
 
 
+class Interrupted(click.ClickException):
+    """Ctrl-C (or SIGTERM): one line on stderr saying what was kept, exit status 130."""
+
+    exit_code = 130
+
+    def show(self, file: Any = None) -> None:
+        click.echo(f"esoarm: interrupted: {one_line(self.format_message())}", err=True)
+
+
 # ---------------------------------------------------------------------------
 # verbosity: 0 quiet, 1 normal, 2 verbose (reset for every invocation)
 

@@ -191,6 +191,15 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     [motor] table), each with a 95 % interval, flags what the log does not
     determine, and validates on data not used for fitting (fit %, residual
     whiteness). Closed-loop logs work: the fit uses the torque actually logged.
+    The inverse-dynamic-model least squares (IDIM-LS) estimate is computed
+    beside it; logs whose angles cannot be in rad are refused.
+
+    With plant.kind = "axis" (a rotary or prismatic axis in SI units, e.g.
+    --scenario emps): IDIM-LS gives mass or inertia, viscous and Coulomb
+    friction and offset with Newey-West 95 % intervals, checked between the
+    halves of the data, beside an output-error fit over --segment pieces, and
+    validated on the force (cross-test) and the simulated position. --json
+    has "physical": {name: {value, ci95, unit}} in SI names for every plant.
     """
     from esoarm.plants.motor import MotorParams
     from esoarm.studies.identification.data import read_ident_log
@@ -206,6 +215,9 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     if not 0 <= max_delay <= 20:
         raise BadInput(f"--max-delay {max_delay}: must be in 0 … 20 samples")
     scn = resolve_scenario(scenario, overrides)
+    if scn.plant.kind == "axis":
+        _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_path, as_json)
+        return
     lever_only(scn, "identify")
     limit = scn.actuator.torque_limit
     motor = MotorParams.from_scenario(scn)
@@ -241,6 +253,58 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     for label, path in (("scenario", out_path), ("figure", plot_path)):
         if path is not None:
             click.echo(f"{label}: {path}")
+
+
+def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_path,  # type: ignore[no-untyped-def]
+                   as_json) -> None:
+    """``identify`` for plant.kind = "axis": IDIM-LS, output error beside it (SI units)."""
+    from esoarm.plants.axis import units
+    from esoarm.studies.identification.axis_identify import AxisFitRefused, identify_axis
+    from esoarm.studies.identification.data import read_ident_log
+
+    if fix:
+        raise BadInput("--fix: an axis is fitted by IDIM-LS, every parameter at once; hold "
+                       "nothing (set the scenario's values with --set)")
+    limit = scn.actuator.torque_limit
+    fit_logs = [read_ident_log(p, limit) for p in logs]
+    val_logs = [read_ident_log(p, limit) for p in validate]
+    try:
+        res = identify_axis(scn, fit_logs, val_logs, segment, validate_fraction)
+    except AxisFitRefused as exc:
+        raise RunFailure(str(exc)) from None
+    if out_path is not None:
+        from esoarm._io import atomic_path
+
+        head = [f"# Fitted by esoarm identify (IDIM-LS) from: {', '.join(res.fit_logs)}",
+                "# 95 % intervals (HAC):"]
+        head += [f"#   {name} = {e['value']:.6g} [{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}] "
+                 f"{e['unit']}" for name, e in res.physical.items()]
+        with atomic_path(out_path) as tmp:
+            tmp.write_text("\n".join(head) + "\n\n" + res.fitted_scenario().to_toml(),
+                           encoding="utf-8")
+    if as_json:
+        click.echo(json.dumps(res.to_json()))
+        return
+    u = units(scn.plant.motion)
+    lines = [f"axis '{scn.name}' ({scn.plant.motion}), IDIM-LS on {', '.join(res.fit_logs)}:"]
+    oe = res.oe
+    for i, (name, e) in enumerate(res.physical.items()):
+        line = (f"  {name:17s} {e['value']:12.6g} {u[name]:10s} 95 % [{e['ci95'][0]:.6g}, "
+                f"{e['ci95'][1]:.6g}]")
+        if oe is not None and i < len(oe.values):
+            line += f"   output error {oe.values[i]:.6g} ± {oe.ci95_half[i]:.3g}"
+        lines.append(line)
+    v = res.validation
+    lines.append(f"  relative force error {v['estimation_force_error_percent']:.3g} % "
+                 "(estimation)" + (f", {v['cross_test_force_error_percent']:.3g} % (cross-test)"
+                                   if "cross_test_force_error_percent" in v else ""))
+    if "simulated_fit_percent" in v:
+        lines.append(f"  simulated validation: fit {v['simulated_fit_percent']:.4g} % over "
+                     f"{v['simulated_segment_s']:g} s segments")
+    lines.append("  noise: not written (the residual is model error)")
+    click.echo("\n".join(lines))
+    if out_path is not None:
+        click.echo(f"scenario: {out_path}")
 
 
 class _progress:  # noqa: N801 - used like a function

@@ -28,8 +28,8 @@ from esoarm.cli._common import (
 @click.option("--plot", "plot", metavar="FILE.png",
               help="Draw angle, error, control and estimates (.png, .pdf or .svg).")
 @click.option("--json", "as_json", is_flag=True,
-              help="Print one JSON object with rms_error [rad], rms_u [N·m], max_abs_error [rad], "
-              "saturated_fraction and the other metrics.")
+              help="Print one JSON object with rms_error [rad], rms_u [N·m], rms_du [N·m: RMS of "
+              "u_k − u_k−1], max_abs_error [rad], saturated_fraction and the other metrics.")
 @bad_input_guard
 def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: str | None,
              as_json: bool) -> None:
@@ -88,6 +88,7 @@ def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
     table.add_column("unit")
     table.add_row("RMS tracking error", f"{s['rms_error']:.5f}", "rad")
     table.add_row("RMS control", f"{s['rms_u']:.5f}", "N·m")
+    table.add_row("RMS control step u_k − u_k−1", f"{s['rms_du']:.5f}", "N·m")
     table.add_row("max |error|", f"{s['max_abs_error']:.5f}", "rad")
     table.add_row("samples", str(s["samples"]), "")
     for joint in s.get("joints", []) if len(s.get("joints", [])) > 1 else []:

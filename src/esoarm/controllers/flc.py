@@ -40,6 +40,8 @@ CODE = 0
 JIT = True
 #: The fast engine's C kernel models this controller.
 FAST = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "flc.c"
 
 
 class Params(Section):

@@ -61,6 +61,7 @@ from esoarm.engines.packing import (  # packing needs no numba (the fast engine 
     _pack,
     _stack,  # noqa: F401 - re-exported
 )
+from esoarm.engines.sample import Designs, Sampling, Steps
 from esoarm.engines.simulation import (
     SimulationDiverged,
     diverged_message,
@@ -210,22 +211,28 @@ def _tuple32(a):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _run(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp, ap):  # pragma: no cover - compiled
-    """One run of :func:`closed_loop` with the registry's dispatch functions.
+def _records(n, fpar, ipar, b0, pp, op, cp, ap):  # pragma: no cover - compiled
+    """The records of the sample functions for one point, with the registry's dispatch.
 
     The parameter vectors are handed over as tuples (the physics indexes them
     exactly like arrays, but tuples live in registers: no loads, no reference
     counting in the inner loops).
     """
+    sg = Sampling(n, fpar[_TS], fpar[_H], ipar[_NSUB], ipar[_DELAY], fpar[_SIGMA], fpar[_Q])
+    d = Designs(b0, _tuple16(pp), _tuple32(op), _tuple16(cp), _tuple16(ap), ipar[_NZ],
+                ipar[_NC])
+    s = Steps(_kinds.plant_advance, _kinds.plant_advance_block, _kinds.plant_acceleration,
+              _kinds.plant_observer_input, _kinds.observer_initialize, _kinds.observer_estimate,
+              _kinds.observer_advance, _kinds.controller_initialize, _kinds.controller_control)
+    return sg, d, s
+
+
+@njit(cache=True, error_model="numpy")
+def _run(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp, ap):  # pragma: no cover - compiled
+    """One run of :func:`closed_loop` with the registry's dispatch functions."""
     x = x0.copy()
-    return closed_loop(log, n, x, noise, fpar[_SIGMA], fpar[_Q], ref, fpar[_TS], fpar[_H],
-                       ipar[_NSUB], ipar[_DELAY], b0, _tuple16(pp), _tuple32(op), _tuple16(cp),
-                       _tuple16(ap), ipar[_NZ], ipar[_NC],
-                       _kinds.plant_advance, _kinds.plant_acceleration,
-                       _kinds.plant_observer_input, _kinds.observer_initialize,
-                       _kinds.observer_estimate,
-                       _kinds.observer_advance, _kinds.controller_initialize,
-                       _kinds.controller_control)
+    sg, d, s = _records(n, fpar, ipar, b0, pp, op, cp, ap)
+    return closed_loop(log, x, noise, ref, sg, d, s)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -245,15 +252,9 @@ def _metrics_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, re
 @njit(cache=True, error_model="numpy")
 def _run_block(logs, rows, n, xs, noises, fpar, ipar, ref, b0, pp, op, cp,
                ap):  # pragma: no cover - compiled
-    """A block of runs of one point through :func:`closed_loop_block` (tuples as in _run)."""
-    closed_loop_block(logs, rows, n, xs, noises, fpar[_SIGMA], fpar[_Q], ref, fpar[_TS],
-                      fpar[_H], ipar[_NSUB], ipar[_DELAY], b0, _tuple16(pp), _tuple32(op),
-                      _tuple16(cp), _tuple16(ap), ipar[_NZ], ipar[_NC],
-                      _kinds.plant_advance_block, _kinds.plant_acceleration,
-                      _kinds.plant_observer_input, _kinds.observer_initialize,
-                      _kinds.observer_estimate,
-                      _kinds.observer_advance, _kinds.controller_initialize,
-                      _kinds.controller_control)
+    """A block of runs of one point through :func:`closed_loop_block` (records as in _run)."""
+    sg, d, s = _records(n, fpar, ipar, b0, pp, op, cp, ap)
+    closed_loop_block(logs, rows, xs, noises, ref, sg, d, s)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

@@ -21,6 +21,7 @@ import numpy as np
 from esoarm.contract import ComponentDesign, PlantDesign
 from esoarm.engines.loop import DIVERGENCE_LIMIT, closed_loop, within_limits
 from esoarm.engines.metrics import METRICS, NROW, MetricsTable
+from esoarm.engines.sample import Designs, Sampling, Steps, steps_of
 from esoarm.kinds import Kinds, kinds_of
 from esoarm.plants.actuator import actuator_vector
 from esoarm.plants.sensor import noise_sequence
@@ -93,6 +94,23 @@ class RunInputs:
     h: float
     nsub: int
     delay: int
+
+    @property
+    def sampling(self) -> Sampling:
+        """Samples, timing and sensor as the sample functions take them."""
+        return Sampling(len(self.t), self.ts, self.h, self.nsub, self.delay, self.sigma, self.q)
+
+    @property
+    def designs(self) -> Designs:
+        """The parameter vectors as the sample functions take them."""
+        return Designs(self.plant.b0, self.plant.vector, self.observer.vector,
+                       self.controller.vector, self.actuator, self.observer.n_state,
+                       self.controller.n_state)
+
+    @property
+    def steps(self) -> Steps:
+        """The kinds' own step functions (plain Python)."""
+        return steps_of(self.kinds)
 
     @property
     def theta0(self) -> float:
@@ -196,16 +214,8 @@ def run_reference(scn: Scenario, inp: RunInputs) -> SimResult:
     nj = inp.plant.n_joints
     log = np.full((NROW * nj, n), np.nan)
     x = np.array(inp.plant.x0)
-    plant, observer, controller = inp.kinds
     try:
-        rows = closed_loop(
-            log, n, x, inp.noise, inp.sigma, inp.q, inp.refs, inp.ts, inp.h, inp.nsub,
-            inp.delay, inp.plant.b0, inp.plant.vector, inp.observer.vector,
-            inp.controller.vector, inp.actuator, inp.observer.n_state, inp.controller.n_state,
-            plant.advance, plant.acceleration, plant.observer_input, observer.initialize,
-            observer.estimate,
-            observer.advance, controller.initialize, controller.control,
-        )
+        rows = closed_loop(log, x, inp.noise, inp.refs, inp.sampling, inp.designs, inp.steps)
     except (ArithmeticError, ValueError):  # e.g. cos(inf) inside a step: out of range too
         written = ~np.isnan(log).all(axis=0)
         rows = -max(int(np.argmin(written)) if not written.all() else n, 1)

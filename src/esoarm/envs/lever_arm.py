@@ -1,11 +1,11 @@
 """The digital twin as a Gymnasium environment, stepped at the sensor rate.
 
 One ``step`` is one sample period Ts of the sampled-data loop that
-``esoarm simulate`` runs (:func:`esoarm.engines.loop.closed_loop`), in the same
-order and with the same step functions of the scenario's plant, observer and
-controller kinds (:mod:`esoarm.kinds`) and the same actuator functions, so that
-the environment driven by the ESO-FLC gives the simulator's trajectory bit for
-bit (tested):
+``esoarm simulate`` runs (:func:`esoarm.engines.loop.closed_loop`): the very
+sample functions of :mod:`esoarm.engines.sample` with the step functions of the
+scenario's plant, observer and controller kinds (:mod:`esoarm.kinds`), the
+action taking the controller's place, so that the environment driven by the
+ESO-FLC gives the simulator's trajectory bit for bit (tested):
 
 ``reset``
     θ(0) = ``rig.theta0`` at rest; y_0 = Q(θ + σ n_0); ESO state z_0 = (y_0, 0, 0);
@@ -17,7 +17,8 @@ bit (tested):
     true tracking error at the sample the action is taken (like Gymnasium's
     Pendulum, the cost of the state the action sees), so that with
     effort_weight = 0, −Σ r_k / N is ``rms_error``² of the run; the ESO
-    advances with (y_k, u_k); the rig integrates [t_k, t_{k+1}) with RK4 under
+    advances with (y_k, v_k), v_k the plant kind's observer input for u_k (u_k
+    itself for the lever arm); the plant integrates [t_k, t_{k+1}) with RK4 under
     u_{k−delay}; then y_{k+1}, ẑ_{k+1} and the next observation.
 
 The observation is (y_k, θd, θ̇d, θ̈d) and, with ``observe_estimates=True``,
@@ -46,10 +47,21 @@ from gymnasium import spaces
 
 from esoarm.controllers.flc import LIMIT as FLC_LIMIT
 from esoarm.controllers.flc import flc_command
-from esoarm.engines.loop import within_limits
+from esoarm.engines.metrics import NROW
+from esoarm.engines.sample import (
+    actuate_commands,
+    advance_plant,
+    control,
+    estimate,
+    new_work,
+    respond,
+    saturate_commands,
+    sense,
+    start,
+)
 from esoarm.engines.simulation import prepare
-from esoarm.plants.actuator import LIMIT, actuate, delayed_input, saturate
-from esoarm.plants.sensor import measure, noise_sequence
+from esoarm.plants.actuator import LIMIT
+from esoarm.plants.sensor import noise_sequence
 from esoarm.scenario import Scenario, load_scenario
 
 __all__ = ["ACTION_MODES", "EsoFlcPolicy", "LeverArmEnv"]
@@ -101,6 +113,8 @@ class LeverArmEnv(gym.Env):
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": scn.sensor.rate_hz}
         self._inp = prepare(scn, draw_noise=False)
+        self._sampling, self._designs, self._steps = (self._inp.sampling, self._inp.designs,
+                                                      self._inp.steps)
         self.n_steps = len(self._inp.t)
         self.n_joints = self._inp.plant.n_joints
         if self.n_joints != 1:
@@ -117,18 +131,12 @@ class LeverArmEnv(gym.Env):
         inp = self._inp
         self._noise = np.zeros(self.n_steps)
         self._x = np.array(inp.plant.x0)
-        self._z = np.zeros(max(inp.observer.n_state, 1))
-        self._zhat = np.zeros(max(inp.observer.n_state, 1))
-        self._c = np.zeros(max(inp.controller.n_state, 1))
-        self._y = np.zeros(1)
-        self._u = np.zeros(1)
-        self._drive = np.zeros(1)
-        self._applied = np.zeros(1)
-        self._acc = np.zeros(1)
-        self._hist = np.zeros(max(self.n_steps, 1))
+        self._w = new_work(self.n_steps, 1, inp.observer.n_state, inp.controller.n_state)
+        self._w.u[0] = 0.0
+        self._log = np.full((NROW, max(self.n_steps, 1)), np.nan)
         self._k = 0
 
-    # -- the loop ------------------------------------------------------------------
+    # -- the loop: the sample functions of esoarm.engines.sample ----------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start an episode; see the module docstring for the noise seed."""
@@ -141,67 +149,53 @@ class LeverArmEnv(gym.Env):
             noise_seed = int(self.np_random.integers(0, 2**31 - 1))
         self._seeded_once = True
         self.noise_seed = noise_seed
-        inp = self._inp
         self._new_arrays()
         self._noise = noise_sequence(noise_seed, self.n_steps, self.scenario.sensor.noise_deg)
         if self.n_steps:
-            self._y[0] = measure(self._x[0], self._noise[0], inp.sigma, inp.q)
-        plant, observer, controller = inp.kinds
-        observer.initialize(self._z, self._y, inp.observer.vector)
-        controller.initialize(self._c, self._y, inp.controller.vector)
+            sense(self._w, self._x, self._noise, 0, self._sampling)
+        start(self._w, self._designs, self._steps)
         self._measure()
         return self._observation(), {"t": 0.0, "noise_seed": noise_seed}
 
     def _measure(self) -> None:
-        """Steps 1 and 3 of the loop: y_k and the estimate ẑ_k at the current sample."""
-        inp, k = self._inp, self._k
-        self._y[0] = measure(self._x[0], self._noise[k], inp.sigma, inp.q)
-        inp.kinds.observer.estimate(self._z, self._y, inp.observer.vector, self._zhat)
+        """The controller half up to the estimate: y_k and ẑ_k at the current sample."""
+        sense(self._w, self._x, self._noise, self._k, self._sampling)
+        estimate(self._w, self._designs, self._steps)
 
     def _observation(self) -> np.ndarray:
         inp, k = self._inp, min(self._k, self.n_steps - 1)
-        head = (self._y[0], inp.refs[0, k], inp.refs[1, k], inp.refs[2, k])
+        head = (self._w.y[0], inp.refs[0, k], inp.refs[1, k], inp.refs[2, k])
         if self.observe_estimates:
-            return np.array((*head, *self._zhat[:3]), dtype=np.float64)
+            return np.array((*head, *self._w.zhat[:3]), dtype=np.float64)
         return np.array(head, dtype=np.float64)
 
     def flc_command(self) -> float:
         """The controller kind's raw command u_k [N·m] for the current sample (unsaturated)."""
-        inp = self._inp
-        inp.kinds.controller.control(self._c, self._zhat, self._y, inp.refs, self._k,
-                                     inp.controller.vector, self._u)
-        return float(self._u[0])
+        control(self._w, self._k, self._inp.refs, self._designs, self._steps)
+        return float(self._w.u[0])
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Apply the action over one sample period Ts; see the module docstring."""
         if self._k >= self.n_steps:
             raise RuntimeError("the episode is over (truncated): call reset()")
-        inp, k = self._inp, self._k
-        plant, observer, _ = inp.kinds
+        inp, k, w = self._inp, self._k, self._w
         a = float(np.asarray(action, dtype=np.float64).reshape(-1)[0])
         raw = a if self.action_mode == "torque" else self.flc_command() + a
-        # 3. saturate and actuate, exactly as the loop does
-        u = saturate(raw, inp.actuator[LIMIT])
-        sat = 1.0 if u != raw and raw == raw else 0.0
-        u, self._drive[0], _ = actuate(u, self._zhat[1], inp.actuator)
-        self._u[0] = u
-        # 6. (first half) the input held over [t_k, t_{k+1})
-        delayed_input(self._hist, k, inp.delay, self._drive, self._applied)
-        tk = k * inp.ts
-        # 4. the log row
-        plant.acceleration(self._x, self._applied, tk, inp.plant.vector, self._acc)
-        theta, ref = float(self._x[0]), float(inp.refs[0, k])
-        h1, h2, h3 = (float(v) for v in self._zhat[:3])
-        error = theta - ref
-        info = dict(zip(INFO_KEYS, (float(inp.t[k]), theta, ref, error, u, h1, h2, h3,
-                                    float(self._acc[0] - inp.plant.b0[0] * u),
-                                    float(self._y[0]), sat), strict=True))
+        # the rest of the controller half (saturate, actuate), then the plant half
+        w.u[0] = raw
+        saturate_commands(w, inp.actuator)
+        actuate_commands(w, inp.actuator)
+        ok = respond(self._log, w, self._x, k, inp.refs, self._sampling, self._designs,
+                     self._steps)
+        row = self._log[:, k]
+        info = dict(zip(INFO_KEYS, (float(inp.t[k]), *(float(value) for value in row[:-1])),
+                        strict=True))
+        error, u = info["error"], info["u"]
         reward = -(error * error + self.effort_weight * u * u)
-        if not within_limits(theta, h1, h2, h3, u):
+        if not ok:
             return self._observation(), float(reward), True, False, info
-        # 5. observer update, 6. the plant integrates to t_{k+1}
-        observer.advance(self._z, self._zhat, self._y, self._u, inp.observer.vector)
-        plant.advance(self._x, self._applied, tk, inp.h, inp.nsub, inp.plant.vector)
+        advance_plant(self._x, w, k, self._sampling, self._designs.plant,
+                      self._steps.plant_advance)
         self._k = k + 1
         truncated = self._k >= self.n_steps
         if not truncated:
@@ -217,7 +211,7 @@ class LeverArmEnv(gym.Env):
 
         k = min(self._k, self.n_steps - 1)
         return draw_arm(float(self._x[0]), float(self._inp.refs[0, k]),
-                        float(self._u[0]) / float(self._inp.actuator[LIMIT]))
+                        float(self._w.u[0]) / float(self._inp.actuator[LIMIT]))
 
 
 class EsoFlcPolicy:

@@ -36,10 +36,10 @@ from collections.abc import Callable
 
 import numpy as np
 
+from esoarm.engines.sample import Sampling, advance_plant, hold, new_work
 from esoarm.hardware import protocol as P
 from esoarm.hardware.device import PtyDevice, TimedFault, due_faults, parse_timed_fault
 from esoarm.kinds import kinds_of
-from esoarm.plants.actuator import delayed_input
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
@@ -131,6 +131,8 @@ class Twin:
         self.delay = scn.actuator.delay_samples
         self.q = math.radians(scn.sensor.resolution_deg)
         self.sigma = math.radians(scn.sensor.noise_deg)
+        self.sampling = Sampling(scn.n_samples, self.ts, self.h, self.nsub, self.delay,
+                                 self.sigma, self.q)
         self.counts_per_rev = encoder_counts_per_rev(scn)
         self.pwm_max = self.motor.pwm_max if self.motor else NOMINAL_PWM_MAX
         self.reset()
@@ -140,9 +142,8 @@ class Twin:
         self.k = 0
         self.x = np.array(self.design.x0)
         self.noise = NoiseStream(self.scn.sensor.seed, self.scn.sensor.noise_deg)
-        self.history = np.zeros(max(self.scn.n_samples, 1))
-        self._drive = np.zeros(1)
-        self._applied = np.zeros(1)
+        self.work = new_work(self.scn.n_samples, 1, 0, 0)  # the plant half's arrays
+        self.work.applied[0] = 0.0
         self.glitch_offset = 0
         self.motor_on = True
 
@@ -170,18 +171,19 @@ class Twin:
     def advance(self, u: float) -> None:
         """Hold the drive torque u [N·m] over [t_k, t_{k+1}) (after the transport delay).
 
-        The plant step of every engine: :func:`esoarm.plants.actuator.delayed_input`,
-        then the plant kind's ``advance``.
+        The plant half of every engine's sample (:mod:`esoarm.engines.sample`):
+        :func:`~esoarm.engines.sample.hold` (the transport delay), then
+        :func:`~esoarm.engines.sample.advance_plant` (the plant kind's ``advance``).
         """
         if not self.motor_on or not math.isfinite(u):
             u = 0.0
         k = self.k
-        if k >= len(self.history):  # a host running past N samples
-            self.history = np.concatenate([self.history, np.zeros(len(self.history))])
-        self._drive[0] = u
-        delayed_input(self.history, k, self.delay, self._drive, self._applied)
-        self.plant.advance(self.x, self._applied, k * self.ts, self.h, self.nsub,
-                           self.design.vector)
+        w = self.work
+        if k >= len(w.hist):  # a host running past N samples
+            w = self.work = w._replace(hist=np.concatenate([w.hist, np.zeros(len(w.hist))]))
+        w.drive[0] = u
+        hold(w, k, self.delay)
+        advance_plant(self.x, w, k, self.sampling, self.design.vector, self.plant.advance)
         self.k = k + 1
 
 
@@ -257,7 +259,7 @@ class Emulator:
         self._send(P.SAMPLE, twin.k & 0xFFFFFFFF, t_us & 0xFFFFFFFF, count)
         if self.monitor is not None:
             self.monitor((twin.time, twin.theta, twin.q * count, float(twin.x[1]),
-                          float(twin._applied[0])))
+                          float(twin.work.applied[0])))
 
     def _apply_faults(self) -> None:
         t = self.twin.time

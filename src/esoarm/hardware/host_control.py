@@ -1,13 +1,14 @@
 """The deployment controller: the scenario's observer and controller stepped one sample at a time.
 
-It calls the step functions of the scenario's kinds (:mod:`esoarm.kinds`) --
-the very functions every simulation engine calls -- driven from measured
-angles, and the actuator functions of :mod:`esoarm.plants.actuator`:
+It calls the controller half of the sample of every engine
+(:mod:`esoarm.engines.sample`, with the step functions of the scenario's kinds,
+:mod:`esoarm.kinds`), driven from measured angles:
 
     ẑ_k = estimate(z_k, y_k)                    (observer kind)
     u_k = sat(control(ẑ_k, y_k, reference_k))   (controller kind, ±torque_limit)
     u_k, duty_k = actuate(u_k, ẑ2_k)            (motor: torque -> PWM duty)
-    z_{k+1} = advance(z_k, ẑ_k, y_k, u_k)       (observer kind)
+    v_k = observer_input(ẑ_k, u_k)              (plant kind: u_k itself for the lever arm)
+    z_{k+1} = advance(z_k, ẑ_k, y_k, v_k)       (observer kind)
 
 so a run fed the simulator's measurements reproduces
 :func:`esoarm.engines.simulation.run_reference` bit for bit (tested).  The
@@ -22,8 +23,17 @@ from typing import Protocol
 
 import numpy as np
 
+from esoarm.engines.sample import (
+    actuate_commands,
+    control,
+    estimate,
+    new_work,
+    observe,
+    saturate_commands,
+    start,
+)
 from esoarm.engines.simulation import prepare
-from esoarm.plants.actuator import LIMIT, actuate, saturate
+from esoarm.plants.actuator import LIMIT
 from esoarm.scenario import Scenario
 
 __all__ = ["DeploymentController", "SampleController"]
@@ -76,21 +86,19 @@ class DeploymentController:
         Estimate ẑ_k of joint 0 used for the latest control [rad, rad/s, rad/s²].
     """
 
-    __slots__ = ("_act", "_c", "_cp", "_op", "_ref", "_refs", "_started", "_u", "_y", "_z",
-                 "_zhat", "kinds", "n_samples", "t", "torque_limit", "ts", "zhat")
+    __slots__ = ("_act", "_d", "_refs", "_ref", "_s", "_started", "_w", "kinds", "n_samples",
+                 "t", "torque_limit", "ts", "zhat")
 
     def __init__(self, scn: Scenario) -> None:
         inp = prepare(scn, draw_noise=False)
         self.kinds = inp.kinds
-        nj = inp.plant.n_joints
-        self._op, self._cp, self._act = inp.observer.vector, inp.controller.vector, inp.actuator
+        self._d, self._s = inp.designs, inp.steps
+        self._act = inp.actuator
         self._refs = inp.refs
         self._ref = inp.refs[0].tolist()
-        self._z = np.zeros(max(inp.observer.n_state, 1))
-        self._zhat = np.zeros(max(inp.observer.n_state, 1))
-        self._c = np.zeros(max(inp.controller.n_state, 1))
-        self._y = np.zeros(nj)
-        self._u = np.zeros(nj)
+        self._w = new_work(0, inp.plant.n_joints, inp.observer.n_state, inp.controller.n_state)
+        self._w.y[:] = 0.0
+        self._w.u[:] = 0.0
         self._started = False
         self.t = inp.t.tolist()
         self.n_samples = len(self.t)
@@ -101,7 +109,7 @@ class DeploymentController:
     @property
     def observer_state(self) -> np.ndarray:
         """A copy of the observer state z_{k+1} after the latest commit."""
-        return self._z.copy()
+        return self._w.z.copy()
 
     def reference(self, k: int) -> float:
         """θd(t_k) [rad]."""
@@ -109,26 +117,32 @@ class DeploymentController:
 
     def step(self, k: int, y: float) -> float:
         """Control u_k [N·m] (saturated) from the measured angle y_k [rad]."""
-        obs, ctl = self.kinds.observer, self.kinds.controller
-        self._y[0] = y
+        w = self._w
+        w.y[0] = y
         if not self._started:
-            obs.initialize(self._z, self._y, self._op)
-            ctl.initialize(self._c, self._y, self._cp)
+            start(w, self._d, self._s)
             self._started = True
-        obs.estimate(self._z, self._y, self._op, self._zhat)
-        ctl.control(self._c, self._zhat, self._y, self._refs, k, self._cp, self._u)
-        self.zhat = (float(self._zhat[0]), float(self._zhat[1]), float(self._zhat[2]))
-        return float(saturate(self._u[0], self.torque_limit))
+        estimate(w, self._d, self._s)
+        control(w, k, self._refs, self._d, self._s)
+        saturate_commands(w, self._act)
+        zhat = w.zhat
+        self.zhat = (float(zhat[0]), float(zhat[1]), float(zhat[2]))
+        return float(w.u[0])
 
     def actuate(self, u: float) -> tuple[float, float]:
         """(torque the host applies [N·m], PWM duty [counts] or NaN) for the command u."""
-        u_applied, _, duty = actuate(u, self._zhat[1], self._act)
-        return float(u_applied), float(duty)
+        w = self._w
+        w.u[0] = u
+        actuate_commands(w, self._act)
+        return float(w.u[0]), float(w.duty[0])
 
     def commit(self, u: float) -> None:
-        """Advance the observer with the torque u_k [N·m] applied from t_k on."""
-        self._u[0] = u
-        self.kinds.observer.advance(self._z, self._zhat, self._y, self._u, self._op)
+        """Advance the observer with the torque u_k [N·m] applied from t_k on.
+
+        The observer's input is the plant kind's for u_k (u_k itself for the lever arm).
+        """
+        self._w.u[0] = u
+        observe(self._w, self._d, self._s)
 
     def predict(self, u: float) -> tuple[float, float, float]:
         """Bridge a missing sample: estimate with zero innovation, update with u.
@@ -137,9 +151,9 @@ class DeploymentController:
         """
         if not self._started:
             raise RuntimeError("no sample received yet")
-        obs = self.kinds.observer
-        self._y[0] = self._z[0]  # y = ẑ1: no innovation
-        obs.estimate(self._z, self._y, self._op, self._zhat)
-        zhat = (float(self._zhat[0]), float(self._zhat[1]), float(self._zhat[2]))
+        w = self._w
+        w.y[0] = w.z[0]  # y = ẑ1: no innovation
+        estimate(w, self._d, self._s)
+        zhat = (float(w.zhat[0]), float(w.zhat[1]), float(w.zhat[2]))
         self.commit(u)
         return zhat

@@ -11,16 +11,16 @@ force/torque, optional ``theta_ref`` and any other mapped column).
 
 Time stamps
 -----------
-The rate is 1/Ts with Ts the least-squares slope of t_k against k (once
-the steps, compared with their median, show no gap).  The *jitter* is the
-largest deviation of a stamp from that uniform grid, t_k − (t_0 + k·Ts),
-relative to Ts.  A jitter up to :data:`MAX_JITTER` (a tenth of a sample) is the
-clock's or the storage's
-rounding on a uniform grid (EMPS: 2e-5 relative, float32-stored stamps): the
-log is accepted and written on the exact grid t_0 + k·Ts, and the jitter is
-reported.  A step between two stamps larger than (1 + :data:`MAX_JITTER`)·Ts,
-or smaller than (1 − MAX_JITTER)·Ts, is a real gap (or a repeated sample):
-refused, naming the worst one (its row and its time).
+The rate is 1/Ts with Ts the least-squares slope of t_k against k (once the
+steps, compared with their median, show no gap).  The *jitter* is the largest
+deviation of a stamp from that uniform grid, t_k − (t_0 + k·Ts), relative to
+Ts.  A jitter up to :data:`MAX_JITTER` (a tenth of a sample) is the clock's or
+the storage's rounding on a uniform grid (EMPS: 2e-5 of a sample): the log is
+accepted and written on the exact grid t_0 + k/rate (the rate rounded to six
+digits when that moves no stamp further), and the jitter is reported.  A step
+between two stamps larger than (1 + :data:`MAX_JITTER`)·Ts, or smaller than
+(1 − MAX_JITTER)·Ts, is a real gap (or a repeated sample): refused, naming the
+worst one (its row and its time).
 
 Every problem is a :class:`~esoarm.scenario.ScenarioError`: one line naming
 the file and the variable.

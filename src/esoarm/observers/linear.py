@@ -97,6 +97,8 @@ CODE = 0
 JIT = True
 #: The fast engine's C kernel models this observer (every discretization).
 FAST = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "linear.c"
 
 
 class Params(Section):

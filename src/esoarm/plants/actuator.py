@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from esoarm._jit import jitable
-from esoarm.contract import read_only
+from esoarm.contract import Vector, read_only
 from esoarm.plants.motor import MotorParams, duty_to_torque, source_torque, torque_to_duty
 
 if TYPE_CHECKING:
@@ -61,7 +61,7 @@ def saturate(u: float, limit: float) -> float:
 
 
 @jitable
-def actuate(u: float, rate: float, a: np.ndarray) -> tuple[float, float, float]:
+def actuate(u: float, rate: float, a: Vector) -> tuple[float, float, float]:
     """The saturated command u [N·m] through the actuator.
 
     Parameters

@@ -51,6 +51,8 @@ CODE = 0
 JIT = True
 #: The fast engine's C kernel models this plant.
 FAST = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "lever_arm.c"
 
 
 class Params(Section):

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from esoarm._jit import jitable
+from esoarm.contract import Vector
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
@@ -39,7 +40,7 @@ STALL_GAIN, DAMPING, PWM_MAX, DEADBAND = range(4)
 
 
 @jitable
-def torque_to_duty(torque: float, omega: float, m: np.ndarray) -> float:
+def torque_to_duty(torque: float, omega: float, m: Vector) -> float:
     """Duty counts (a whole number) that produce ``torque`` [N·m] at arm rate ``omega`` [rad/s].
 
     Saturates at ±pwm_max (full supply); includes the deadband
@@ -61,7 +62,7 @@ def torque_to_duty(torque: float, omega: float, m: np.ndarray) -> float:
 
 
 @jitable
-def effective_fraction(duty: float, m: np.ndarray) -> float:
+def effective_fraction(duty: float, m: Vector) -> float:
     """Fraction of Vs the driver actually applies for ``duty`` counts (deadband)."""
     frac = duty / m[PWM_MAX]
     db = m[DEADBAND]
@@ -72,13 +73,13 @@ def effective_fraction(duty: float, m: np.ndarray) -> float:
 
 
 @jitable
-def source_torque(duty: float, m: np.ndarray) -> float:
+def source_torque(duty: float, m: Vector) -> float:
     """The rate-independent arm torque N·Kt·Vs·d/R [N·m] of ``duty`` (what drives the twin)."""
     return m[STALL_GAIN] * effective_fraction(duty, m)
 
 
 @jitable
-def duty_to_torque(duty: float, omega: float, m: np.ndarray) -> float:
+def duty_to_torque(duty: float, omega: float, m: Vector) -> float:
     """Arm torque [N·m] that ``duty`` gives at arm rate ``omega`` [rad/s]."""
     return source_torque(duty, m) - m[DAMPING] * omega
 

@@ -1,0 +1,356 @@
+"""One sample of the sampled-data loop, written once: a controller half and a plant half.
+
+Every place that takes a sample calls these functions: the one-run loop and
+the block loop (:mod:`esoarm.engines.loop`, as plain Python in the reference
+engine and compiled in the batch engine), the Gymnasium environment
+(:mod:`esoarm.envs.lever_arm`), the rig's host controller
+(:mod:`esoarm.hardware.host_control`) and the emulated device
+(:mod:`esoarm.hardware.emulator`).  The C kernel of the fast engine
+(``_fast_kernel.c``) is the only other statement of the sample, held to these
+numbers by the tests.  Sample k, t_k = k·Ts:
+
+controller half (:func:`command`)
+    1. measure y_k = Q(θ(t_k) + σ n_k) per joint (:func:`sense`; on a rig the
+       encoder does it);
+    2. estimate ẑ_k (observer kind, :func:`estimate`), control (controller kind,
+       :func:`control`), saturate to ±torque_limit (:func:`saturate_commands`),
+       through the actuator (:func:`actuate_commands`: with a motor, the torque
+       becomes a PWM duty; the host's torque u_k is what is logged and observed,
+       the drive is what reaches the plant);
+plant half (:func:`respond`, then :func:`advance_plant`)
+    3. the drive of sample k − delay (0 before the first command) is held over
+       [t_k, t_{k+1}) (:func:`hold`);
+    4. log row k (:func:`record`): true θ(t_k), θd, e_k, u_k, ẑ_k, the true
+       perturbation f_k = θ̈(t_k) − b0·v_k, y_k, the saturation flag, θ̇(t_k),
+       where v_k is the plant kind's observer input for u_k (u_k itself for the
+       lever arm, M̂(q̂)⁻¹(u_k − c·n̂) for a URDF arm);
+    5. observer update with (y_k, v_k) (:func:`update_observer`; the rig's
+       controller does 4's observer input and 5 in :func:`observe`);
+    6. the plant kind integrates to t_{k+1} (:func:`advance_plant`).
+
+What travels between them are four records, plain tuples that numba compiles:
+:class:`Sampling` (timing and sensor), :class:`Designs` (the parameter
+vectors), :class:`Steps` (the kinds' step functions: the kind modules' own in
+Python, the registry's dispatch functions compiled) and :class:`Work` (the
+state and scratch arrays of one run).
+
+A run ends early, as diverged, when a joint's |θ| or |ẑ1| exceeds
+:data:`DIVERGENCE_LIMIT` or θ, ẑ or u is not finite (:func:`within_limits`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from esoarm._jit import jitable
+from esoarm.contract import Vector
+from esoarm.engines.metrics import ERR, NROW, OM, REF, SAT, TH, Z1, Z2, Z3, F, U, Y
+from esoarm.plants.actuator import LIMIT, actuate, delayed_input, saturate
+from esoarm.plants.sensor import measure
+
+__all__ = ["DIVERGENCE_LIMIT", "Designs", "Sampling", "Steps", "Work", "actuate_commands",
+           "advance_plant", "command", "control", "estimate", "hold", "log_sample",
+           "new_work", "observe", "record", "respond", "saturate_commands", "sense", "start",
+           "steps_of", "update_observer", "within_limits"]
+
+#: |θ| or |z1| beyond this [rad] (or any non-finite value) ends a run as diverged.
+DIVERGENCE_LIMIT = 1e6
+
+
+class Sampling(NamedTuple):
+    """Timing and sensor of a run.
+
+    Attributes
+    ----------
+    n : int
+        Samples N.
+    ts : float
+        Sample period Ts [s].
+    h : float
+        RK4 step of the plant [s].
+    nsub : int
+        RK4 steps per sample.
+    delay : int
+        Transport delay [samples].
+    sigma : float
+        Encoder noise standard deviation σ [rad].
+    q : float
+        Encoder quantization step [rad] (0: none).
+    """
+
+    n: int
+    ts: float
+    h: float
+    nsub: int
+    delay: int
+    sigma: float
+    q: float
+
+
+class Designs(NamedTuple):
+    """The parameter vectors of a run's kinds and actuator, and the state sizes.
+
+    Attributes
+    ----------
+    b0 : ndarray, shape (joints,)
+        Nominal input gain per joint [1/(kg·m²)] (of the logged perturbation f = θ̈ − b0·v).
+    plant, observer, controller : ndarray or tuple of float
+        The kinds' parameter vectors (element 0 is the kind's CODE).
+    actuator : ndarray or tuple of float
+        :func:`esoarm.plants.actuator.actuator_vector`.
+    n_observer, n_controller : int
+        Sizes of the observer's and the controller's state arrays.
+    """
+
+    b0: np.ndarray
+    plant: Vector
+    observer: Vector
+    controller: Vector
+    actuator: Vector
+    n_observer: int
+    n_controller: int
+
+
+class Steps(NamedTuple):
+    """The kinds' step functions (see :mod:`esoarm.contract`), one field per step.
+
+    In Python the kind modules' own functions (:func:`steps_of`); compiled, the
+    registry's dispatch functions (:mod:`esoarm.kinds`).  ``plant_advance_block``
+    is None for a plant without a block step (only the block loop calls it).
+    """
+
+    plant_advance: Callable[..., None]
+    plant_advance_block: Any
+    plant_acceleration: Callable[..., None]
+    plant_observer_input: Callable[..., None]
+    observer_initialize: Callable[..., None]
+    observer_estimate: Callable[..., None]
+    observer_advance: Callable[..., None]
+    controller_initialize: Callable[..., None]
+    controller_control: Callable[..., None]
+
+
+class Work(NamedTuple):
+    """The state and scratch arrays of one run (all float64, updated in place).
+
+    Attributes
+    ----------
+    y : ndarray (joints,)
+        Measured angles y_k [rad].
+    u : ndarray (joints,)
+        Command: raw from the controller, then saturated, then the host's torque u_k [N·m].
+    drive : ndarray (joints,)
+        Torque driving the plant for sample k [N·m] (before the delay).
+    applied : ndarray (joints,)
+        Drive held over [t_k, t_{k+1}) (sample k − delay) [N·m].
+    duty : ndarray (joints,)
+        PWM duty [counts] (NaN without a motor).
+    sat : ndarray (joints,)
+        1.0 where the command hit ±torque_limit.
+    acc : ndarray (joints,)
+        True acceleration θ̈(t_k) [rad/s²].
+    v : ndarray (joints,)
+        Observer input v_k (the plant kind's ``observer_input`` of u_k).
+    z, zhat : ndarray
+        Observer state z_k and estimate ẑ_k (3 per joint first).
+    c : ndarray
+        Controller state.
+    hist : ndarray (N·joints,)
+        Drives of samples 0 … k (for the transport delay).
+    """
+
+    y: np.ndarray
+    u: np.ndarray
+    drive: np.ndarray
+    applied: np.ndarray
+    duty: np.ndarray
+    sat: np.ndarray
+    acc: np.ndarray
+    v: np.ndarray
+    z: np.ndarray
+    zhat: np.ndarray
+    c: np.ndarray
+    hist: np.ndarray
+
+
+def steps_of(kinds: Any) -> Steps:
+    """The step functions of a scenario's kind modules (:class:`esoarm.kinds.Kinds`)."""
+    plant, observer, controller = kinds
+    return Steps(plant.advance, getattr(plant, "advance_block", None), plant.acceleration,
+                 plant.observer_input, observer.initialize, observer.estimate,
+                 observer.advance, controller.initialize, controller.control)
+
+
+@jitable
+def new_work(n: int, nj: int, nz: int, nc: int) -> Work:
+    """Fresh arrays for a run of n samples, nj joints, observer and controller sizes nz, nc."""
+    return Work(np.empty(nj), np.empty(nj), np.empty(nj), np.empty(nj), np.empty(nj),
+                np.empty(nj), np.empty(nj), np.empty(nj), np.zeros(max(nz, 1)),
+                np.zeros(max(nz, 1)), np.zeros(max(nc, 1)), np.zeros(max(n, 1) * nj))
+
+
+@jitable
+def within_limits(theta: float, z1: float, z2: float, z3: float, u: float) -> bool:
+    """The divergence rule shared by every engine: all finite, |θ| and |z1| below the limit.
+
+    A NaN anywhere fails (NaN compares false), so does ±inf.
+    """
+    lim = DIVERGENCE_LIMIT
+    return (
+        math.isfinite(theta + z2 + z3 + u) and abs(theta) < lim and abs(z1) < lim
+    )
+
+
+@jitable
+def log_sample(log: np.ndarray, k: int, j: int, nj: int, x: np.ndarray, ref: float, u: float,
+               zhat: np.ndarray, f: float, y: float, sat: float) -> bool:
+    """Step 4 for joint j of nj: log row k, then the divergence rule on what was logged.
+
+    Rows as :data:`esoarm.engines.metrics.LOG_ROWS`; ``x`` is the plant state (angles,
+    rates, ... of the nj joints), ``zhat`` the estimate (3 per joint), ``f`` the true
+    perturbation θ̈(t_k) − b0·v_k.  True while :func:`within_limits` holds.
+    """
+    r = j * NROW
+    i = 3 * j
+    log[r + TH, k] = x[j]
+    log[r + REF, k] = ref
+    log[r + ERR, k] = x[j] - ref
+    log[r + U, k] = u
+    log[r + Z1, k] = zhat[i]
+    log[r + Z2, k] = zhat[i + 1]
+    log[r + Z3, k] = zhat[i + 2]
+    log[r + F, k] = f
+    log[r + Y, k] = y
+    log[r + SAT, k] = sat
+    log[r + OM, k] = x[nj + j]
+    return within_limits(x[j], zhat[i], zhat[i + 1], zhat[i + 2], u)
+
+
+# ---------------------------------------------------------------------------
+# the controller half
+
+
+@jitable
+def sense(w: Work, x: np.ndarray, noise: np.ndarray, k: int, sg: Sampling) -> None:
+    """Step 1: y_k = Q(θ_j(t_k) + σ n) per joint j, n = ``noise[k·joints + j]``."""
+    nj = len(w.y)
+    for j in range(nj):
+        w.y[j] = measure(x[j], noise[k * nj + j], sg.sigma, sg.q)
+
+
+@jitable
+def start(w: Work, d: Designs, s: Steps) -> None:
+    """The observer's and the controller's initial state from the first measurement ``w.y``."""
+    s.observer_initialize(w.z, w.y, d.observer)
+    s.controller_initialize(w.c, w.y, d.controller)
+
+
+@jitable
+def estimate(w: Work, d: Designs, s: Steps) -> None:
+    """Step 2a: the estimate ẑ_k from z_k and y_k (observer kind)."""
+    s.observer_estimate(w.z, w.y, d.observer, w.zhat)
+
+
+@jitable
+def control(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
+    """Step 2b: the raw command into ``w.u`` (controller kind)."""
+    s.controller_control(w.c, w.zhat, w.y, refs, k, d.controller, w.u)
+
+
+@jitable
+def saturate_commands(w: Work, a: Vector) -> None:
+    """Step 2c: ``w.u`` clipped to ±torque_limit; ``w.sat`` flags the clipped joints.
+
+    A NaN command passes (and is not flagged), so a fault stays visible.
+    """
+    limit = a[LIMIT]
+    for j in range(len(w.u)):
+        raw = w.u[j]
+        w.u[j] = saturate(raw, limit)
+        w.sat[j] = 1.0 if w.u[j] != raw and raw == raw else 0.0
+
+
+@jitable
+def actuate_commands(w: Work, a: Vector) -> None:
+    """Step 2d: the saturated ``w.u`` through the actuator (:func:`esoarm.plants.actuator.actuate`).
+
+    ``w.u`` becomes the host's torque, ``w.drive`` the torque driving the
+    plant, ``w.duty`` the PWM duty (NaN without a motor).
+    """
+    for j in range(len(w.u)):
+        w.u[j], w.drive[j], w.duty[j] = actuate(w.u[j], w.zhat[3 * j + 1], a)
+
+
+@jitable
+def command(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
+    """The controller half after the measurement: estimate, control, saturate, actuate."""
+    estimate(w, d, s)
+    control(w, k, refs, d, s)
+    saturate_commands(w, d.actuator)
+    actuate_commands(w, d.actuator)
+
+
+# ---------------------------------------------------------------------------
+# the plant half
+
+
+@jitable
+def hold(w: Work, k: int, delay: int) -> None:
+    """Step 3: record sample k's drive; ``w.applied`` = the drive of sample k − delay (or 0)."""
+    delayed_input(w.hist, k, delay, w.drive, w.applied)
+
+
+@jitable
+def record(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg: Sampling,
+           d: Designs, s: Steps) -> bool:
+    """Step 4: log column k (every joint); False if the run left the finite range.
+
+    Also leaves the true acceleration in ``w.acc`` and the observer input v_k
+    (the plant kind's ``observer_input`` of the host's torque) in ``w.v``.
+    """
+    nj = len(w.y)
+    s.plant_acceleration(x, w.applied, k * sg.ts, d.plant, w.acc)
+    s.plant_observer_input(w.zhat, w.u, d.plant, w.v)
+    ok = True
+    for j in range(nj):
+        ok = log_sample(log, k, j, nj, x, refs[3 * j, k], w.u[j], w.zhat,
+                        w.acc[j] - d.b0[j] * w.v[j], w.y[j], w.sat[j]) and ok
+    return ok
+
+
+@jitable
+def update_observer(w: Work, d: Designs, s: Steps) -> None:
+    """Step 5: z_{k+1} from (z_k, ẑ_k, y_k) and the observer input ``w.v``."""
+    s.observer_advance(w.z, w.zhat, w.y, w.v, d.observer)
+
+
+@jitable
+def observe(w: Work, d: Designs, s: Steps) -> None:
+    """Step 5 for the rig's host: v_k of the torque ``w.u`` (as in step 4), then z_{k+1}."""
+    s.plant_observer_input(w.zhat, w.u, d.plant, w.v)
+    update_observer(w, d, s)
+
+
+@jitable
+def respond(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg: Sampling,
+            d: Designs, s: Steps) -> bool:
+    """Steps 3-5: hold the delayed drive, log column k, update the observer.
+
+    Returns False (and skips the update) if the run left the finite range.
+    """
+    hold(w, k, sg.delay)
+    if not record(log, w, x, k, refs, sg, d, s):
+        return False
+    update_observer(w, d, s)
+    return True
+
+
+@jitable
+def advance_plant(x: np.ndarray, w: Work, k: int, sg: Sampling, plant: Vector,
+                  plant_advance: Callable[..., None]) -> None:
+    """Step 6: the plant kind integrates x from t_k to t_{k+1} under ``w.applied``."""
+    plant_advance(x, w.applied, k * sg.ts, sg.h, sg.nsub, plant)

@@ -1,0 +1,238 @@
+"""``esoarm identify`` for an axis (plant kind "axis"): IDIM-LS, output error beside it.
+
+1. **IDIM-LS** (:mod:`esoarm.studies.identification.idim`) on the fitting logs:
+   M, Fv, Fc, offset (and G for a rotary axis with gravity), 95 % intervals from
+   the Newey-West (HAC) covariance.  This is the estimate written into the fitted
+   scenario: it needs no simulation, no starting value and no bound, and on a
+   log recorded in closed loop -- where the controller keeps the position near
+   its reference whatever the parameters -- the force, which the IDM predicts,
+   carries the information the position does not.
+2. **Consistency**: IDIM-LS on each half of the fitting data; a parameter whose
+   halves differ by more than their combined 95 % half-width
+   (1.96·√(se₁² + se₂²)) refuses the fit (:class:`AxisFitRefused`, naming the
+   parameter and both values).
+3. **Output error** (:mod:`esoarm.studies.identification.axis_fit`), started from
+   and scaled by the IDIM-LS estimate, over ``segment``-long pieces: reported
+   beside it, with whether each parameter agrees (within the combined
+   interval).  A gross disagreement (beyond :data:`GROSS` combined half-widths)
+   refuses the fit: the model explains the force and the motion differently.
+4. **Validation** on logs not used for fitting: the benchmark's relative force
+   error of the IDIM-LS parameters (cross-test) and the simulated position with
+   only each segment's initial state fitted.  A cross-test force error above
+   max(2 × the estimation error, estimation + 10 %) refuses the fit.
+
+Sensor noise: the axis's sensor keys are angles [deg]; an axis fit never writes
+them.  The residual is reported as model error (its largest autocorrelation
+says whether it could be sensor noise at all).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from esoarm.plants.axis import units
+from esoarm.scenario import Scenario, ScenarioError
+from esoarm.studies.identification.axis_fit import OE_NAMES, OeResult, fit_axis_oe
+from esoarm.studies.identification.data import IdentLog
+from esoarm.studies.identification.idim import IdimResult, cross_test, idim_ls
+
+__all__ = ["AxisFitRefused", "AxisIdentResult", "GROSS", "identify_axis", "physical_names"]
+
+#: Output error and IDIM-LS further apart than this many combined 95 % half-widths: refused.
+GROSS = 3.0
+#: Scenario key of each physical parameter of an axis.
+KEYS = {"mass": "plant.mass", "inertia": "plant.mass", "viscous_friction":
+        "plant.viscous_friction", "coulomb_friction": "plant.coulomb_friction",
+        "offset": "plant.offset", "gravity": "plant.gravity"}
+
+
+class AxisFitRefused(RuntimeError):
+    """The estimate is not trustworthy (one line naming the evidence; nothing is written)."""
+
+
+def physical_names(motion: str, names: tuple[str, ...]) -> list[str]:
+    """The SI names of the IDIM columns: "mass" is "inertia" on a rotary axis."""
+    return [("inertia" if n == "mass" and motion == "rotary" else n) for n in names]
+
+
+@dataclass
+class AxisIdentResult:
+    """What :func:`identify_axis` found."""
+
+    scenario: Scenario
+    idim: IdimResult
+    halves: tuple[IdimResult, IdimResult]
+    oe: OeResult | None
+    validation: dict
+    fit_logs: list[str]
+    validation_logs: list[str]
+    physical: dict = field(default_factory=dict)
+
+    def fitted_scenario(self) -> Scenario:
+        """The scenario with the IDIM-LS estimate as the axis."""
+        over: dict[str, object] = {"name": f"{self.scenario.name}-fitted"}
+        for name, entry in self.physical.items():
+            over[KEYS[name]] = float(entry["value"])
+        return self.scenario.with_overrides(over)
+
+    def to_json(self) -> dict:
+        """One JSON object: physical parameters (SI), the methods beside each other, validation."""
+        motion = self.scenario.plant.motion
+        names = physical_names(motion, self.idim.names)
+        u = units(motion)
+        oe = None
+        if self.oe is not None:
+            oe = {"segment_s": self.oe.segment_s, "fit_percent": self.oe.fit_percent,
+                  "residual_rms": self.oe.residual_rms,
+                  "residual_max_autocorrelation": self.oe.max_autocorrelation,
+                  "hac_bandwidth_samples": self.oe.bandwidth, "converged": self.oe.converged,
+                  "parameters": {
+                      names[i]: {"value": float(self.oe.values[i]),
+                                 "ci95": [float(self.oe.values[i] - self.oe.ci95_half[i]),
+                                          float(self.oe.values[i] + self.oe.ci95_half[i])],
+                                 "unit": u[names[i]],
+                                 **({"bound": self.oe.at_bound[i]} if self.oe.at_bound[i]
+                                    else {}),
+                                 "agrees_with_idim_ls": _agree(self.idim, self.oe, i)}
+                      for i in range(len(OE_NAMES))}}
+        return {
+            "scenario": self.scenario.name,
+            "method": "IDIM-LS (band-pass filtered derivatives, least squares on the inverse "
+                      "dynamic model), HAC 95 % intervals; output error beside it",
+            "physical": self.physical,
+            "parameters": {KEYS[n]: {"value": e["value"], "ci95": e["ci95"], "unit": e["unit"]}
+                           for n, e in self.physical.items()},
+            "idim_ls": {"force_error_percent": self.idim.force_error,
+                        "condition_number": self.idim.condition, "rows": self.idim.n,
+                        "decimation": self.idim.decimation, "cutoff_hz": self.idim.cutoff_hz,
+                        "hac_bandwidth_rows": self.idim.bandwidth,
+                        "residual_max_autocorrelation": self.idim.max_autocorrelation,
+                        "ci95_white": {names[i]: [float(self.idim.values[i]
+                                                        - 1.96 * self.idim.se_white[i]),
+                                                  float(self.idim.values[i]
+                                                        + 1.96 * self.idim.se_white[i])]
+                                       for i in range(len(names))},
+                        "halves": [dict(zip(names, map(float, h.values), strict=True))
+                                   for h in self.halves]},
+            "output_error": oe,
+            "validation": {**self.validation, "logs": self.validation_logs},
+            "noise": "not written: the residual is model error (an axis's sensor keys are "
+                     "angles and stay as given)",
+            "fit_logs": self.fit_logs,
+        }
+
+
+def _agree(idim: IdimResult, oe: OeResult, i: int, factor: float = 1.0) -> bool:
+    j = idim.names.index(OE_NAMES[i])
+    half = math.hypot(1.96 * float(idim.se_hac[j]), float(oe.ci95_half[i]))
+    return bool(abs(float(idim.values[j]) - float(oe.values[i])) <= factor * half)
+
+
+def _halves(logs: list[IdentLog]) -> tuple[list[tuple[np.ndarray, np.ndarray]], ...]:
+    first, second = [], []
+    for log in logs:
+        mid = log.n // 2
+        first.append((log.y[:mid], log.u[:mid]))
+        second.append((log.y[mid:], log.u[mid:]))
+    return first, second
+
+
+def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog],
+                  segment: float = 2.0, validate_fraction: float = 0.25) -> AxisIdentResult:
+    """Identify the axis of ``scn`` from ``logs`` (see the module docstring).
+
+    Raises
+    ------
+    ScenarioError
+        Bad input: a log at another rate than the scenario, a lost sample.
+    AxisFitRefused
+        Halves inconsistent, output error grossly off, or validation failed.
+    """
+    ts = logs[0].ts
+    for log in [*logs, *validation]:
+        if abs(log.ts - scn.sample_time) > 1e-9 * scn.sample_time:
+            raise ScenarioError(f"log '{log.path}': sampled every {log.ts:g} s but "
+                                f"sensor.rate_hz = {scn.sensor.rate_hz:g}; use --set "
+                                f"sensor.rate_hz={1.0 / log.ts:g}")
+        if np.isnan(log.y).any():
+            raise ScenarioError(f"log '{log.path}': lost samples (y = nan); IDIM-LS needs "
+                                "every sample (fill or cut them)")
+    if not validation and validate_fraction > 0:
+        if len(logs) > 1:
+            logs, validation = logs[:-1], logs[-1:]
+        else:
+            cut = int(round(logs[0].n * (1.0 - validate_fraction)))
+            logs, validation = [logs[0].part(0, cut)], [logs[0].part(cut, logs[0].n)]
+    p = scn.plant
+    gravity = p.motion == "rotary" and p.gravity != 0.0
+    est = idim_ls([(lg.y, lg.u) for lg in logs], ts, gravity=gravity)
+    motion = p.motion
+    names = physical_names(motion, est.names)
+    u = units(motion)
+    halves = tuple(idim_ls(h, ts, est.cutoff_hz, gravity) for h in _halves(logs))
+    h1, h2 = halves
+    for i, name in enumerate(names[:3]):
+        gap = abs(float(h1.values[i] - h2.values[i]))
+        half = 1.96 * math.hypot(float(h1.se_hac[i]), float(h2.se_hac[i]))
+        if gap > half:
+            raise AxisFitRefused(
+                f"the estimate is not consistent: {name} is {h1.values[i]:.5g} {u[name]} on the "
+                f"first half of the fitting data and {h2.values[i]:.5g} on the second (apart by "
+                f"{gap:.3g}, more than their combined 95 % half-width {half:.3g}): the axis "
+                "changed during the log, or the model does not describe it")
+    physical = {names[i]: {"value": float(est.values[i]), "ci95": list(est.ci95(est.names[i])),
+                           "unit": u[names[i]]} for i in range(len(names))}
+    oe = fit_axis_oe(logs[0].y, logs[0].u, ts, est, segment, vs=p.friction_velocity,
+                     lag=scn.actuator.lag, nsub=scn.substeps)
+    for i, name in enumerate(names[:3]):
+        if oe.at_bound[i]:
+            raise AxisFitRefused(f"the output-error fit ended at the bound {oe.at_bound[i]} "
+                                 f"for {name} (IDIM-LS: {est.values[i]:.5g} {u[name]}): the "
+                                 "model does not explain the motion")
+        if not _agree(est, oe, i, GROSS):
+            raise AxisFitRefused(
+                f"the methods disagree: {name} is {est.values[i]:.5g} {u[name]} by IDIM-LS and "
+                f"{oe.values[i]:.5g} by output error over {segment:g} s segments, more than "
+                f"{GROSS:g}× their combined 95 % half-width apart: the model explains the "
+                "force and the motion differently")
+    val: dict = {"estimation_force_error_percent": est.force_error}
+    if validation:
+        errors = [cross_test(lg.y, lg.u, ts, est.values, est.cutoff_hz, gravity)
+                  for lg in validation]
+        cross = float(max(errors))
+        val["cross_test_force_error_percent"] = cross
+        limit = max(2.0 * est.force_error, est.force_error + 10.0)
+        val["cross_test_limit_percent"] = limit
+        if cross > limit:
+            raise AxisFitRefused(
+                f"validation failed: the relative force error on the validation log is "
+                f"{cross:.3g} % against {est.force_error:.3g} % on the fitting data (at most "
+                f"{limit:.3g} %): the estimate does not carry over")
+        sim = _simulated_validation(validation[0], ts, est, segment, p.friction_velocity,
+                                    scn.actuator.lag, scn.substeps)
+        val.update(sim)
+    return AxisIdentResult(scn, est, (h1, h2), oe, val, sorted({lg.path for lg in logs}),
+                           sorted({lg.path for lg in validation}), physical)
+
+
+def _simulated_validation(log: IdentLog, ts: float, est: IdimResult, segment: float,
+                          vs: float, lag: float, nsub: int) -> dict:
+    """The IDIM-LS axis simulated over the validation log's segments (initial states fitted)."""
+    from esoarm.studies.identification.axis_fit import segment_bounds, simulate_axis_segments
+    from esoarm.studies.identification.idim import filtered_derivatives
+
+    seg_n = max(5, int(round(segment / ts)))
+    seg_start, seg_len = segment_bounds(log.n, seg_n)
+    q, dq, _ = filtered_derivatives(log.y, ts, 0.1 / ts)
+    x0 = np.empty(2 * len(seg_start))
+    x0[0::2], x0[1::2] = q[seg_start], dq[seg_start]
+    theta = np.array([est.value(k) for k in OE_NAMES])
+    out = np.empty(log.n)
+    simulate_axis_segments(out, theta, vs, lag, log.u, seg_start, seg_len, x0, ts / nsub, nsub)
+    r = log.y - out
+    fit = float(100.0 * (1.0 - np.linalg.norm(r) / np.linalg.norm(log.y - log.y.mean())))
+    return {"simulated_fit_percent": fit, "simulated_residual_rms": float(np.sqrt(np.mean(r**2))),
+            "simulated_segment_s": seg_n * ts}

@@ -1,0 +1,237 @@
+"""IDIM-LS: least squares on the inverse dynamic model, the robotics standard.
+
+For one axis the inverse dynamic model (IDM) is linear in its parameters
+(Khalil and Dombre; the EMPS benchmark's eq. 1-2):
+
+    τ = M q̈ + Fv q̇ + Fc sign(q̇) + offset  [+ G cos q, rotary with gravity]
+      = φ(q, q̇, q̈) θ
+
+so with q̇ and q̈ estimated from the measured position the parameters follow
+from one linear least-squares problem -- no simulation, no starting values,
+no bounds, in whatever units the log is written.  The estimation is the data
+set's own (Gautier 1997; the EMPS scripts ``Script_IDIM_LS.m``):
+
+1. *band-pass filtered derivatives*: q filtered forward and backward by a
+   Butterworth low-pass (order 4, cut-off ``cutoff_hz``, default a tenth of the
+   sample rate: the rule ω_fq ≥ 5 ω_dyn), then q̇ and q̈ by central differences
+   (MATLAB's ``diffcent``), :data:`BORDER` samples dropped at each end;
+2. *decimation*: every column of φ and the force τ low-pass filtered and
+   resampled by ``nd`` = round(fs/``cutoff_hz``) (:func:`scipy.signal.decimate`,
+   the order-8 Chebyshev filter run forward and backward as MATLAB's
+   ``decimate``), which removes the force ripple the loop rejects;
+3. θ̂ = argmin ‖y − Φ θ‖ (:func:`numpy.linalg.lstsq`).
+
+The benchmark's quality figure is the *relative force error*
+100·‖y − Φθ̂‖/‖y‖ [%] (:func:`force_error`), on the estimation data and
+(cross-test) on data not used to estimate.
+
+Intervals.  The classical standard deviations σ̂ √diag((ΦᵀΦ)⁻¹) assume a
+white residual; the IDIM residual is not (model error: asymmetric friction,
+flexibility).  :func:`hac_covariance` is the Newey-West
+heteroscedasticity-and-autocorrelation-consistent sandwich (Bartlett weights)
+with a bandwidth read from the residual's own autocorrelation
+(:func:`hac_bandwidth`); the 95 % intervals use it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["BORDER", "IdimResult", "cross_test", "decimation_factor", "filtered_derivatives",
+           "force_error",
+           "hac_bandwidth", "hac_covariance", "idim_ls", "idim_system", "regressors"]
+
+#: Samples dropped at each end after the filters (their edge effects; EMPS: 50).
+BORDER = 50
+#: Order of the Butterworth low-pass of the position.
+ORDER = 4
+#: Parameter names of the regressor columns, in order (the gravity column only when asked).
+NAMES = ("mass", "viscous_friction", "coulomb_friction", "offset", "gravity")
+
+
+def _diffcent(y: np.ndarray, ts: float) -> np.ndarray:
+    """Central differences [1/s]: (y[k+1] − y[k−1])/(2 ts), one-sided at the ends."""
+    out = np.empty_like(y)
+    out[1:-1] = (y[2:] - y[:-2]) / 2.0
+    out[0] = y[1] - y[0]
+    out[-1] = y[-1] - y[-2]
+    return out / ts
+
+
+def filtered_derivatives(y: np.ndarray, ts: float,
+                         cutoff_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(q̂, q̂̇, q̂̈) from the measured position ``y`` sampled every ``ts`` [s].
+
+    Butterworth low-pass of order :data:`ORDER` at ``cutoff_hz`` [Hz], run
+    forward and backward (no lag), then central differences.
+    """
+    from scipy.signal import butter, filtfilt
+
+    b, a = butter(ORDER, cutoff_hz * 2.0 * ts)
+    q = filtfilt(b, a, y)
+    dq = _diffcent(q, ts)
+    return q, dq, _diffcent(dq, ts)
+
+
+def decimation_factor(ts: float, cutoff_hz: float) -> int:
+    """nd = round(fs / cutoff) (EMPS: 1 kHz / 100 Hz = 10), at least 1."""
+    return max(1, int(round(1.0 / (ts * cutoff_hz))))
+
+
+def regressors(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+               gravity: bool = False) -> np.ndarray:
+    """The IDM's observation matrix φ: columns q̈, q̇, sign(q̇), 1 (and cos q with gravity)."""
+    cols = [ddq, dq, np.sign(dq), np.ones_like(q)]
+    if gravity:
+        cols.append(np.cos(q))
+    return np.column_stack(cols)
+
+
+def _decimate(x: np.ndarray, nd: int) -> np.ndarray:
+    if nd == 1:
+        return x
+    from scipy.signal import decimate
+
+    return decimate(x, nd, axis=0, zero_phase=True)
+
+
+def force_error(y: np.ndarray, yhat: np.ndarray) -> float:
+    """The benchmark's relative force error 100·‖y − ŷ‖/‖y‖ [%]."""
+    return float(100.0 * np.linalg.norm(y - yhat) / np.linalg.norm(y))
+
+
+def hac_bandwidth(r: np.ndarray, threshold: float = 0.1) -> int:
+    """Newey-West bandwidth [samples] from the residual ``r``'s autocorrelation.
+
+    Twice the first lag at which |ρ| falls below ``threshold`` (the memory of
+    the residual), at least the rule of thumb ⌊4 (N/100)^(2/9)⌋ and at most N/4.
+    """
+    n = len(r)
+    rc = r - r.mean()
+    spec = np.fft.rfft(rc, 2 * n)
+    acf = np.fft.irfft(spec * np.conj(spec))[:n]
+    acf = acf / acf[0] if acf[0] > 0 else acf
+    below = np.flatnonzero(np.abs(acf) < threshold)
+    memory = int(below[0]) if below.size else n
+    rule = int(4.0 * (n / 100.0) ** (2.0 / 9.0))
+    return int(min(max(2 * memory, rule), n // 4))
+
+
+def hac_covariance(x: np.ndarray, r: np.ndarray, lags: int) -> np.ndarray:
+    """Newey-West covariance of the least-squares estimate for regressors ``x`` (N×p),
+    residual ``r`` (N), Bartlett weights 1 − l/(lags+1) up to ``lags``.
+
+    (XᵀX)⁻¹ S (XᵀX)⁻¹ with S = Γ0 + Σ_l w_l (Γ_l + Γ_lᵀ), Γ_l = Σ_k g_k g_{k−l}ᵀ,
+    g_k = x_k r_k.  The same function serves a nonlinear fit with ``x`` its
+    Jacobian (rows: samples).
+    """
+    g = x * r[:, None]
+    s = g.T @ g
+    for lag in range(1, lags + 1):
+        gamma = g[lag:].T @ g[:-lag]
+        s += (1.0 - lag / (lags + 1.0)) * (gamma + gamma.T)
+    bread = np.linalg.pinv(x.T @ x)
+    return np.asarray(bread @ s @ bread)
+
+
+@dataclass(frozen=True)
+class IdimResult:
+    """An IDIM-LS estimate.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Parameter names (:data:`NAMES`, in the log's units: mass [kg] or inertia
+        [kg·m²], viscous friction, Coulomb friction, offset [N or N·m]).
+    values : ndarray
+        θ̂.
+    se_white : ndarray
+        Classical standard errors σ̂ √diag((ΦᵀΦ)⁻¹) (the published ones; white residual).
+    se_hac : ndarray
+        Newey-West standard errors (:func:`hac_covariance`).
+    bandwidth : int
+        The Newey-West bandwidth [decimated samples].
+    force_error : float
+        Relative force error on the estimation data [%].
+    condition : float
+        Condition number of Φ.
+    n : int
+        Rows of Φ (decimated samples).
+    decimation : int
+        nd.
+    cutoff_hz : float
+        The Butterworth cut-off [Hz].
+    max_autocorrelation : float
+        Largest |ρ| of the residual over lags 1 … 20 (1 would be white noise's ±2/√n).
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    se_white: np.ndarray
+    se_hac: np.ndarray
+    bandwidth: int
+    force_error: float
+    condition: float
+    n: int
+    decimation: int
+    cutoff_hz: float
+    max_autocorrelation: float
+
+    def value(self, name: str) -> float:
+        """θ̂ of ``name``."""
+        return float(self.values[self.names.index(name)])
+
+    def ci95(self, name: str) -> tuple[float, float]:
+        """The HAC 95 % interval of ``name``."""
+        i = self.names.index(name)
+        half = 1.96 * float(self.se_hac[i])
+        return float(self.values[i]) - half, float(self.values[i]) + half
+
+
+def idim_system(y: np.ndarray, u: np.ndarray, ts: float, cutoff_hz: float | None = None,
+                gravity: bool = False) -> tuple[np.ndarray, np.ndarray, int, float]:
+    """(Φ, y_F, nd, cutoff): the decimated observation matrix and force of one log.
+
+    ``y`` the measured position, ``u`` the force/torque [N or N·m], ``ts`` [s].
+    """
+    cutoff = cutoff_hz if cutoff_hz is not None else 0.1 / ts
+    q, dq, ddq = filtered_derivatives(y, ts, cutoff)
+    keep = slice(BORDER - 1, len(y))  # as the EMPS script: samples n_border … N
+    x = regressors(q, dq, ddq, gravity)[keep]
+    nd = decimation_factor(ts, cutoff)
+    return _decimate(x, nd), _decimate(u[keep], nd), nd, cutoff
+
+
+def idim_ls(parts: list[tuple[np.ndarray, np.ndarray]], ts: float,
+            cutoff_hz: float | None = None, gravity: bool = False) -> IdimResult:
+    """IDIM-LS over one or more logs (``parts``: (position, force) pairs), see the module.
+
+    The logs' observation matrices are stacked (each filtered on its own).
+    """
+    systems = [idim_system(y, u, ts, cutoff_hz, gravity) for y, u in parts]
+    x = np.vstack([s[0] for s in systems])
+    f = np.concatenate([s[1] for s in systems])
+    theta, *_ = np.linalg.lstsq(x, f, rcond=None)
+    r = f - x @ theta
+    p = x.shape[1]
+    s2 = float(r @ r) / max(len(f) - p, 1)
+    se_white = np.sqrt(s2 * np.diag(np.linalg.pinv(x.T @ x)))
+    lags = hac_bandwidth(r)
+    se_hac = np.sqrt(np.maximum(np.diag(hac_covariance(x, r, lags)), 0.0))
+    rc = r - r.mean()
+    denom = float(rc @ rc) or 1.0
+    rho = max(abs(float(rc[:-k] @ rc[k:]) / denom) for k in range(1, 21))
+    return IdimResult(NAMES[:p], theta, se_white, se_hac, lags, force_error(f, x @ theta),
+                      float(np.linalg.cond(x)), len(f), systems[0][2], systems[0][3],
+                      rho)
+
+
+def cross_test(y: np.ndarray, u: np.ndarray, ts: float, values: np.ndarray,
+               cutoff_hz: float, gravity: bool = False) -> float:
+    """The relative force error [%] of parameters ``values`` on a log not used to estimate
+    them (the benchmark's cross-test), with the same filters."""
+    x, f, _nd, _c = idim_system(y, u, ts, cutoff_hz, gravity)
+    return force_error(f, x @ values)
+

@@ -1,0 +1,152 @@
+"""Identification of an axis (plant kind "axis"): IDIM-LS, HAC intervals, refusals, EMPS."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from esoarm.studies.identification.idim import (
+    cross_test,
+    filtered_derivatives,
+    hac_covariance,
+    idim_ls,
+)
+
+ROOT = Path(__file__).resolve().parents[3]
+EMPS = ROOT / "examples" / "emps"
+#: The data set's published IDIM-LS values (its description, section 3.4).
+PUBLISHED = {"mass": 95.1089, "viscous_friction": 203.5034, "coulomb_friction": 20.3935,
+             "offset": -3.1648}
+TS = 1e-3
+
+
+def _trajectory(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A smooth back-and-forth position [m] with its exact velocity and acceleration."""
+    t = np.arange(n) * TS
+    q = np.zeros(n)
+    v = np.zeros(n)
+    a = np.zeros(n)
+    for f, amp in ((0.15, 0.1), (0.4, 0.03), (1.1, 0.01)):
+        w = 2 * math.pi * f
+        ph = rng.uniform(0, 2 * math.pi)
+        q += amp * np.sin(w * t + ph)
+        v += amp * w * np.cos(w * t + ph)
+        a -= amp * w * w * np.sin(w * t + ph)
+    return q, v, a
+
+
+def _log(theta, n=20000, seed=0, rho=0.995, sigma=2.0, change=None):
+    """(y, u): position and force of an axis following a smooth trajectory, the force with
+    AR(1) noise of correlation ``rho`` per sample (coloured: ripple, model error)."""
+    rng = np.random.default_rng(seed)
+    q, v, a = _trajectory(n, rng)
+    m, fv, fc, off = theta
+    mass = np.full(n, m)
+    if change is not None:
+        mass[n // 2:] = change
+    u = mass * a + fv * v + fc * np.sign(v) + off
+    e = np.empty(n)
+    e[0] = 0.0
+    w = rng.normal(0, sigma * math.sqrt(1 - rho**2), n)
+    for k in range(1, n):
+        e[k] = rho * e[k - 1] + w[k]
+    return q + rng.normal(0, 1e-7, n), u + e
+
+
+TRUE = (10.0, 30.0, 3.0, -0.5)
+
+
+def test_filtered_derivatives_of_a_sine():
+    t = np.arange(5000) * TS
+    w = 2 * math.pi * 2.0
+    q, dq, ddq = filtered_derivatives(np.sin(w * t), TS, 100.0)
+    inner = slice(200, -200)
+    np.testing.assert_allclose(dq[inner], w * np.cos(w * t[inner]), atol=2e-3 * w)
+    np.testing.assert_allclose(ddq[inner], -w * w * np.sin(w * t[inner]), atol=3e-3 * w * w)
+
+
+def test_hac_equals_the_classical_covariance_at_lag_0_for_homoscedastic_rows():
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(4000, 3))
+    r = rng.normal(size=4000)
+    hac = hac_covariance(x, r, 0)
+    g = x * r[:, None]
+    bread = np.linalg.inv(x.T @ x)
+    np.testing.assert_allclose(hac, bread @ (g.T @ g) @ bread, rtol=1e-12)
+
+
+def test_idim_ls_recovers_the_axis_and_does_not_depend_on_units():
+    y, u = _log(TRUE, rho=0.0, sigma=0.1)
+    est = idim_ls([(y, u)], TS)
+    np.testing.assert_allclose(est.values, TRUE, rtol=0.02, atol=0.02)
+    # the same log in mm and kN: the same physics, values in the new units (no bound, no scale)
+    mm = idim_ls([(y * 1e3, u * 1e-3)], TS)
+    np.testing.assert_allclose(mm.values, est.values * np.array([1e-6, 1e-6, 1e-3, 1e-3]),
+                               rtol=1e-6)
+
+
+def test_hac_intervals_cover_with_coloured_noise_where_white_ones_do_not():
+    hac = white = 0
+    runs = 40
+    for seed in range(runs):
+        est = idim_ls([_log(TRUE, n=12000, seed=seed)], TS)
+        i = est.names.index("viscous_friction")
+        err = abs(est.values[i] - TRUE[1])
+        hac += err <= 1.96 * est.se_hac[i]
+        white += err <= 1.96 * est.se_white[i]
+    assert hac / runs >= 0.85, (hac, white)
+    assert white / runs < 0.7, (hac, white)
+
+
+def test_cli_refuses_an_axis_that_changed_half_way(tmp_path, run_cli):
+    y, u = _log(TRUE, seed=3, rho=0.0, sigma=0.1, change=14.0)
+    path = tmp_path / "log.csv"
+    t = np.arange(len(y)) * TS
+    np.savetxt(path, np.column_stack([t, y, u]), delimiter=",", header="t,y,u", comments="")
+    out = tmp_path / "fitted.toml"
+    res = run_cli("identify", str(path), "--scenario", "emps", "--set", "plant.mass=10",
+                  "--out", str(out), "--validate-fraction", "0")
+    assert res.exit_code == 1, res.output
+    assert "not consistent: mass is" in res.stderr and "first half" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1 and not out.exists()
+
+
+def _emps(name: str) -> tuple[np.ndarray, np.ndarray]:
+    d = np.loadtxt(EMPS / name, delimiter=",", skiprows=1)
+    return d[:, 1], d[:, 2]
+
+
+def test_emps_idim_ls_reproduces_the_published_values_and_force_error():
+    est = idim_ls([_emps("estimation.csv")], TS)
+    for name in ("mass", "viscous_friction", "coulomb_friction"):
+        assert est.value(name) == pytest.approx(PUBLISHED[name], rel=0.01), name
+    pub = np.array(list(PUBLISHED.values()))
+    # the benchmark's metric, both parameter sets through the same filters
+    assert est.force_error <= cross_test(*_emps("estimation.csv"), TS, pub, est.cutoff_hz)
+    ours = cross_test(*_emps("validation.csv"), TS, est.values, est.cutoff_hz)
+    theirs = cross_test(*_emps("validation.csv"), TS, pub, est.cutoff_hz)
+    assert ours <= theirs and ours == pytest.approx(5.98, abs=0.1)
+    assert est.force_error == pytest.approx(4.08, abs=0.1)
+    # the residual is coloured: the HAC intervals are wider than the white ones
+    assert np.all(est.se_hac > 1.5 * est.se_white)
+
+
+@pytest.mark.slow
+def test_emps_cli_json_physical(run_cli):
+    res = run_cli("identify", str(EMPS / "estimation.csv"), "--scenario", "emps", "--validate",
+                  str(EMPS / "validation.csv"), "--json")
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    phys = data["physical"]
+    assert set(phys) == {"mass", "viscous_friction", "coulomb_friction", "offset"}
+    assert phys["mass"]["unit"] == "kg" and phys["viscous_friction"]["unit"] == "N·s/m"
+    for name in ("mass", "viscous_friction", "coulomb_friction"):
+        assert phys[name]["value"] == pytest.approx(PUBLISHED[name], rel=0.05)
+        lo, hi = phys[name]["ci95"]
+        assert lo < phys[name]["value"] < hi
+    assert data["validation"]["cross_test_force_error_percent"] < 6.1
+    assert data["output_error"]["converged"]
