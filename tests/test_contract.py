@@ -147,7 +147,7 @@ def test_unknown_code_is_an_error_in_compiled_dispatch() -> None:
     p = np.zeros(32)
     design = design_observer(0.09, 0.01, 1.0).vector
     p[1:1 + len(design)] = design
-    assert step(p)[0] == 0.01 * 3 / 0.09  # CODE 0: the linear ESO, z1 = Ts·β1·(y − 0)
+    assert step(p)[0] == 0.01 * (3.0 / 0.09)  # CODE 0: the linear ESO, z1 = Ts·β1·(y − 0)
     p[0] = 99.0
     with pytest.raises(ValueError, match="no compiled observer kind has this CODE"):
         step(p)

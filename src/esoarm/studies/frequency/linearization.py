@@ -272,7 +272,8 @@ def observer_linearization(scn: Scenario) -> ObserverLinearization:
         raise ScenarioError(
             f"observer.kind: the frequency-domain analysis has no linear model of observer "
             f"kind '{kind.KIND}' (the kind declares none); simulate, sweep and tune run it")
-    return lin(scn.observer, scn.sample_time, 1.0 / scn.plant.inertia)  # type: ignore[no-any-return]
+    model: ObserverLinearization = lin(scn.observer, scn.sample_time, 1.0 / scn.plant.inertia)
+    return model
 
 
 def observer_matrices(scn: Scenario) -> tuple[np.ndarray, ...]:
