@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -15,9 +16,11 @@ from esoarm.cli._common import (
     bad_input_guard,
     lever_only,
     output_path,
+    require_extra,
     resolve_scenario,
     scenario_argument,
     set_option,
+    status_lines,
     stderr_is_tty,
 )
 
@@ -106,6 +109,8 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
     log_path = output_path(log, "--log", (".csv",))
     if log_path is None:
         raise BadInput("--log FILE.csv is required (the experiment is only useful logged)")
+    if port is not None:
+        require_extra("serial", "'esoarm excite --port' (the serial link)")
     if twin:
         _excite_twin(scn, plan, log_path, limits)
     else:
@@ -125,7 +130,7 @@ def _excite_twin(scn, plan, log_path: Path, limits) -> None:  # type: ignore[no-
 
 
 def _excite_rig(scn, plan, port: str, log_path: Path, limits, baud: int) -> None:  # type: ignore[no-untyped-def]
-    from esoarm.cli.rig import Interrupted
+    from esoarm.cli._common import Interrupted
     from esoarm.hardware.link import LinkError, SerialLink
     from esoarm.hardware.realtime import RigFault, RigInterrupted, run_rig
     from esoarm.studies.identification.excitation import ExcitationController
@@ -223,7 +228,7 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     motor = MotorParams.from_scenario(scn)
     fit_logs = [read_ident_log(p, limit, motor) for p in logs]
     val_logs = [read_ident_log(p, limit, motor) for p in validate]
-    say = _progress() if stderr_is_tty() and not as_json else None
+    say: Any = _progress() if stderr_is_tty() and not as_json else status_lines("identify")
     try:
         res = run_fit(scn, fit_logs, validation=val_logs or None,
                       validate_fraction=validate_fraction, segment=segment, max_delay=max_delay,

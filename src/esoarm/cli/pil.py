@@ -65,7 +65,9 @@ def pil(scenario: str, overrides: tuple[str, ...], target: str, precision: str,
         click.echo(f"scenario '{scn.name}' (sha256 {report.gen.digest}) on {target}, "
                    f"{precision}, {data['steps']} steps")
         click.echo(f"agreement: max |Δu| = {data['max_abs_du']:.3g} N·m, "
-                   f"{data['max_rel_du']:.3g} of the torque limit (limit {AGREEMENT:g})")
+                   f"{data['max_rel_du']:.3g} of the torque limit (limit {AGREEMENT:g})"
+                   + (f"; {data['duty_ties']} duty rounding ties followed"
+                      if data["duty_ties"] else ""))
         click.echo(f"per step: {c['min']} / {c['median']} / {c['max']} (min / median / max) "
                    f"{report.timing}; budget {data['budget_cycles']} at "
                    f"{report.clock_hz / 1e6:g} MHz ({100 * data['budget_used']:.1f} % used)")

@@ -18,6 +18,7 @@ from esoarm.cli._common import (
     bad_input_guard,
     lever_only,
     output_path,
+    require_extra,
     resolve_scenario,
     scenario_argument,
     set_option,
@@ -190,6 +191,7 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
         raise BadInput(f"--baud {baud}: must be > 0")
     if scope:
         _check_scope(scope_port, scope_window)
+    require_extra("serial", "'esoarm run' (the serial link)")
     scn = resolve_scenario(scenario, overrides)
     lever_only(scn, "run")
     limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog,

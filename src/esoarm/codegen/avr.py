@@ -122,8 +122,8 @@ class AvrChip:
             raise RuntimeError("the AVR " + ("crashed" if rc == -1 else
                                              f"did not finish a step in {self.limit} cycles"))
 
-    def step(self, y: float) -> tuple[float, float]:
-        """One sample: y_k [rad] -> (u_k [N·m], the torque driving the plant [N·m])."""
+    def step(self, y: float) -> tuple[float, float, float]:
+        """One sample: y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty)."""
         raw = struct.pack("<f", y)
         for i, b in enumerate(raw):
             self._data[self._y + i] = b
@@ -132,8 +132,8 @@ class AvrChip:
         self.cycles.append(int(self._lib.pil_mark(self._h, 3) - self._lib.pil_mark(self._h, 2)))
         self._wait(1)
         out = bytes(self._data[self._out + i] for i in range(16))
-        u, drive, _, _ = struct.unpack("<4f", out)
-        return u, drive
+        u, drive, duty, _ = struct.unpack("<4f", out)
+        return u, drive, duty
 
     def close(self) -> None:
         """Free the simulated MCU."""

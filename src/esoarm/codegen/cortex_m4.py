@@ -10,8 +10,9 @@ UART on its standard input and output; per sample the host writes y and reads
 Timing is an **instruction-count proxy**, not cycles: QEMU models no cycle
 counter (the DWT reads 0).  With ``-icount shift=N`` every instruction takes
 2^N ns of virtual time and SysTick counts the 25 MHz processor clock, so the
-ticks of a step give its executed instructions as ticks · 40 / 2^N (the same
-count for every N: checked in the tests).  A Cortex-M4 retires most
+ticks of a step give its executed instructions as ticks · 40 / 2^N, to within
+40 / 2^N instructions (N = 8: ±0.16, so the rounded count is exact; the same
+count for N = 8 and 10: checked in the tests).  A Cortex-M4 retires most
 instructions in one cycle, but loads, branches, divisions (14 cycles) and
 double-precision library calls take more: real cycles are higher.
 """
@@ -33,7 +34,7 @@ __all__ = ["CLOCK_HZ", "CortexM4Chip", "m4_image"]
 
 #: The mps2-an386 processor clock QEMU models [Hz] (SysTick's clock).
 CLOCK_HZ = 25_000_000
-ICOUNT_SHIFT = 6
+ICOUNT_SHIFT = 8
 CFLAGS = ["-std=c99", "-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard",
           "-O2", "-ffunction-sections", "-fdata-sections", "-Wall", "-Wextra", "-Werror",
           "-nostartfiles", "--specs=nano.specs", "-Tm4.ld", "-Wl,--gc-sections"]
@@ -106,16 +107,16 @@ class CortexM4Chip:
             buf += chunk
         return buf
 
-    def step(self, y: float) -> tuple[float, float]:
-        """One sample: y_k [rad] -> (u_k [N·m], the torque driving the plant [N·m])."""
+    def step(self, y: float) -> tuple[float, float, float]:
+        """One sample: y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty)."""
         assert self._proc is not None and self._proc.stdin is not None
         self._proc.stdin.write(struct.pack(self._fmt, y))
         self._proc.stdin.flush()
-        raw = self._read(2 * self._size + 4)
-        u, drive = struct.unpack(self._fmt[0] + 2 * self._fmt[1], raw[:2 * self._size])
-        (ticks,) = struct.unpack("<I", raw[2 * self._size:])
+        raw = self._read(3 * self._size + 4)
+        u, drive, duty = struct.unpack(self._fmt[0] + 3 * self._fmt[1], raw[:3 * self._size])
+        (ticks,) = struct.unpack("<I", raw[3 * self._size:])
         self.cycles.append(round(ticks * (1e9 / CLOCK_HZ) / 2 ** self.shift))
-        return u, drive
+        return u, drive, duty
 
     def close(self) -> None:
         """Stop QEMU."""

@@ -60,11 +60,11 @@ class HostChip:
         self.ram_bytes = 0
         self.last: tuple[float, ...] = ()
 
-    def step(self, y: float) -> tuple[float, float]:
-        """One sample: y_k [rad] -> (u_k [N·m], the torque driving the plant [N·m])."""
+    def step(self, y: float) -> tuple[float, float, float]:
+        """One sample: y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty)."""
         self._lib.pil_step(float(y), self._out)
         self.last = tuple(self._out)
-        return self._out[0], self._out[1]
+        return self._out[0], self._out[1], self._out[2]
 
     def close(self) -> None:
         """Nothing to release (the library stays loaded)."""

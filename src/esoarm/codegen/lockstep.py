@@ -11,6 +11,14 @@ Per sample k (the sampled-data loop of :mod:`esoarm.engines.loop`):
 
 So the chip closes the loop, and Δu_k = u_chip,k − u_ref,k is the numerical
 difference of the generated code on that chip alone (both fed the same y_k).
+
+With a motor the torque becomes a whole number of duty counts.  Where the
+reference's duty lies at a rounding tie (u_ref moved by 1e-6 of the torque limit
+gives the chip's duty) the two roundings are equally right, but the observers
+would then be updated with torques one count apart and drift apart for reasons
+that are not the code's arithmetic.  There the reference adopts the chip's
+duty; such samples are counted (:attr:`LockstepRun.duty_ties`).  A duty that
+differs otherwise is left alone and shows in Δu.
 """
 
 from __future__ import annotations
@@ -23,7 +31,8 @@ import numpy as np
 
 from esoarm.engines.simulation import prepare
 from esoarm.hardware.host_control import DeploymentController
-from esoarm.plants.actuator import delayed_input
+from esoarm.plants.actuator import MOTOR, MOTOR_BLOCK, actuator_vector, delayed_input
+from esoarm.plants.motor import duty_to_torque, torque_to_duty
 from esoarm.plants.sensor import measure
 from esoarm.scenario import Scenario
 
@@ -40,8 +49,8 @@ class Chip(Protocol):
     flash_bytes: int
     ram_bytes: int
 
-    def step(self, y: float) -> tuple[float, float]:
-        """y_k [rad] -> (u_k [N·m], torque driving the plant [N·m])."""
+    def step(self, y: float) -> tuple[float, float, float]:
+        """y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty [counts] or 0)."""
 
     def close(self) -> None:
         """Release the emulator."""
@@ -67,6 +76,8 @@ class LockstepRun:
         [N·m].
     cycles : list of int
         Per-step cycles (or instruction-count proxy) reported by the chip.
+    duty_ties : int
+        Samples where the reference adopted the chip's duty at a rounding tie.
     """
 
     steps: int
@@ -77,6 +88,7 @@ class LockstepRun:
     theta_ref: np.ndarray
     torque_limit: float
     cycles: list[int] = field(default_factory=list)
+    duty_ties: int = 0
 
     @property
     def max_abs_du(self) -> float:
@@ -117,12 +129,21 @@ def lockstep(scn: Scenario, chip: Chip, steps: int | None = None) -> LockstepRun
     u_chip, u_ref = np.full(n, np.nan), np.full(n, np.nan)
     ys, theta = np.full(n, np.nan), np.full(n, np.nan)
     advance = inp.kinds.plant.advance
-    k_done = 0
+    act = actuator_vector(scn)
+    motor = act[MOTOR_BLOCK:] if act[MOTOR] else None
+    tie = 1e-6 * ref.torque_limit
+    k_done = ties = 0
     for k in range(n):
         y = measure(x[0], inp.noise[k], inp.sigma, inp.q)
-        u_c, d_c = chip.step(y)
+        u_c, d_c, duty_c = chip.step(y)
         u_r = ref.step(k, y)
-        u_app, _ = ref.actuate(u_r)
+        u_app, duty_r = ref.actuate(u_r)
+        if motor is not None and duty_c != duty_r and math.isfinite(duty_c):
+            rate = ref.zhat[1]
+            if duty_c in (torque_to_duty(u_r - tie, rate, motor),
+                          torque_to_duty(u_r + tie, rate, motor)):
+                u_app = float(duty_to_torque(duty_c, rate, motor))
+                ties += 1
         ref.commit(u_app)
         ys[k], theta[k], u_chip[k], u_ref[k] = y, x[0], u_c, u_r
         k_done = k + 1
@@ -132,4 +153,4 @@ def lockstep(scn: Scenario, chip: Chip, steps: int | None = None) -> LockstepRun
         delayed_input(hist, k, inp.delay, drive, applied)
         advance(x, applied, k * inp.ts, inp.h, inp.nsub, plant.vector)
     return LockstepRun(k_done, u_chip[:k_done], u_ref[:k_done], ys[:k_done], theta[:k_done],
-                       inp.refs[0, :k_done].copy(), ref.torque_limit, list(chip.cycles))
+                       inp.refs[0, :k_done].copy(), ref.torque_limit, list(chip.cycles), ties)

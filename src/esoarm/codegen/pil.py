@@ -90,7 +90,7 @@ class PilReport:
             "observer_sums": "compensated" if self.gen.compensated else "plain",
             "steps": self.run.steps,
             "max_abs_du": self.run.max_abs_du, "max_rel_du": self.run.max_rel_du,
-            "agreement_limit": AGREEMENT,
+            "agreement_limit": AGREEMENT, "duty_ties": self.run.duty_ties,
             "cycles": self.cycles, "cycles_are": self.timing,
             "clock_hz": self.clock_hz, "budget_cycles": self.budget_cycles,
             "budget_used": (self.cycles["max"] / self.budget_cycles

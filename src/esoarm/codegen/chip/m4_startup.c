@@ -4,7 +4,7 @@
  * the lockstep link, SysTick (processor clock) around the step.
  *
  * Per sample: the host sends y (sizeof(esoarm_real) bytes, little endian); the
- * shell steps the controller and answers u, drive (esoarm_real each) and the
+ * shell steps the controller and answers u, drive, duty (esoarm_real each) and the
  * SysTick ticks the step took (uint32).  QEMU models no cycle counter (DWT
  * reads 0): run with -icount shift=N, the ticks count executed instructions
  * (one instruction = 2^N ns of virtual time, one tick = 40 ns at 25 MHz).
@@ -79,7 +79,7 @@ int main(void)
         union { esoarm_real r; uint8_t b[sizeof(esoarm_real)]; } y;
         uint32_t t0, t1, ticks;
         unsigned i;
-        esoarm_real out[2];
+        esoarm_real out[3];
         for (i = 0; i < sizeof y.b; ++i) y.b[i] = getc_uart();
         t0 = SYST_CVR;
         esoarm_step(&S, y.r);
@@ -87,6 +87,7 @@ int main(void)
         ticks = (t0 - t1) & 0x00FFFFFFu;    /* SysTick counts down */
         out[0] = S.u;
         out[1] = S.drive;
+        out[2] = S.duty;
         put(out, sizeof out);
         put(&ticks, sizeof ticks);
     }
