@@ -98,15 +98,17 @@ class ComponentDesign:
 class ObserverLinearization:
     """An observer kind's linear model for the frequency-domain analysis (``analyze``).
 
-    One joint, sampled at Ts, state z (3), inputs the measured angle y [rad] and
-    the observer input u:
+    One joint, sampled at Ts, state z (n), inputs the measured angle y [rad] and
+    the observer input u, output the estimate ẑ (angle, rate, perturbation):
 
-        z⁺ = P z + Q y + Γ u,    ẑ = (I − M C) z + M y,    C = (1, 0, 0).
+        z⁺ = P z + Q y + Γ u,    ẑ = Hz z + Hy y
+
+    (an ESO of 3 states: Hz = I − M C, Hy = M with C = (1, 0, 0)).
 
     Attributes
     ----------
-    p, q, gamma, m : ndarray
-        P (3, 3), Q (3, 1), Γ (3, 1), M (3, 1).
+    p, q, gamma, hz, hy : ndarray
+        P (n, n), Q (n, 1), Γ (n, 1), Hz (3, n), Hy (3, 1).
     pole : float
         The observer's slowest discrete error pole (z-plane); its frequency
         −ln|pole|/Ts [rad/s] is reported.
@@ -122,7 +124,8 @@ class ObserverLinearization:
     p: np.ndarray
     q: np.ndarray
     gamma: np.ndarray
-    m: np.ndarray
+    hz: np.ndarray
+    hy: np.ndarray
     pole: float
     eps: float
     discretization: str

@@ -44,7 +44,7 @@ from esoarm.contract import (
     PlantKind,
 )
 from esoarm.controllers import computed_torque, flc, pid
-from esoarm.observers import linear, nonlinear
+from esoarm.observers import cascade, linear, nonlinear
 from esoarm.plants import axis, lever_arm, urdf
 
 if TYPE_CHECKING:
@@ -58,7 +58,7 @@ __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "check_kind
 #: Registered kinds per component; the first is the default.  (mypy checks each module
 #: against its component's protocol, :class:`esoarm.contract.PlantKind` etc.)
 PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis)
-OBSERVERS: tuple[ObserverKind, ...] = (linear, nonlinear)
+OBSERVERS: tuple[ObserverKind, ...] = (linear, nonlinear, cascade)
 CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque)
 
 #: What was registered at import: the kinds of the package itself.

@@ -102,5 +102,6 @@ def linearization(params: Params, ts: float, b0: float) -> ObserverLinearization
     pole = max(abs(1.0 - k * ts / params.eps) for k in (1.0, 2.0, 3.0))
     return ObserverLinearization(
         p=np.eye(3) + ts * (a - beta @ c), q=ts * beta,
-        gamma=np.array([[0.0], [ts * b0], [0.0]]), m=np.zeros((3, 1)), pole=pole,
+        gamma=np.array([[0.0], [ts * b0], [0.0]]), hz=np.eye(3), hy=np.zeros((3, 1)),
+        pole=pole,
         eps=params.eps, discretization="euler", label="Luenberger observer")

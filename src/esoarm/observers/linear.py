@@ -515,7 +515,7 @@ def _one_eps(params: Params) -> float:
 
 def discrete_linearization(d: ESODesign, gain: np.ndarray, pole: float,
                            label: str) -> ObserverLinearization:
-    """z⁺ = P z + Q y + Γ u, ẑ = (I − M C) z + M y for the discretized ESO ``d``.
+    """z⁺ = P z + Q y + Γ u, ẑ = Hz z + Hy y (Hz = I − M C, Hy = M) for the ESO ``d``.
 
     Parameters
     ----------
@@ -545,7 +545,8 @@ def discrete_linearization(d: ESODesign, gain: np.ndarray, pole: float,
         mgain = np.zeros((3, 1))
         pmat = d.phi - g @ c
         qmat = g
-    return ObserverLinearization(pmat, qmat, gam, mgain, pole, d.eps, d.discretization, label)
+    return ObserverLinearization(pmat, qmat, gam, np.eye(3) - mgain @ c, mgain, pole, d.eps,
+                                 d.discretization, label)
 
 
 def linearization(params: Params, ts: float, b0: float) -> ObserverLinearization:

@@ -254,5 +254,5 @@ def linearization(params: Params, ts: float, b0: float) -> ObserverLinearization
     lin = discrete_linearization(d, d.gain * slopes, 0.0,
                                  "fal-ESO (its linear zone |e| ≤ δ)")
     pole = float(np.max(np.abs(np.linalg.eigvals(lin.p))))
-    return ObserverLinearization(lin.p, lin.q, lin.gamma, lin.m, pole, lin.eps,
+    return ObserverLinearization(lin.p, lin.q, lin.gamma, lin.hz, lin.hy, pole, lin.eps,
                                  lin.discretization, lin.label)

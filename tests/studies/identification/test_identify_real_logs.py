@@ -83,7 +83,13 @@ def test_noise_is_written_only_when_the_residual_is_white(twin_log):
     else:
         assert fitted.sensor.noise_deg == scn.sensor.noise_deg
     assert res.noise_is_sensor() is bool(white)
-    assert np.isfinite(res.to_json()["idim_ls"]["force_error_percent"])
+    data = res.to_json()
+    assert np.isfinite(data["idim_ls"]["force_error_percent"])
+    phys = data["physical"]
+    assert {"inertia", "viscous_friction", "coulomb_friction", "offset"} <= set(phys)
+    assert phys["inertia"]["unit"] == "kg·m²" and phys["coulomb_friction"]["unit"] == "N·m"
+    assert phys["inertia"]["value"] == pytest.approx(
+        res.value("rig.inertia_scale") * scn.plant.inertia)
 
 
 @pytest.mark.slow

@@ -99,6 +99,7 @@ __all__ = [
     "freqresp",
     "linearize",
     "motor_damping",
+    "observer_model",
     "observer_system",
     "perturbation_estimate",
     "sampled_plant",
@@ -277,22 +278,30 @@ def observer_linearization(scn: Scenario) -> ObserverLinearization:
 
 
 def observer_matrices(scn: Scenario) -> tuple[np.ndarray, ...]:
-    """The observer of the scenario as z⁺ = P z + Q y + Γ u, ẑ = (I − M C) z + M y.
+    """A 3-state observer of the scenario as z⁺ = P z + Q y + Γ u, ẑ = (I − M C) z + M y.
 
     Returns (P, Q, Γ, M) as arrays of shapes (3,3), (3,1), (3,1), (3,1), from the
     observer kind (:func:`observer_linearization`); for the nonlinear ESO, the loop
-    for innovations |y − z1| ≤ δ (fal's linear zone).
+    for innovations |y − z1| ≤ δ (fal's linear zone).  Any kind: :func:`observer_model`.
     """
     lin = observer_linearization(scn)
-    return lin.p, lin.q, lin.gamma, lin.m
+    return lin.p, lin.q, lin.gamma, lin.hy
+
+
+def observer_model(scn: Scenario) -> tuple[np.ndarray, ...]:
+    """Any observer kind as z⁺ = P z + Q y + Γ u, ẑ = Hz z + Hy y (one joint).
+
+    The kind's ``linearization`` (:func:`observer_linearization`; the ESOs: Hz = I − M C,
+    Hy = M).  Returns (P, Q, Γ, Hz, Hy); Hz has 3 rows.
+    """
+    lin = observer_linearization(scn)
+    return lin.p, lin.q, lin.gamma, lin.hz, lin.hy
 
 
 def observer_system(scn: Scenario) -> Matrices:
-    """The ESO alone: inputs (y [rad], u [N·m]), outputs ẑ = (ẑ1, ẑ2, ẑ3)."""
-    pmat, qmat, gam, mgain = observer_matrices(scn)
-    c = np.array([[1.0, 0.0, 0.0]])
-    return (pmat, np.hstack([qmat, gam]), np.eye(3) - mgain @ c,
-            np.hstack([mgain, np.zeros((3, 1))]))
+    """The observer alone: inputs (y [rad], u [N·m]), outputs ẑ = (ẑ1, ẑ2, ẑ3)."""
+    pmat, qmat, gam, hz, hy = observer_model(scn)
+    return (pmat, np.hstack([qmat, gam]), hz, np.hstack([hy, np.zeros((3, 1))]))
 
 
 def controller_matrices(scn: Scenario, theta0: float) -> Matrices:
@@ -301,15 +310,13 @@ def controller_matrices(scn: Scenario, theta0: float) -> Matrices:
     τ = u + Dm ẑ2 drives the plant (τ = u without a motor); the observer is
     updated with u (module docstring).
     """
-    pmat, qmat, gam, mgain = observer_matrices(scn)
-    c = np.array([[1.0, 0.0, 0.0]])
+    pmat, qmat, gam, zhat_z, zhat_y = observer_model(scn)  # ẑ = zhat_z z + zhat_y y
     kr = _reduced_gains(scn, theta0).reshape(1, 3)
-    zhat_z = np.eye(3) - mgain @ c  # ẑ = zhat_z z + M y
     ck = kr @ zhat_z
-    dk = kr @ mgain
+    dk = kr @ zhat_y
     # u = −(ck z + dk y) updates the observer; −τ = −u − Dm ẑ2 is the output
     ko = kr - motor_damping(scn) * np.array([[0.0, 1.0, 0.0]])
-    return pmat - gam @ ck, qmat - gam @ dk, ko @ zhat_z, ko @ mgain
+    return pmat - gam @ ck, qmat - gam @ dk, ko @ zhat_z, ko @ zhat_y
 
 
 def _series(first: Matrices, second: Matrices) -> Matrices:
