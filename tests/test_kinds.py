@@ -39,6 +39,8 @@ def _kind_sets() -> dict[str, dict[str, str]]:
 
 
 KIND_SETS = _kind_sets()
+if "cascade+flc" in KIND_SETS:  # also a non-default setting of a kind with a free size
+    KIND_SETS["cascade-3-levels+flc"] = {**KIND_SETS["cascade+flc"], "observer.levels": 3}
 
 
 def _discretizations(kind_set: str) -> list[str | None]:
@@ -210,16 +212,19 @@ def test_deployment_controller_and_replay_agree(kind_set: str) -> None:
 
 def test_sweep_over_kinds(tmp_path) -> None:  # type: ignore[no-untyped-def]
     out = tmp_path / "kinds.csv"
-    observers = sorted({k.split("+")[0] for k in KIND_SETS})
-    controllers = sorted({k.split("+")[1] for k in KIND_SETS})
-    assert len(observers) * len(controllers) == len(KIND_SETS)  # a full grid of valid sets
+    sets = {k: v for k, v in KIND_SETS.items()  # the kinds at their defaults
+            if set(v) <= {"observer.kind", "controller.kind"}}
+    observers = sorted({v.get("observer.kind", kinds.OBSERVERS[0].KIND) for v in sets.values()})
+    controllers = sorted({v.get("controller.kind", kinds.CONTROLLERS[0].KIND)
+                          for v in sets.values()})
+    assert len(observers) * len(controllers) == len(sets)  # a full grid of valid sets
     res = CliRunner().invoke(cli, ["sweep", "test-1", "--set", "duration=2",
                                    "--vary", f"observer.kind={','.join(observers)}",
                                    "--vary", f"controller.kind={','.join(controllers)}",
                                    "--out", str(out)])
     assert res.exit_code == 0, res.output
     rows = np.genfromtxt(out, delimiter=",", names=True, dtype=None, encoding="utf-8")
-    assert len(rows) == len(KIND_SETS)
+    assert len(rows) == len(sets)
     for row in rows:
         scn = load_scenario("test-1", {"duration": 2.0, "observer.kind": row["observerkind"],
                                        "controller.kind": row["controllerkind"]})
