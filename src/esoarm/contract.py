@@ -234,6 +234,9 @@ REQUIRED_IF_JIT: dict[str, tuple[str, ...]] = {
 
 #: Names a kind may define, with their meaning when it does not (its default):
 #:
+#: ``MOTOR`` (plants; default False)
+#:     driven by the actuator's motor when the scenario has a ``[motor]`` table (else the
+#:     table is refused);
 #: ``FAST`` (default False)
 #:     the opt-in fast engine (:mod:`esoarm.engines.fast`, a C kernel) models it;
 #: ``C_SOURCE`` (default None)
@@ -253,6 +256,7 @@ REQUIRED_IF_JIT: dict[str, tuple[str, ...]] = {
 #:     modelled, ``analyze`` refuses the kind in one line).
 OPTIONAL: dict[str, Any] = {
     "FAST": False,
+    "MOTOR": False,
     "C_SOURCE": None,
     "check": None,
     "label": None,

@@ -106,7 +106,7 @@ def check_kind(component: str, module: Any, others: tuple[Any, ...] = ()) -> Non
         raise ImportError(f"esoarm.kinds: {who}: KIND must be a non-empty str")
     if isinstance(code, bool) or not isinstance(code, int) or code < 0:
         raise ImportError(f"esoarm.kinds: {who}: CODE must be an int >= 0, got {code!r}")
-    for flag in ("JIT", "FAST"):
+    for flag in ("JIT", "FAST", "MOTOR"):
         if not isinstance(getattr(module, flag, False), bool):
             raise ImportError(f"esoarm.kinds: {who}: {flag} must be True or False")
     steps = tuple(n for n in required if n not in ("KIND", "CODE", "JIT", "Params", "design"))
