@@ -23,6 +23,12 @@ COVERED = [
     "esoarm.reference",
     "esoarm.result",
     "esoarm.observers.stability",
+    "esoarm.plants.actuator",
+    "esoarm.plants.axis",
+    "esoarm.plants.elementary",
+    "esoarm.plants.model",
+    "esoarm.plants.motor",
+    "esoarm.plants.sensor",
 ]
 
 
