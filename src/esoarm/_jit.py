@@ -26,6 +26,8 @@ F = TypeVar("F", bound=Callable[..., object])
 
 _pending: list[tuple[Callable[..., object], Callable[..., object] | None]] = []
 _registered = False
+#: Every function marked :func:`jitable` or :func:`jitable_as` (by id).
+_marked: set[int] = set()
 
 
 def _register(func: Callable[..., object], compiled: Callable[..., object] | None) -> None:
@@ -45,6 +47,7 @@ def _register(func: Callable[..., object], compiled: Callable[..., object] | Non
 
 def jitable(func: F) -> F:
     """Return ``func`` unchanged, recorded for use inside numba kernels."""
+    _marked.add(id(func))
     if _registered:
         _register(func, None)
     else:
@@ -63,6 +66,7 @@ def jitable_as(compiled: Callable[..., object]) -> Callable[[F], F]:
     """
 
     def mark(func: F) -> F:
+        _marked.add(id(func))
         if _registered:
             _register(func, compiled)
         else:
@@ -70,6 +74,11 @@ def jitable_as(compiled: Callable[..., object]) -> Callable[[F], F]:
         return func
 
     return mark
+
+
+def is_jitable(func: object) -> bool:
+    """``func`` was marked :func:`jitable` (or :func:`jitable_as`): kernels can call it."""
+    return id(func) in _marked
 
 
 def register_all() -> None:

@@ -36,7 +36,8 @@ from esoarm.controllers import flc as _flc
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "Params", "check", "control", "design", "initialize", "per_joint",
+__all__ = ["CODE", "JIT", "KIND", "Params", "check", "control", "design", "initialize", "label",
+           "per_joint",
            "tracking_acceleration"]
 
 KIND = "computed-torque"
@@ -143,3 +144,8 @@ def check(scn: Scenario) -> str | None:
         return ("key 'controller.kind': 'computed-torque' needs plant.kind = 'urdf' "
                 "(the lever arm uses 'flc')")
     return None
+
+
+def label(params: Params) -> str:
+    """The controller in titles: ``eso compensation`` (or ``model compensation``)."""
+    return f"{params.compensation} compensation"

@@ -32,12 +32,14 @@ from esoarm.plants.model import gravity_coefficient, gravity_torque
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "FLCParams", "Params", "control", "design", "flc_command",
-           "flc_control", "initialize", "saturate"]
+__all__ = ["CODE", "FAST", "JIT", "KIND", "FLCParams", "Params", "control", "design", "flc_command",
+           "flc_control", "initialize", "label", "saturate"]
 
 KIND = "flc"
 CODE = 0
 JIT = True
+#: The fast engine's C kernel models this controller.
+FAST = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "flc.c"
 
@@ -86,7 +88,8 @@ def flc_command(z1: float, z2: float, z3: float, theta_ref: float, omega_ref: fl
     else:
         beta_hat = -gravity_torque(z1, ctl[GCOEF]) / ctl[I0]  # eq. 15 without d
     # u = I0 (α − β̂)                                    (eq. 14)
-    return ctl[I0] * (alpha - beta_hat)
+    u: float = ctl[I0] * (alpha - beta_hat)
+    return u
 
 
 @jitable
@@ -179,3 +182,8 @@ def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k:
     """
     ctl = p[1:]
     u[0] = flc_command(zhat[0], zhat[1], zhat[2], refs[0, k], refs[1, k], refs[2, k], ctl)
+
+
+def label(params: Params) -> str:
+    """The controller in titles: ``eso compensation`` (or ``model compensation``)."""
+    return f"{params.compensation} compensation"

@@ -96,7 +96,7 @@ def pid_command(e: float, k: int, c: np.ndarray, pid: Vector) -> float:
     e_prev = e if k == 0 else c[EPREV]
     a = pid[TF] / (pid[TF] + ts)
     der = a * c[DER] + pid[KD] * (1.0 - a) * (e - e_prev) / ts
-    u = pid[KP] * e + c[INT] + der
+    u: float = pid[KP] * e + c[INT] + der
     limit = pid[LIMIT]
     saturated = (u > limit and e > 0.0) or (u < -limit and e < 0.0)
     if not saturated:
