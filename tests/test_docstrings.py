@@ -23,6 +23,8 @@ COVERED = [
     "esoarm.reference",
     "esoarm.result",
     "esoarm.observers.stability",
+    "esoarm.observers.linear",
+    "esoarm.observers.nonlinear",
     "esoarm.controllers.computed_torque",
     "esoarm.controllers.flc",
     "esoarm.controllers.pid",
