@@ -26,6 +26,10 @@ COVERED = [
     "esoarm.observers.linear",
     "esoarm.observers.nonlinear",
     "esoarm.controllers.computed_torque",
+    "esoarm.engines.diagnosis",
+    "esoarm.engines.loop",
+    "esoarm.engines.packing",
+    "esoarm.engines.sample",
     "esoarm.controllers.flc",
     "esoarm.controllers.pid",
 ]
