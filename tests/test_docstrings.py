@@ -32,6 +32,12 @@ COVERED = [
     "esoarm.engines.sample",
     "esoarm.controllers.flc",
     "esoarm.controllers.pid",
+    "esoarm.plants.actuator",
+    "esoarm.plants.axis",
+    "esoarm.plants.elementary",
+    "esoarm.plants.model",
+    "esoarm.plants.motor",
+    "esoarm.plants.sensor",
 ]
 
 
