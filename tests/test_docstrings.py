@@ -34,6 +34,8 @@ COVERED = [
     "esoarm.engines.simulation",
     "esoarm.controllers.flc",
     "esoarm.controllers.pid",
+    "esoarm.kinds",
+    "esoarm.contract",
     "esoarm.plants.actuator",
     "esoarm.plants.axis",
     "esoarm.plants.elementary",
