@@ -23,6 +23,23 @@ COVERED = [
     "esoarm.reference",
     "esoarm.result",
     "esoarm.observers.stability",
+    "esoarm.observers.linear",
+    "esoarm.observers.nonlinear",
+    "esoarm.controllers.computed_torque",
+    "esoarm.engines.diagnosis",
+    "esoarm.engines.fast",
+    "esoarm.engines.loop",
+    "esoarm.engines.packing",
+    "esoarm.engines.sample",
+    "esoarm.engines.simulation",
+    "esoarm.controllers.flc",
+    "esoarm.controllers.pid",
+    "esoarm.plants.actuator",
+    "esoarm.plants.axis",
+    "esoarm.plants.elementary",
+    "esoarm.plants.model",
+    "esoarm.plants.motor",
+    "esoarm.plants.sensor",
 ]
 
 
