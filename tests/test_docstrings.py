@@ -37,6 +37,7 @@ COVERED = [
     "esoarm.plants.actuator",
     "esoarm.plants.axis",
     "esoarm.plants.elementary",
+    "esoarm.plants.lever_arm",
     "esoarm.plants.model",
     "esoarm.plants.motor",
     "esoarm.plants.sensor",
