@@ -276,6 +276,7 @@ def estimate(z: np.ndarray, y: np.ndarray, p: Vector, zhat: np.ndarray) -> None:
     zhat : ndarray, shape (3n,)
         Output: ẑ_k, angle [rad], rate [rad/s] and total perturbation [rad/s²] of joint j
         in ``zhat[3j:3j+3]``, written in place.
+        The perturbation is f = θ̈ − b0·u (eq. 7): what accelerates θ besides the input.
     """
     if len(y) == 1:
         zhat[0], zhat[1], zhat[2] = _estimate_joint(z, 0, y[0], p[1:])
