@@ -39,7 +39,7 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import numpy as np
 from pydantic import Field
@@ -298,7 +298,8 @@ def design_observer(eps: float, ts: float, b0: float, discretization: str = "eul
     vec[GAIN : GAIN + 3] = gain
     for arr in (beta, phi, gamma, gain, vec):
         arr.setflags(write=False)
-    return ESODesign(discretization, eps, ts, b0, beta, phi, gamma, gain, vec)  # type: ignore[arg-type]
+    return ESODesign(cast(Discretization, discretization), eps, ts, b0, beta, phi, gamma, gain,
+                     vec)
 
 
 def discrete_error_matrix(eps: float, ts: float, discretization: str) -> np.ndarray:
@@ -624,6 +625,7 @@ def estimate(z: np.ndarray, y: np.ndarray, p: np.ndarray, zhat: np.ndarray) -> N
     zhat : ndarray, shape (3n,)
         Output: the estimate ẑ_k, angle [rad], rate [rad/s] and total perturbation
         [rad/s²] of joint j in ``zhat[3j:3j+3]``, written in place.
+        The perturbation is f = θ̈ − b0·u (eq. 7): what accelerates θ besides the input.
     """
     if len(y) == 1:
         obs = p[1:]

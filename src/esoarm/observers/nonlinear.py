@@ -253,6 +253,7 @@ def estimate(z: np.ndarray, y: np.ndarray, p: Vector, zhat: np.ndarray) -> None:
     zhat : ndarray, shape (3n,)
         Output: the estimate ẑ_k, angle [rad], rate [rad/s] and total perturbation
         [rad/s²] of joint j in ``zhat[3j:3j+3]``, written in place.
+        The perturbation is f = θ̈ − b0·u (eq. 7): what accelerates θ besides the input.
     """
     obs = p[1:]
     for j in range(len(y)):
