@@ -193,7 +193,8 @@ def _block_sum(a: np.ndarray, lo: int, n: int) -> float:
     while i < n:
         res += a[lo + i]
         i += 1
-    return res
+    total: float = res
+    return total
 
 
 @jitable
@@ -266,9 +267,9 @@ def _rms_of(scratch: np.ndarray, n: int) -> float:
 @jitable
 def _max_abs(x: np.ndarray, n: int) -> float:
     # np.max propagates NaN; so does this
-    m = abs(x[0])
+    m: float = abs(x[0])
     for i in range(1, n):
-        v = abs(x[i])
+        v: float = abs(x[i])
         if v > m or v != v:
             m = v
             if v != v:

@@ -15,6 +15,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -135,17 +136,20 @@ class RunInputs:
     @property
     def theta_ref(self) -> np.ndarray:
         """θd(t_k) of joint 0 [rad]."""
-        return self.refs[0]
+        row: np.ndarray = self.refs[0]
+        return row
 
     @property
     def omega_ref(self) -> np.ndarray:
         """θ̇d(t_k) of joint 0 [rad/s]."""
-        return self.refs[1]
+        row: np.ndarray = self.refs[1]
+        return row
 
     @property
     def accel_ref(self) -> np.ndarray:
         """θ̈d(t_k) of joint 0 [rad/s²]."""
-        return self.refs[2]
+        row: np.ndarray = self.refs[2]
+        return row
 
 
 def prepare(scn: Scenario, *, draw_noise: bool = True) -> RunInputs:
@@ -203,7 +207,7 @@ def prepare(scn: Scenario, *, draw_noise: bool = True) -> RunInputs:
 
 def simulate(
     scenario: Scenario | str | Path = "test-1",
-    overrides: dict | list[str] | None = None,
+    overrides: dict[str, Any] | list[str] | None = None,
     *,
     warn: bool = True,
     progress: Callable[[int], None] | None = None,
