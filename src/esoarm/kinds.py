@@ -120,6 +120,8 @@ def plant_advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
     """``advance`` of the plant kind whose CODE is p[0]."""
     if p[0] == axis.CODE:
         axis.advance(x, u, t0, h, nsub, p)
+    elif p[0] == urdf.CODE:
+        urdf.advance(x, u, t0, h, nsub, p)
     else:
         lever_arm.advance(x, u, t0, h, nsub, p)
 
@@ -130,6 +132,8 @@ def plant_advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: fl
     """``advance_block`` of the plant kind whose CODE is p[0] (a block of runs, same p)."""
     if p[0] == axis.CODE:
         axis.advance_block(xs, us, live, t0, h, nsub, p)
+    elif p[0] == urdf.CODE:
+        urdf.advance_block(xs, us, live, t0, h, nsub, p)
     else:
         lever_arm.advance_block(xs, us, live, t0, h, nsub, p)
 
@@ -140,6 +144,8 @@ def plant_acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
     """``acceleration`` of the plant kind whose CODE is p[0]."""
     if p[0] == axis.CODE:
         axis.acceleration(x, u, t, p, out)
+    elif p[0] == urdf.CODE:
+        urdf.acceleration(x, u, t, p, out)
     else:
         lever_arm.acceleration(x, u, t, p, out)
 
@@ -149,6 +155,8 @@ def plant_observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.n
     """``observer_input`` of the plant kind whose CODE is p[0]."""
     if p[0] == axis.CODE:
         axis.observer_input(zhat, u, p, v)
+    elif p[0] == urdf.CODE:
+        urdf.observer_input(zhat, u, p, v)
     else:
         lever_arm.observer_input(zhat, u, p, v)
 
@@ -186,6 +194,8 @@ def controller_initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
     """``initialize`` of the controller kind whose CODE is p[0]."""
     if p[0] == pid.CODE:
         pid.initialize(c, y, p)
+    elif p[0] == computed_torque.CODE:
+        computed_torque.initialize(c, y, p)
     else:
         flc.initialize(c, y, p)
 
@@ -196,5 +206,7 @@ def controller_control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.
     """``control`` of the controller kind whose CODE is p[0]."""
     if p[0] == pid.CODE:
         pid.control(c, zhat, y, refs, k, p, u)
+    elif p[0] == computed_torque.CODE:
+        computed_torque.control(c, zhat, y, refs, k, p, u)
     else:
         flc.control(c, zhat, y, refs, k, p, u)
