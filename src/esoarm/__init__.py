@@ -13,6 +13,12 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from esoarm._cache import configure_numba
+
+# numba caches esoarm's kernels on disk: give it a writable place (before it is imported)
+# when neither the installed sources nor the home directory can be written
+configure_numba()
+
 if TYPE_CHECKING:
     from esoarm.engines.simulation import SimulationDiverged, simulate
     from esoarm.result import SimResult

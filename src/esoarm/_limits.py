@@ -6,3 +6,6 @@ MAX_SAMPLES = 100_000_000
 #: (``max_runs=``, ``--max-runs``): the result table alone takes about 80 bytes a
 #: run, and every grid point is checked before the first run (~0.3 ms each).
 MAX_RUNS = 1_000_000
+#: Most points ``esoarm analyze --vary`` analyzes unless raised (``--max-points``): each
+#: point is a linearization, a sampling and a frequency sweep, about 0.1-0.3 s.
+MAX_ANALYZE_POINTS = 1_000

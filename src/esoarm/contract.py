@@ -12,7 +12,10 @@ A *kind* is one module (``esoarm.plants.lever_arm``, ``esoarm.observers.linear``
   one of the frozen records below (a read-only float vector plus sizes);
 * plain step functions on array-valued state, called as Python by the
   reference engine and compiled by the batch engine (see docs/contract.md for
-  their signatures).
+  their signatures);
+* optionally ``C_SOURCE``: the name of a ``.c`` file beside the module with the
+  same step in C99 for the generated controller (:mod:`esoarm.codegen`); a kind
+  without it is refused by ``esoarm codegen``.
 
 Array conventions (n joints): the plant state ``x`` holds the angles in
 ``x[:n]`` and the rates in ``x[n:2n]`` (further states after them); the

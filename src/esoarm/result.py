@@ -35,7 +35,7 @@ __all__ = ["CSV_COLUMNS", "SimResult", "write_csv_atomic"]
 CSV_COLUMNS = SERIES_COLUMNS
 
 
-_JOINT_KEYS = ("rms_error", "rms_u", "max_abs_error", "max_abs_u", "rms_f_error")
+_JOINT_KEYS = ("rms_error", "rms_u", "rms_du", "max_abs_error", "max_abs_u", "rms_f_error")
 
 
 def _joint_names(scenario: Scenario, n_joints: int) -> tuple[str, ...]:

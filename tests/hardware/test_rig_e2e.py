@@ -73,6 +73,9 @@ def test_lockstep_is_bit_exact_with_simulate(case, tmp_path):
     # rms_error of the run is from the measured angle
     assert summary["rms_error"] == pytest.approx(
         float(np.sqrt(np.mean((data["theta"] - ref.theta_ref) ** 2))), rel=1e-12)
+    # control chatter: RMS of u_k − u_{k−1}, the same number simulate reports
+    assert summary["rms_du"] == pytest.approx(float(np.sqrt(np.mean(np.diff(ref.u) ** 2))),
+                                              rel=1e-12)
 
     # the log replays to the estimates the controller used, exactly
     out = tmp_path / "replay.csv"

@@ -49,6 +49,8 @@ COMMANDS: dict[str, str] = {
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
     "log": "esoarm.cli.log:log",
+    "codegen": "esoarm.cli.codegen:codegen",
+    "pil": "esoarm.cli.pil:pil",
 }
 
 
@@ -56,6 +58,7 @@ COMMANDS: dict[str, str] = {
 # importing the command (tests/test_cli_startup.py checks they match the
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
+    "codegen": "Generate self-contained C99 for SCENARIO's observer and controller on a target.",
     "arm-study": "Compare controllers and sweep ε on the arm SCENARIO (plant.kind = \"urdf\").",
     "analyze": "Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.",
     "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",
@@ -66,6 +69,7 @@ SUMMARIES: dict[str, str] = {
     "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "
                 "error).",
     "log": "Bring logs recorded elsewhere into esoarm's CSV format.",
+    "pil": "Run SCENARIO's generated controller on an emulated chip in lockstep with the twin.",
     "replay": "Run the ESO offline over LOG.csv to recover velocity and perturbation estimates.",
     "reproduce": "Run the paper's experiments on the digital twin and compare with its tables.",
     "run": "Drive the rig on PORT through SCENARIO at its rate for its duration.",
@@ -160,6 +164,15 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         click.echo("esoarm: interrupted", err=True)
         sys.exit(130)
+    except click.exceptions.NoArgsIsHelpError as exc:
+        # `esoarm` (or `esoarm log`) alone: the help, as with --help, not an error line
+        click.echo(exc.ctx.get_help() if exc.ctx is not None else cli.get_help(
+            click.Context(cli, info_name="esoarm")))
+        sys.exit(0)
+    except click.MissingParameter as exc:
+        where = exc.ctx.command_path if exc.ctx is not None else "esoarm"
+        click.echo(f"esoarm: error: {_missing(exc)} (see '{where} --help')", err=True)
+        sys.exit(2)
     except click.UsageError as exc:
         # one line, like every other input error, with where to look for help
         where = exc.ctx.command_path if exc.ctx is not None else "esoarm"
@@ -192,6 +205,15 @@ def main(argv: list[str] | None = None) -> None:
                    "(rerun with --verbose for the traceback, and please report it)", err=True)
         sys.exit(1)
     sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _missing(exc: click.MissingParameter) -> str:
+    """The one-line message for a missing argument, saying what to give."""
+    param = exc.param
+    if param is not None and param.name == "scenario":
+        return ("missing SCENARIO: a built-in name (list them with 'esoarm scenarios') or a "
+                "scenario TOML file")
+    return one_line(exc.format_message()).rstrip(".")
 
 
 cli.params.extend(verbosity_params())  # also accepted before the command: esoarm -q …

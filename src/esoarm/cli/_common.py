@@ -10,11 +10,12 @@ through :func:`esoarm._io.atomic_path`.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import re
 import sys
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -56,6 +57,15 @@ class RunFailure(click.ClickException):
 
     def show(self, file: Any = None) -> None:
         click.echo(f"esoarm: failed: {one_line(self.format_message())}", err=True)
+
+
+class Interrupted(click.ClickException):
+    """Ctrl-C (or SIGTERM): one line on stderr saying what was kept, exit status 130."""
+
+    exit_code = 130
+
+    def show(self, file: Any = None) -> None:
+        click.echo(f"esoarm: interrupted: {one_line(self.format_message())}", err=True)
 
 
 # ---------------------------------------------------------------------------
@@ -256,3 +266,87 @@ def lever_only(scn: Scenario, command: str) -> None:
         raise BadInput(f"scenario '{scn.name}': '{command}' works on the lever-arm rig (one "
                        f"joint); plant.kind '{scn.plant.kind}' runs in simulate, sweep, tune, "
                        "replay and arm-study")
+
+
+#: Without a terminal, a progress line at most this often [s] (logs, pipes, CI) ...
+PROGRESS_LINE_S = 10.0
+#: ... and with --verbose this often [s].
+PROGRESS_LINE_VERBOSE_S = 1.0
+
+
+@contextlib.contextmanager
+def progress(total: float, label: str, unit: str, fmt: Callable[[float], str] = "{:,.0f}".format,
+             ) -> Iterator[Callable[[float], None]]:
+    """Progress of a long piece of work on stderr; yields ``advance(n)``.
+
+    On a terminal: a live bar with the count, the rate and the time left.
+    Elsewhere (a log, a pipe): one line ``esoarm: LABEL: DONE of TOTAL UNIT (… s left)``
+    every :data:`PROGRESS_LINE_S` seconds (every :data:`PROGRESS_LINE_VERBOSE_S` with
+    --verbose), none for work that ends sooner, and a last line once any was printed.
+    Nothing with --quiet.
+    """
+    if verbosity() < NORMAL:
+        yield lambda n: None
+        return
+    if stderr_is_tty():
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        with Progress(TextColumn(label), BarColumn(),
+                      TextColumn(f"{{task.completed:,.0f}} of {{task.total:,.0f}} {unit}"),
+                      TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(),
+                      console=Console(stderr=True), transient=True) as bar:
+            task = bar.add_task(label, total=total)
+            yield lambda n: bar.advance(task, n)
+        return
+    import time
+
+    every = PROGRESS_LINE_VERBOSE_S if verbosity() >= VERBOSE else PROGRESS_LINE_S
+    start = time.monotonic()
+    state = {"done": 0.0, "last": start, "shown": False, "shown_done": -1.0}
+
+    def line(now: float) -> None:
+        done = state["done"]
+        rate = done / max(now - start, 1e-9)
+        left = f", about {(total - done) / rate:,.0f} s left" if 0 < done < total else ""
+        click.echo(f"esoarm: {label}: {fmt(done)} of {fmt(total)} {unit} ({now - start:,.0f} s"
+                   f"{left})", err=True)
+        state["last"], state["shown"], state["shown_done"] = now, True, done
+
+    def advance(n: float) -> None:
+        state["done"] += n
+        now = time.monotonic()
+        if now - state["last"] >= every:
+            line(now)
+
+    try:
+        yield advance
+    finally:
+        if state["shown"] and state["shown_done"] != state["done"]:
+            line(time.monotonic())
+
+
+#: Optional extras: the module a command needs -> (PyPI package, extra).
+EXTRAS = {"serial": ("pyserial", "rig"), "pinocchio": ("pin", "arms"),
+          "control": ("control", "analyze"), "gymnasium": ("gymnasium", "gym"),
+          "distributed": ("dask[distributed]", "cluster")}
+
+
+def require_extra(module: str, what: str) -> None:
+    """Refuse, before any work, a command whose optional dependency is not installed.
+
+    A set-up problem, not a run-time failure: exit status 2, one line naming the extra
+    (``esoarm: error: esoarm run needs pyserial: pip install 'esoarm[rig]'``).
+    """
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        package, extra = EXTRAS[module]
+        raise BadInput(f"{what} needs {package}, which is not installed: "
+                       f"pip install 'esoarm[{extra}]'")

@@ -4,22 +4,25 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from typing import Any
 
 import click
 
+from esoarm._limits import MAX_ANALYZE_POINTS
 from esoarm.cli._common import (
     PLOT_SUFFIXES,
     BadInput,
     bad_input_guard,
     output_path,
+    progress,
     resolve_scenario,
     scenario_argument,
     set_option,
-    stderr_is_tty,
 )
+
+#: Largest operating angle --theta0 accepts [rad]: one turn either way (gravity repeats
+#: every turn; beyond, cos and sin of a huge float are round-off noise).
+THETA0_LIMIT = 2 * math.pi
 
 
 @click.command()
@@ -30,9 +33,14 @@ from esoarm.cli._common import (
               ") or lin:START:STOP:NUM / geom:START:STOP:NUM (observer.eps=geom:0.03:0.3:12). "
               "The figure then shows the margins against the key. Once (a grid of keys: "
               "'esoarm sweep').")
+@click.option("--max-points", "max_points", type=int, default=MAX_ANALYZE_POINTS,
+              show_default=True, metavar="N",
+              help="Refuse a --vary of more values than this, before any work (each point "
+              "takes about 0.1-0.3 s).")
 @click.option("--theta0", type=float, default=None, metavar="RAD",
-              help="Operating angle of the linearization [rad] (default: rig.theta0). The "
-              "worst margins over the reference's range are reported beside it.")
+              help="Operating angle of the linearization [rad], within ±2π (default: "
+              "rig.theta0). The worst margins over the reference's range are reported beside "
+              "it.")
 @click.option("--friction", type=click.Choice(["viscous", "slope", "none"]), default="viscous",
               show_default=True,
               help="Friction in the linear plant: viscous b only (Coulomb friction as a "
@@ -47,7 +55,8 @@ from esoarm.cli._common import (
               "object per value).")
 @bad_input_guard
 def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
-            theta0: float | None, friction: str, plot: str | None, as_json: bool) -> None:
+            max_points: int, theta0: float | None, friction: str, plot: str | None,
+            as_json: bool) -> None:
     """Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.
 
     The rig is linearized at the operating angle θ0 (gravity becomes a spring,
@@ -73,8 +82,13 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
                        "of keys use 'esoarm sweep')")
     vary = varies[0] if varies else None
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
-    if theta0 is not None and not math.isfinite(theta0):
-        raise BadInput(f"--theta0 {theta0}: must be a finite angle [rad]")
+    if theta0 is not None and not (math.isfinite(theta0) and abs(theta0) <= THETA0_LIMIT):
+        raise BadInput(f"--theta0 {theta0:g}: must be an angle within ±2π rad (±6.283; gravity "
+                       "repeats every turn)")
+    if max_points < 1:
+        raise BadInput(f"--max-points {max_points}: must be a whole number >= 1")
+    if vary is not None:
+        _check_count(vary, max_points)
     scn = resolve_scenario(scenario, overrides)
     check_supported(scn)
     if vary is None:
@@ -93,7 +107,9 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
     from esoarm.scenario import ScenarioError
     from esoarm.studies.sweeps.sweep import parse_vary
 
-    spec = parse_vary(vary, scn)
+    spec = parse_vary(vary, scn, max_values=max_points)
+    if len(spec.values) > max_points:  # a list of values
+        raise BadInput(_too_many(vary, len(spec.values), max_points))
     scenarios = []
     for value in spec.values:  # validate every point before any work
         try:
@@ -103,10 +119,10 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
         except ScenarioError as exc:
             raise BadInput(f"--vary {spec.key}={value!r}: {exc}") from None
     points = []
-    with _progress(len(scenarios)) as advance:
+    with progress(len(scenarios), "analyzing", "points") as advance:
         for point in scenarios:
             points.append(run_analysis(point, theta0=theta0, friction=friction))
-            advance()
+            advance(1)
     if plot_path is not None:
         from esoarm.studies.frequency.plots import figure_vary
 
@@ -120,19 +136,31 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
         click.echo(f"figure: {plot_path}")
 
 
-@contextmanager
-def _progress(total: int) -> Iterator[Callable[[], None]]:
-    """A progress bar on stderr when it is a terminal; silent otherwise."""
-    if not stderr_is_tty():
-        yield lambda: None
-        return
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+def _too_many(vary: str, n: int, max_points: int) -> str:
+    return (f"--vary {vary}: {n:,} points, more than --max-points {max_points:,} (at 0.1-0.3 s "
+            f"a point: {_duration(n * 0.1)} to {_duration(n * 0.3)}); use fewer points or raise "
+            "--max-points")
 
-    with Progress(TextColumn("analyzing"), BarColumn(), MofNCompleteColumn(),
-                  console=Console(stderr=True), transient=True) as bar:
-        task = bar.add_task("", total=total)
-        yield lambda: bar.advance(task)
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+def _check_count(vary: str, max_points: int) -> None:
+    """A lin/geom NUM above --max-points: refused before any value is made."""
+    _key, _, spec = vary.partition("=")
+    parts = spec.strip().split(":")
+    if len(parts) == 4 and parts[0] in ("lin", "geom"):
+        try:
+            num = int(parts[3])
+        except ValueError:
+            return  # parse_vary names the problem
+        if num > max_points:
+            raise BadInput(_too_many(vary, num, max_points))
 
 
 def _f(v: float, spec: str) -> str:

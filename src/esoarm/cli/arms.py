@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import click
 
 from esoarm.cli._common import (
     BadInput,
     bad_input_guard,
+    note,
     output_dir,
     resolve_scenario,
     scenario_argument,
     set_option,
+    stderr_is_tty,
 )
 
 
@@ -66,8 +70,14 @@ def arm_study(scenario: str, overrides: tuple[str, ...], out_dir: str, eps: str 
     if scn.plant.kind != "urdf":
         raise BadInput(f"scenario '{scn.name}': arm-study needs plant.kind = 'urdf' "
                        f"(got '{scn.plant.kind}'); for the lever arm use 'esoarm reproduce'")
-    console = Console(stderr=True)
-    with console.status(f"simulating {len(VARIANTS)} controllers and the ε sweep"):
+    what = (f"simulating {len(VARIANTS)} controllers and the ε sweep "
+            f"({len(grid) if grid else 9} values), in worker processes")
+    if stderr_is_tty():  # a spinner; in a log one line says what the wait is for
+        status: contextlib.AbstractContextManager[object] = Console(stderr=True).status(what)
+    else:
+        note(f"arm-study: {what}")
+        status = contextlib.nullcontext()
+    with status:
         study = run_arm_study(scn, grid, workers)
         # written into a temporary directory, moved into DIR once all is complete: a
         # failure halfway (a full disk, Ctrl-C) leaves DIR as it was

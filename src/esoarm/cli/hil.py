@@ -9,12 +9,14 @@ import click
 
 from esoarm.cli._common import (
     BadInput,
+    Interrupted,
     RunFailure,
     bad_input_guard,
     lever_only,
     resolve_scenario,
     scenario_argument,
     set_option,
+    warn_line,
 )
 
 
@@ -35,8 +37,10 @@ def _say(line: str) -> None:
               "measurements by the host). Default: the AVR's time runs at wall-clock speed "
               "while the host owes an answer and free in between.")
 @click.option("--elf", "elf", metavar="FILE.elf", type=click.Path(dir_okay=False),
-              help="Firmware to run (default: build firmware/ of this checkout with "
-              "'make -C firmware' and use build/uno-DRIVER/esoarm_rig.elf).")
+              help="Firmware to run (default: build the firmware sources -- firmware/ of this "
+              "checkout, else the copy the installed package carries -- with make and the AVR "
+              "toolchain, into firmware/build/uno-DRIVER/ of a checkout or esoarm's cache "
+              "directory, and run that).")
 @click.option("--driver", type=click.Choice(["l298n", "bts7960"]), default="l298n",
               show_default=True, help="Driver variant to build when --elf is not given.")
 @click.option("--once", is_flag=True,
@@ -96,10 +100,11 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         return bool(server.device_faults) or server.board.cycle - server.unplug_cycle > F_CPU
 
     old = signal.signal(signal.SIGTERM, on_term)
+    interrupted = False
     try:
         server.serve(until=done)
     except KeyboardInterrupt:
-        pass
+        interrupted = True
     except BoardError as exc:
         raise RunFailure(f"simavr: {exc}") from None
     finally:
@@ -113,12 +118,14 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         _say(f"encoder interrupts: {stats['n']}, {stats['isr_sum'] / stats['n']:.0f} cycles "
              f"mean, {stats['isr_max']} max in the handler")
     if server.slips:
-        _say(f"warning: the simulation fell behind real time {server.slips} times (worst "
+        warn_line(f"the simulation fell behind real time {server.slips} times (worst "
              f"{server.worst_slip * 1e3:.0f} ms; the machine is busy): period jitter the host "
              "measured includes it")
     if server.lags:
-        _say(f"warning: the simulated AVR fell more than {SLIP_S * 1e3:.0f} ms behind the wall "
+        warn_line(f"the simulated AVR fell more than {SLIP_S * 1e3:.0f} ms behind the wall "
              f"clock at {server.lags} of {server.samples_tracked} samples (worst "
              f"{server.worst_lag * 1e3:.0f} ms; the machine is busy): the deadline misses and "
              "period jitter 'run' reports measure the simulator, not the host")
+    if interrupted:  # Ctrl-C: the summary above, then exit status 130
+        raise Interrupted("simulated board stopped, port closed")
     _say("stopped: port closed")

@@ -15,6 +15,7 @@ from esoarm.cli._common import (
     bad_input_guard,
     lever_only,
     output_path,
+    require_extra,
     resolve_scenario,
     scenario_argument,
     set_option,
@@ -106,6 +107,8 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
     log_path = output_path(log, "--log", (".csv",))
     if log_path is None:
         raise BadInput("--log FILE.csv is required (the experiment is only useful logged)")
+    if port is not None:
+        require_extra("serial", "'esoarm excite --port' (the serial link)")
     if twin:
         _excite_twin(scn, plan, log_path, limits)
     else:
@@ -125,7 +128,7 @@ def _excite_twin(scn, plan, log_path: Path, limits) -> None:  # type: ignore[no-
 
 
 def _excite_rig(scn, plan, port: str, log_path: Path, limits, baud: int) -> None:  # type: ignore[no-untyped-def]
-    from esoarm.cli.rig import Interrupted
+    from esoarm.cli._common import Interrupted
     from esoarm.hardware.link import LinkError, SerialLink
     from esoarm.hardware.realtime import RigFault, RigInterrupted, run_rig
     from esoarm.studies.identification.excitation import ExcitationController
@@ -191,6 +194,15 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     [motor] table), each with a 95 % interval, flags what the log does not
     determine, and validates on data not used for fitting (fit %, residual
     whiteness). Closed-loop logs work: the fit uses the torque actually logged.
+    The inverse-dynamic-model least squares (IDIM-LS) estimate is computed
+    beside it; logs whose angles cannot be in rad are refused.
+
+    With plant.kind = "axis" (a rotary or prismatic axis in SI units, e.g.
+    --scenario emps): IDIM-LS gives mass or inertia, viscous and Coulomb
+    friction and offset with Newey-West 95 % intervals, checked between the
+    halves of the data, beside an output-error fit over --segment pieces, and
+    validated on the force (cross-test) and the simulated position. --json
+    has "physical": {name: {value, ci95, unit}} in SI names for every plant.
     """
     from esoarm.plants.motor import MotorParams
     from esoarm.studies.identification.data import read_ident_log

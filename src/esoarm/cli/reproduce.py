@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import click
 
-from esoarm.cli._common import RunFailure, bad_input_guard, detail, output_dir, stderr_is_tty
+from esoarm.cli._common import (
+    RunFailure,
+    bad_input_guard,
+    detail,
+    output_dir,
+    progress,
+    stderr_is_tty,
+)
 
 
 @click.command()
@@ -57,13 +65,17 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True,
-                  disable=not stderr_is_tty()) as bar:  # no bar in logs, pipes or --quiet
+                  disable=not stderr_is_tty()) as bar, \
+            (progress(n_runs, "reproduce", "runs") if not stderr_is_tty()  # logs, pipes
+             else contextlib.nullcontext(lambda n: None)) as lines:
         task = bar.add_task("simulating", total=n_runs)
 
         def step(what: str) -> None:
             bar.update(task, advance=1, description=what)
-            if bar.disable:  # --verbose without a terminal: one line per step
+            if bar.disable:  # without a terminal: a line every 10 s, each step with --verbose
                 detail(what)
+                if what.startswith("simulated"):
+                    lines(1)
 
         try:
             rep = run_reproduction(overrides, progress=lambda key: step(f"simulated {key}"))

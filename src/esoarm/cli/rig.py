@@ -13,25 +13,18 @@ import click
 from esoarm.cli._common import (
     PLOT_SUFFIXES,
     BadInput,
+    Interrupted,
     RunFailure,
     bad_input_guard,
     lever_only,
     output_path,
+    require_extra,
     resolve_scenario,
     scenario_argument,
     set_option,
     stderr_is_tty,
     warn_line,
 )
-
-
-class Interrupted(click.ClickException):
-    """Ctrl-C: one line on stderr, exit status 130."""
-
-    exit_code = 130
-
-    def show(self, file=None) -> None:  # type: ignore[no-untyped-def]
-        click.echo(f"esoarm: interrupted: {self.format_message()}", err=True)
 
 
 def _say(line: str) -> None:
@@ -156,7 +149,8 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
               "(0/1), duty [counts], y (measured angle [rad]). See docs/semantics.md.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the metrics as one JSON object: rms_error [rad, measured angle], "
-              "rms_u [N·m], deadline_misses, jitter_p50_us/jitter_p99_us [µs], ...")
+              "rms_u [N·m], rms_du [N·m: RMS of u_k − u_k−1], deadline_misses, "
+              "jitter_p50_us/jitter_p99_us [µs], ...")
 @click.option("--angle-limit", type=float, default=math.pi, show_default=True,
               metavar="RAD", help="Stop when |measured angle| exceeds this [rad].")
 @click.option("--max-jump", type=float, default=0.5, show_default=True, metavar="RAD",
@@ -197,6 +191,7 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
         raise BadInput(f"--baud {baud}: must be > 0")
     if scope:
         _check_scope(scope_port, scope_window)
+    require_extra("serial", "'esoarm run' (the serial link)")
     scn = resolve_scenario(scenario, overrides)
     lever_only(scn, "run")
     limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog,
@@ -219,6 +214,9 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
     status = live.update if live else None
     if page is not None:
         status = _tee_status(page, status)
+    import time
+
+    started = time.monotonic()
     try:
         summary = run_rig(scn, link, log_path, limits, status=status,
                           monitor=page.push if page is not None else None)
@@ -237,10 +235,42 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
         if page is not None:
             page.close()
         link.close()
+    wall = time.monotonic() - started
+    pace = _pace(summary, wall, 1.0 / scn.sensor.rate_hz)
+    if pace is not None:
+        warn_line(pace)
     if as_json:
-        click.echo(json.dumps({"scenario": scn.name, **summary.to_dict()}))
+        click.echo(json.dumps({"scenario": scn.name, **summary.to_dict(),
+                               "wall_clock_s": round(wall, 3)}))
         return
-    _print_summary(scn.name, summary)
+    _print_summary(scn.name, summary, wall, 1.0 / scn.sensor.rate_hz)
+
+
+#: A run whose wall-clock time differs from its samples' time by more than this share
+#: (plus :data:`PACE_SLACK_S`) was not paced by a real-time device.
+PACE_TOLERANCE = 0.1
+#: ... plus this much [s] for the handshake and the stop.
+PACE_SLACK_S = 1.0
+
+
+def _pace(s, wall: float, ts: float) -> str | None:  # type: ignore[no-untyped-def]
+    """A warning when a 'real time' device delivered its samples faster or slower than Ts."""
+    sampled = s.samples * ts
+    if s.mode == "lockstep" or abs(wall - sampled) <= PACE_TOLERANCE * sampled + PACE_SLACK_S:
+        return None
+    return (f"the device delivered {sampled:.1f} s of samples in {wall:.1f} s of wall clock: it "
+            "is not paced in real time (a simulator paced by the host?), so the deadline misses "
+            "and jitter describe that device, not a real-time rig")
+
+
+def _mode_title(s, wall: float, ts: float) -> str:  # type: ignore[no-untyped-def]
+    """What was measured: the device's mode and the time its samples took on the wall clock."""
+    sampled = s.samples * ts
+    if s.mode == "lockstep":
+        return f"lockstep: {sampled:.1f} s of samples in {wall:.1f} s"
+    if _pace(s, wall, ts) is not None:
+        return f"not real time: {sampled:.1f} s of samples in {wall:.1f} s"
+    return f"real time: {sampled:.1f} s of samples in {wall:.1f} s"
 
 
 def _tee_status(page, other):  # type: ignore[no-untyped-def]
@@ -271,11 +301,11 @@ class _status_display:  # noqa: N801 - used like a function
         self._live.stop()
 
 
-def _print_summary(name: str, s) -> None:  # type: ignore[no-untyped-def]
+def _print_summary(name: str, s, wall: float, ts: float) -> None:  # type: ignore[no-untyped-def]
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"{name} on the rig ({s.mode})")
+    table = Table(title=f"{name} on the rig ({_mode_title(s, wall, ts)})")
     table.add_column("metric")
     table.add_column("value", justify="right")
     table.add_column("unit")
@@ -285,6 +315,7 @@ def _print_summary(name: str, s) -> None:  # type: ignore[no-untyped-def]
 
     table.add_row("RMS tracking error (measured θ)", fmt(s.rms_error, ".5f"), "rad")
     table.add_row("RMS control", fmt(s.rms_u, ".5f"), "N·m")
+    table.add_row("RMS control step |u_k − u_k−1|", fmt(s.rms_du, ".5f"), "N·m")
     table.add_row("max |error|", fmt(s.max_abs_error, ".5f"), "rad")
     table.add_row("samples logged", str(s.samples), "")
     table.add_row("lost samples", str(s.lost_samples), "")

@@ -8,9 +8,11 @@ import click
 
 from esoarm.cli._common import (
     PLOT_SUFFIXES,
+    Interrupted,
     RunFailure,
     bad_input_guard,
     output_path,
+    progress,
     resolve_scenario,
     scenario_argument,
     set_option,
@@ -28,8 +30,8 @@ from esoarm.cli._common import (
 @click.option("--plot", "plot", metavar="FILE.png",
               help="Draw angle, error, control and estimates (.png, .pdf or .svg).")
 @click.option("--json", "as_json", is_flag=True,
-              help="Print one JSON object with rms_error [rad], rms_u [N·m], max_abs_error [rad], "
-              "saturated_fraction and the other metrics.")
+              help="Print one JSON object with rms_error [rad], rms_u [N·m], rms_du [N·m: RMS of "
+              "u_k − u_k−1], max_abs_error [rad], saturated_fraction and the other metrics.")
 @bad_input_guard
 def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: str | None,
              as_json: bool) -> None:
@@ -37,16 +39,27 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
 
     Follows the sampled-data semantics (docs/semantics.md) with the reference engine
     and prints the metrics: RMS tracking error [rad], RMS control [N·m] and
-    max |error| [rad].
+    max |error| [rad]. A long run shows its progress on stderr; Ctrl-C stops it
+    and writes the rows logged so far to --out.
     """
-    from esoarm.engines.simulation import SimulationDiverged
+    from esoarm.engines.simulation import SimulationDiverged, SimulationInterrupted
     from esoarm.engines.simulation import simulate as run
 
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     scn = resolve_scenario(scenario, overrides)
     try:
-        result = run(scn, warn=False)
+        with progress(scn.n_samples, "simulating", "samples") as advance:
+            result = run(scn, warn=False, progress=advance)
+    except SimulationInterrupted as exc:
+        k = len(exc.result.t)
+        done = f"at t = {exc.result.t[-1]:.4g} s of {scn.duration:g} s ({k:,} samples)" \
+            if k else "before the first sample"
+        if out_path is not None and k:
+            exc.result.to_csv(out_path)
+            raise Interrupted(f"{done}; the {k:,} rows logged are in {out_path}") from None
+        raise Interrupted(f"{done}; nothing written (give --out FILE.csv to keep the rows "
+                          "logged)") from None
     except SimulationDiverged as exc:
         kept = ""
         if out_path is not None:
@@ -88,6 +101,7 @@ def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
     table.add_column("unit")
     table.add_row("RMS tracking error", f"{s['rms_error']:.5f}", "rad")
     table.add_row("RMS control", f"{s['rms_u']:.5f}", "N·m")
+    table.add_row("RMS control step u_k − u_k−1", f"{s['rms_du']:.5f}", "N·m")
     table.add_row("max |error|", f"{s['max_abs_error']:.5f}", "rad")
     table.add_row("samples", str(s["samples"]), "")
     for joint in s.get("joints", []) if len(s.get("joints", [])) > 1 else []:

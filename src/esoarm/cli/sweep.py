@@ -14,7 +14,9 @@ from typing import Any
 import click
 
 from esoarm._limits import MAX_RUNS
+from esoarm.cli import _common
 from esoarm.cli._common import (
+    NORMAL,
     PLOT_SUFFIXES,
     VERBOSE,
     BadInput,
@@ -47,15 +49,21 @@ def _warn_grid(messages: list[str]) -> None:
 
 @contextmanager
 def _progress(total: int, label: str, unit: str) -> Iterator[Callable[[int], None]]:
-    """Progress on stderr: a live bar on a terminal; with --verbose, lines elsewhere.
+    """Progress on stderr: a live bar on a terminal; lines elsewhere.
 
-    Nothing with --quiet, nor (without --verbose) when stderr is not a terminal.
+    Without a terminal: with --verbose a line a second at most (and the first and the
+    last); otherwise a line every PROGRESS_LINE_S (10 s) once the work has run that
+    long, so that a long sweep in a log shows it is alive. Nothing with --quiet.
     """
     if not stderr_is_tty():
-        if verbosity() < VERBOSE:
+        if verbosity() < NORMAL:
             yield lambda n: None
             return
-        yield _progress_lines(total, label, unit)
+        if verbosity() >= VERBOSE:
+            yield _progress_lines(total, label, unit)
+        else:
+            yield _progress_lines(total, label, unit, every=_common.PROGRESS_LINE_S,
+                                  eager=False)
         return
     from rich.console import Console
     from rich.progress import (
@@ -84,16 +92,24 @@ def _progress(total: int, label: str, unit: str) -> Iterator[Callable[[int], Non
         yield lambda n: bar.advance(task, n)
 
 
-def _progress_lines(total: int, label: str, unit: str) -> Callable[[int], None]:
-    """One line per second at most (and the first and the last), for logs and pipes."""
+def _progress_lines(total: int, label: str, unit: str, every: float = 1.0,
+                    eager: bool = True) -> Callable[[int], None]:
+    """One line per ``every`` seconds at most, for logs and pipes.
+
+    ``eager``: also the first and the last; otherwise lines only once ``every``
+    seconds have passed (then the last one too).
+    """
     import time
 
-    state = {"done": 0, "last": -math.inf, "start": time.monotonic()}
+    start = time.monotonic()
+    state = {"done": 0, "last": -math.inf if eager else start, "start": start,
+             "shown": eager}
 
     def advance(n: int) -> None:
         state["done"] += n
         now = time.monotonic()
-        if now - state["last"] >= 1.0 or state["done"] >= total:
+        if now - state["last"] >= every or (state["shown"] and state["done"] >= total):
+            state["shown"] = True
             state["last"] = now
             rate = state["done"] / max(now - state["start"], 1e-9)
             click.echo(f"esoarm: {label}: {int(state['done'])} of {total} {unit} "

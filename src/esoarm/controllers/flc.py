@@ -38,6 +38,8 @@ __all__ = ["CODE", "JIT", "KIND", "FLCParams", "Params", "control", "design", "f
 KIND = "flc"
 CODE = 0
 JIT = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "flc.c"
 
 
 class Params(Section):

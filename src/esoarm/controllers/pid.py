@@ -42,6 +42,8 @@ __all__ = ["CODE", "JIT", "KIND", "Params", "control", "design", "initialize", "
 KIND = "pid"
 CODE = 1
 JIT = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "pid.c"
 
 KP, KI, KD, TF, LIMIT, TS = range(6)
 # controller state: integrator, filtered derivative, previous error

@@ -125,12 +125,12 @@ def _cpu_flags() -> str:
 
 
 def cache_dir() -> Path:
-    """Where built kernels are kept: ``$ESOARM_CACHE_DIR`` or ``~/.cache/esoarm``."""
-    env = os.environ.get("ESOARM_CACHE_DIR")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "esoarm"
+    """Where built kernels are kept: ``$ESOARM_CACHE_DIR``, else ``~/.cache/esoarm`` if
+    writable, else a directory of the user's in the temporary directory
+    (:func:`esoarm._cache.cache_dir`)."""
+    from esoarm._cache import cache_dir as esoarm_cache
+
+    return esoarm_cache()
 
 
 def _build(cc: str) -> Path:

@@ -20,7 +20,7 @@ import numpy as np
 
 from esoarm.contract import ComponentDesign, PlantDesign
 from esoarm.engines.loop import DIVERGENCE_LIMIT, closed_loop, within_limits
-from esoarm.engines.metrics import METRICS, NROW, MetricsTable
+from esoarm.engines.metrics import METRICS, NROW, SAT, MetricsTable
 from esoarm.engines.sample import Designs, Sampling, Steps, steps_of
 from esoarm.kinds import Kinds, kinds_of
 from esoarm.plants.actuator import actuator_vector
@@ -34,6 +34,7 @@ __all__ = [
     "DIVERGENCE_LIMIT",
     "RunInputs",
     "SimulationDiverged",
+    "SimulationInterrupted",
     "diverged_message",
     "prepare",
     "run_reference",
@@ -47,6 +48,14 @@ class SimulationDiverged(RuntimeError):
 
     def __init__(self, message: str, result: SimResult) -> None:
         super().__init__(message)
+        self.result = result
+
+
+class SimulationInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a run; ``result`` holds every row logged before (a KeyboardInterrupt)."""
+
+    def __init__(self, result: SimResult) -> None:
+        super().__init__()
         self.result = result
 
 
@@ -170,6 +179,7 @@ def simulate(
     overrides: dict | list[str] | None = None,
     *,
     warn: bool = True,
+    progress: Callable[[int], None] | None = None,
 ) -> SimResult:
     """Simulate one closed-loop run with the reference engine (the sampled-data loop).
 
@@ -181,6 +191,9 @@ def simulate(
         Dotted-key overrides, e.g. ``{"observer.eps": 0.05}``.
     warn : bool
         Emit :class:`~esoarm.scenario.ScenarioWarning` for risky settings.
+    progress : callable, optional
+        Called from a watcher thread, about twice a second, with the number of
+        samples logged since the last call (for a progress display).
 
     Returns
     -------
@@ -191,6 +204,8 @@ def simulate(
     ------
     SimulationDiverged
         The state left the finite range; the exception holds the partial result.
+    SimulationInterrupted
+        Ctrl-C (a KeyboardInterrupt) during the run; it holds the partial result.
 
     Examples
     --------
@@ -205,26 +220,80 @@ def simulate(
     if warn:
         for msg in scenario_warnings(scn):
             warnings.warn(msg, ScenarioWarning, stacklevel=2)
-    return run_reference(scn, prepare(scn))
+    return run_reference(scn, prepare(scn), progress=progress)
 
 
-def run_reference(scn: Scenario, inp: RunInputs) -> SimResult:
-    """The closed loop over prepared inputs, as plain Python (one sample at a time)."""
+def run_reference(scn: Scenario, inp: RunInputs,
+                  progress: Callable[[int], None] | None = None) -> SimResult:
+    """The closed loop over prepared inputs, as plain Python (one sample at a time).
+
+    ``progress`` (optional) receives the samples logged since its last call, from a
+    watcher thread; Ctrl-C raises :class:`SimulationInterrupted` with the rows logged.
+    """
     n = len(inp.t)
     nj = inp.plant.n_joints
     log = np.full((NROW * nj, n), np.nan)
     x = np.array(inp.plant.x0)
+    watcher = _Watcher(log, progress) if progress is not None else None
     try:
         rows = closed_loop(log, x, inp.noise, inp.refs, inp.sampling, inp.designs, inp.steps)
     except (ArithmeticError, ValueError):  # e.g. cos(inf) inside a step: out of range too
-        written = ~np.isnan(log).all(axis=0)
-        rows = -max(int(np.argmin(written)) if not written.all() else n, 1)
+        rows = -max(_logged(log), 1)
+    except KeyboardInterrupt:
+        k = _logged(log)
+        raise SimulationInterrupted(
+            SimResult.from_log(scn, inp.t[:k], log[:, :k], diverged=False)) from None
+    finally:
+        if watcher is not None:
+            watcher.stop()
     k = abs(rows)
     result = SimResult.from_log(scn, inp.t[:k], log[:, :k], diverged=rows < 0)
     if rows < 0:
         raise SimulationDiverged(
             diverged_message(scn.name, float(inp.t[k - 1]), k - 1, result), result)
     return result
+
+
+def _logged(log: np.ndarray) -> int:
+    """Samples logged so far: the columns are filled in order, unwritten ones all NaN."""
+    written = ~np.isnan(log).all(axis=0)
+    return int(np.argmin(written)) if not written.all() else log.shape[1]
+
+
+class _Watcher:
+    """A daemon thread reporting the samples logged, about twice a second."""
+
+    def __init__(self, log: np.ndarray, report: Callable[[int], None]) -> None:
+        import threading
+
+        self._log, self._report, self._done = log, report, 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _count(self) -> None:
+        # the first unwritten column of the saturation flag (0/1 once written): a
+        # bisection, the columns fill in order
+        row = self._log[SAT]
+        lo, hi = self._done, row.shape[0]
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if np.isnan(row[mid]):
+                hi = mid
+            else:
+                lo = mid + 1
+        if lo > self._done:
+            self._report(lo - self._done)
+            self._done = lo
+
+    def _run(self) -> None:
+        while not self._stop.wait(0.5):
+            self._count()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        self._count()
 
 
 def diverged_message(name: str, tk: float, k: int, result: SimResult | None = None) -> str:

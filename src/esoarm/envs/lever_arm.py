@@ -180,6 +180,9 @@ class LeverArmEnv(gym.Env):
             raise RuntimeError("the episode is over (truncated): call reset()")
         inp, k, w = self._inp, self._k, self._w
         a = float(np.asarray(action, dtype=np.float64).reshape(-1)[0])
+        if not math.isfinite(a):  # a NaN would end the episode as if the arm had diverged
+            raise ValueError(f"action {a}: must be a finite torque [N·m] ({self.action_mode} "
+                             "mode); the episode is unchanged")
         raw = a if self.action_mode == "torque" else self.flc_command() + a
         # the rest of the controller half (saturate, actuate), then the plant half
         w.u[0] = raw

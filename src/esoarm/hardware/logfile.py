@@ -74,7 +74,7 @@ def read_log_columns(path: str | Path, pick: Pick, need: str,
     """
     src = f"log '{path}'"
     try:
-        with open(path, encoding="utf-8", newline="") as fh:
+        with open(path, encoding="utf-8-sig", newline="") as fh:
             reader = csv.reader(fh)
             header = [h.strip() for h in next(reader, [])]
             if not any(header):

@@ -94,6 +94,7 @@ class RunSummary:
     lost_samples: int = 0
     rms_error: float = math.nan
     rms_u: float = math.nan
+    rms_du: float = math.nan
     max_abs_error: float = math.nan
     deadline_misses: int = 0
     jitter_p50_us: float = math.nan
@@ -467,6 +468,7 @@ def _finish(summary: RunSummary, acc: dict[str, list[float]], periods: list[floa
         m = series_metrics(np.array(acc["e"]), np.array(acc["u"]))
         summary.rms_error = m["rms_error"]
         summary.rms_u = m["rms_u"]
+        summary.rms_du = m["rms_du"]
         summary.max_abs_error = m["max_abs_error"]
     if periods and summary.mode != "lockstep":  # lockstep has no period to jitter around
         jit = np.abs(np.asarray(periods) - ts) * 1e6

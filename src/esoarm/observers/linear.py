@@ -87,6 +87,8 @@ EULER, ZOH, CURRENT = 0, 1, 2
 KIND = "linear"
 CODE = 0
 JIT = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "linear.c"
 
 
 class Params(Section):

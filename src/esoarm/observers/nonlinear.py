@@ -70,6 +70,8 @@ __all__ = ["CODE", "JIT", "KIND", "Params", "advance", "design", "estimate", "fa
 KIND = "nonlinear"
 CODE = 1
 JIT = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "nonlinear.c"
 
 # the linear ESO's vector, then α2, α3, δ
 ALPHA2, ALPHA3, DELTA = VECTOR_SIZE, VECTOR_SIZE + 1, VECTOR_SIZE + 2

@@ -46,6 +46,8 @@ __all__ = ["CODE", "JIT", "KIND", "Params", "acceleration", "advance", "advance_
 KIND = "axis"
 CODE = 2
 JIT = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "axis.c"
 
 # layout of the design vector after its CODE
 MASS, FVP, FVN, FCP, FCN, OFFSET, GRAV, VS, LAG = range(9)

@@ -49,6 +49,8 @@ __all__ = ["CODE", "JIT", "KIND", "Params", "RigParams", "acceleration", "advanc
 KIND = "lever-arm"
 CODE = 0
 JIT = True
+#: the kind's C for the generated controller (esoarm.codegen), beside this module
+C_SOURCE = "lever_arm.c"
 
 
 class Params(Section):

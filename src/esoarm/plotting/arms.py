@@ -70,30 +70,54 @@ def figure_arm_ablation(runs: Mapping[str, SimResult], title: str,
                         path: str | Path | None = None) -> Figure:
     """Fig. 7 on an arm: tracking error and torque of each variant, one column per joint.
 
+    The tracking errors of the variants share the top row; each variant's torque has a row
+    of its own (same torque scale within a joint), so that the noisy traces do not hide
+    each other.
+
     Parameters
     ----------
     runs : mapping label -> SimResult
         The variants (e.g. with the ESO, with feed-forward, the computed-torque baseline).
+    title : str
+        The figure's title.
+    path : str or Path, optional
+        Where to save the figure (suffix: format).
+
+    Returns
+    -------
+    Figure
+        Rows: tracking error [rad] of every variant, then torque u [N·m] of each.
     """
     first = next(iter(runs.values()))
     names = _names(first)
     n = len(first.per_joint)
-    fig = Figure(figsize=(_width(n), 6.5), layout="constrained")
-    axes = fig.subplots(2, n, sharex=True, squeeze=False)
-    for (label, res), color in zip(runs.items(), _COLORS, strict=False):
+    m = len(runs)
+    fig = Figure(figsize=(_width(n), 3.2 + 1.7 * m), layout="constrained")
+    axes = fig.subplots(1 + m, n, sharex=True, squeeze=False,
+                        gridspec_kw={"height_ratios": [1.8] + [1.0] * m})
+    for i, ((label, res), color) in enumerate(zip(runs.items(), _COLORS, strict=False)):
         for j, part in enumerate(res.per_joint):
             axes[0, j].plot(part.t, part.error, color=color, linewidth=1.0,
                             label=f"{label}: RMS {part.rms_error:.4f} rad")
-            axes[1, j].plot(part.t, part.u, color=color, linewidth=1.0, label=label)
+            ax_u = axes[1 + i, j]
+            ax_u.plot(part.t, part.u, color=color, linewidth=0.8)
+            rms_u = float(np.sqrt(np.mean(np.square(part.u)))) if len(part.u) else float("nan")
+            ax_u.set_title(f"{label}: RMS u {rms_u:.3f} N·m", fontsize=8, loc="left",
+                           color=color)
     for j in range(n):
         axes[0, j].set_title(names[j], fontsize=10)
         axes[0, j].axhline(0.0, color="0.6", linewidth=0.8)
         axes[0, j].legend(loc="best", fontsize=8)
-        axes[1, j].set_xlabel("time t [s]")
+        axes[-1, j].set_xlabel("time t [s]")
+        low = min(ax.get_ylim()[0] for ax in axes[1:, j])  # one torque scale per joint
+        high = max(ax.get_ylim()[1] for ax in axes[1:, j])
+        for ax in axes[1:, j]:
+            ax.set_ylim(low, high)
         for ax in axes[:, j]:
             ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("tracking error [rad]")
-    axes[1, 0].set_ylabel("torque u [N·m]")
+    for ax in axes[1:, 0]:
+        ax.set_ylabel("u [N·m]")
     fig.suptitle(title, fontsize=10)
     return finish_figure(fig, path)
 

@@ -1,11 +1,17 @@
 """Building what the hardware-in-the-loop run needs: the harness and the firmware.
 
 - The harness (``harness.c``, shipped with the package) is compiled with the
-  host's gcc against libsimavr into a per-user cache directory
-  (``$ESOARM_CACHE`` or ``~/.cache/esoarm``), named by a hash of its source, so
-  it is rebuilt only when the source changes.
+  host's gcc against libsimavr into esoarm's per-user cache directory
+  (:func:`esoarm._cache.cache_dir`: ``$ESOARM_CACHE_DIR``, ``~/.cache/esoarm``,
+  else one in the temporary directory), named by a hash of its source, so it is
+  rebuilt only when the source changes.
 - The firmware is built by ``make -C firmware`` (arduino-mk and the Debian AVR
-  toolchain) into ``firmware/build/`` of the source checkout.
+  toolchain).  Its sources are those of the checkout this package runs from,
+  else the copy an installed package carries (``esoarm/hardware/hil/firmware``,
+  put there by ``setup.py``).  A checkout's firmware is built into its
+  ``firmware/build/`` when that can be written; otherwise (an installed
+  package, a read-only checkout) into the cache directory, in a folder named by
+  a hash of the sources.
 
 Both raise :class:`ToolchainMissing` with one line naming the Debian package to
 install when a tool is absent.
@@ -20,7 +26,8 @@ import subprocess
 from importlib import resources
 from pathlib import Path
 
-__all__ = ["ToolchainMissing", "default_firmware_dir", "firmware_elf", "harness_library"]
+__all__ = ["ToolchainMissing", "default_build_root", "default_firmware_dir", "firmware_elf",
+           "harness_library", "packaged_firmware_dir"]
 
 #: Debian packages for the whole chain (the CI installs these).
 PACKAGES = "gcc-avr avr-libc arduino-core-avr arduino-mk simavr libsimavr-dev libelf-dev"
@@ -31,11 +38,14 @@ class ToolchainMissing(RuntimeError):
 
 
 def _cache_dir() -> Path:
-    root = os.environ.get("ESOARM_CACHE")
-    if root:
-        return Path(root)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "esoarm"
+    from esoarm._cache import cache_dir
+
+    return cache_dir()
+
+
+def _unwritable(path: Path, exc: OSError) -> ToolchainMissing:
+    return ToolchainMissing(f"cannot write {path} ({exc.strerror or exc}): set ESOARM_CACHE_DIR "
+                            "to a writable directory")
 
 
 def _simavr_flags() -> list[str]:
@@ -63,9 +73,12 @@ def harness_library() -> Path:
     if gcc is None:
         raise ToolchainMissing("no C compiler to build the simavr harness: apt-get install gcc")
     flags = _simavr_flags()
-    out.parent.mkdir(parents=True, exist_ok=True)
     src = out.with_suffix(".c")
-    src.write_bytes(text)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        src.write_bytes(text)
+    except OSError as exc:
+        raise _unwritable(out.parent, exc) from None
     tmp = out.with_name(out.name + f".{os.getpid()}.tmp")
     res = subprocess.run([gcc, "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC",
                           str(src), "-o", str(tmp), *flags], capture_output=True, text=True)
@@ -82,17 +95,60 @@ def harness_library() -> Path:
     return out
 
 
+def _is_firmware(folder: Path) -> bool:
+    return (folder / "Makefile").is_file() and (folder / "esoarm_rig" / "esoarm_rig.ino").is_file()
+
+
+def packaged_firmware_dir() -> Path | None:
+    """The firmware sources an installed package carries (None in a source checkout)."""
+    cand = Path(__file__).resolve().parent / "firmware"
+    return cand if _is_firmware(cand) else None
+
+
 def default_firmware_dir() -> Path | None:
-    """``firmware/`` of the source checkout this package runs from (None if installed)."""
+    """The firmware sources: the checkout's ``firmware/``, else the installed package's copy.
+
+    Returns
+    -------
+    Path or None
+        ``firmware/`` of the source checkout this package runs from, else the
+        copy carried by an installed package, else ``firmware/`` of the current
+        directory; None if there is none of these.
+    """
     here = Path(__file__).resolve()
     for parent in here.parents:
-        cand = parent / "firmware" / "Makefile"
-        if cand.exists() and (parent / "firmware" / "esoarm_rig" / "esoarm_rig.ino").exists():
+        if _is_firmware(parent / "firmware"):
             return parent / "firmware"
+    packaged = packaged_firmware_dir()
+    if packaged is not None:
+        return packaged
     cwd = Path.cwd() / "firmware"
-    if (cwd / "Makefile").exists():
+    if _is_firmware(cwd):
         return cwd
     return None
+
+
+def _sources_digest(fw: Path) -> str:
+    """A hash of the firmware sources (build output left out)."""
+    h = hashlib.sha256()
+    for path in sorted(p for p in fw.rglob("*") if p.is_file() and "build" not in
+                       p.relative_to(fw).parts):
+        h.update(str(path.relative_to(fw)).encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def default_build_root(fw: Path) -> Path:
+    """Where the variants of the firmware in ``fw`` are built by default.
+
+    ``fw/build`` for a checkout whose ``build`` folder can be written; else
+    (the installed package's copy, a read-only checkout)
+    ``<cache>/firmware-<hash of the sources>``.
+    """
+    from esoarm._cache import writable
+
+    if fw != packaged_firmware_dir() and writable(fw / "build"):
+        return fw / "build"
+    return _cache_dir() / f"firmware-{_sources_digest(fw)}"
 
 
 def firmware_elf(driver: str = "l298n", firmware_dir: Path | None = None,
@@ -110,18 +166,36 @@ def firmware_elf(driver: str = "l298n", firmware_dir: Path | None = None,
         Build settings (``SAMPLE_PERIOD_US``, ``ENCODER_PPR``, ``BAUD``); a
         non-default build goes to its own folder.
     build_dir : Path, optional
-        Where the variant is built (default ``firmware/build/uno-DRIVER[-settings]``).
+        Where the variant is built (default
+        ``default_build_root(firmware_dir)/uno-DRIVER[-settings]``).
+    quiet : bool
+        Print make's size line when False.
+
+    Returns
+    -------
+    Path
+        The ELF file built (or found up to date).
+
+    Raises
+    ------
+    ToolchainMissing
+        A tool is missing, the sources are not found, the build fails or its
+        folder cannot be written (one line naming what to do).
     """
     fw = firmware_dir or default_firmware_dir()
     if fw is None:
         raise ToolchainMissing(
-            "the firmware sources (firmware/ of the esoarm checkout) were not found: "
-            "run from the checkout or pass --elf FILE")
+            "the firmware sources were not found (neither firmware/ of an esoarm checkout nor "
+            "the copy an installed esoarm carries): reinstall esoarm or pass --elf FILE")
     if shutil.which("make") is None:
         raise ToolchainMissing("make not found: apt-get install make")
     settings = dict(settings or {})
     tag = "".join(f"-{k.lower()}{v}" for k, v in sorted(settings.items()))
-    out_dir = build_dir or fw / "build" / f"uno-{driver}{tag}"
+    out_dir = build_dir or default_build_root(fw) / f"uno-{driver}{tag}"
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _unwritable(out_dir, exc) from None
     cmd = ["make", "-s", "--no-print-directory", "-C", str(fw), driver,
            f"VARIANT_DIR={out_dir}", *(f"{k}={v}" for k, v in sorted(settings.items()))]
     res = subprocess.run(cmd, capture_output=True, text=True)

@@ -55,17 +55,19 @@ def frequency_section(rep: Reproduction, eps_values: Sequence[float] = (0.05, 0.
     rows = frequency_rows(base, eps_values)
     head = ["ε [s]", "gain margin", "phase margin [deg]", "delay margin [ms]", "Ms", "Mt",
             "closed-loop bw [rad/s]", "ESO bw [rad/s]", "w → e peak [rad/(N·m)]",
-            "noise → u peak [N·m/rad]", "RMS u on the twin [N·m]"]
+            "noise → u peak [N·m/rad]", "RMS u on the twin [N·m]",
+            "RMS Δu on the twin [N·m]"]
     body = []
     for a in rows:
         try:
             rms_u = f"{rep.metric(base.name, a.eps, 'rms_u'):.4f}"
+            rms_du = f"{rep.metric(base.name, a.eps, 'du_rms'):.4f}"
         except (KeyError, StopIteration, ValueError):
-            rms_u = "—"
+            rms_u = rms_du = "—"
         body.append([f"{a.eps:g}", f"{a.gain_margin:.2f}", f"{a.phase_margin:.1f}",
                      f"{a.delay_margin * 1e3:.1f}", f"{a.ms:.2f}", f"{a.mt:.2f}",
                      f"{a.closed_loop_bandwidth:.3g}", f"{a.observer_bandwidth:.3g}",
-                     f"{a.disturbance_peak:.3g}", f"{a.noise_to_control_peak:.3g}", rms_u])
+                     f"{a.disturbance_peak:.3g}", f"{a.noise_to_control_peak:.3g}", rms_u, rms_du])
     table = ("<table><thead><tr>" + "".join(f"<th>{_e(h)}</th>" for h in head)
              + "</tr></thead><tbody>"
              + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in body)

@@ -140,6 +140,9 @@ class IdentResult:
     fit_logs: list[str]
     validation_logs: list[str]
     curves: dict = field(default_factory=dict, repr=False)
+    #: The IDIM-LS estimate of the fitting logs (esoarm.studies.identification.lever_checks),
+    #: reported beside the output-error fit; empty when it could not be computed.
+    idim: dict = field(default_factory=dict)
 
     def value(self, key: str) -> float:
         """Fitted value of a scenario key."""
@@ -158,9 +161,18 @@ class IdentResult:
                     "logs": self.fit_logs},
             "validation": {**self.validation, "logs": self.validation_logs},
             "physical": self.physical(),
+            "idim_ls": self.idim or None,
+            "noise": ("written: the validation residual is white" if self.noise_is_sensor()
+                      else "not written: the validation residual is not white, so it is model "
+                      "error, not sensor noise; sensor.noise_deg stays as given"),
             "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
             "at_bound": [k for k, e in self.estimates.items() if e.at_bound],
         }
+
+    def noise_is_sensor(self) -> bool:
+        """Whether the residual supports calling it sensor noise: the validation residual is
+        white (no validation: the fit's own residual cannot tell, and it is not called so)."""
+        return bool(self.validation.get("whiteness", {}).get("white", False))
 
     def physical(self) -> dict[str, dict]:
         """The fit in SI names: inertia [kg·m²], viscous_friction [N·m·s/rad],
@@ -213,6 +225,8 @@ class IdentResult:
                                    * scn.plant.inertia,
                                    "rig.inertia_scale": 1.0}
         for key, est in self.estimates.items():
+            if key == NOISE_KEY and not self.noise_is_sensor():
+                continue  # model error, not sensor noise: the scenario's noise stays
             if key != "rig.inertia_scale" and (scn.motor is not None
                                                or not key.startswith("motor.")):
                 over[key] = int(est.value) if key == DELAY_KEY else float(est.value)
@@ -285,6 +299,17 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     if scn.motor is not None and not {"rig.inertia_scale", "motor.torque_constant"} & set(fix):
         fix = (*fix, "rig.inertia_scale")  # see MOTOR_SCALE_NOTE
     fit_logs, val_logs = _split(logs, validation, validate_fraction)
+    idim = None
+    if scn.motor is None:  # with a motor the logged u is the host's torque, not the drive's
+        from esoarm.studies.identification.lever_checks import (
+            check_log_against_scenario,
+            lever_idim,
+        )
+
+        idim = lever_idim(scn, fit_logs)
+        why = check_log_against_scenario(scn, idim, fit_logs[0].path)
+        if why:
+            raise FitFailed(why)
     seg_samples = max(5, int(round(segment / ts)))
     if min(log.n for log in fit_logs) < max_delay + seg_samples:
         raise ScenarioError(f"log '{fit_logs[0].path}': the part used for fitting is shorter "
@@ -398,11 +423,37 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         validation=val, residual_rms=resid_s, cost_by_delay=cost, n_fit=m,
         segment_seconds=seg_samples * ts, elapsed=time.perf_counter() - t_start,
         iterations=int(sol.iterations), fit_logs=sorted({lg.path for lg in fit_logs}),
-        validation_logs=sorted({lg.path for lg in val_logs}), curves=curves)
-    why = res.untrustworthy()
+        validation_logs=sorted({lg.path for lg in val_logs}), curves=curves,
+        idim=idim.to_dict() if idim is not None else {})
+    why = res.untrustworthy() or _methods_disagree(res, idim)
     if why:
         raise FitFailed(why, res)
     return res
+
+
+#: The output-error inertia and IDIM-LS's further apart than this share, and than
+#: GROSS_DISAGREEMENT combined 95 % half-widths, refuse the fit (the IDIM-LS model has no
+#: delay or lag, hence the generous share).
+INERTIA_DISAGREEMENT = 0.25
+GROSS_DISAGREEMENT = 3.0
+
+
+def _methods_disagree(res: IdentResult, idim) -> str:  # type: ignore[no-untyped-def]
+    """Why the output-error inertia cannot be trusted next to IDIM-LS's ("" if it can)."""
+    if idim is None or res.scenario.motor is not None:
+        return ""
+    phys = res.physical()["inertia"]
+    oe, (lo, hi) = phys["value"], phys["ci95"]
+    i = idim.names.index("inertia")
+    ls, half_ls = float(idim.values[i]), 1.96 * float(idim.se[i])
+    half = math.hypot(0.5 * (hi - lo), half_ls)
+    if abs(oe - ls) > max(INERTIA_DISAGREEMENT * abs(ls), GROSS_DISAGREEMENT * half):
+        return (f"the methods disagree: the output-error fit gives an inertia of {oe:.3g} "
+                f"kg·m², the inverse dynamic model (IDIM-LS) {ls:.3g} ± {half_ls:.2g} kg·m² "
+                f"(apart by more than {INERTIA_DISAGREEMENT:.0%} and {GROSS_DISAGREEMENT:g} "
+                "combined 95 % half-widths): the model does not describe this log (friction, "
+                "a delay, the units); check the rig and the log, or try another --segment")
+    return ""
 
 
 def _lag_lowers_cost(prob: Problem, sol, lag_lo: float, probe: float) -> bool:  # type: ignore[no-untyped-def]

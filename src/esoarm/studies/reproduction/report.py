@@ -216,14 +216,16 @@ def _tables_section(rep: Reproduction) -> str:
         for eps in EPS_SET:
             p_err, p_u = PAPER_TABLES[test][eps]
             rows.append([f"{eps:g}", f"{p_err:.4f}", f"{rep.metric(test, eps, 'rms_error'):.4f}",
-                         f"{p_u:.4f}", f"{rep.metric(test, eps, 'rms_u'):.4f}"])
+                         f"{p_u:.4f}", f"{rep.metric(test, eps, 'rms_u'):.4f}",
+                         f"{rep.metric(test, eps, 'du_rms'):.4f}"])
         parts.append(f"<div><h3>{_e(name)} — {_e(test)}</h3>" + _table(
             ["ε [s]", "error [rad]<br>paper", "error [rad]<br>twin", "control [N·m]<br>paper",
-             "control [N·m]<br>twin"], rows) + "</div>")
+             "control [N·m]<br>twin", "Δu [N·m]<br>twin"], rows) + "</div>")
     parts.append("</div>")
     parts.append(
         '<p class="muted">RMS over the run. Paper: hardware (quoted from its Tables II and III). '
-        "Twin: the built-in digital twin with the assumptions listed below. A twin does not "
+        "Twin: the built-in digital twin with the assumptions listed below; Δu: RMS of "
+        "u_k − u_k−1 (control chatter; the paper gives none). A twin does not "
         "reproduce hardware numbers; compare the trends, which the claims below check.</p>")
     if rep.baselines:
         rows = [[_e(test), f"{res.metrics['rms_error']:.4f}", f"{res.metrics['rms_u']:.4f}",

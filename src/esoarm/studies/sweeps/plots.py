@@ -124,25 +124,29 @@ def _heatmaps(result: SweepResult) -> Figure:
         mesh = ax.imshow(img, origin="lower", aspect="auto", cmap="viridis",
                          interpolation="nearest")
         fig.colorbar(mesh, ax=ax, label=f"{label} (mean over seeds)")
-        for spec, setter in ((sa, ax.set_yticks), (sb, ax.set_xticks)):
-            idx = _tick_index(len(spec.values))
+        for spec, setter, most in ((sa, ax.set_yticks, 16), (sb, ax.set_xticks, 10)):
+            idx = _tick_index(len(spec.values), most)
             setter(idx, [_fmt(spec.values[i]) for i in idx])
         ax.set_ylabel(_label(sa.key))
         ax.set_xlabel(_label(sb.key))
-        ax.set_title(label)
         best = np.nanargmin(img) if np.isfinite(img).any() else None
+        # the marker is named in the title: a legend inside would cover cells
+        ax.set_title(f"{label} (★ lowest)" if best is not None else label)
         if best is not None:
             i, j = np.unravel_index(best, img.shape)
-            ax.plot(j, i, marker="*", color="white", markersize=12, markeredgecolor="black",
-                    label="lowest")
-            ax.legend(loc="upper right", fontsize="small")
+            ax.plot(j, i, marker="*", color="white", markersize=12, markeredgecolor="black")
     return fig
 
 
 def _tick_index(n: int, most: int = 10) -> list[int]:
+    """Which of n cells get a tick label: all up to ``most``, else every k-th from the first.
+
+    A regular stride: labels at uneven steps would read as missing rows.
+    """
     if n <= most:
         return list(range(n))
-    return sorted({int(round(i)) for i in np.linspace(0, n - 1, most)})
+    step = -(-n // most)
+    return list(range(0, n, step))
 
 
 def _fmt(value: Any) -> str:

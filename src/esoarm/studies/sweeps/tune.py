@@ -439,6 +439,11 @@ def tune(
             f"{_describe(nonfinite[0], keys, objective.metrics)}); nothing to minimize")
     _, (best_row,), _ = score([best])
     _, (base_row,), _ = score([own])
+    if inside and not best_row["objective"] < base_row["objective"]:
+        # the search started from the scenario's values and found nothing better; the
+        # best point, mapped back from the search coordinate (10**log10 x), may differ
+        # from them in the last bit and score a round-off worse: report them as they are
+        best, best_row = dict(own), base_row
     return TuneResult(
         keys=keys,
         best=best,
@@ -469,7 +474,8 @@ def describe_baseline(res: TuneResult) -> str | None:
     It can only happen when the scenario's own values lie outside the bounds searched (within
     them they start the search, see :func:`tune`).
     """
-    if not res.baseline["objective"] < res.best_metrics["objective"]:
+    gap = res.best_metrics["objective"] - res.baseline["objective"]
+    if not gap > 1e-9 * max(abs(res.baseline["objective"]), 1e-300):  # round-off is no news
         return None
     own = ", ".join(f"{k} = {res.baseline[k]:.4g}" for k in res.keys)
     return (f"the scenario as given ({own}, outside the bounds searched) scores better than the "

@@ -1,0 +1,141 @@
+"""The generated controller on the chips: cycles, flash, RAM, and float32 against float64.
+
+Run:  python benchmarks/bench_pil.py [--update docs/on-the-chip.md]
+
+1. Cycles per kind × target × precision, measured processor in the loop
+   (:func:`esoarm.codegen.pil.run_pil`) over the whole ``uno-rig`` run (50 Hz,
+   motor: torque -> duty) -- ATmega328P at 16 MHz in simavr (cycles), Cortex-M4 on
+   QEMU's mps2-an386 (an instruction-count proxy: QEMU models no cycle counter) --
+   plus a *forced* worst case: the same chip fed 400 samples that jump ±0.6 rad
+   every 4 samples, which drives the innovation past δ (fal's ``pow`` branch) with
+   both signs, saturates the command both ways and crosses the motor's deadband.
+   "% of 1 kHz" is the larger of the two maxima over one 1 kHz sample period at
+   the chip's clock (16 000 cycles; 25 000 at the mps2's 25 MHz).
+2. Precision: worst |Δu| of the generated float32 code against the Python
+   float64 reference over the test-1 run (the first 5 s at 10 kHz; an ideal torque source, so no
+   duty rounding is involved; host build, lockstep with the twin), plain and
+   compensated observer sums, for ε × rate × discretization.
+
+Everything is counted on the emulated chips, so the numbers do not depend on the
+machine that runs the benchmark.  With ``--update`` the tables replace the text
+between the ``<!-- bench_pil:NAME -->`` and ``<!-- /bench_pil:NAME -->`` markers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from esoarm.codegen.generate import generate
+from esoarm.codegen.lockstep import lockstep
+from esoarm.codegen.pil import open_chip
+from esoarm.scenario import load_scenario
+
+KINDS = [
+    ("linear ESO (euler) + FLC", {}),
+    ("linear ESO (zoh) + FLC", {"observer.discretization": "zoh"}),
+    ("linear ESO (current) + FLC", {"observer.discretization": "current"}),
+    ("nonlinear ESO (euler) + FLC", {"observer.kind": "nonlinear"}),
+    ("linear ESO + FLC, model compensation (cos)", {"controller.compensation": "model"}),
+    ("linear ESO + PID", {"controller.kind": "pid"}),
+]
+TARGETS = [("avr", "float32"), ("cortex-m4", "float32"), ("cortex-m4", "float64")]
+
+
+def forced_worst(gen) -> int:  # type: ignore[no-untyped-def]
+    """Max per-step count over a sequence that forces every branch."""
+    chip = open_chip(gen)
+    try:
+        for k in range(400):
+            chip.step(0.6 if (k // 4) % 2 else -0.6)
+        return max(chip.cycles)
+    finally:
+        chip.close()
+
+
+def cycles_table() -> str:
+    rows = ["| kind | target | precision | cycles min / median / max (run) | forced max | "
+            "% of 1 kHz | flash [B] | static RAM [B] | max \\|Δu\\|/limit |",
+            "|---|---|---|---|---|---|---|---|---|"]
+    for label, over in KINDS:
+        scn = load_scenario("uno-rig", over)
+        for target, precision in TARGETS:
+            gen = generate(scn, target, precision)
+            chip = open_chip(gen)
+            try:
+                run = lockstep(scn, chip)
+            finally:
+                chip.close()
+            c = np.asarray(run.cycles)
+            worst = max(int(c.max()), forced_worst(gen))
+            budget = chip.clock_hz / 1000.0  # type: ignore[attr-defined]
+            unit = "" if target == "avr" else " instr."
+            rows.append(f"| {label} | {target} | {precision} | {c.min()} / {int(np.median(c))} / "
+                        f"{c.max()}{unit} | {worst} | {100 * worst / budget:.0f} % | "
+                        f"{chip.flash_bytes} | {chip.ram_bytes} | {run.max_rel_du:.1e} |")
+            print(rows[-1], flush=True)
+    return "\n".join(rows)
+
+
+def precision_table() -> str:
+    rows = ["| ε [s] | rate [Hz] | discretization | Ts/ε | float32 plain: max \\|Δu\\| [N·m] | "
+            "float32 compensated: max \\|Δu\\| [N·m] |", "|---|---|---|---|---|---|"]
+    for eps in (0.09, 0.03, 0.01):
+        for rate in (50, 1000, 10000):
+            for disc in ("euler", "zoh", "current"):
+                over = {"observer.eps": eps, "sensor.rate_hz": rate,
+                        "observer.discretization": disc}
+                if rate > 1000:  # the RK4 step divides Ts; 5 s of the run (50 000 samples)
+                    over.update({"rig.step": 1.0 / rate, "duration": 5.0})
+                scn = load_scenario("test-1", over)
+                cells = []
+                for comp in (False, True):
+                    chip = open_chip(generate(scn, "host", "float32", comp))
+                    run = lockstep(scn, chip)
+                    ok = run.steps == scn.n_samples and math.isfinite(run.max_abs_du) \
+                        and np.all(np.abs(run.theta) < 1e3)
+                    text = f"{run.max_abs_du:.1e}" if ok else "diverged"
+                    if ok and run.max_rel_du > 1e-4:
+                        text = f"**{text}**"
+                    if disc == "euler" and scn.sample_time / eps >= 2.0:
+                        text += " (Euler unstable: Ts/ε ≥ 2)"
+                    cells.append(text)
+                rows.append(f"| {eps:g} | {rate} | {disc} | {1.0 / rate / eps:.3g} | "
+                            f"{cells[0]} | {cells[1]} |")
+                print(rows[-1], flush=True)
+    return "\n".join(rows)
+
+
+def update(path: Path, name: str, table: str) -> None:
+    text = path.read_text(encoding="utf-8")
+    pattern = re.compile(rf"(<!-- bench_pil:{name} -->\n).*?(\n<!-- /bench_pil:{name} -->)",
+                         re.S)
+    if not pattern.search(text):
+        raise SystemExit(f"{path}: no <!-- bench_pil:{name} --> markers")
+    path.write_text(pattern.sub(lambda m: m.group(1) + table + m.group(2), text),
+                    encoding="utf-8")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--update", type=Path, help="markdown file with bench_pil markers")
+    parser.add_argument("--only", choices=["cycles", "precision"])
+    args = parser.parse_args()
+    tables = {}
+    if args.only in (None, "cycles"):
+        tables["cycles"] = cycles_table()
+    if args.only in (None, "precision"):
+        tables["precision"] = precision_table()
+    for name, table in tables.items():
+        if args.update:
+            update(args.update, name, table)
+        else:
+            print(table)
+
+
+if __name__ == "__main__":
+    main()

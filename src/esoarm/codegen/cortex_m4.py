@@ -1,0 +1,126 @@
+"""The generated controller on a Cortex-M4 with FPU under QEMU (``mps2-an386``), in lockstep.
+
+The PIL image is the generated source and a bare-metal shell
+(``chip/m4_startup.c``, ``chip/m4.ld``: vector table at 0x0, FPU enabled in the
+reset handler, CMSDK UART0 at 0x40004000) built with arm-none-eabi-gcc ``-O2
+-mfpu=fpv4-sp-d16 -mfloat-abi=hard`` and newlib's libm.  QEMU runs it with the
+UART on its standard input and output; per sample the host writes y and reads
+(u, drive, SysTick ticks).
+
+Timing is an **instruction-count proxy**, not cycles: QEMU models no cycle
+counter (the DWT reads 0).  With ``-icount shift=N`` every instruction takes
+2^N ns of virtual time and SysTick counts the 25 MHz processor clock, so the
+ticks of a step give its executed instructions as ticks · 40 / 2^N, to within
+40 / 2^N instructions (N = 8: ±0.16, so the rounded count is exact; the same
+count for N = 8 and 10: checked in the tests).  A Cortex-M4 retires most
+instructions in one cycle, but loads, branches, divisions (14 cycles) and
+double-precision library calls take more: real cycles are higher.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import struct
+import subprocess
+from importlib import resources
+from pathlib import Path
+
+from esoarm.codegen.avr import image_sizes
+from esoarm.codegen.generate import HEADER, SOURCE, Generated
+from esoarm.codegen.toolchain import build, tool
+
+__all__ = ["CLOCK_HZ", "CortexM4Chip", "m4_image"]
+
+#: The mps2-an386 processor clock QEMU models [Hz] (SysTick's clock).
+CLOCK_HZ = 25_000_000
+ICOUNT_SHIFT = 8
+CFLAGS = ["-std=c99", "-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard",
+          "-O2", "-ffunction-sections", "-fdata-sections", "-Wall", "-Wextra", "-Werror",
+          "-nostartfiles", "--specs=nano.specs", "-Tm4.ld", "-Wl,--gc-sections"]
+
+
+def _chip_file(name: str) -> str:
+    return (resources.files("esoarm.codegen") / "chip" / name).read_text(encoding="utf-8")
+
+
+def m4_image(gen: Generated) -> Path:
+    """The PIL image (ELF) of ``gen`` for the Cortex-M4 (arm-none-eabi-gcc ``-O2``)."""
+    return build("arm-none-eabi-gcc",
+                 {HEADER: gen.header, SOURCE: gen.source, "m4_startup.c":
+                  _chip_file("m4_startup.c"), "m4.ld": _chip_file("m4.ld")},
+                 CFLAGS, "pil.elf", "esoarm-pil-m4", ["-lm"])
+
+
+class CortexM4Chip:
+    """The generated step on QEMU's Cortex-M4 (mps2-an386), stepped over its UART.
+
+    Parameters
+    ----------
+    gen : Generated
+        Sources for target ``cortex-m4``.
+    timeout : float
+        Seconds to wait for an answer before the chip is declared hung.
+    icount_shift : int
+        QEMU's ``-icount shift``: one instruction = 2^shift ns of virtual time.
+
+    Attributes
+    ----------
+    cycles : list of int
+        Executed instructions of each step (the instruction-count proxy).
+    flash_bytes, ram_bytes : int
+        The PIL image: flash (text + data) and static RAM (data + bss), stack not included.
+    """
+
+    timing = "instructions (QEMU -icount proxy; no cycle counter is modelled)"
+    clock_hz = CLOCK_HZ
+
+    def __init__(self, gen: Generated, timeout: float = 10.0,
+                 icount_shift: int = ICOUNT_SHIFT) -> None:
+        if gen.target != "cortex-m4":
+            raise ValueError("CortexM4Chip needs code generated for --target cortex-m4")
+        self.target, self.precision = "cortex-m4", gen.precision
+        self._fmt = "<f" if gen.precision == "float32" else "<d"
+        self._size = struct.calcsize(self._fmt)
+        self.elf = m4_image(gen)
+        self.flash_bytes, self.ram_bytes = image_sizes(self.elf, "arm-none-eabi-size")
+        self.timeout = timeout
+        self.shift = icount_shift
+        self.cycles: list[int] = []
+        self._proc: subprocess.Popen[bytes] | None = subprocess.Popen(
+            [tool("qemu-system-arm"), "-M", "mps2-an386", "-display", "none", "-monitor",
+             "none", "-serial", "stdio", "-icount", f"shift={icount_shift}", "-kernel",
+             str(self.elf)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL)
+
+    def _read(self, n: int) -> bytes:
+        assert self._proc is not None and self._proc.stdout is not None
+        fd = self._proc.stdout.fileno()
+        buf = b""
+        while len(buf) < n:
+            ready, _, _ = select.select([fd], [], [], self.timeout)
+            if not ready:
+                raise RuntimeError(f"the Cortex-M4 did not answer within {self.timeout:g} s")
+            chunk = os.read(fd, n - len(buf))
+            if not chunk:
+                raise RuntimeError("QEMU exited")
+            buf += chunk
+        return buf
+
+    def step(self, y: float) -> tuple[float, float, float]:
+        """One sample: y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty)."""
+        assert self._proc is not None and self._proc.stdin is not None
+        self._proc.stdin.write(struct.pack(self._fmt, y))
+        self._proc.stdin.flush()
+        raw = self._read(3 * self._size + 4)
+        u, drive, duty = struct.unpack(self._fmt[0] + 3 * self._fmt[1], raw[:3 * self._size])
+        (ticks,) = struct.unpack("<I", raw[3 * self._size:])
+        self.cycles.append(round(ticks * (1e9 / CLOCK_HZ) / 2 ** self.shift))
+        return u, drive, duty
+
+    def close(self) -> None:
+        """Stop QEMU."""
+        if self._proc is not None:
+            self._proc.kill()
+            self._proc.wait()
+            self._proc = None

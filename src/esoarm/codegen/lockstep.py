@@ -1,0 +1,156 @@
+"""Processor in the loop: a chip running the generated step, the twin and the Python reference.
+
+Per sample k (the sampled-data loop of :mod:`esoarm.engines.loop`):
+
+1. the twin's measurement y_k = Q(θ(t_k) + σ n_k) (the simulators' noise and quantizer);
+2. the chip steps the generated controller on y_k and answers (u_k, drive_k);
+3. the Python reference in float64 (:class:`esoarm.hardware.host_control.DeploymentController`,
+   the step functions every engine calls) steps on the same y_k: u_ref,k;
+4. the chip's drive is held over [t_k, t_{k+1}) after the transport delay and the
+   plant kind integrates the twin to t_{k+1}.
+
+So the chip closes the loop, and Δu_k = u_chip,k − u_ref,k is the numerical
+difference of the generated code on that chip alone (both fed the same y_k).
+
+With a motor the torque becomes a whole number of duty counts.  Where the
+reference's duty lies at a rounding tie (u_ref moved by 1e-6 of the torque limit
+gives the chip's duty) the two roundings are equally right, but the observers
+would then be updated with torques one count apart and drift apart for reasons
+that are not the code's arithmetic.  There the reference adopts the chip's
+duty; such samples are counted (:attr:`LockstepRun.duty_ties`).  A duty that
+differs otherwise is left alone and shows in Δu.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from esoarm.engines.simulation import prepare
+from esoarm.hardware.host_control import DeploymentController
+from esoarm.plants.actuator import MOTOR, MOTOR_BLOCK, actuator_vector, delayed_input
+from esoarm.plants.motor import duty_to_torque, torque_to_duty
+from esoarm.plants.sensor import measure
+from esoarm.scenario import Scenario
+
+__all__ = ["Chip", "LockstepRun", "lockstep"]
+
+
+class Chip(Protocol):
+    """A target running the generated controller, stepped one sample at a time."""
+
+    target: str
+    precision: str
+    timing: str
+    cycles: list[int]
+    flash_bytes: int
+    ram_bytes: int
+
+    def step(self, y: float) -> tuple[float, float, float]:
+        """y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty [counts] or 0)."""
+
+    def close(self) -> None:
+        """Release the emulator."""
+
+
+@dataclass
+class LockstepRun:
+    """What a lockstep run measured.
+
+    Attributes
+    ----------
+    steps : int
+        Samples stepped.
+    u_chip, u_ref : ndarray
+        Commands of the chip and of the Python float64 reference [N·m].
+    y : ndarray
+        Measurements fed to both [rad].
+    theta : ndarray
+        True angle of the twin at each sample [rad].
+    theta_ref : ndarray
+        θd(t_k) [rad].
+    torque_limit : float
+        [N·m].
+    cycles : list of int
+        Per-step cycles (or instruction-count proxy) reported by the chip.
+    duty_ties : int
+        Samples where the reference adopted the chip's duty at a rounding tie.
+    """
+
+    steps: int
+    u_chip: np.ndarray
+    u_ref: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray
+    theta_ref: np.ndarray
+    torque_limit: float
+    cycles: list[int] = field(default_factory=list)
+    duty_ties: int = 0
+
+    @property
+    def max_abs_du(self) -> float:
+        """max_k |u_chip − u_ref| [N·m] (inf if the chip answered a non-finite value)."""
+        du = np.abs(self.u_chip - self.u_ref)
+        return float(np.max(du)) if np.all(np.isfinite(du)) else math.inf
+
+    @property
+    def max_rel_du(self) -> float:
+        """max |Δu| / torque_limit [1]."""
+        return self.max_abs_du / self.torque_limit
+
+
+def lockstep(scn: Scenario, chip: Chip, steps: int | None = None) -> LockstepRun:
+    """Run ``chip`` in the loop with the twin of ``scn`` for ``steps`` samples (default: all).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario the chip's code was generated from.
+    chip : Chip
+        A started target (:class:`esoarm.codegen.host.HostChip`, the AVR or the Cortex-M4).
+    steps : int, optional
+        Samples to run (at most N).
+
+    Returns
+    -------
+    LockstepRun
+    """
+    inp = prepare(scn)
+    n = scn.n_samples if steps is None else min(steps, scn.n_samples)
+    plant = inp.plant
+    x = np.array(plant.x0, dtype=float)
+    ref = DeploymentController(scn)
+    hist = np.zeros(max(n, 1))
+    drive = np.zeros(1)
+    applied = np.zeros(1)
+    u_chip, u_ref = np.full(n, np.nan), np.full(n, np.nan)
+    ys, theta = np.full(n, np.nan), np.full(n, np.nan)
+    advance = inp.kinds.plant.advance
+    act = actuator_vector(scn)
+    motor = act[MOTOR_BLOCK:] if act[MOTOR] else None
+    tie = 1e-6 * ref.torque_limit
+    k_done = ties = 0
+    for k in range(n):
+        y = measure(x[0], inp.noise[k], inp.sigma, inp.q)
+        u_c, d_c, duty_c = chip.step(y)
+        u_r = ref.step(k, y)
+        u_app, duty_r = ref.actuate(u_r)
+        if motor is not None and duty_c != duty_r and math.isfinite(duty_c):
+            rate = ref.zhat[1]
+            if duty_c in (torque_to_duty(u_r - tie, rate, motor),
+                          torque_to_duty(u_r + tie, rate, motor)):
+                u_app = float(duty_to_torque(duty_c, rate, motor))
+                ties += 1
+        ref.commit(u_app)
+        ys[k], theta[k], u_chip[k], u_ref[k] = y, x[0], u_c, u_r
+        k_done = k + 1
+        if not (math.isfinite(u_c) and math.isfinite(d_c)):
+            break
+        drive[0] = d_c
+        delayed_input(hist, k, inp.delay, drive, applied)
+        advance(x, applied, k * inp.ts, inp.h, inp.nsub, plant.vector)
+    return LockstepRun(k_done, u_chip[:k_done], u_ref[:k_done], ys[:k_done], theta[:k_done],
+                       inp.refs[0, :k_done].copy(), ref.torque_limit, list(chip.cycles), ties)

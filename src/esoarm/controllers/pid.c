@@ -1,0 +1,29 @@
+/* Controller kind "pid": the discrete PID of esoarm.controllers.pid in C.
+ * CTL_P is the design vector without its CODE: [0] kp, [1] ki, [2] kd, [3] Tf,
+ * [4] torque limit, [5] Ts.  State c = (integrator, filtered derivative, previous error).
+ */
+#define CTL_NC 3
+
+static void ctl_initialize(esoarm_real c[], esoarm_real y)
+{
+    (void)y;
+    c[0] = R(0.0); c[1] = R(0.0); c[2] = R(0.0);
+}
+
+static esoarm_real ctl_control(esoarm_real c[], const esoarm_real zhat[], esoarm_real y,
+                               const esoarm_real ref[3], uint32_t k)
+{
+    esoarm_real ts = CTL_P[5];
+    esoarm_real e = ref[0] - y;
+    esoarm_real e_prev = k == 0 ? e : c[2];
+    esoarm_real a = CTL_P[3] / (CTL_P[3] + ts);
+    esoarm_real der = a * c[1] + CTL_P[2] * (R(1.0) - a) * (e - e_prev) / ts;
+    esoarm_real u = CTL_P[0] * e + c[0] + der;
+    esoarm_real limit = CTL_P[4];
+    int saturated = (u > limit && e > R(0.0)) || (u < -limit && e < R(0.0));
+    (void)zhat;
+    if (!saturated) c[0] = c[0] + CTL_P[1] * ts * e;
+    c[1] = der;
+    c[2] = e;
+    return u;
+}

@@ -1,0 +1,146 @@
+"""IDIM-LS of the lever arm, and the checks it makes possible before the output-error fit.
+
+The lever arm's inverse dynamic model (:mod:`esoarm.plants.lever_arm`, d(t) = A sin(ωt)):
+
+    τ = I θ̈ + b θ̇ + Fc sign(θ̇) + G cos θ − I A sin(ωt)
+
+is linear in (I, b, Fc, G, c = −I A): one least-squares problem on band-pass
+filtered derivatives (:mod:`esoarm.studies.identification.idim`), no simulation,
+no starting value, no bound.  It is reported beside the output-error fit, and it
+catches two things the output-error fit cannot tell from a bad model:
+
+* **units that cannot be right**: angles logged in degrees make every
+  acceleration 57.3 times larger, so the inertia comes out 57.3 times smaller
+  (encoder counts: smaller by the counts per radian).  An IDIM-LS inertia below
+  :data:`UNIT_RATIO` or above 1/UNIT_RATIO times the scenario's ``plant.inertia``
+  is refused as bad input, naming the ratio and what would explain it;
+* **a disturbance the log does not have**: the fit takes d(t) as known (the
+  paper's eq. 6).  When the log's amplitude A = −c/I is far from the scenario's
+  (decisive evidence only: the logs cover two periods of d(t), the 95 % HAC
+  interval of A is narrower than half the scenario's amplitude, and A misses it
+  by more than twice that interval and by more than the interval plus
+  :data:`DISTURBANCE_SLACK` of it) the fit is refused, naming
+  ``rig.disturbance.amplitude`` and the amplitude the log shows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from esoarm.scenario import Scenario, ScenarioError
+from esoarm.studies.identification.data import IdentLog
+from esoarm.studies.identification.idim import (
+    BORDER,
+    decimation_factor,
+    filtered_derivatives,
+    force_error,
+    hac_bandwidth,
+    hac_covariance,
+)
+
+__all__ = ["DISTURBANCE_SLACK", "UNIT_RATIO", "LeverIdim", "check_log_against_scenario",
+           "lever_idim"]
+
+#: An IDIM-LS inertia below this share of plant.inertia (or above its inverse) is refused.
+UNIT_RATIO = 0.05
+#: The log's disturbance amplitude may miss the scenario's by its interval plus this share.
+DISTURBANCE_SLACK = 0.25
+NAMES = ("inertia", "viscous_friction", "coulomb_friction", "gravity", "disturbance")
+
+
+class LeverIdim:
+    """IDIM-LS of the lever arm: values, HAC standard errors, force error [%]."""
+
+    def __init__(self, names: tuple[str, ...], values: np.ndarray, se: np.ndarray,
+                 force_error: float, rows: int, duration: float) -> None:
+        self.names, self.values, self.se = names, values, se
+        self.force_error, self.rows, self.duration = force_error, rows, duration
+
+    def value(self, name: str) -> float:
+        """The estimate of ``name`` (:data:`NAMES`; "disturbance" is c = −I A [N·m])."""
+        return float(self.values[self.names.index(name)])
+
+    def to_dict(self) -> dict:
+        """JSON-ready: {name: {value, ci95}}, the force error and the rows used."""
+        return {"parameters": {n: {"value": float(v), "ci95": [float(v - 1.96 * s),
+                                                                float(v + 1.96 * s)]}
+                               for n, v, s in zip(self.names, self.values, self.se,
+                                                  strict=True)},
+                "force_error_percent": self.force_error, "rows": self.rows}
+
+
+def lever_idim(scn: Scenario, logs: list[IdentLog]) -> LeverIdim | None:
+    """IDIM-LS of the lever arm over ``logs``; None when a log is too short or has lost
+    samples (the output-error fit handles those)."""
+    ts = logs[0].ts
+    cutoff = 0.1 / ts
+    nd = decimation_factor(ts, cutoff)
+    w = scn.rig.disturbance.frequency
+    with_d = w > 0 and scn.rig.disturbance.amplitude != 0.0
+    xs, fs = [], []
+    for log in logs:
+        if np.isnan(log.y).any() or log.n < 4 * BORDER + 20 * nd:
+            return None
+        q, dq, ddq = filtered_derivatives(log.y, ts, cutoff)
+        cols = [ddq, dq, np.sign(dq), np.cos(q)]
+        if with_d:
+            cols.append(np.sin(w * log.t))
+        keep = slice(BORDER - 1, log.n)
+        from scipy.signal import decimate
+
+        x = np.column_stack(cols)[keep]
+        f = log.u[keep]
+        if nd > 1:
+            x, f = decimate(x, nd, axis=0), decimate(f, nd)
+        xs.append(x)
+        fs.append(f)
+    x, f = np.vstack(xs), np.concatenate(fs)
+    theta, *_ = np.linalg.lstsq(x, f, rcond=None)
+    r = f - x @ theta
+    se = np.sqrt(np.maximum(np.diag(hac_covariance(x, r, hac_bandwidth(r))), 0.0))
+    return LeverIdim(NAMES[: x.shape[1]], theta, se, force_error(f, x @ theta), len(f),
+                     sum(log.n for log in logs) * ts)
+
+
+def check_log_against_scenario(scn: Scenario, est: LeverIdim | None, path: str) -> str:
+    """Raise :class:`ScenarioError` for units that cannot be right; return the refusal for a
+    disturbance the log does not show ("" if none).  See the module docstring."""
+    if est is None:
+        return ""
+    inertia = est.value("inertia")
+    i0 = scn.plant.inertia
+    ratio = inertia / i0
+    half = 1.96 * float(est.se[est.names.index("inertia")])
+    # decisive only: a positive inertia known to better than half its value (an arm that
+    # hardly moves gives any inertia, negative ones included: the fit refuses that itself)
+    decisive = inertia > 0 and half < 0.5 * inertia
+    if decisive and not UNIT_RATIO <= ratio <= 1.0 / UNIT_RATIO:
+        deg = math.pi / 180.0
+        hint = ("angles in degrees give about 0.0175× (convert: esoarm log import --scale "
+                "y=0.017453292519943295)" if 0.3 * deg <= ratio <= 3.0 * deg else
+                "angles in encoder counts give 2π/(counts per turn)×" if ratio < UNIT_RATIO
+                else "a torque column in other units (mN·m?) or a plant.inertia far too small")
+        raise ScenarioError(
+            f"log '{path}': the angle or torque units look wrong: the inverse dynamic model "
+            f"gives an inertia of {inertia:.3g} kg·m², {ratio:.3g}× the scenario's "
+            f"plant.inertia {i0:g} kg·m²; {hint}; if the rig really is that different, set "
+            "plant.inertia")
+    if "disturbance" in est.names:
+        i = est.names.index("disturbance")
+        a_log = -est.values[i] / inertia
+        half = 1.96 * est.se[i] / abs(inertia)
+        a_scn = scn.rig.disturbance.amplitude
+        period = 2.0 * math.pi / scn.rig.disturbance.frequency
+        # decisive evidence only: two periods of d(t) in the log, an interval narrower than
+        # half the scenario's amplitude, and a miss beyond twice the interval
+        decisive = est.duration >= 2.0 * period and half < 0.5 * abs(a_scn)
+        if decisive and abs(a_log - a_scn) > max(2.0 * half,
+                                                 half + DISTURBANCE_SLACK * abs(a_scn)):
+            freq = scn.rig.disturbance.frequency
+            return (f"the scenario's disturbance d(t) = {a_scn:g}·sin({freq:g} t) rad/s² is "
+                    "taken as known, but the log shows an amplitude "
+                    f"of {a_log:.3g} ± {half:.2g} rad/s²: the scenario does not describe this "
+                    f"rig; set rig.disturbance.amplitude (0 if it had none)")
+    return ""

@@ -1,0 +1,86 @@
+"""The issue's real-log cases on the lever arm: degrees, a disturbance the log lacks, noise.
+
+Each test fails on the code before IDIM-LS was computed beside the output-error fit
+(that code fitted a log in degrees with exit 0, blamed the delay bound for a template's
+disturbance, and wrote the residual of a model error into sensor.noise_deg).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from esoarm.hardware.excite import excite_twin
+from esoarm.scenario import ScenarioError, load_scenario
+from esoarm.studies.identification.data import read_ident_log
+from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.identify import FitFailed, identify
+from esoarm.studies.identification.lever_checks import lever_idim
+
+
+@pytest.fixture(scope="module")
+def twin_log(tmp_path_factory):
+    path = tmp_path_factory.mktemp("twin") / "ex.csv"
+    excite_twin(load_scenario("test-1"), ExcitationPlan(duration=30.0), path)
+    return path
+
+
+def _rewrite(src, dst, column, factor):
+    lines = src.read_text(encoding="utf-8").splitlines()
+    header = lines[0].split(",")
+    cols = [header.index(c) for c in column]
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        for j in cols:
+            cells[j] = repr(float(cells[j]) * factor)
+        out.append(",".join(cells))
+    dst.write_text("\n".join(out) + "\n", encoding="utf-8")
+    return dst
+
+
+def test_idim_ls_of_the_twin_finds_its_inertia_and_disturbance(twin_log):
+    scn = load_scenario("test-1")
+    est = lever_idim(scn, [read_ident_log(twin_log, 2.0)])
+    assert est is not None
+    true_inertia = scn.rig.inertia_scale * scn.plant.inertia
+    assert est.value("inertia") == pytest.approx(true_inertia, rel=0.1)
+    assert -est.value("disturbance") / est.value("inertia") == pytest.approx(0.2, rel=0.25)
+
+
+def test_a_log_in_degrees_is_refused_as_bad_input(twin_log, tmp_path):
+    deg = _rewrite(twin_log, tmp_path / "deg.csv", ("y", "theta"), 180.0 / math.pi)
+    scn = load_scenario("test-1")
+    with pytest.raises(ScenarioError, match=r"units look wrong: .* 0\.01\d+× .*degrees"):
+        identify(scn, [read_ident_log(deg, 2.0)])
+
+
+def test_cli_degrees_exit_2_nothing_written(twin_log, tmp_path, run_cli):
+    deg = _rewrite(twin_log, tmp_path / "deg.csv", ("y", "theta"), 180.0 / math.pi)
+    out = tmp_path / "fitted.toml"
+    res = run_cli("identify", str(deg), "--out", str(out))
+    assert res.exit_code == 2 and "units look wrong" in res.stderr and not out.exists()
+
+
+def test_a_template_disturbance_the_log_lacks_is_named(tmp_path):
+    path = tmp_path / "nod.csv"
+    excite_twin(load_scenario("test-1", ["rig.disturbance.amplitude=0"]),
+                ExcitationPlan(duration=60.0), path)
+    with pytest.raises(FitFailed, match=r"rig\.disturbance\.amplitude"):
+        identify(load_scenario("test-1"), [read_ident_log(path, 2.0)])
+
+
+@pytest.mark.slow
+def test_noise_is_written_only_when_the_residual_is_white(twin_log):
+    scn = load_scenario("test-1")
+    res = identify(scn, [read_ident_log(twin_log, 2.0)])
+    white = res.validation["whiteness"]["white"]
+    fitted = res.fitted_scenario()
+    if white:
+        assert fitted.sensor.noise_deg == pytest.approx(res.value("sensor.noise_deg"))
+    else:
+        assert fitted.sensor.noise_deg == scn.sensor.noise_deg
+    assert res.noise_is_sensor() is bool(white)
+    assert np.isfinite(res.to_json()["idim_ls"]["force_error_percent"])
