@@ -11,12 +11,20 @@ CXXFLAGS += -DDECIMAL_DIG=__DECIMAL_DIG__
 SKETCH_DEFINES := $(if $(filter bts7960,$(ESOARM_DRIVER)),-DESOARM_DRIVER_BTS7960) \
   $(if $(SAMPLE_PERIOD_US),-DSAMPLE_PERIOD_US=$(SAMPLE_PERIOD_US)UL) \
   $(if $(ENCODER_PPR),-DENCODER_PPR=$(ENCODER_PPR)UL) \
-  $(if $(BAUD),-DBAUD=$(BAUD)UL)
+  $(if $(BAUD),-DBAUD=$(BAUD)UL) \
+  $(if $(ONBOARD),-DESOARM_ONBOARD -I$(abspath $(ONBOARD)))
 
 include $(ARDMK_DIR)/Arduino.mk
 
 # The sketch (not the core) compiles with every warning as an error.
 $(OBJDIR)/esoarm_rig.ino.o: CPPFLAGS += -Wextra -Werror $(SKETCH_DEFINES)
+
+# On-board mode: the generated controller (esoarm codegen ... --target avr --out DIR) is
+# compiled into the sketch; it is rebuilt when the generated files change.
+ifneq ($(ONBOARD),)
+$(OBJDIR)/esoarm_rig.ino.o: $(abspath $(ONBOARD))/esoarm_controller.c \
+  $(abspath $(ONBOARD))/esoarm_controller.h
+endif
 
 # The settings are part of the build: the file changes (and the sketch is rebuilt) only when
 # SAMPLE_PERIOD_US, ENCODER_PPR, BAUD or the driver differ from the last build in OBJDIR.

@@ -26,6 +26,8 @@ KIND_SETS = {
     "nonlinear+flc": {"observer.kind": "nonlinear"},
     "linear+pid": {"controller.kind": "pid"},
     "nonlinear+pid": {"observer.kind": "nonlinear", "controller.kind": "pid"},
+    "cascade+flc": {"observer.kind": "cascade", "observer.levels": 3},
+    "cascade+pid": {"observer.kind": "cascade", "controller.kind": "pid"},
 }
 
 

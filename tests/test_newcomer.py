@@ -523,3 +523,44 @@ def test_sweep_shows_progress_lines_in_a_log_at_normal_verbosity(run_cli, monkey
     res = run_cli("sweep", "test-1", "--vary", "observer.eps=0.05,0.09", "--set", "duration=1")
     assert res.exit_code == 0, res.stderr
     assert "esoarm: sweep: 2 of 2 runs" in res.stderr
+
+
+def test_missing_choice_option_is_one_clean_line(run_esoarm):
+    res = run_esoarm("codegen", "test-1")
+    assert res.exit_code == 2
+    line, = res.stderr.strip().splitlines()
+    assert "\\n" not in line and "\\t" not in line
+    assert "--target" in line and "avr, cortex-m4, host" in line
+
+
+def test_status_lines_for_logs(monkeypatch, capsys):
+    from esoarm.cli import _common
+
+    _common.reset_verbosity()
+    say = _common.status_lines("identify")
+    say("fitting")  # sooner than PROGRESS_LINE_S: nothing
+    monkeypatch.setattr(_common, "PROGRESS_LINE_S", 0.0)
+    say("trying delay 1 sample(s)")
+    assert capsys.readouterr().err == "esoarm: identify: trying delay 1 sample(s)\n"
+    _common._state["level"] = _common.QUIET
+    say("quiet")
+    assert capsys.readouterr().err == ""
+    _common.reset_verbosity()
+
+
+def test_fast_engine_and_hil_use_the_writable_cache(monkeypatch, tmp_path):
+    from esoarm import _cache
+    from esoarm.engines import fast
+    from esoarm.hardware.hil import build
+
+    for var in ("ESOARM_CACHE_DIR", "ESOARM_CACHE", "XDG_CACHE_HOME"):
+        monkeypatch.delenv(var, raising=False)
+    home = tmp_path / "home"
+    home.mkdir()
+    monkeypatch.setenv("HOME", str(home))
+    real = _cache.writable
+    monkeypatch.setattr(_cache, "writable", lambda p: not str(p).startswith(str(home)) and real(p))
+    assert not str(fast.cache_dir()).startswith(str(home))
+    assert not str(build._cache_dir()).startswith(str(home))
+    monkeypatch.setenv("ESOARM_CACHE_DIR", str(tmp_path / "mine"))
+    assert fast.cache_dir() == build._cache_dir() == tmp_path / "mine"

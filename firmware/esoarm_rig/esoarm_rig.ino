@@ -59,6 +59,16 @@ static volatile uint8_t encoder_errors = 0;   /* invalid transitions since START
 static const int8_t QUAD_TABLE[16] = {0, +1, -1, QUAD_BAD, -1, 0, QUAD_BAD, +1,
                                       +1, QUAD_BAD, 0, -1, QUAD_BAD, -1, +1, 0};
 
+#ifdef ESOARM_ONBOARD
+/* On-board mode (make -C firmware ONBOARD=DIR): the generated observer and controller of
+ * `esoarm codegen SCENARIO --target avr --out DIR` run here at every sample and drive the
+ * motor; DUTY frames are then only the host's heartbeat (the watchdog still needs them),
+ * their duty is ignored.  SAMPLE frames stream every sample's count as before. */
+#include "esoarm_controller.c"
+static esoarm_state ctl;
+static const esoarm_real COUNT_TO_RAD = (esoarm_real)(6.283185307179586 / COUNTS_PER_REV);
+#endif
+
 static eso_parser_t parser;
 static uint8_t tx_seq = 0;
 static uint8_t frame_buf[ESO_MAX_FRAME];
@@ -149,6 +159,9 @@ static void handle_frame(const eso_frame_t *f)
         next_sample_us = t_start_us;
         last_command_ms = millis();
         watchdog_tripped = false;
+#ifdef ESOARM_ONBOARD
+        esoarm_init(&ctl);
+#endif
         running = true;
         break;
     case ESO_DUTY: {
@@ -161,7 +174,9 @@ static void handle_frame(const eso_frame_t *f)
         }
         if (!running || watchdog_tripped || encoder_fault) break;
         last_command_ms = millis();
+#ifndef ESOARM_ONBOARD
         motor_write(duty);
+#endif
         break;
     }
     case ESO_STOP:
@@ -220,6 +235,12 @@ void loop()
     uint32_t now = micros();
     if ((int32_t)(now - next_sample_us) >= 0) {
         int32_t count = read_encoder();
+#ifdef ESOARM_ONBOARD
+        if (!watchdog_tripped && !encoder_fault) {
+            esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD);
+            motor_write((int16_t)ctl.duty);
+        }
+#endif
         if ((uint32_t)(now - next_sample_us) > SAMPLE_PERIOD_US) {
             /* more than a whole period late: report it, then keep the grid */
             send_frame(eso_encode_fault(frame_buf, tx_seq, ESO_FAULT_OVERRUN, sample_k));

@@ -25,7 +25,7 @@ from pydantic import Field
 
 from esoarm._jit import jitable
 from esoarm.controllers import computed_torque, flc, pid
-from esoarm.observers import linear, nonlinear
+from esoarm.observers import cascade, linear, nonlinear
 from esoarm.plants import axis, lever_arm, urdf
 
 if TYPE_CHECKING:
@@ -35,7 +35,7 @@ __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "kind_labels", "kinds_
 
 #: Registered kinds per component; the first is the default.
 PLANTS: tuple[ModuleType, ...] = (lever_arm, urdf, axis)
-OBSERVERS: tuple[ModuleType, ...] = (linear, nonlinear)
+OBSERVERS: tuple[ModuleType, ...] = (linear, nonlinear, cascade)
 CONTROLLERS: tuple[ModuleType, ...] = (flc, pid, computed_torque)
 
 
@@ -166,6 +166,8 @@ def observer_initialize(z: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
     """``initialize`` of the observer kind whose CODE is p[0]."""
     if p[0] == nonlinear.CODE:
         nonlinear.initialize(z, y, p)
+    elif p[0] == cascade.CODE:
+        cascade.initialize(z, y, p)
     else:
         linear.initialize(z, y, p)
 
@@ -175,6 +177,8 @@ def observer_estimate(z: np.ndarray, y: np.ndarray, p: np.ndarray, zhat: np.ndar
     """``estimate`` of the observer kind whose CODE is p[0]."""
     if p[0] == nonlinear.CODE:
         nonlinear.estimate(z, y, p, zhat)
+    elif p[0] == cascade.CODE:
+        cascade.estimate(z, y, p, zhat)
     else:
         linear.estimate(z, y, p, zhat)
 
@@ -185,6 +189,8 @@ def observer_advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarr
     """``advance`` of the observer kind whose CODE is p[0]."""
     if p[0] == nonlinear.CODE:
         nonlinear.advance(z, zhat, y, u, p)
+    elif p[0] == cascade.CODE:
+        cascade.advance(z, zhat, y, u, p)
     else:
         linear.advance(z, zhat, y, u, p)
 

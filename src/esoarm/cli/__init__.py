@@ -176,8 +176,8 @@ def main(argv: list[str] | None = None) -> None:
     except click.UsageError as exc:
         # one line, like every other input error, with where to look for help
         where = exc.ctx.command_path if exc.ctx is not None else "esoarm"
-        click.echo(f"esoarm: error: {one_line(exc.format_message())} (see '{where} --help')",
-                   err=True)
+        message = one_line(" ".join(exc.format_message().split())).rstrip(".")
+        click.echo(f"esoarm: error: {message} (see '{where} --help')", err=True)
         sys.exit(2)
     except click.ClickException as exc:
         exc.show()
@@ -213,7 +213,9 @@ def _missing(exc: click.MissingParameter) -> str:
     if param is not None and param.name == "scenario":
         return ("missing SCENARIO: a built-in name (list them with 'esoarm scenarios') or a "
                 "scenario TOML file")
-    return one_line(exc.format_message()).rstrip(".")
+    # click's "Choose from:\n\tavr,\n\t..." as one line: "Choose from: avr, cortex-m4"
+    return one_line(" ".join(exc.format_message().split())).replace(". Choose", "; choose") \
+        .rstrip(".")
 
 
 cli.params.extend(verbosity_params())  # also accepted before the command: esoarm -q …

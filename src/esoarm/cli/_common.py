@@ -350,3 +350,29 @@ def require_extra(module: str, what: str) -> None:
         package, extra = EXTRAS[module]
         raise BadInput(f"{what} needs {package}, which is not installed: "
                        f"pip install 'esoarm[{extra}]'")
+
+
+class status_lines:  # noqa: N801 - used like a function
+    """A status callback for logs and pipes: the latest message as a line every 10 s.
+
+    The counterpart of a terminal's transient status line: ``esoarm: LABEL: MESSAGE`` at
+    most every :data:`PROGRESS_LINE_S` seconds (every message with --verbose), nothing
+    for work that ends sooner, nothing with --quiet.
+    """
+
+    def __init__(self, label: str) -> None:
+        import time
+
+        self._label, self._last = label, time.monotonic()
+
+    def __call__(self, message: str) -> None:
+        import time
+
+        now = time.monotonic()
+        if verbosity() >= VERBOSE or (verbosity() >= NORMAL
+                                      and now - self._last >= PROGRESS_LINE_S):
+            self._last = now
+            click.echo(f"esoarm: {self._label}: {one_line(message)}", err=True)
+
+    def close(self) -> None:
+        """Nothing to undo (the terminal's status line has to be cleared)."""

@@ -43,12 +43,17 @@ def _say(line: str) -> None:
               "directory, and run that).")
 @click.option("--driver", type=click.Choice(["l298n", "bts7960"]), default="l298n",
               show_default=True, help="Driver variant to build when --elf is not given.")
+@click.option("--onboard", is_flag=True,
+              help="On-board mode: build the firmware with SCENARIO's generated observer and "
+              "controller (esoarm codegen ... --target avr; make -C firmware ONBOARD=DIR at the "
+              "scenario's rate, 1 Mbit/s), which step at every sample tick and drive the motor "
+              "themselves; the host's DUTY frames are then only the watchdog's heartbeat.")
 @click.option("--once", is_flag=True,
               help="Exit after the first run: once the motor pins are off and the host has "
               "sent STOP (or the link is unplugged, or the host is silent for 5 s).")
 @bad_input_guard
 def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], realtime: bool,
-        elf: str | None, driver: str, once: bool) -> None:
+        elf: str | None, driver: str, onboard: bool, once: bool) -> None:
     """Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its pins.
 
     The first line printed is 'device: PATH'; pass PATH to 'esoarm run SCENARIO
@@ -70,7 +75,18 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
     if elf is not None and not Path(elf).is_file():
         raise BadInput(f"--elf '{elf}': no such file")
     try:
-        elf_path = Path(elf) if elf else firmware_elf(driver)
+        if onboard:
+            from esoarm.codegen import CodegenError
+            from esoarm.codegen.onboard import onboard_firmware
+
+            if elf is not None:
+                raise BadInput("--onboard builds its own firmware: drop --elf")
+            try:
+                elf_path = onboard_firmware(scn)
+            except CodegenError as exc:
+                raise BadInput(str(exc)) from None
+        else:
+            elf_path = Path(elf) if elf else firmware_elf(driver)
         server = HilServer(scn, elf_path, faults=specs, realtime=realtime, echo=_say)
     except ToolchainMissing as exc:
         raise RunFailure(str(exc)) from None

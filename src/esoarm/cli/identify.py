@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -19,6 +20,7 @@ from esoarm.cli._common import (
     resolve_scenario,
     scenario_argument,
     set_option,
+    status_lines,
     stderr_is_tty,
 )
 
@@ -226,7 +228,7 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     motor = MotorParams.from_scenario(scn)
     fit_logs = [read_ident_log(p, limit, motor) for p in logs]
     val_logs = [read_ident_log(p, limit, motor) for p in validate]
-    say = _progress() if stderr_is_tty() and not as_json else None
+    say: Any = _progress() if stderr_is_tty() and not as_json else status_lines("identify")
     try:
         res = run_fit(scn, fit_logs, validation=val_logs or None,
                       validate_fraction=validate_fraction, segment=segment, max_delay=max_delay,

@@ -150,7 +150,8 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
 @click.option("--json", "as_json", is_flag=True,
               help="Print the metrics as one JSON object: rms_error [rad, measured angle], "
               "rms_u [N·m], rms_du [N·m: RMS of u_k − u_k−1], deadline_misses, "
-              "jitter_p50_us/jitter_p99_us [µs], ...")
+              "jitter_p50_us/jitter_p99_us [µs], ..., wall_clock_s [s] (the run's wall-clock "
+              "time, beside samples / rate_hz: a device not paced in real time differs)")
 @click.option("--angle-limit", type=float, default=math.pi, show_default=True,
               metavar="RAD", help="Stop when |measured angle| exceeds this [rad].")
 @click.option("--max-jump", type=float, default=0.5, show_default=True, metavar="RAD",

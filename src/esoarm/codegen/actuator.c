@@ -2,6 +2,7 @@
  * PWM duty map with back-EMF compensation and deadband pre-compensation; the C
  * twin of esoarm.plants.actuator.actuate and esoarm.plants.motor.
  * ACT_P = (torque limit, motor flag, stall gain, damping, pwm_max, deadband).
+ * DIV(a, b): a / b (float64), a · (1/b) with 1/b folded by the compiler (float32).
  */
 static esoarm_real act_saturate(esoarm_real u, esoarm_real limit)
 {
@@ -12,7 +13,7 @@ static esoarm_real act_saturate(esoarm_real u, esoarm_real limit)
 
 static esoarm_real act_torque_to_duty(esoarm_real torque, esoarm_real omega)
 {
-    esoarm_real frac = (torque + ACT_P[3] * omega) / ACT_P[2];
+    esoarm_real frac = DIV(torque + ACT_P[3] * omega, ACT_P[2]);
     if (!ISFINITE(frac)) return R(0.0);
     if (frac > R(1.0)) frac = R(1.0);
     else if (frac < R(-1.0)) frac = R(-1.0);
@@ -25,9 +26,9 @@ static esoarm_real act_torque_to_duty(esoarm_real torque, esoarm_real omega)
 
 static esoarm_real act_source_torque(esoarm_real duty)
 {
-    esoarm_real frac = duty / ACT_P[4];
+    esoarm_real frac = DIV(duty, ACT_P[4]);
     esoarm_real db = ACT_P[5];
-    esoarm_real mag = (FABS(frac) - db) / (R(1.0) - db);
+    esoarm_real mag = DIV(FABS(frac) - db, R(1.0) - db);
     if (mag <= R(0.0)) return ACT_P[2] * R(0.0);
     if (mag > R(1.0)) mag = R(1.0);
     return ACT_P[2] * COPYSIGN(mag, frac);

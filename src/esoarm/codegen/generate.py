@@ -141,7 +141,8 @@ def _reference_c(scn: Scenario) -> str:
             "    esoarm_real t = (esoarm_real)k * REF_TS;\n")
     if isinstance(ref, QuinticSteps):
         moves = [float(v) for m in ref.moves for v in m]
-        return (_array("REF_MOVES", moves)
+        inverse = [float(v) for _, dur, _ in ref.moves for v in (1.0 / dur, 1.0 / (dur * dur))]
+        return (_array("REF_MOVES", moves) + _array("REF_INVERSE", inverse)
                 + f"#define REF_NMOVES {len(ref.moves)}\n"
                 + head
                 + f"    esoarm_real previous = {_literal(ref.start)};\n"
@@ -154,12 +155,23 @@ def _reference_c(scn: Scenario) -> str:
                 "        if (t >= t0 + dur) {\n"
                 "            out[0] = target; out[1] = R(0.0); out[2] = R(0.0);\n"
                 "        } else if (t >= t0) {\n"
+                "#if ESOARM_RECIPROCAL  /* 1/dur, 1/dur^2 precomputed: no division */\n"
+                "            esoarm_real s = (t - t0) * REF_INVERSE[2 * i], s2 = s * s;\n"
+                "            out[0] = previous + delta * s2 * s * (R(10.0) - R(15.0) * s"
+                " + R(6.0) * s2);\n"
+                "            out[1] = delta * R(30.0) * s2 * (R(1.0) - R(2.0) * s + s2)"
+                " * REF_INVERSE[2 * i];\n"
+                "            out[2] = delta * R(60.0) * s * (R(1.0) - R(3.0) * s + R(2.0) * s2)"
+                " * REF_INVERSE[2 * i + 1];\n"
+                "#else\n"
+                "            (void)REF_INVERSE;\n"
                 "            esoarm_real s = (t - t0) / dur, s2 = s * s;\n"
                 "            out[0] = previous + delta * s2 * s * (R(10.0) - R(15.0) * s"
                 " + R(6.0) * s2);\n"
                 "            out[1] = delta * R(30.0) * s2 * (R(1.0) - R(2.0) * s + s2) / dur;\n"
                 "            out[2] = delta * R(60.0) * s * (R(1.0) - R(3.0) * s + R(2.0) * s2)"
                 " / (dur * dur);\n"
+                "#endif\n"
                 "        }\n"
                 "        previous = target;\n"
                 "    }\n}\n")
@@ -201,6 +213,12 @@ def _prelude(target: str, precision: str) -> str:
     else:
         lines.append(f"#define RINT {'rintf' if single else 'rint'}")
     lines.append("#define ISFINITE(x) isfinite(x)")
+    # float32: divisions by design constants become multiplications by their reciprocal,
+    # which the compiler folds (a soft-float division costs ~500 AVR cycles); float64 keeps
+    # the Python reference's divisions, operation by operation.
+    lines.append("#define ESOARM_RECIPROCAL " + ("1" if single else "0"))
+    lines.append("#define DIV(a, b) ((a) * (R(1.0) / (b)))" if single
+                 else "#define DIV(a, b) ((a) / (b))")
     return "\n".join(lines) + "\n"
 
 
@@ -305,10 +323,12 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
               "    esoarm_real drive;    /* torque driving the plant [N m] */\n"
               "    esoarm_real duty;     /* PWM duty [counts], 0 without a motor */\n"
               "} esoarm_state;\n\n"
+              "#ifdef __cplusplus\nextern \"C\" {\n#endif\n\n"
               "/* Before the first sample. */\n"
               "void esoarm_init(esoarm_state *s);\n"
               "/* One sample: the measured angle y_k [rad] -> the saturated command u_k [N m]. */\n"
               "esoarm_real esoarm_step(esoarm_state *s, esoarm_real y);\n\n"
+              "#ifdef __cplusplus\n}\n#endif\n\n"
               "#endif\n")
     parts = [banner, f'#include "{HEADER}"\n', _prelude(target, precision),
              f"#define ESOARM_COMPENSATED {1 if compensated else 0}\n",

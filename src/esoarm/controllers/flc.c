@@ -19,7 +19,7 @@ static esoarm_real ctl_control(esoarm_real c[], const esoarm_real zhat[], esoarm
     /* alpha = accel_d - k1 (z2 - omega_d) - k2 (z1 - theta_d)      (eq. 16) */
     alpha = ref[2] - CTL_P[0] * (zhat[1] - ref[1]) - CTL_P[1] * (zhat[0] - ref[0]);
     if (CTL_P[4] == R(0.0)) beta_hat = zhat[2];
-    else beta_hat = -(CTL_P[3] * COS(zhat[0])) / CTL_P[2];
+    else beta_hat = DIV(-(CTL_P[3] * COS(zhat[0])), CTL_P[2]);
     /* u = I0 (alpha - beta_hat)                                      (eq. 14) */
     return CTL_P[2] * (alpha - beta_hat);
 }

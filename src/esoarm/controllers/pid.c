@@ -16,8 +16,8 @@ static esoarm_real ctl_control(esoarm_real c[], const esoarm_real zhat[], esoarm
     esoarm_real ts = CTL_P[5];
     esoarm_real e = ref[0] - y;
     esoarm_real e_prev = k == 0 ? e : c[2];
-    esoarm_real a = CTL_P[3] / (CTL_P[3] + ts);
-    esoarm_real der = a * c[1] + CTL_P[2] * (R(1.0) - a) * (e - e_prev) / ts;
+    esoarm_real a = DIV(CTL_P[3], CTL_P[3] + ts);
+    esoarm_real der = a * c[1] + DIV(CTL_P[2] * (R(1.0) - a) * (e - e_prev), ts);
     esoarm_real u = CTL_P[0] * e + c[0] + der;
     esoarm_real limit = CTL_P[4];
     int saturated = (u > limit && e > R(0.0)) || (u < -limit && e < R(0.0));

@@ -10,7 +10,7 @@
 static esoarm_real obs_fal(esoarm_real e, esoarm_real alpha, esoarm_real delta)
 {
     /* e / delta^(1 - alpha) for |e| <= delta, else |e|^alpha sign(e) */
-    if (FABS(e) <= delta) return e / POW(delta, R(1.0) - alpha);
+    if (FABS(e) <= delta) return DIV(e, POW(delta, R(1.0) - alpha));
     return COPYSIGN(POW(FABS(e), alpha), e);
 }
 

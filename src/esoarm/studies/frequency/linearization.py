@@ -65,7 +65,10 @@ Controller (one discrete LTI system)
     slope, which is exact for innovations within ±δ (larger ones are outside a
     linear analysis).
 
-Supported: the lever-arm plant kind with the FLC controller kind and either
+The cascade ESO (observer kind ``"cascade"``) is linear: its own
+``linear_model`` gives the exact matrices (:func:`observer_model`).
+
+Supported: the lever-arm plant kind with the FLC controller kind and every
 observer kind; other kinds are refused (:class:`~esoarm.scenario.ScenarioError`).
 """
 
@@ -97,6 +100,7 @@ __all__ = [
     "freqresp",
     "linearize",
     "motor_damping",
+    "observer_model",
     "observer_system",
     "perturbation_estimate",
     "sampled_plant",
@@ -284,12 +288,28 @@ def observer_matrices(scn: Scenario) -> tuple[np.ndarray, ...]:
     return pmat, qmat, gam, mgain
 
 
-def observer_system(scn: Scenario) -> Matrices:
-    """The ESO alone: inputs (y [rad], u [N·m]), outputs ẑ = (ẑ1, ẑ2, ẑ3)."""
+def observer_model(scn: Scenario) -> tuple[np.ndarray, ...]:
+    """Any observer kind as z⁺ = P z + Q y + Γ u, ẑ = Hz z + Hy y (one joint).
+
+    A kind that defines ``linear_model(scn, b0, ts)`` (the cascade ESO) gives its
+    own matrices; the linear and nonlinear ESOs come from :func:`observer_matrices`
+    (Hz = I − M C, Hy = M).  Returns (P, Q, Γ, Hz, Hy); Hz has 3 rows.
+    """
+    from esoarm.kinds import OBSERVERS, by_name
+
+    module = by_name(OBSERVERS, scn.observer.kind)
+    own = getattr(module, "linear_model", None)
+    if own is not None:
+        return tuple(own(scn, 1.0 / scn.plant.inertia, scn.sample_time))
     pmat, qmat, gam, mgain = observer_matrices(scn)
     c = np.array([[1.0, 0.0, 0.0]])
-    return (pmat, np.hstack([qmat, gam]), np.eye(3) - mgain @ c,
-            np.hstack([mgain, np.zeros((3, 1))]))
+    return pmat, qmat, gam, np.eye(3) - mgain @ c, mgain
+
+
+def observer_system(scn: Scenario) -> Matrices:
+    """The observer alone: inputs (y [rad], u [N·m]), outputs ẑ = (ẑ1, ẑ2, ẑ3)."""
+    pmat, qmat, gam, hz, hy = observer_model(scn)
+    return (pmat, np.hstack([qmat, gam]), hz, np.hstack([hy, np.zeros((3, 1))]))
 
 
 def controller_matrices(scn: Scenario, theta0: float) -> Matrices:
@@ -298,15 +318,13 @@ def controller_matrices(scn: Scenario, theta0: float) -> Matrices:
     τ = u + Dm ẑ2 drives the plant (τ = u without a motor); the observer is
     updated with u (module docstring).
     """
-    pmat, qmat, gam, mgain = observer_matrices(scn)
-    c = np.array([[1.0, 0.0, 0.0]])
+    pmat, qmat, gam, zhat_z, zhat_y = observer_model(scn)  # ẑ = zhat_z z + zhat_y y
     kr = _reduced_gains(scn, theta0).reshape(1, 3)
-    zhat_z = np.eye(3) - mgain @ c  # ẑ = zhat_z z + M y
     ck = kr @ zhat_z
-    dk = kr @ mgain
+    dk = kr @ zhat_y
     # u = −(ck z + dk y) updates the observer; −τ = −u − Dm ẑ2 is the output
     ko = kr - motor_damping(scn) * np.array([[0.0, 1.0, 0.0]])
-    return pmat - gam @ ck, qmat - gam @ dk, ko @ zhat_z, ko @ mgain
+    return pmat - gam @ ck, qmat - gam @ dk, ko @ zhat_z, ko @ zhat_y
 
 
 def _series(first: Matrices, second: Matrices) -> Matrices:

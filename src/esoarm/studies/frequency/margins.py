@@ -40,7 +40,7 @@ from esoarm.studies.frequency.linearization import (
     closed_loop_radius,
     freqresp,
     linearize,
-    observer_matrices,
+    observer_model,
     perturbation_estimate,
 )
 
@@ -234,7 +234,8 @@ def motor_note(a: FrequencyAnalysis, values: bool = True) -> str:
 
 def eso_label(a: FrequencyAnalysis) -> str:
     """"ESO", or for the nonlinear kind the zone the linear analysis holds in."""
-    return "ESO" if a.observer == "linear" else "fal-ESO (its linear zone |e| ≤ δ)"
+    return {"linear": "ESO", "cascade": "cascade ESO"}.get(
+        a.observer, "fal-ESO (its linear zone |e| ≤ δ)")
 
 
 def _clean(obj: Any) -> Any:
@@ -320,8 +321,8 @@ def analyze(scenario: Scenario | str | Path = "test-1", overrides: dict | list[s
     inertia = scn.rig.inertia_scale * scn.plant.inertia
     d_at = float(abs(d_fun(np.array([dist_w]))[0])) if 0 < dist_w < wn else math.nan
     d_dc = float(abs(freqresp_dc(lin)))
-    if scn.observer.kind == "nonlinear":  # fal's linear zone: poles no longer a triple
-        pole = float(np.max(np.abs(np.linalg.eigvals(observer_matrices(scn)[0]))))
+    if scn.observer.kind != "linear":  # fal's zone or the cascade: not one triple pole
+        pole = float(np.max(np.abs(np.linalg.eigvals(observer_model(scn)[0]))))
     else:
         pole = design_observer(scn.observer.eps, ts, 1.0, scn.observer.discretization).poles[0]
     pole_freq = -math.log(abs(pole)) / ts if pole != 0 else math.inf

@@ -53,6 +53,8 @@ PARAMS: dict[str, tuple[str, str, float, tuple[float, float], str]] = {
                      "tones near and above 1/(2πT) (raise --f-max)"),
     "motor.torque_constant": ("motor torque constant Kt", "N·m/A", 0.02, (1e-6, 10.0),
                               "more torque amplitude (raise --amplitude)"),
+    "rig.stiction": ("breakaway friction above Coulomb Fst (stick-slip)", "N·m", 0.05,
+                     (0.0, 10.0), "more slow reversals of the rate (lower --f-min)"),
 }
 
 
@@ -128,7 +130,7 @@ class Problem:
         rig[DAMP] = r.disturbance.amplitude
         rig[DFREQ] = r.disturbance.frequency
         rig[LAG] = values["actuator.lag"]
-        rig[FST] = r.stiction  # held at the scenario's value
+        rig[FST] = values.get("rig.stiction", r.stiction)
         rig[VST] = r.stribeck_velocity
         src = self.base
         if self.motor is not None:

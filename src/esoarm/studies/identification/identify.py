@@ -11,6 +11,9 @@ key                        meaning                                  unit
                            (m1 l1 − m2 l2) g, m1, l1, l2, g held
 ``rig.coulomb_friction``   Fc                                       N·m
 ``rig.viscous_friction``   b                                        N·m·s/rad
+``rig.stiction``           breakaway friction above Coulomb Fst     N·m
+                           (stick-slip; kept by a likelihood-ratio
+                           test, rig.stribeck_velocity held)
 ``actuator.lag``           first-order torque lag T                 s
 ``actuator.delay_samples`` transport delay                          samples
 ``motor.torque_constant``  Kt (with a ``[motor]`` table; R, Vs, N   N·m/A
@@ -18,6 +21,12 @@ key                        meaning                                  unit
                            b + (N·Kt)²/R are identifiable)
 ``sensor.noise_deg``       encoder noise σ (from the residual)      deg
 =========================  =======================================  ============
+
+Beside the fit, the inverse-dynamic-model least squares (IDIM-LS,
+:mod:`esoarm.studies.identification.lever_checks`) is computed from the same
+logs: it refuses angles that cannot be in rad, a scenario disturbance the log
+clearly lacks, and an output-error inertia grossly off its own.  The encoder
+noise goes into the fitted scenario only when the validation residual is white.
 
 Held at the scenario's values: ``rig.friction_velocity`` (the tanh smoothing
 is far below what 50 Hz data resolves), the disturbance d(t) (taken as known,
@@ -239,7 +248,8 @@ def _values(scn: Scenario) -> dict[str, float]:
     return {"rig.inertia_scale": scn.rig.inertia_scale, "plant.m2": scn.plant.m2,
             "rig.coulomb_friction": scn.rig.coulomb_friction,
             "rig.viscous_friction": scn.rig.viscous_friction, "actuator.lag": scn.actuator.lag,
-            "motor.torque_constant": motor.torque_constant if motor else 0.0}
+            "motor.torque_constant": motor.torque_constant if motor else 0.0,
+            "rig.stiction": scn.rig.stiction}
 
 
 def _split(logs: list[IdentLog], validation: list[IdentLog] | None,
@@ -328,7 +338,8 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         states = prob.initial_states() if x_states is None else x_states
         return prob, prob.solve(np.concatenate([x_phys, states]), max_iter)
 
-    base_free = [k for k in free if k != "actuator.lag"]
+    fit_stiction = "rig.stiction" in free
+    base_free = [k for k in free if k not in ("actuator.lag", "rig.stiction")]
     fixed0 = {**nominal, **({"actuator.lag": 0.0} if fit_lag else {})}
     # 1. the scenario's delay, from the scenario's values: a few iterations, enough to rank it
     d_nom = scn.actuator.delay_samples if scn.actuator.delay_samples in delays else delays[0]
@@ -405,12 +416,22 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
             lag_rejected = max(float(best_lag[1].x[len(base_free)]), lag_rejected or 0.0)
     else:
         lag_rejected = None
+    # 4. stick-slip: breakaway friction above Coulomb (rig.stiction), kept only if it lowers
+    # the cost significantly (χ²₁ test), after a screen as for the lag
+    stiction_rejected = None
+    if fit_stiction and sol.converged:
+        prob, sol, stiction_rejected = _fit_stiction(prob, sol, m, fit, d_best, say)
+        cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
     if not (sol.converged and np.isfinite(sol.cost)) or np.any(sol.fun >= 1e3):
         raise FitFailed(f"the fit did not converge ({sol.message} after {sol.iterations} "
                         "iterations); try other starting values (--set) or a longer, richer "
                         "log (esoarm excite)")
     estimates, gravity, resid_s = _estimates(scn, prob, sol, m, cost, d_best, delays,
                                              lag_rejected)
+    if stiction_rejected is not None:  # fitted, and Fst = 0 won the likelihood-ratio test
+        estimates["rig.stiction"] = Estimate(
+            "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m", PARAMS["rig.stiction"][0],
+            True, True, "")
     val = _validate(scn, prob.phys(sol.x), val_logs, seg_samples, d_best, start) if val_logs else {}
     y_fit = prob.predict(sol.x)
     mask = prob.mask
@@ -454,6 +475,33 @@ def _methods_disagree(res: IdentResult, idim) -> str:  # type: ignore[no-untyped
                 "combined 95 % half-widths): the model does not describe this log (friction, "
                 "a delay, the units); check the rig and the log, or try another --segment")
     return ""
+
+
+def _fit_stiction(prob: Problem, sol, m: int, fit, delay: int, say):  # type: ignore[no-untyped-def]
+    """Try Fst > 0 on the converged fit: (problem, solution, upper end of the rejected Fst).
+
+    A fit without breakaway friction inflates the Coulomb friction to carry it, so the
+    fit with Fst free starts from a quarter of the fitted Coulomb friction moved into a
+    stiction of half of it (at least 0.005 N·m); it is kept if the likelihood-ratio test
+    against Fst = 0 passes (χ²₁ 95 %) and Fst ends above 0.  The Stribeck velocity is
+    held at the scenario's ``rig.stribeck_velocity``.
+    """
+    names = [*prob.free, "rig.stiction"]
+    x_phys = list(sol.x[: prob.n_phys])
+    fc = x_phys[names.index("rig.coulomb_friction")] if "rig.coulomb_friction" in names else 0.0
+    probe = max(0.5 * fc, 0.005)
+    if "rig.coulomb_friction" in prob.free:
+        x_phys[prob.free.index("rig.coulomb_friction")] = 0.75 * fc
+    say(f"fitting stiction with delay {delay} sample(s)")
+    fixed = {k: v for k, v in prob.fixed.items() if k != "rig.stiction"}
+    fixed["rig.stiction"] = 0.0
+    p2, s2 = fit(delay, names, fixed, [*x_phys, probe], sol.x[prob.n_phys:], max_iter=200)
+    fst = float(s2.x[len(names) - 1])
+    if s2.converged and fst > 1e-6 and \
+            m * math.log(max(sol.cost, 1e-300) / max(s2.cost, 1e-300)) > CHI2_95:
+        s2.iterations += sol.iterations
+        return p2, s2, None
+    return prob, sol, float(max(fst, probe))
 
 
 def _lag_lowers_cost(prob: Problem, sol, lag_lo: float, probe: float) -> bool:  # type: ignore[no-untyped-def]

@@ -1,0 +1,174 @@
+"""On-board mode on the simulated Uno: the rig firmware runs the generated controller itself.
+
+:func:`onboard_firmware` generates the scenario's controller for the AVR and
+builds the rig firmware with it (``make -C firmware l298n ONBOARD=DIR
+SAMPLE_PERIOD_US=… BAUD=…``): at every sample tick the firmware reads the
+encoder, steps the generated observer and controller on y = count·2π/counts
+and writes the duty; DUTY frames from the host are only a heartbeat for the
+firmware's watchdog.  :func:`onboard_run` runs that firmware in simavr with
+the twin on its pins (:class:`esoarm.hardware.hil.twin.PinTwin`, one RK4 step
+of ``rig.step`` at a time) and a scripted host that sends START, answers every
+tenth SAMPLE with a heartbeat and records every sample and fault the chip streams.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from esoarm.codegen.generate import generate, write_sources
+from esoarm.hardware import protocol as P
+from esoarm.hardware.hil.build import ToolchainMissing, _cache_dir, default_firmware_dir
+from esoarm.scenario import Scenario
+
+__all__ = ["OnboardRun", "onboard_firmware", "onboard_run"]
+
+#: Baud rate of the on-board builds: a 19-byte SAMPLE frame every 1 ms needs 1 Mbit/s.
+BAUD = 1_000_000
+#: The scripted host sends its heartbeat (a DUTY frame, ignored on board) every this many
+#: samples: parsing a frame per sample would cost the chip ~3k cycles of its 16k at 1 kHz.
+HEARTBEAT_EVERY = 10
+
+
+def onboard_firmware(scn: Scenario, firmware_dir: Path | None = None,
+                     compensated: bool | None = None) -> Path:
+    """Generate ``scn``'s controller for the AVR and build the rig firmware with it.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A one-joint scenario with a ``[motor]`` table; its ``sensor.rate_hz`` sets the
+        firmware's sample period (a whole number of µs).
+    firmware_dir : Path, optional
+        ``firmware/`` of the checkout (default: the one this package runs from).
+    compensated : bool, optional
+        Observer sums of the generated code (default: compensated).
+
+    Returns
+    -------
+    Path
+        The firmware ELF.
+    """
+    fw = firmware_dir or default_firmware_dir()
+    if fw is None:
+        raise ToolchainMissing("the firmware sources (firmware/ of the esoarm checkout) "
+                               "were not found")
+    if shutil.which("make") is None:
+        raise ToolchainMissing("make not found: apt-get install make")
+    period_us = round(1e6 / scn.sensor.rate_hz)
+    gen = generate(scn, "avr", "float32", compensated)
+    root = _cache_dir() / f"esoarm-onboard-{gen.digest}-{'c' if gen.compensated else 'p'}"
+    write_sources(gen, root / "controller")
+    out_dir = root / "build"
+    cmd = ["make", "-s", "--no-print-directory", "-C", str(fw), "l298n",
+           f"VARIANT_DIR={out_dir}", f"ONBOARD={root / 'controller'}",
+           f"SAMPLE_PERIOD_US={period_us}", f"BAUD={BAUD}"]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+        raise ToolchainMissing("on-board firmware build failed: "
+                               + (lines[-1] if lines else f"exit {res.returncode}"))
+    return out_dir / "esoarm_rig.elf"
+
+
+@dataclass
+class OnboardRun:
+    """What the chip streamed during an on-board run.
+
+    Attributes
+    ----------
+    k : ndarray
+        Sample indices of the SAMPLE frames received, in order.
+    t_us : ndarray
+        Device time of each sample since START [µs].
+    y : ndarray
+        Measured angle q·count [rad].
+    theta : ndarray
+        The twin's true angle when each sample frame was complete [rad].
+    faults : list of tuple
+        FAULT frames (code, sample).
+    expected : int
+        Samples due in the run's length.
+    """
+
+    k: np.ndarray
+    t_us: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray
+    faults: list[tuple] = field(default_factory=list)
+    expected: int = 0
+
+    @property
+    def every_sample(self) -> bool:
+        """Every due sample arrived, in order."""
+        return len(self.k) >= self.expected and bool(
+            np.array_equal(self.k, np.arange(len(self.k))))
+
+
+def onboard_run(scn: Scenario, elf: Path, seconds: float | None = None) -> OnboardRun:
+    """Run the on-board firmware ``elf`` in simavr with ``scn``'s twin on its pins.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario the firmware was generated from (twin, motor, encoder).
+    elf : Path
+        From :func:`onboard_firmware`.
+    seconds : float, optional
+        AVR time after START [s] (default: the scenario's duration).
+
+    Returns
+    -------
+    OnboardRun
+    """
+    from esoarm.hardware.hil.board import F_CPU, Board
+    from esoarm.hardware.hil.twin import PinTwin
+
+    seconds = scn.duration if seconds is None else seconds
+    twin = PinTwin(scn, F_CPU)
+    q = 2.0 * np.pi / twin.counts_per_rev
+    board = Board(elf)
+    parser = P.Parser()
+    ks: list[int] = []
+    ts: list[int] = []
+    counts: list[int] = []
+    thetas: list[float] = []
+    faults: list[tuple] = []
+    seq = 1
+    try:
+        board.set_encoder(twin.levels)
+        board.run(round(0.05 * F_CPU))
+        board.send(P.encode(P.START, 0))
+        started = False
+        end = None
+        while end is None or board.cycle < end:
+            c0 = board.cycle
+            duty = board.motor().duty
+            cycles, levels = twin.step(duty, c0) if started else (np.zeros(0, np.uint64),
+                                                                 np.zeros(0, np.uint8))
+            board.run(c0 + twin.step_cycles, cycles, levels)
+            data, _ = board.take()
+            for f in parser.feed(data):
+                if f.kind == P.SAMPLE:
+                    k, t_us, count = f.fields()
+                    if not started:  # the first sample follows START: the twin starts
+                        started = True
+                        twin.start()
+                        end = board.cycle + round(seconds * F_CPU)
+                    ks.append(k)
+                    ts.append(t_us)
+                    counts.append(count)
+                    thetas.append(twin.theta)
+                    if k % HEARTBEAT_EVERY == 0:  # the watchdog's heartbeat (100 ms)
+                        board.send(P.encode(P.DUTY, seq, k, 0))
+                        seq = (seq + 1) & 0xFF
+                elif f.kind == P.FAULT:
+                    faults.append(tuple(f.fields()))
+    finally:
+        board.close()
+    return OnboardRun(np.asarray(ks), np.asarray(ts), q * np.asarray(counts, dtype=float),
+                      np.asarray(thetas), faults, int(round(seconds * scn.sensor.rate_hz)))
