@@ -137,19 +137,17 @@ def pack_model(model: Any) -> np.ndarray:
 
 
 @jitable
-def _transform(m: np.ndarray, i: int, qi: float, x: np.ndarray) -> None:
-    """6×6 motion transform ``x`` from joint i's parent frame to its own frame at angle qi.
+def _pose(m: np.ndarray, i: int, qi: float, x: np.ndarray) -> None:
+    """Joint i's frame in its parent's at angle qi: R into x[0:3, 0:3], p into x[3, 0:3].
 
-    The joint's frame is the fixed placement (R0, p0) then the joint motion:
-    R = R0 · exp([a]× qi), p = p0 (revolute) or R = R0, p = p0 + R0 a qi (prismatic);
-    X = [[Rᵀ, −Rᵀ [p]×], [0, Rᵀ]].
+    The fixed placement (R0, p0) then the joint motion: R = R0 · exp([a]× qi),
+    p = p0 (revolute) or R = R0, p = p0 + R0 a qi (prismatic).
     """
     b = HEAD + ROW * i
     ax, ay, az = m[b + _AXIS], m[b + _AXIS + 1], m[b + _AXIS + 2]
     r0 = b + _ROT
     px, py, pz = m[b + _POS], m[b + _POS + 1], m[b + _POS + 2]
-    # joint rotation J (Rodrigues; identity for a prismatic joint)
-    if m[b + _KIND] == REVOLUTE:
+    if m[b + _KIND] == REVOLUTE:  # Rodrigues
         c, s = math.cos(qi), math.sin(qi)
         k = 1.0 - c
         j00, j01, j02 = c + k * ax * ax, k * ax * ay - s * az, k * ax * az + s * ay
@@ -160,28 +158,14 @@ def _transform(m: np.ndarray, i: int, qi: float, x: np.ndarray) -> None:
         px += qi * (m[r0] * ax + m[r0 + 1] * ay + m[r0 + 2] * az)
         py += qi * (m[r0 + 3] * ax + m[r0 + 4] * ay + m[r0 + 5] * az)
         pz += qi * (m[r0 + 6] * ax + m[r0 + 7] * ay + m[r0 + 8] * az)
-    # R = R0 J; x[3+r, 3+c] = Rᵀ[r, c] = R[c, r]
     for row in range(3):
         a0, a1, a2 = m[r0 + 3 * row], m[r0 + 3 * row + 1], m[r0 + 3 * row + 2]
-        r_0 = a0 * j00 + a1 * j10 + a2 * j20
-        r_1 = a0 * j01 + a1 * j11 + a2 * j21
-        r_2 = a0 * j02 + a1 * j12 + a2 * j22
-        x[0, row] = r_0
-        x[1, row] = r_1
-        x[2, row] = r_2
-        x[3, 3 + row] = r_0
-        x[4, 3 + row] = r_1
-        x[5, 3 + row] = r_2
-        x[3, row] = 0.0
-        x[4, row] = 0.0
-        x[5, row] = 0.0
-    # upper right: −Rᵀ [p]×; column c of [p]× is p × e_c
-    for r in range(3):
-        t0, t1, t2 = x[r, 0], x[r, 1], x[r, 2]
-        # (Rᵀ[p]×)[r, c] = Σ_k Rᵀ[r,k] [p]×[k,c]; [p]× = [[0,-pz,py],[pz,0,-px],[-py,px,0]]
-        x[r, 3] = -(t1 * pz - t2 * py)
-        x[r, 4] = -(-t0 * pz + t2 * px)
-        x[r, 5] = -(t0 * py - t1 * px)
+        x[row, 0] = a0 * j00 + a1 * j10 + a2 * j20
+        x[row, 1] = a0 * j01 + a1 * j11 + a2 * j21
+        x[row, 2] = a0 * j02 + a1 * j12 + a2 * j22
+    x[3, 0] = px
+    x[3, 1] = py
+    x[3, 2] = pz
 
 
 @jitable
@@ -197,18 +181,114 @@ def _subspace(m: np.ndarray, i: int, s: np.ndarray) -> None:
 
 @jitable
 def _transforms(m: np.ndarray, q: np.ndarray, xs: np.ndarray, ss: np.ndarray) -> None:
-    """The transform ``xs[i]`` (6×6) and subspace ``ss[i]`` (6) of every joint at q."""
+    """The pose ``xs[i]`` (:func:`_pose`) and subspace ``ss[i]`` (6) of every joint at q."""
     n = int(m[0])
     for i in range(n):
-        _transform(m, i, q[i], xs[i])
+        _pose(m, i, q[i], xs[i])
         _subspace(m, i, ss[i])
+
+
+@jitable
+def _motion_in(x: np.ndarray, w: np.ndarray, out: np.ndarray) -> None:
+    """out = X w: a motion in the parent's frame seen in the child's (pose x).
+
+    ω' = Rᵀ ω, v' = Rᵀ (v − p × ω).
+    """
+    px, py, pz = x[3, 0], x[3, 1], x[3, 2]
+    vx = w[0] - (py * w[5] - pz * w[4])
+    vy = w[1] - (pz * w[3] - px * w[5])
+    vz = w[2] - (px * w[4] - py * w[3])
+    for c in range(3):
+        out[c] = x[0, c] * vx + x[1, c] * vy + x[2, c] * vz
+        out[3 + c] = x[0, c] * w[3] + x[1, c] * w[4] + x[2, c] * w[5]
+
+
+@jitable
+def _force_out(x: np.ndarray, f: np.ndarray, out: np.ndarray) -> None:
+    """out += Xᵀ f: a force in the child's frame (pose x) added in the parent's.
+
+    f' = R f, n' = R n + p × (R f).
+    """
+    lx = x[0, 0] * f[0] + x[0, 1] * f[1] + x[0, 2] * f[2]
+    ly = x[1, 0] * f[0] + x[1, 1] * f[1] + x[1, 2] * f[2]
+    lz = x[2, 0] * f[0] + x[2, 1] * f[1] + x[2, 2] * f[2]
+    px, py, pz = x[3, 0], x[3, 1], x[3, 2]
+    out[0] += lx
+    out[1] += ly
+    out[2] += lz
+    out[3] += x[0, 0] * f[3] + x[0, 1] * f[4] + x[0, 2] * f[5] + py * lz - pz * ly
+    out[4] += x[1, 0] * f[3] + x[1, 1] * f[4] + x[1, 2] * f[5] + pz * lx - px * lz
+    out[5] += x[2, 0] * f[3] + x[2, 1] * f[4] + x[2, 2] * f[5] + px * ly - py * lx
+
+
+@jitable
+def _load_inertia(m: np.ndarray, i: int, ci: np.ndarray) -> None:
+    """Body i's inertia in compact form: mass ci[0, 0], h = m·c in ci[1, 0:3], and the
+    rotational inertia about the frame origin in ci[2:5, 0:3]."""
+    b = HEAD + ROW * i + _INERTIA
+    ci[0, 0] = m[b]
+    ci[1, 0] = m[b + 6 * 5 + 1]  # [h]× is the lower-left block of the 6×6 inertia
+    ci[1, 1] = m[b + 6 * 3 + 2]
+    ci[1, 2] = m[b + 6 * 4 + 0]
+    for r in range(3):
+        for c in range(3):
+            ci[2 + r, c] = m[b + 6 * (3 + r) + 3 + c]
+
+
+@jitable
+def _inertia_times(ci: np.ndarray, w: np.ndarray, out: np.ndarray) -> None:
+    """out = I w for a compact inertia ci: (m v − h × ω, I_o ω + h × v)."""
+    mass = ci[0, 0]
+    hx, hy, hz = ci[1, 0], ci[1, 1], ci[1, 2]
+    out[0] = mass * w[0] - (hy * w[5] - hz * w[4])
+    out[1] = mass * w[1] - (hz * w[3] - hx * w[5])
+    out[2] = mass * w[2] - (hx * w[4] - hy * w[3])
+    for r in range(3):
+        out[3 + r] = ci[2 + r, 0] * w[3] + ci[2 + r, 1] * w[4] + ci[2 + r, 2] * w[5]
+    out[3] += hy * w[2] - hz * w[1]
+    out[4] += hz * w[0] - hx * w[2]
+    out[5] += hx * w[1] - hy * w[0]
+
+
+@jitable
+def _inertia_out(x: np.ndarray, ci: np.ndarray, cp: np.ndarray, tmp: np.ndarray) -> None:
+    """cp += the compact inertia ci (child frame, pose x) expressed in the parent's frame.
+
+    m' = m, h' = R h + m p, I' = R I Rᵀ − (p h_rᵀ + h_r pᵀ) + (2 h_r·p + m p·p) 1 − m p pᵀ
+    with h_r = R h (the parallel-axis theorem moved to the parent's origin).
+    """
+    mass = ci[0, 0]
+    px, py, pz = x[3, 0], x[3, 1], x[3, 2]
+    hr0 = x[0, 0] * ci[1, 0] + x[0, 1] * ci[1, 1] + x[0, 2] * ci[1, 2]
+    hr1 = x[1, 0] * ci[1, 0] + x[1, 1] * ci[1, 1] + x[1, 2] * ci[1, 2]
+    hr2 = x[2, 0] * ci[1, 0] + x[2, 1] * ci[1, 1] + x[2, 2] * ci[1, 2]
+    cp[0, 0] += mass
+    cp[1, 0] += hr0 + mass * px
+    cp[1, 1] += hr1 + mass * py
+    cp[1, 2] += hr2 + mass * pz
+    for r in range(3):  # tmp = R I
+        for c in range(3):
+            tmp[r, c] = x[r, 0] * ci[2, c] + x[r, 1] * ci[3, c] + x[r, 2] * ci[4, c]
+    p = (px, py, pz)
+    hr = (hr0, hr1, hr2)
+    diag = 2.0 * (hr0 * px + hr1 * py + hr2 * pz) + mass * (px * px + py * py + pz * pz)
+    for r in range(3):
+        for c in range(3):
+            val = tmp[r, 0] * x[c, 0] + tmp[r, 1] * x[c, 1] + tmp[r, 2] * x[c, 2]
+            val -= p[r] * hr[c] + hr[r] * p[c] + mass * p[r] * p[c]
+            if r == c:
+                val += diag
+            cp[2 + r, c] += val
 
 
 @jitable
 def _rnea_pass(m: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool, xs: np.ndarray,
                ss: np.ndarray, vel: np.ndarray, acc: np.ndarray, frc: np.ndarray,
-               tau: np.ndarray) -> None:
-    """RNEA on precomputed transforms: τ = M(q) a + C(q, v) v (+ g(q) with ``gravity``)."""
+               tau: np.ndarray, ci: np.ndarray, col: np.ndarray) -> None:
+    """RNEA on precomputed poses: τ = M(q) a + C(q, v) v (+ g(q) with ``gravity``).
+
+    ``ci`` (≥ 5×3) and ``col`` (6) are scratch.
+    """
     n = int(m[0])
     for i in range(n):
         parent = int(m[HEAD + ROW * i + _PARENT])
@@ -221,22 +301,11 @@ def _rnea_pass(m: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool, xs: n
                 vi[r] = 0.0
                 ai[r] = 0.0
             if gravity:  # a_0 = −g (the base accelerates upwards): gravity on every body
-                for r in range(3):
-                    for c in range(3):
-                        ai[r] -= x[r, c] * m[1 + c]
-                for r in range(3, 6):
-                    for c in range(3):
-                        ai[r] -= x[r, c] * m[1 + c]
+                for c in range(3):
+                    ai[c] = -(x[0, c] * m[1] + x[1, c] * m[2] + x[2, c] * m[3])
         else:
-            vp, ap = vel[parent], acc[parent]
-            for r in range(6):
-                sv = 0.0
-                sa = 0.0
-                for c in range(6):
-                    sv += x[r, c] * vp[c]
-                    sa += x[r, c] * ap[c]
-                vi[r] = sv
-                ai[r] = sa
+            _motion_in(x, vel[parent], vi)
+            _motion_in(x, acc[parent], ai)
         qd, qdd = v[i], a[i]
         for r in range(6):
             vi[r] += s[r] * qd
@@ -251,20 +320,12 @@ def _rnea_pass(m: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool, xs: n
         ai[3] += om1 * ww2 - om2 * ww1
         ai[4] += om2 * ww0 - om0 * ww2
         ai[5] += om0 * ww1 - om1 * ww0
-        # f_i = I a_i + v_i ×* (I v_i);  v ×* h = (ω × hl, ω × ha + vl × hl), h = I v_i
-        b = HEAD + ROW * i + _INERTIA
+        # f_i = I a_i + v_i ×* (I v_i);  v ×* h = (ω × hl, ω × ha + vl × hl)
+        _load_inertia(m, i, ci)
         f = frc[i]
-        for r in range(6):
-            sf = 0.0
-            for c in range(6):
-                sf += m[b + 6 * r + c] * ai[c]
-            f[r] = sf
-        hl0 = _row_dot(m, b, 0, vi)
-        hl1 = _row_dot(m, b, 1, vi)
-        hl2 = _row_dot(m, b, 2, vi)
-        ha0 = _row_dot(m, b, 3, vi)
-        ha1 = _row_dot(m, b, 4, vi)
-        ha2 = _row_dot(m, b, 5, vi)
+        _inertia_times(ci, ai, f)
+        _inertia_times(ci, vi, col)
+        hl0, hl1, hl2, ha0, ha1, ha2 = col[0], col[1], col[2], col[3], col[4], col[5]
         f[0] += om1 * hl2 - om2 * hl1
         f[1] += om2 * hl0 - om0 * hl2
         f[2] += om0 * hl1 - om1 * hl0
@@ -280,53 +341,28 @@ def _rnea_pass(m: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool, xs: n
         tau[i] = t
         parent = int(m[HEAD + ROW * i + _PARENT])
         if parent >= 0:  # f_λ += X_iᵀ f_i
-            x = xs[i]
-            fp = frc[parent]
-            for c in range(6):
-                acc_c = 0.0
-                for r in range(6):
-                    acc_c += x[r, c] * f[r]
-                fp[c] += acc_c
+            _force_out(xs[i], f, frc[parent])
 
 
 @jitable
 def _crba_pass(m: np.ndarray, xs: np.ndarray, ss: np.ndarray, ic: np.ndarray,
                col: np.ndarray, tmp: np.ndarray, out: np.ndarray) -> None:
-    """CRBA on precomputed transforms: the full symmetric M(q) into ``out`` (n, n)."""
+    """CRBA on precomputed poses: the full symmetric M(q) into ``out`` (n, n)."""
     n = int(m[0])
     for i in range(n):
-        b = HEAD + ROW * i + _INERTIA
-        for r in range(6):
-            for c in range(6):
-                ic[i, r, c] = m[b + 6 * r + c]
+        for r in range(5):
+            for c in range(3):
+                ic[i, r, c] = 0.0
+        _load_inertia(m, i, ic[i])
         for j in range(n):  # joints off each other's path to the base stay 0 (a tree)
             out[i, j] = 0.0
     for i in range(n - 1, -1, -1):
         parent = int(m[HEAD + ROW * i + _PARENT])
         if parent >= 0:  # I^c_λ += X_iᵀ I^c_i X_i
-            x = xs[i]
-            ci = ic[i]
-            for r in range(6):  # tmp = I^c_i X_i
-                for c in range(6):
-                    acc = 0.0
-                    for k in range(6):
-                        acc += ci[r, k] * x[k, c]
-                    tmp[r, c] = acc
-            cp = ic[parent]
-            for r in range(6):
-                for c in range(6):
-                    acc = 0.0
-                    for k in range(6):
-                        acc += x[k, r] * tmp[k, c]
-                    cp[r, c] += acc
+            _inertia_out(xs[i], ic[i], ic[parent], tmp)
     for i in range(n):
         s = ss[i]
-        ci = ic[i]
-        for r in range(6):  # F = I^c_i S_i
-            acc = 0.0
-            for c in range(6):
-                acc += ci[r, c] * s[c]
-            col[r] = acc
+        _inertia_times(ic[i], s, col)  # F = I^c_i S_i
         d = 0.0
         for r in range(6):
             d += s[r] * col[r]
@@ -334,14 +370,11 @@ def _crba_pass(m: np.ndarray, xs: np.ndarray, ss: np.ndarray, ic: np.ndarray,
         j = i
         parent = int(m[HEAD + ROW * j + _PARENT])
         while parent >= 0:
-            x = xs[j]
-            for c in range(6):  # F = X_jᵀ F
-                acc = 0.0
-                for r in range(6):
-                    acc += x[r, c] * col[r]
-                tmp[0, c] = acc
-            for c in range(6):
-                col[c] = tmp[0, c]
+            for r in range(6):
+                tmp[5, r] = 0.0
+            _force_out(xs[j], col, tmp[5])  # F = X_jᵀ F
+            for r in range(6):
+                col[r] = tmp[5, r]
             j = parent
             sj = ss[j]
             e = 0.0
@@ -350,15 +383,6 @@ def _crba_pass(m: np.ndarray, xs: np.ndarray, ss: np.ndarray, ic: np.ndarray,
             out[i, j] = e
             out[j, i] = e
             parent = int(m[HEAD + ROW * j + _PARENT])
-
-
-@jitable
-def _row_dot(m: np.ndarray, b: int, r: int, vec: np.ndarray) -> float:
-    """Row r of the 6×6 matrix stored row-major at m[b:] times the 6-vector ``vec``."""
-    acc = 0.0
-    for c in range(6):
-        acc += m[b + 6 * r + c] * vec[c]
-    return acc
 
 
 @jitable
@@ -413,7 +437,7 @@ def rnea(m: np.ndarray, q: np.ndarray, v: np.ndarray, a: np.ndarray, ws: np.ndar
     """
     xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
     _transforms(m, q, xs, ss)
-    _rnea_pass(m, v, a, True, xs, ss, vel, acc, frc, tau)
+    _rnea_pass(m, v, a, True, xs, ss, vel, acc, frc, tau, tmp, col)
 
 
 @jitable
@@ -422,7 +446,7 @@ def bias(m: np.ndarray, q: np.ndarray, v: np.ndarray, ws: np.ndarray, out: np.nd
     xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
     _transforms(m, q, xs, ss)
     zero[:] = 0.0
-    _rnea_pass(m, v, zero, True, xs, ss, vel, acc, frc, out)
+    _rnea_pass(m, v, zero, True, xs, ss, vel, acc, frc, out, tmp, col)
 
 
 @jitable
@@ -440,7 +464,7 @@ def mass_and_bias(m: np.ndarray, q: np.ndarray, v: np.ndarray, ws: np.ndarray,
     xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
     _transforms(m, q, xs, ss)
     zero[:] = 0.0
-    _rnea_pass(m, v, zero, True, xs, ss, vel, acc, frc, out)
+    _rnea_pass(m, v, zero, True, xs, ss, vel, acc, frc, out, tmp, col)
     _crba_pass(m, xs, ss, ic, col, tmp, mass)
 
 
@@ -487,7 +511,7 @@ def forward_dynamics(m: np.ndarray, q: np.ndarray, v: np.ndarray, tau: np.ndarra
     _transforms(m, q, xs, ss)
     for i in range(n):
         zero[i] = 0.0
-    _rnea_pass(m, v, zero, True, xs, ss, vel, acc, frc, rhs)
+    _rnea_pass(m, v, zero, True, xs, ss, vel, acc, frc, rhs, tmp, col)
     _crba_pass(m, xs, ss, ic, col, tmp, mm)
     for i in range(n):
         out[i] = tau[i] - rhs[i]
