@@ -51,8 +51,10 @@ THETA0_LIMIT = 2 * math.pi
               "transfer; with --vary, the margins against the key (.png, .pdf or .svg).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object: gain_margin [ratio], phase_margin [deg], "
-              "delay_margin [s], ms, mt, bandwidths [rad/s], ... (with --vary: 'points', one "
-              "object per value).")
+              "delay_margin [s], ms, mt, bandwidths [rad/s], ..., noise_budget {rms_u, rms_du "
+              "[N·m], "
+              "rms_error [rad]: noise-driven, from the scenario's sensor.noise_deg} (with "
+              "--vary: 'points', one object per value).")
 @bad_input_guard
 def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
             max_points: int, theta0: float | None, friction: str, plot: str | None,
@@ -97,10 +99,12 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
             from esoarm.studies.frequency.plots import figure_frequency
 
             figure_frequency(res, plot_path)
+        budget = _noise_budget(scn, theta0, friction)
         if as_json:
-            click.echo(json.dumps(res.to_dict()))
+            click.echo(json.dumps({**res.to_dict(), "noise_budget": budget}))
         else:
             _print_one(res)
+            _print_budget(budget)
             if plot_path is not None:
                 click.echo(f"figure: {plot_path}")
         return
@@ -242,3 +246,25 @@ def _print_vary(key: str, values: Any, points: Any) -> None:
     if notes:  # one line: with values when every point has the same motor
         click.echo(notes.pop() if len(notes) == 1 else motor_note(
             next(p for p in points if p.motor), values=False))
+
+
+def _noise_budget(scn: Any, theta0: float | None, friction: str) -> dict[str, Any]:
+    """The noise budget as JSON (or {"not_modelled": why})."""
+    from esoarm.studies.frequency.noise import noise_budget
+
+    try:
+        return noise_budget(scn, theta0=theta0, friction=friction).to_dict()
+    except ValueError as exc:
+        return {"not_modelled": str(exc)}
+
+
+def _print_budget(b: dict[str, Any]) -> None:
+    if "not_modelled" in b:
+        click.echo(f"noise budget: not modelled: {b['not_modelled']}")
+        return
+    if not b["stable"]:
+        click.echo("noise budget: the loop is unstable, no stationary budget")
+        return
+    click.echo(f"noise budget (white encoder noise σ = {math.degrees(b['noise_rms']):.3g}°, "
+               f"linear loop): noise-driven RMS u {b['rms_u']:.4g} N·m, RMS Δu (u_k − u_k−1) "
+               f"{b['rms_du']:.4g} N·m, RMS error {b['rms_error']:.3g} rad")

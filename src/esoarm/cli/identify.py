@@ -206,7 +206,7 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     validated on the force (cross-test) and the simulated position. --json
     has "physical": {name: {value, ci95, unit}} in SI names for every plant.
     """
-    from esoarm.plants.motor import MotorParams
+    from esoarm.plants.actuator import motor_of
     from esoarm.studies.identification.data import read_ident_log
     from esoarm.studies.identification.identify import FitFailed
     from esoarm.studies.identification.identify import identify as run_fit
@@ -225,7 +225,7 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
         return
     lever_only(scn, "identify")
     limit = scn.actuator.torque_limit
-    motor = MotorParams.from_scenario(scn)
+    motor = motor_of(scn)
     fit_logs = [read_ident_log(p, limit, motor) for p in logs]
     val_logs = [read_ident_log(p, limit, motor) for p in validate]
     say: Any = _progress() if stderr_is_tty() and not as_json else status_lines("identify")

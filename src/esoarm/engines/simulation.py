@@ -23,11 +23,17 @@ from esoarm.engines.loop import DIVERGENCE_LIMIT, closed_loop, within_limits
 from esoarm.engines.metrics import METRICS, NROW, SAT, MetricsTable
 from esoarm.engines.sample import Designs, Sampling, Steps, steps_of
 from esoarm.kinds import Kinds, kinds_of
-from esoarm.plants.actuator import actuator_vector
+from esoarm.plants.actuator import actuator_vector, motor_refused
 from esoarm.plants.sensor import noise_sequence
 from esoarm.reference import reference_rows
 from esoarm.result import SimResult
-from esoarm.scenario import Scenario, ScenarioWarning, load_scenario, scenario_warnings
+from esoarm.scenario import (
+    Scenario,
+    ScenarioError,
+    ScenarioWarning,
+    load_scenario,
+    scenario_warnings,
+)
 
 __all__ = [
     "reference_metrics",
@@ -152,6 +158,9 @@ def prepare(scn: Scenario, *, draw_noise: bool = True) -> RunInputs:
     ts = scn.sample_time
     t = np.arange(n) * ts
     kinds = kinds_of(scn)
+    if not getattr(kinds.plant, "MOTOR", False) and scn.motor is not None:
+        # a plant kind that neither models a motor nor refuses one in its check
+        raise ScenarioError(str(motor_refused(scn, kinds.plant.KIND)))
     plant = kinds.plant.design(scn)
     limits = kinds.plant.joint_limits(scn) if hasattr(kinds.plant, "joint_limits") else None
     refs = reference_rows(scn.reference, t, plant.n_joints, limits)

@@ -40,7 +40,7 @@ from esoarm.engines.sample import Sampling, advance_plant, hold, new_work
 from esoarm.hardware import protocol as P
 from esoarm.hardware.device import PtyDevice, TimedFault, due_faults, parse_timed_fault
 from esoarm.kinds import kinds_of
-from esoarm.plants.motor import MotorParams
+from esoarm.plants.actuator import motor_of
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["FAULT_KINDS", "Emulator", "FaultSpec", "NoiseStream", "Twin", "parse_fault",
@@ -122,7 +122,7 @@ class Twin:
 
     def __init__(self, scn: Scenario) -> None:
         self.scn = scn
-        self.motor = MotorParams.from_scenario(scn)
+        self.motor = motor_of(scn)
         self.plant = kinds_of(scn).plant
         self.design = self.plant.design(scn)
         self.ts = scn.sample_time

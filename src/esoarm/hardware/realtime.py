@@ -46,8 +46,7 @@ from esoarm.engines.metrics import series_metrics
 from esoarm.hardware import protocol as P
 from esoarm.hardware.host_control import DeploymentController, SampleController
 from esoarm.hardware.link import LinkError, SerialLink
-from esoarm.plants.actuator import actuate, actuator_vector
-from esoarm.plants.motor import MotorParams
+from esoarm.plants.actuator import actuate, actuator_vector, motor_of
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",
@@ -282,7 +281,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     limits = limits or SafetyLimits()
     info = link.handshake()
     q = check_device(info, scn)
-    motor = MotorParams.from_scenario(scn)
+    motor = motor_of(scn)
     use_torque = info.accepts_torque and motor is None
     if not use_torque and motor is None:
         raise ScenarioError(

@@ -11,7 +11,11 @@ device and the real-time loop), so "what reaches the plant" is written once:
    it applies, :func:`esoarm.plants.motor.duty_to_torque`, is what the
    observer is updated with and what is logged as ``u``; the plant is driven
    by the duty's rate-independent torque :func:`esoarm.plants.motor.source_torque`
-   (the back-EMF damping is part of the plant, see the plant kind's design);
+   and the motor's back-EMF damping (N·Kt)²/R, which the actuator supplies
+   (:func:`back_emf_damping`) to every plant kind that declares ``MOTOR = True``
+   and that kind's design adds to its viscous friction.  A plant kind without
+   ``MOTOR = True`` refuses a ``[motor]`` table (:func:`motor_refused`, from its
+   ``check``);
 3. the drive is delayed by ``delay_samples`` (0 before the first command) and
    held over [t_k, t_{k+1}) (:func:`delayed_input`); the actuator lag, a plant
    state, is integrated by the plant kind.
@@ -33,17 +37,92 @@ from esoarm.plants.motor import MotorParams, duty_to_torque, source_torque, torq
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["actuate", "actuator_vector", "delayed_input", "saturate"]
+__all__ = ["actuate", "actuator_vector", "back_emf_damping", "delayed_input", "motor_of",
+           "motor_refused", "saturate"]
 
 LIMIT, MOTOR, MOTOR_BLOCK = 0, 1, 2
 VECTOR_SIZE = 6
 
 
+def motor_of(scn: Scenario) -> MotorParams | None:
+    """The motor of the actuator: the scenario's ``[motor]`` table, or None (a torque source).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    MotorParams or None
+        Supply [V], resistance [Ω], torque constant [N·m/A], gear ratio, PWM range, deadband.
+    """
+    return MotorParams.from_scenario(scn)
+
+
+def back_emf_damping(scn: Scenario) -> float | None:
+    """The motor's back-EMF damping at the joint, (N·Kt)²/R [N·m·s/rad], or None without one.
+
+    What a plant kind with ``MOTOR = True`` adds to its viscous friction in its
+    design, so that driving it with :func:`esoarm.plants.motor.source_torque`
+    of the duty integrates the motor law τ = (N·Kt·Vs/R)·d − ((N·Kt)²/R)·ω.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    float or None
+        (N·Kt)²/R [N·m·s/rad], None without a ``[motor]`` table.
+    """
+    motor = motor_of(scn)
+    return None if motor is None else motor.damping
+
+
+def motor_refused(scn: Scenario, kind: str) -> str | None:
+    """The one-line refusal of a ``[motor]`` table by plant kind ``kind`` (None without one).
+
+    For the ``check`` of a plant kind that does not declare ``MOTOR = True``: its
+    design would not take the motor's back-EMF damping, and the host's back-EMF
+    compensation would then drive the plant with torque nobody models.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+    kind : str
+        The plant kind's tag (``plant.kind``).
+
+    Returns
+    -------
+    str or None
+        The message naming the key, or None if the scenario has no ``[motor]`` table.
+    """
+    if scn.motor is None:
+        return None
+    return (f"key 'motor': plant.kind = '{kind}' does not model a motor (its design takes no "
+            "back-EMF damping); remove the [motor] table (plant kinds with a motor: "
+            "those declaring MOTOR = True, e.g. 'lever-arm', 'axis')")
+
+
 def actuator_vector(scn: Scenario) -> np.ndarray:
-    """(torque_limit, 1.0 with a motor else 0.0, motor block or zeros), read-only."""
+    """(torque_limit, 1.0 with a motor else 0.0, motor block or zeros), read-only.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    ndarray
+        The actuator vector ``a`` of :func:`actuate` (:data:`VECTOR_SIZE` values).
+    """
     vec = np.zeros(VECTOR_SIZE)
     vec[LIMIT] = scn.actuator.torque_limit
-    motor = MotorParams.from_scenario(scn)
+    motor = motor_of(scn)
     if motor is not None:
         vec[MOTOR] = 1.0
         vec[MOTOR_BLOCK:] = motor.block

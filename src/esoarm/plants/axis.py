@@ -34,18 +34,23 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
 from esoarm.contract import PlantDesign, Vector, read_only
+from esoarm.plants.actuator import back_emf_damping
 from esoarm.plants.elementary import cos, tanh
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "Params", "acceleration", "advance", "advance_block",
+__all__ = ["CODE", "JIT", "KIND", "MOTOR", "Params",
+           "acceleration", "advance", "advance_block",
            "axis_acceleration", "axis_rk4_step", "check", "design", "inverse_dynamics",
            "observer_input", "units"]
 
 KIND = "axis"
 CODE = 2
 JIT = True
+#: Driven by the actuator's motor when the scenario has a ``[motor]`` table (its back-EMF
+#: damping, :func:`esoarm.plants.actuator.back_emf_damping`, joins Fv in both directions).
+MOTOR = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "axis.c"
 
@@ -116,11 +121,18 @@ def check(scn: Scenario) -> str | None:
 
 def design(scn: Scenario) -> PlantDesign:
     """The axis of ``scn`` for the step functions: vector (CODE, M, Fv+, Fv−, Fc+, Fc−,
-    offset, G, vs, T), x0 = (q0, 0, 0), b0 = 1/M."""
+    offset, G, vs, T), x0 = (q0, 0, 0), b0 = 1/M.
+
+    With a ``[motor]`` table the motor's back-EMF damping (N·Kt)²/R (the actuator's,
+    :func:`esoarm.plants.actuator.back_emf_damping`) is added to Fv+ and Fv−."""
     p = scn.plant
+    fv = p.viscous_friction
+    damping = back_emf_damping(scn)
+    if damping is not None:
+        fv = fv + damping
     vec = [float(CODE), p.mass,
-           p.viscous_friction + 0.5 * p.viscous_asymmetry,
-           p.viscous_friction - 0.5 * p.viscous_asymmetry,
+           fv + 0.5 * p.viscous_asymmetry,
+           fv - 0.5 * p.viscous_asymmetry,
            p.coulomb_friction + 0.5 * p.coulomb_asymmetry,
            p.coulomb_friction - 0.5 * p.coulomb_asymmetry,
            p.offset, p.gravity, p.friction_velocity, scn.actuator.lag]

@@ -35,20 +35,23 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
 from esoarm.contract import PlantDesign, Vector, read_only
+from esoarm.plants.actuator import back_emf_damping
 from esoarm.plants.elementary import exp_neg, tanh
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
-from esoarm.plants.motor import MotorParams
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "Params", "RigParams", "acceleration", "advance",
+__all__ = ["CODE", "JIT", "KIND", "MOTOR", "Params", "RigParams", "acceleration", "advance",
            "advance_block", "design", "observer_input", "rig_acceleration", "rig_advance",
            "rig_derivative", "rig_rk4_step"]
 
 KIND = "lever-arm"
 CODE = 0
 JIT = True
+#: Driven by the actuator's motor when the scenario has a ``[motor]`` table (its back-EMF
+#: damping, :func:`esoarm.plants.actuator.back_emf_damping`, joins the viscous friction).
+MOTOR = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "lever_arm.c"
 
@@ -248,14 +251,15 @@ def design(scn: Scenario) -> PlantDesign:
     """The true rig of ``scn`` for the step functions.
 
     ``vector`` = (CODE, :attr:`RigParams.vector`); with a ``[motor]`` table the
-    motor's back-EMF damping (N·Kt)²/R is added to the viscous friction, so
-    that driving the rig with the motor's rate-independent torque
+    motor's back-EMF damping (N·Kt)²/R, which the actuator supplies
+    (:func:`esoarm.plants.actuator.back_emf_damping`), is added to the viscous
+    friction, so that driving the rig with the motor's rate-independent torque
     (:func:`esoarm.plants.motor.source_torque`) integrates the motor law.
     """
     rig = np.array(RigParams.from_scenario(scn).vector)
-    motor = MotorParams.from_scenario(scn)
-    if motor is not None:
-        rig[VISC] += motor.damping
+    damping = back_emf_damping(scn)
+    if damping is not None:
+        rig[VISC] += damping
     return PlantDesign(
         vector=read_only(np.concatenate([[float(CODE)], rig])),
         x0=read_only(np.array([scn.rig.theta0, 0.0, 0.0])),

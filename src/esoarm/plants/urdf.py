@@ -40,15 +40,16 @@ from esoarm._jit import jitable_as
 from esoarm._schema import PER_JOINT_KEYS, Section, unit
 from esoarm.contract import PlantDesign, read_only
 from esoarm.plants import urdf_compiled
+from esoarm.plants.actuator import motor_refused
 from esoarm.plants.urdf_model import ArmModel, UrdfError, load_arm
 from esoarm.plants.urdf_twin import TwinParams, pack_params, twin_acceleration, twin_advance
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "Params", "acceleration", "advance", "advance_block", "arm_of",
-           "check", "design", "joint_limits", "joint_names", "observer_input", "packed_models",
-           "scenario_arm"]
+__all__ = ["CODE", "JIT", "KIND", "MOTOR", "Params", "acceleration", "advance", "advance_block",
+           "arm_of", "check", "design", "joint_limits", "joint_names", "observer_input",
+           "packed_models", "scenario_arm"]
 
 KIND = "urdf"
 CODE = 1
@@ -56,6 +57,9 @@ JIT = True
 #: The compiled step functions agree with the reference (Pinocchio) to rounding, not
 #: bit for bit (:data:`esoarm.plants.urdf_compiled.ENGINE_TOLERANCE`).
 COMPILED_EXACT = False
+#: No motor: one ``[motor]`` table cannot describe the drive of each joint, so a scenario
+#: with one is refused (:func:`check`, :func:`esoarm.plants.actuator.motor_refused`).
+MOTOR = False
 
 HANDLE, _FEEDFORWARD = 1, 2
 _NJ, _TWIN = urdf_compiled.NJ, urdf_compiled.TWIN
@@ -141,9 +145,13 @@ def _joint_list(arm: ArmModel) -> str:
 def check(scn: Scenario) -> str | None:
     """One line naming the key if ``scn`` does not fit its URDF arm, else None.
 
-    Loads the URDF (Pinocchio must be installed), checks the per-joint keys
-    against the number of joints and the reference against the joint limits.
+    Refuses a ``[motor]`` table (the kind declares ``MOTOR = False``), loads the URDF
+    (Pinocchio must be installed), checks the per-joint keys against the number of joints
+    and the reference against the joint limits.
     """
+    refused = motor_refused(scn, KIND)
+    if refused is not None:
+        return refused
     if not scn.plant.file:
         return ("key 'plant.file': required for plant.kind = 'urdf' (the arm's URDF file, "
                 "relative to the scenario file)")

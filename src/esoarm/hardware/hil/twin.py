@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from esoarm.kinds import kinds_of
-from esoarm.plants.motor import MotorParams
+from esoarm.plants.actuator import motor_of
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["GRAY", "PinTwin"]
@@ -50,7 +50,7 @@ class PinTwin:
     """
 
     def __init__(self, scn: Scenario, f_cpu: int) -> None:
-        motor = MotorParams.from_scenario(scn)
+        motor = motor_of(scn)
         if motor is None:
             raise ScenarioError(
                 "the firmware drives a PWM duty: the scenario needs a [motor] table "

@@ -84,8 +84,8 @@ from scipy.linalg import expm
 from scipy.optimize import brentq
 
 from esoarm.observers.linear import design_observer
+from esoarm.plants.actuator import motor_of
 from esoarm.plants.model import gravity_coefficient
-from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError, load_scenario
 
 __all__ = [
@@ -134,7 +134,7 @@ def _load(scenario: Scenario | str | Path, overrides: dict | list[str] | None) -
 
 def motor_damping(scn: Scenario) -> float:
     """The motor's back-EMF damping (N·Kt)²/R at the arm [N·m·s/rad]; 0 without ``[motor]``."""
-    motor = MotorParams.from_scenario(scn)
+    motor = motor_of(scn)
     return 0.0 if motor is None else motor.damping
 
 

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from esoarm.observers.linear import design_observer
-from esoarm.plants.motor import MotorParams
+from esoarm.plants.actuator import motor_of
 from esoarm.scenario import Scenario
 from esoarm.studies.frequency.linearization import (
     LinearLoop,
@@ -207,7 +207,7 @@ def motor_terms(scn: Scenario) -> dict[str, Any]:
     after the deadband pre-compensation, N·Kt·Vs/(R·(1 − δ)·pwm_max) [N·m];
     ``deadband`` δ; ``left_out`` the nonlinear parts (:data:`MOTOR_LEFT_OUT`).
     """
-    m = MotorParams.from_scenario(scn)
+    m = motor_of(scn)
     if m is None:
         return {}
     return {"damping": m.damping, "stall_torque": m.stall_gain,

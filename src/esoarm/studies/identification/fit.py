@@ -73,9 +73,9 @@ class Problem:
         offset = 0
         for log in logs:
             if self.motor is not None:
-                from esoarm.plants.motor import MotorParams
+                from esoarm.plants.actuator import motor_of
 
-                mp = MotorParams.from_scenario(scn)
+                mp = motor_of(scn)
                 raw = np.array([mp.effective_fraction(int(d)) for d in log.duty])  # type: ignore
             else:
                 raw = log.u

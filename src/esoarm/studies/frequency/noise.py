@@ -1,0 +1,121 @@
+"""Noise budget of the linearized loop: what white encoder noise costs in control and error.
+
+The loop of :mod:`esoarm.studies.frequency.linearization` (plant P sampled with the
+zero-order hold, controller K = observer + FLC) is closed with the measurement
+y_k = θ_k + n_k, n_k white with variance σ² [rad²]::
+
+    x⁺ = A x + B n,   u = Cu x + Du n,   e = Ce x
+
+with x = (plant states, controller states).  The stationary covariance X solves
+the discrete Lyapunov equation X = A X Aᵀ + σ² B Bᵀ
+(:func:`scipy.linalg.solve_discrete_lyapunov`), and
+
+    var(u)  = Cu X Cuᵀ + σ² Du²
+    var(e)  = Ce X Ceᵀ
+    var(Δu) = Cu (A − I) X (A − I)ᵀ Cuᵀ + σ² (Cu B − Du)² + σ² Du²
+
+(Δu_k = u_k − u_{k−1}: x_k = A x_{k−1} + B n_{k−1}).  These are the
+*noise-driven* parts: the twin's run with noise minus the same run without
+(same seed otherwise), in RMS, is what they predict (the loop is linear about the
+operating point; friction, saturation and quantization are outside).
+
+The noise model is the scenario's ``sensor.noise_deg`` (white, σ in degrees).
+The encoder's quantization (``sensor.resolution_deg``) is left out of σ: the twin
+quantizes with and without noise, so the difference holds the noise only.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.linalg import solve_discrete_lyapunov
+
+from esoarm.scenario import Scenario
+from esoarm.studies.frequency.linearization import linearize, motor_damping
+
+__all__ = ["NoiseBudget", "noise_budget"]
+
+
+@dataclass(frozen=True)
+class NoiseBudget:
+    """Predicted RMS of the noise-driven control and error of a scenario's loop.
+
+    Attributes
+    ----------
+    noise_rms : float
+        σ of the white encoder noise [rad].
+    rms_u, rms_du : float
+        Noise-driven RMS of u_k and of u_k − u_{k−1} [N·m].
+    rms_error : float
+        Noise-driven RMS of the angle θ_k (so of the tracking error) [rad].
+    u_per_noise : float
+        rms_u / σ [N·m/rad], the H2 gain from noise to control (per sample).
+    stable : bool
+        The closed loop is stable (otherwise every value is inf).
+    """
+
+    noise_rms: float
+    rms_u: float
+    rms_du: float
+    rms_error: float
+    u_per_noise: float
+    stable: bool
+
+    def to_dict(self) -> dict[str, float | bool]:
+        """JSON-ready."""
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)  # type: ignore[misc]
+                for k, v in asdict(self).items()}
+
+
+def noise_budget(scn: Scenario, *, theta0: float | None = None, friction: str = "viscous",
+                 noise_rms: float | None = None) -> NoiseBudget:
+    """The noise budget of ``scn``'s loop linearized at θ0 (module docstring).
+
+    Parameters
+    ----------
+    scn : Scenario
+        Lever arm with the FLC and any observer kind, without a ``[motor]`` (its
+        back-EMF compensation makes the plant's torque differ from u).
+    theta0 : float, optional
+        Operating angle [rad]; default ``rig.theta0``.
+    friction : {"viscous", "slope", "none"}
+        Friction in the linear plant (:mod:`esoarm.studies.frequency.linearization`).
+    noise_rms : float, optional
+        σ [rad]; default the scenario's ``sensor.noise_deg`` in radians.
+
+    Raises
+    ------
+    ValueError
+        With a ``[motor]`` table (not modelled here).
+    """
+    if motor_damping(scn) != 0.0:
+        raise ValueError("the noise budget does not model the motor's back-EMF compensation "
+                         "(remove [motor] to budget the torque loop)")
+    sigma = math.radians(scn.sensor.noise_deg) if noise_rms is None else float(noise_rms)
+    lin = linearize(scn, theta0=theta0, friction=friction)
+    ap, bp, cp, _ = lin.plant
+    ak, bk, ck, dk = lin.controller  # y -> -u
+    n_p, n_k = ap.shape[0], ak.shape[0]
+    a = np.zeros((n_p + n_k, n_p + n_k))
+    a[:n_p, :n_p] = ap - bp @ dk @ cp
+    a[:n_p, n_p:] = -bp @ ck
+    a[n_p:, :n_p] = bk @ cp
+    a[n_p:, n_p:] = ak
+    b = np.vstack([-bp @ dk, bk])
+    cu = -np.hstack([dk @ cp, ck])
+    du = float(-dk[0, 0])
+    ce = np.hstack([cp, np.zeros((1, n_k))])
+    if np.max(np.abs(np.linalg.eigvals(a))) >= 1.0:
+        inf = math.inf
+        return NoiseBudget(sigma, inf, inf, inf, inf, False)
+    x = solve_discrete_lyapunov(a, sigma**2 * (b @ b.T))
+    var_u = (cu @ x @ cu.T).item() + sigma**2 * du**2
+    var_e = (ce @ x @ ce.T).item()
+    am = a - np.eye(a.shape[0])
+    var_du = ((cu @ am @ x @ am.T @ cu.T).item() + sigma**2 * ((cu @ b).item() - du) ** 2
+              + sigma**2 * du**2)
+    rms_u = math.sqrt(max(var_u, 0.0))
+    return NoiseBudget(sigma, rms_u, math.sqrt(max(var_du, 0.0)), math.sqrt(max(var_e, 0.0)),
+                       rms_u / sigma if sigma > 0 else math.nan, True)

@@ -1,0 +1,77 @@
+"""The noise budget of analyze against a Monte Carlo run of the same LTI loop and the twin."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from esoarm.cli import cli
+from esoarm.engines.simulation import simulate
+from esoarm.scenario import load_scenario
+from esoarm.studies.frequency.linearization import linearize
+from esoarm.studies.frequency.noise import noise_budget
+
+# (scenario, overrides): measured within 10 % of the twin (docs/frequency.md)
+TWIN_CASES = {
+    "test-1 eps 0.05, 0.5 deg": ("test-1", {"observer.eps": 0.05, "sensor.noise_deg": 0.5}),
+    "test-1 defaults": ("test-1", {}),
+    "test-1 cascade eps 0.05": ("test-1", {"observer.kind": "cascade", "observer.eps": 0.05,
+                                           "sensor.noise_deg": 0.5}),
+    "test-2 eps 0.05": ("test-2", {"observer.eps": 0.05, "sensor.noise_deg": 0.5}),
+    "test-1 zoh 1 deg": ("test-1", {"observer.eps": 0.05, "observer.discretization": "zoh",
+                                    "sensor.noise_deg": 1.0}),
+}
+
+
+def test_budget_is_the_lti_loop_driven_by_white_noise() -> None:
+    """Independent of the Lyapunov solve: 200 000 samples of the closed loop, seeded."""
+    scn = load_scenario("test-1", {"observer.eps": 0.05, "sensor.noise_deg": 0.5})
+    b = noise_budget(scn)
+    lin = linearize(scn)
+    ap, bp, cp, _ = lin.plant
+    ak, bk, ck, dk = lin.controller
+    xp, xk = np.zeros(ap.shape[0]), np.zeros(ak.shape[0])
+    rng = np.random.default_rng(7)
+    n = rng.standard_normal(200_000) * math.radians(0.5)
+    u = np.empty(n.size)
+    th = np.empty(n.size)
+    for k in range(n.size):
+        theta = cp[0] @ xp
+        y = theta + n[k]
+        u[k] = -(ck[0] @ xk + dk[0, 0] * y)
+        th[k] = theta
+        xp = ap @ xp + bp[:, 0] * u[k]
+        xk = ak @ xk + bk[:, 0] * y
+    u, th = u[1000:], th[1000:]
+    assert np.sqrt(np.mean(u**2)) == pytest.approx(b.rms_u, rel=0.02)
+    assert np.sqrt(np.mean(np.diff(u) ** 2)) == pytest.approx(b.rms_du, rel=0.02)
+    assert np.sqrt(np.mean(th**2)) == pytest.approx(b.rms_error, rel=0.03)
+
+
+@pytest.mark.parametrize("case", sorted(TWIN_CASES))
+def test_budget_predicts_the_twins_noise_driven_control(case: str) -> None:
+    """The twin's u with noise minus u without (seeds 0-2): RMS u and RMS Δu within 10 %."""
+    name, over = TWIN_CASES[case]
+    b = noise_budget(load_scenario(name, over))
+    du, ddu = [], []
+    for seed in range(3):
+        noisy = simulate(name, {**over, "sensor.seed": seed}, warn=False)
+        clean = simulate(name, {**over, "sensor.seed": seed, "sensor.noise_deg": 0.0},
+                         warn=False)
+        d = noisy.u - clean.u
+        du.append(np.mean(d**2))
+        ddu.append(np.mean(np.diff(d) ** 2))
+    assert b.rms_u == pytest.approx(math.sqrt(np.mean(du)), rel=0.10)
+    assert b.rms_du == pytest.approx(math.sqrt(np.mean(ddu)), rel=0.10)
+
+
+def test_analyze_reports_the_budget_or_says_why_not() -> None:
+    res = CliRunner().invoke(cli, ["analyze", "test-1", "--set", "sensor.noise_deg=0.5"])
+    assert res.exit_code == 0, res.output
+    assert "noise budget" in res.output and "RMS Δu" in res.output
+    res = CliRunner().invoke(cli, ["analyze", "uno-rig"])
+    assert res.exit_code == 0, res.output
+    assert "noise budget: not modelled" in res.output
