@@ -23,6 +23,9 @@ COVERED = [
     "esoarm.reference",
     "esoarm.result",
     "esoarm.observers.stability",
+    "esoarm.controllers.computed_torque",
+    "esoarm.controllers.flc",
+    "esoarm.controllers.pid",
 ]
 
 

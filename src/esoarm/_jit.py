@@ -26,6 +26,8 @@ F = TypeVar("F", bound=Callable[..., object])
 
 _pending: list[tuple[Callable[..., object], Callable[..., object] | None, int | None]] = []
 _registered = False
+#: Every function marked :func:`jitable` or :func:`jitable_as` (by id).
+_marked: set[int] = set()
 
 
 def _noop_like(func: Callable[..., object]) -> Callable[..., object]:
@@ -64,6 +66,7 @@ def _register(func: Callable[..., object], compiled: Callable[..., object] | Non
 
 def jitable(func: F) -> F:
     """Return ``func`` unchanged, recorded for use inside numba kernels."""
+    _marked.add(id(func))
     if _registered:
         _register(func, None)
     else:
@@ -91,6 +94,7 @@ def jitable_as(compiled: Callable[..., object], *,
     """
 
     def mark(func: F) -> F:
+        _marked.add(id(func))
         if _registered:
             _register(func, compiled, array_arg)
         else:
@@ -98,6 +102,11 @@ def jitable_as(compiled: Callable[..., object], *,
         return func
 
     return mark
+
+
+def is_jitable(func: object) -> bool:
+    """``func`` was marked :func:`jitable` (or :func:`jitable_as`): kernels can call it."""
+    return id(func) in _marked
 
 
 def register_all() -> None:

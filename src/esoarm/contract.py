@@ -21,16 +21,27 @@ Array conventions (n joints): the plant state ``x`` holds the angles in
 ``x[:n]`` and the rates in ``x[n:2n]`` (further states after them); the
 observer's estimate ``zhat`` holds (angle, rate, total perturbation) of joint
 j in ``zhat[3j:3j+3]``; measurements ``y`` and commands ``u`` have length n.
+
+The required names of each component are :class:`PlantKind`, :class:`ObserverKind` and
+:class:`ControllerKind` (typing protocols: mypy checks the registered modules against
+them) and, for the check the registry runs when a kind is registered, :data:`REQUIRED`.
+The optional names and their defaults are :data:`OPTIONAL`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TypeAlias
+from typing import TYPE_CHECKING, Any, Protocol, TypeAlias
 
 import numpy as np
 
-__all__ = ["ComponentDesign", "PlantDesign", "Vector", "read_only"]
+if TYPE_CHECKING:
+    from esoarm._schema import Section
+    from esoarm.scenario import Scenario
+
+__all__ = ["COMPONENTS", "OPTIONAL", "REQUIRED", "REQUIRED_IF_JIT", "ComponentDesign",
+           "ControllerKind", "Kind", "ObserverKind", "ObserverLinearization", "PlantDesign",
+           "PlantKind", "Vector", "read_only"]
 
 #: A parameter vector as the step functions take it: a NumPy array, or a tuple of
 #: floats (the compiled engine hands vectors over as tuples, which live in registers).
@@ -81,3 +92,175 @@ class ComponentDesign:
 
     vector: np.ndarray
     n_state: int
+
+
+@dataclass(frozen=True)
+class ObserverLinearization:
+    """An observer kind's linear model for the frequency-domain analysis (``analyze``).
+
+    One joint, sampled at Ts, state z (n), inputs the measured angle y [rad] and
+    the observer input u, output the estimate ẑ (angle, rate, perturbation):
+
+        z⁺ = P z + Q y + Γ u,    ẑ = Hz z + Hy y
+
+    (an ESO of 3 states: Hz = I − M C, Hy = M with C = (1, 0, 0)).
+
+    Attributes
+    ----------
+    p, q, gamma, hz, hy : ndarray
+        P (n, n), Q (n, 1), Γ (n, 1), Hz (3, n), Hy (3, 1).
+    pole : float
+        The observer's slowest discrete error pole (z-plane); its frequency
+        −ln|pole|/Ts [rad/s] is reported.
+    eps : float
+        The observer's time constant ε [s] (reported, and the key ``analyze
+        --vary`` sweeps).
+    discretization : str
+        The name of the discretization this model is of (reported).
+    label : str
+        What the observer is, for titles ("linear ESO").
+    """
+
+    p: np.ndarray
+    q: np.ndarray
+    gamma: np.ndarray
+    hz: np.ndarray
+    hy: np.ndarray
+    pole: float
+    eps: float
+    discretization: str
+    label: str
+
+
+# ---------------------------------------------------------------------------
+# the contract itself: what a kind module provides (checked by mypy against the registry,
+# and by esoarm.kinds when a kind is registered)
+
+
+class Kind(Protocol):
+    """The names every kind module provides, whatever its component."""
+
+    @property
+    def __name__(self) -> str:
+        """The module's dotted name (``esoarm.observers.linear``)."""
+
+    @property
+    def KIND(self) -> str:  # noqa: N802 - module constants
+        """The tag written in the scenario (``"linear"``)."""
+
+    @property
+    def CODE(self) -> int:  # noqa: N802
+        """Small integer, unique within the component; element 0 of the parameter vector."""
+
+    @property
+    def JIT(self) -> bool:  # noqa: N802
+        """The step functions compile with numba (:func:`esoarm._jit.jitable`)."""
+
+    @property
+    def Params(self) -> type[Section]:  # noqa: N802
+        """The kind's validated scenario table, with a ``kind`` literal equal to KIND."""
+
+
+class PlantKind(Kind, Protocol):
+    """A plant kind (the true system). ``advance_block`` too when JIT is true."""
+
+    def design(self, scn: Scenario, /) -> PlantDesign:
+        """The scenario turned into the plant's vector, initial state, sizes and b0."""
+
+    def advance(self, x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
+                p: np.ndarray, /) -> None:
+        """Integrate x over one sample [t0, t0 + nsub·h], input u held (in place)."""
+
+    def acceleration(self, x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
+                     out: np.ndarray, /) -> None:
+        """The true angular acceleration per joint [rad/s²] into ``out``."""
+
+    def observer_input(self, zhat: np.ndarray, u: np.ndarray, p: np.ndarray,
+                       v: np.ndarray, /) -> None:
+        """What the observers take as input for the command u, per joint, into ``v``."""
+
+
+class ObserverKind(Kind, Protocol):
+    """An observer kind: ẑ_k from the measurements and the observer input."""
+
+    def design(self, scn: Scenario, plant: PlantDesign, ts: float, /) -> ComponentDesign:
+        """The observer's vector and state size for the plant at sample period ts [s]."""
+
+    def initialize(self, z: np.ndarray, y: np.ndarray, p: np.ndarray, /) -> None:
+        """Its state z_0 from the first measurement y_0 (in place)."""
+
+    def estimate(self, z: np.ndarray, y: np.ndarray, p: np.ndarray,
+                 zhat: np.ndarray, /) -> None:
+        """The estimate ẑ_k the controller uses at t_k into ``zhat``."""
+
+    def advance(self, z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
+                p: np.ndarray, /) -> None:
+        """z_{k+1} in place from z_k, ẑ_k, y_k and the observer input u_k."""
+
+
+class ControllerKind(Kind, Protocol):
+    """A controller kind: the raw command from the estimate and the references."""
+
+    def design(self, scn: Scenario, plant: PlantDesign, ts: float, /) -> ComponentDesign:
+        """The controller's vector and state size for the plant at sample period ts [s]."""
+
+    def initialize(self, c: np.ndarray, y: np.ndarray, p: np.ndarray, /) -> None:
+        """Its own state from the first measurement (in place)."""
+
+    def control(self, c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray,
+                k: int, p: np.ndarray, u: np.ndarray, /) -> None:
+        """The raw command of sample k per joint into ``u`` (the actuator saturates)."""
+
+
+#: The three components, as named in the scenario's tables.
+COMPONENTS: tuple[str, ...] = ("plant", "observer", "controller")
+
+_COMMON = ("KIND", "CODE", "JIT", "Params", "design")
+
+#: Names a kind module must define, per component (the protocols above, for the
+#: check :mod:`esoarm.kinds` runs when a kind is registered).
+REQUIRED: dict[str, tuple[str, ...]] = {
+    "plant": (*_COMMON, "advance", "acceleration", "observer_input"),
+    "observer": (*_COMMON, "initialize", "estimate", "advance"),
+    "controller": (*_COMMON, "initialize", "control"),
+}
+
+#: Further names a kind with ``JIT = True`` must define.
+REQUIRED_IF_JIT: dict[str, tuple[str, ...]] = {
+    "plant": ("advance_block",),
+    "observer": (),
+    "controller": (),
+}
+
+#: Names a kind may define, with their meaning when it does not (its default):
+#:
+#: ``MOTOR`` (plants; default False)
+#:     driven by the actuator's motor when the scenario has a ``[motor]`` table (else the
+#:     table is refused);
+#: ``FAST`` (default False)
+#:     the opt-in fast engine (:mod:`esoarm.engines.fast`, a C kernel) models it;
+#: ``C_SOURCE`` (default None)
+#:     the name of a ``.c`` file beside the module with the same step in C99 for the
+#:     generated on-chip controller (:mod:`esoarm.codegen`; None: ``codegen`` refuses it);
+#: ``check(scn) -> str | None`` (default: no check)
+#:     a scenario-level check run at validation (a message naming the key is bad input);
+#: ``label(params) -> str`` (default ``"<KIND> observer"`` / ``"<KIND> controller"``)
+#:     a short description for titles (``result.kind_labels``);
+#: ``summary(params) -> str`` (observers; default ``"observer kind '<KIND>'"``)
+#:     one line on its settings for the command line ("ε = 0.09 s (euler)");
+#: ``warnings(params, ts) -> list[str]`` (observers; default: none)
+#:     what is doubtful about the settings at sample period ts [s] (shown by
+#:     ``simulate``, used to explain a run that diverged; an "unstable" in a message
+#:     marks an observer that cannot work);
+#: ``linearization(params, ts, b0) -> ObserverLinearization`` (observers; default: not
+#:     modelled, ``analyze`` refuses the kind in one line).
+OPTIONAL: dict[str, Any] = {
+    "FAST": False,
+    "MOTOR": False,
+    "C_SOURCE": None,
+    "check": None,
+    "label": None,
+    "summary": None,
+    "warnings": None,
+    "linearization": None,
+}

@@ -1,29 +1,48 @@
 """The registry of plant, observer and controller kinds: the one place a kind is added.
 
 Each kind is a module following :mod:`esoarm.contract` (``KIND``, ``CODE``,
-``JIT``, ``Params``, ``design`` and its step functions).  This module lists
-them per component; from the lists come the scenario's tagged unions
-(``plant.kind``, ``observer.kind``, ``controller.kind``), the lookup of a
-scenario's kinds (:func:`kinds_of`) and, for the compiled engine, one
-dispatch function per step that calls the kind whose CODE is in element 0
-of the parameter vector.  A kind with ``JIT = False`` (e.g. one that calls a
-library numba cannot compile) runs only in the reference engine; the batch
-engine runs its points in worker processes instead.
+``JIT``, ``Params``, ``design`` and its step functions; optional ``FAST``,
+``C_SOURCE``, ``check``, ``label``, ``summary``, ``warnings``, ``linearization``).
+This module lists them per component and checks each when it is registered
+(a missing name, a ``Params`` without the ``kind`` literal, a CODE or KIND
+used twice: an ImportError naming the kind and what is missing).  From the
+lists come the scenario's tagged unions (``plant.kind``, ``observer.kind``,
+``controller.kind``), the lookup of a scenario's kinds (:func:`kinds_of`)
+and, for the compiled engine, one dispatch function per step, *generated*
+from the registered kinds with ``JIT = True``: it calls the kind whose CODE
+is in element 0 of the parameter vector, and a CODE no compiled kind has is
+an error (never another kind's step).  A kind with ``JIT = False`` (e.g. one
+that calls a library numba cannot compile) runs only in the reference
+engine; the batch engine runs its points in worker processes instead.
 
-To add a kind: write its module, append it to the component's tuple below,
-and -- if it compiles -- add one branch to that component's dispatch
-functions.  Nothing in the engines, the CLI or the report changes.
+To add a kind: write its module and add it to the component's tuple below
+(or, outside the package, e.g. in a test: ``register("observer", module)``).
+Nothing in the engines, the CLI or the report changes.
 """
 
 from __future__ import annotations
 
+import hashlib
+import inspect
+import linecache
+from collections.abc import Callable
+from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Annotated, Any, NamedTuple
+from typing import TYPE_CHECKING, Annotated, Any, NamedTuple, cast
 
 import numpy as np
 from pydantic import Field
 
-from esoarm._jit import jitable
+from esoarm import _jit
+from esoarm.contract import (
+    COMPONENTS,
+    OPTIONAL,
+    REQUIRED,
+    REQUIRED_IF_JIT,
+    ControllerKind,
+    ObserverKind,
+    PlantKind,
+)
 from esoarm.controllers import computed_torque, flc, pid
 from esoarm.observers import cascade, linear, nonlinear
 from esoarm.plants import axis, lever_arm, urdf
@@ -31,27 +50,109 @@ from esoarm.plants import axis, lever_arm, urdf
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "kind_labels", "kinds_of", "tagged_union"]
+__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "check_kind", "hook",
+           "kind_labels", "kinds_of", "observer_summary",
+           "observer_warnings", "on_change", "register", "registry_stamp",
+           "tagged_union", "unregister"]
 
-#: Registered kinds per component; the first is the default.
-PLANTS: tuple[ModuleType, ...] = (lever_arm, urdf, axis)
-OBSERVERS: tuple[ModuleType, ...] = (linear, nonlinear, cascade)
-CONTROLLERS: tuple[ModuleType, ...] = (flc, pid, computed_torque)
+#: Registered kinds per component; the first is the default.  (mypy checks each module
+#: against its component's protocol, :class:`esoarm.contract.PlantKind` etc.)
+PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis)
+OBSERVERS: tuple[ObserverKind, ...] = (linear, nonlinear, cascade)
+CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque)
 
-
-def _check(component: str, kinds: tuple[ModuleType, ...]) -> None:
-    for attr in ("KIND", "CODE"):
-        values = [getattr(m, attr) for m in kinds]
-        if len(set(values)) != len(values):  # pragma: no cover - guards a registration
-            raise ImportError(f"esoarm.kinds: two {component} kinds share a {attr}: {values}")
-
-
-_check("plant", PLANTS)
-_check("observer", OBSERVERS)
-_check("controller", CONTROLLERS)
+#: What was registered at import: the kinds of the package itself.
+_BUILTIN: dict[str, tuple[Any, ...]] = {
+    "plant": PLANTS, "observer": OBSERVERS, "controller": CONTROLLERS}
+_listeners: list[Callable[[], None]] = []
 
 
-def tagged_union(kinds: tuple[ModuleType, ...]) -> Any:
+def _registered(component: str) -> tuple[Any, ...]:
+    return {"plant": PLANTS, "observer": OBSERVERS, "controller": CONTROLLERS}[component]
+
+
+def check_kind(component: str, module: Any, others: tuple[Any, ...] = ()) -> None:
+    """Check that ``module`` is a complete kind of ``component`` (the contract).
+
+    Parameters
+    ----------
+    component : {"plant", "observer", "controller"}
+        Its component.
+    module : module
+        The kind module.
+    others : tuple of modules
+        The kinds already registered for the component (KIND and CODE must differ).
+
+    Raises
+    ------
+    ImportError
+        One line naming the kind and what is missing or wrong.
+    """
+    if component not in COMPONENTS:
+        raise ImportError(f"esoarm.kinds: no component {component!r}; the components are "
+                          f"{', '.join(COMPONENTS)}")
+    name = getattr(module, "__name__", repr(module))
+    kind = getattr(module, "KIND", None)
+    who = f"{component} kind {kind!r} ({name})" if isinstance(kind, str) else \
+        f"{component} kind module {name}"
+    jit = getattr(module, "JIT", None)
+    required = REQUIRED[component] + (REQUIRED_IF_JIT[component] if jit else ())
+    missing = [n for n in required if not hasattr(module, n)]
+    if missing:
+        raise ImportError(f"esoarm.kinds: {who} does not define {', '.join(missing)} "
+                          "(see esoarm.contract and docs/contract.md)")
+    code = module.CODE
+    if not isinstance(kind, str) or not kind:
+        raise ImportError(f"esoarm.kinds: {who}: KIND must be a non-empty str")
+    if isinstance(code, bool) or not isinstance(code, int) or code < 0:
+        raise ImportError(f"esoarm.kinds: {who}: CODE must be an int >= 0, got {code!r}")
+    for flag in ("JIT", "FAST", "MOTOR"):
+        if not isinstance(getattr(module, flag, False), bool):
+            raise ImportError(f"esoarm.kinds: {who}: {flag} must be True or False")
+    steps = tuple(n for n in required if n not in ("KIND", "CODE", "JIT", "Params", "design"))
+    source = getattr(module, "C_SOURCE", None)
+    if source is not None and not (isinstance(source, str) and hasattr(module, "__file__")
+                                   and (Path(module.__file__).parent / source).is_file()):
+        raise ImportError(f"esoarm.kinds: {who}: C_SOURCE = {source!r} is not a file beside "
+                          "the module")
+    for fn in steps + tuple(n for n, d in OPTIONAL.items()
+                            if d is None and n != "C_SOURCE" and hasattr(module, n)):
+        if not callable(getattr(module, fn)):
+            raise ImportError(f"esoarm.kinds: {who}: {fn} must be a function")
+    if not callable(module.design):
+        raise ImportError(f"esoarm.kinds: {who}: design must be a function")
+    if jit:
+        plain = [fn for fn in steps if not _jit.is_jitable(getattr(module, fn))]
+        if plain:
+            raise ImportError(f"esoarm.kinds: {who} has JIT = True but {', '.join(plain)} "
+                              "not decorated with esoarm._jit.jitable")
+    params = module.Params
+    fields = getattr(params, "model_fields", None)
+    if not isinstance(params, type) or fields is None:
+        raise ImportError(f"esoarm.kinds: {who}: Params must be an esoarm._schema.Section")
+    if "kind" not in fields:
+        raise ImportError(f"esoarm.kinds: {who}: Params has no field 'kind' "
+                          f"(kind: Literal[{kind!r}] = {kind!r})")
+    if fields["kind"].default != kind:
+        raise ImportError(f"esoarm.kinds: {who}: Params.kind defaults to "
+                          f"{fields['kind'].default!r}, not KIND = {kind!r}")
+    for other in others:
+        if other is module:
+            raise ImportError(f"esoarm.kinds: {who} is registered already")
+        for attr in ("KIND", "CODE"):
+            if getattr(other, attr) == getattr(module, attr):
+                raise ImportError(f"esoarm.kinds: {who}: {attr} = {getattr(module, attr)!r} "
+                                  f"is {other.__name__}'s already")
+
+
+def _check_all() -> None:
+    for component in COMPONENTS:
+        kinds = _registered(component)
+        for i, module in enumerate(kinds):
+            check_kind(component, module, kinds[:i])
+
+
+def tagged_union(kinds: tuple[Any, ...]) -> Any:
     """The pydantic tagged union of the kinds' ``Params`` (discriminator ``kind``)."""
     models = tuple(m.Params for m in kinds)
     union = models[0]
@@ -60,7 +161,7 @@ def tagged_union(kinds: tuple[ModuleType, ...]) -> Any:
     return Annotated[union, Field(discriminator="kind")]
 
 
-def by_name(kinds: tuple[ModuleType, ...], name: str) -> ModuleType:
+def by_name(kinds: tuple[Any, ...], name: str) -> Any:
     """The kind module registered as ``name``."""
     for module in kinds:
         if module.KIND == name:
@@ -68,17 +169,27 @@ def by_name(kinds: tuple[ModuleType, ...], name: str) -> ModuleType:
     raise KeyError(name)  # pragma: no cover - the scenario validated the name
 
 
+def hook(module: Any, name: str) -> Any:
+    """The optional name ``name`` of a kind module, or its default (:data:`OPTIONAL`)."""
+    return getattr(module, name, OPTIONAL[name])
+
+
 class Kinds(NamedTuple):
     """The kind modules of one scenario: plant, observer, controller."""
 
-    plant: ModuleType
-    observer: ModuleType
-    controller: ModuleType
+    plant: PlantKind
+    observer: ObserverKind
+    controller: ControllerKind
 
     @property
     def jit(self) -> bool:
         """All three compile with numba (the batch engine can run them)."""
         return bool(self.plant.JIT and self.observer.JIT and self.controller.JIT)
+
+    @property
+    def fast(self) -> bool:
+        """The fast engine models all three (each declares ``FAST = True``)."""
+        return all(bool(hook(m, "FAST")) for m in self)
 
 
 def kinds_of(scn: Scenario) -> Kinds:
@@ -98,121 +209,193 @@ def kinds_of(scn: Scenario) -> Kinds:
 def kind_labels(scn: Scenario) -> tuple[str, str]:
     """Short descriptions of the observer and the controller of ``scn`` for titles.
 
-    ("euler", "eso compensation") for the paper's linear ESO and FLC; the kind
-    is named for the others ("euler nonlinear ESO", "pid controller").
+    Each kind's ``label(params)``: ("euler", "eso compensation") for the paper's
+    linear ESO and FLC, "euler nonlinear ESO"; a kind without ``label`` is named
+    ("luenberger observer", "pid controller").
+
+    Examples
+    --------
+    >>> from esoarm.scenario import load_scenario
+    >>> kind_labels(load_scenario("test-1", {"controller.kind": "pid"}))
+    ('euler', 'pid controller')
     """
-    obs, ctl = scn.observer, scn.controller
-    disc = getattr(obs, "discretization", None)
-    obs_text = (str(disc) if obs.kind == "linear" else f"{disc} {obs.kind} ESO") if disc \
-        else f"{obs.kind} observer"
-    comp = getattr(ctl, "compensation", None)
-    ctl_text = f"{comp} compensation" if comp is not None else f"{ctl.kind} controller"
-    return obs_text, ctl_text
+    k = kinds_of(scn)
+    obs_label, ctl_label = hook(k.observer, "label"), hook(k.controller, "label")
+    obs_text = obs_label(scn.observer) if obs_label else f"{k.observer.KIND} observer"
+    ctl_text = ctl_label(scn.controller) if ctl_label else f"{k.controller.KIND} controller"
+    return str(obs_text), str(ctl_text)
+
+
+def observer_summary(scn: Scenario) -> str:
+    """One line on the observer's settings (the kind's ``summary``), e.g. ``ε = 0.09 s (euler)``.
+
+    Examples
+    --------
+    >>> from esoarm.scenario import load_scenario
+    >>> observer_summary(load_scenario("test-1"))
+    'ε = 0.09 s (euler)'
+    """
+    k = kinds_of(scn).observer
+    summary = hook(k, "summary")
+    return str(summary(scn.observer)) if summary else f"observer kind '{k.KIND}'"
+
+
+def observer_warnings(scn: Scenario) -> list[str]:
+    """What the observer kind finds doubtful in its settings at the scenario's Ts (``warnings``).
+
+    Examples
+    --------
+    >>> from esoarm.scenario import load_scenario
+    >>> observer_warnings(load_scenario("test-1", {"observer.eps": 0.004}))[0][:60]
+    "observer.eps = 0.004 s with discretization 'euler' at Ts = 0"
+    """
+    warn = hook(kinds_of(scn).observer, "warnings")
+    return list(warn(scn.observer, scn.sample_time)) if warn else []
+
+
+# ---------------------------------------------------------------------------
+# registering kinds at run time (a kind outside the package, a test's kind)
+
+
+def on_change(callback: Callable[[], None]) -> None:
+    """Call ``callback()`` after each :func:`register` / :func:`unregister`.
+
+    The scenario schema rebuilds its tagged unions, the compiled engine drops
+    kernels compiled with the former dispatch functions.
+    """
+    _listeners.append(callback)
+
+
+def _set(component: str, kinds: tuple[Any, ...]) -> None:
+    global PLANTS, OBSERVERS, CONTROLLERS
+    if component == "plant":
+        PLANTS = kinds
+    elif component == "observer":
+        OBSERVERS = kinds
+    else:
+        CONTROLLERS = kinds
+    _generate_dispatch()
+    for callback in _listeners:
+        callback()
+
+
+def register(component: str, module: ModuleType) -> None:
+    """Add the kind ``module`` to ``component`` ("plant", "observer" or "controller").
+
+    The kind is checked first (:func:`check_kind`); after this call scenarios accept
+    ``<component>.kind = module.KIND`` and every engine runs it.
+
+    Raises
+    ------
+    ImportError
+        The module is not a complete kind, or its KIND or CODE is taken.
+    """
+    kinds = _registered(component) if component in COMPONENTS else ()
+    check_kind(component, module, kinds)
+    _set(component, (*kinds, module))
+
+
+def unregister(component: str, module: ModuleType) -> None:
+    """Remove a kind added by :func:`register` (the package's own kinds stay)."""
+    if module in _BUILTIN.get(component, ()):
+        raise ValueError(f"{component} kind {module.KIND!r} belongs to esoarm; it stays")
+    _set(component, tuple(m for m in _registered(component) if m is not module))
+
+
+def _builtin_root() -> Path:
+    return Path(__file__).resolve().parent
+
+
+def registry_stamp() -> str:
+    """'' for the package's own kinds, else a hash of every kind added at run time.
+
+    The compiled engine keys its on-disk cache on it (kernels compiled with other
+    dispatch functions are kept apart): the added modules' sources, their
+    components and the generated dispatch.
+    """
+    extra = [(c, m) for c in COMPONENTS for m in _registered(c) if m not in _BUILTIN[c]]
+    if not extra and all(_registered(c) == _BUILTIN[c] for c in COMPONENTS):
+        return ""
+    digest = hashlib.sha256(_DISPATCH_SOURCE.encode())
+    for component, module in extra:
+        digest.update(component.encode())
+        try:
+            digest.update(Path(inspect.getfile(module)).read_bytes())
+        except (OSError, TypeError):  # pragma: no cover - a module without a file
+            digest.update(repr(module).encode())
+    return digest.hexdigest()[:16]
 
 
 # ---------------------------------------------------------------------------
 # dispatch for the compiled engine: element 0 of each vector is the kind's CODE
 
+#: The dispatched steps: component -> step -> its arguments (``p`` the kind's vector).
+STEPS: dict[str, dict[str, str]] = {
+    "plant": {"advance": "x, u, t0, h, nsub, p",
+              "advance_block": "xs, us, live, t0, h, nsub, p",
+              "acceleration": "x, u, t, p, out",
+              "observer_input": "zhat, u, p, v"},
+    "observer": {"initialize": "z, y, p",
+                 "estimate": "z, y, p, zhat",
+                 "advance": "z, zhat, y, u, p"},
+    "controller": {"initialize": "c, y, p",
+                   "control": "c, zhat, y, refs, k, p, u"},
+}
 
-@jitable
-def plant_advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
-                  p: np.ndarray) -> None:
-    """``advance`` of the plant kind whose CODE is p[0]."""
-    if p[0] == axis.CODE:
-        axis.advance(x, u, t0, h, nsub, p)
-    elif p[0] == urdf.CODE:
-        urdf.advance(x, u, t0, h, nsub, p)
-    else:
-        lever_arm.advance(x, u, t0, h, nsub, p)
+# The generated functions (typed here for mypy; bodies made by _generate_dispatch).
+plant_advance: Callable[[np.ndarray, np.ndarray, float, float, int, np.ndarray], None]
+plant_advance_block: Callable[[np.ndarray, np.ndarray, np.ndarray, float, float, int,
+                               np.ndarray], None]
+plant_acceleration: Callable[[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray], None]
+plant_observer_input: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], None]
+observer_initialize: Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+observer_estimate: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], None]
+observer_advance: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray], None]
+controller_initialize: Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+controller_control: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int,
+                              np.ndarray, np.ndarray], None]
 
-
-@jitable
-def plant_advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
-                        nsub: int, p: np.ndarray) -> None:
-    """``advance_block`` of the plant kind whose CODE is p[0] (a block of runs, same p)."""
-    if p[0] == axis.CODE:
-        axis.advance_block(xs, us, live, t0, h, nsub, p)
-    elif p[0] == urdf.CODE:
-        urdf.advance_block(xs, us, live, t0, h, nsub, p)
-    else:
-        lever_arm.advance_block(xs, us, live, t0, h, nsub, p)
-
-
-@jitable
-def plant_acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
-                       out: np.ndarray) -> None:
-    """``acceleration`` of the plant kind whose CODE is p[0]."""
-    if p[0] == axis.CODE:
-        axis.acceleration(x, u, t, p, out)
-    elif p[0] == urdf.CODE:
-        urdf.acceleration(x, u, t, p, out)
-    else:
-        lever_arm.acceleration(x, u, t, p, out)
+_DISPATCH_SOURCE = ""
+_generation = 0
 
 
-@jitable
-def plant_observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
-    """``observer_input`` of the plant kind whose CODE is p[0]."""
-    if p[0] == axis.CODE:
-        axis.observer_input(zhat, u, p, v)
-    elif p[0] == urdf.CODE:
-        urdf.observer_input(zhat, u, p, v)
-    else:
-        lever_arm.observer_input(zhat, u, p, v)
+def dispatch_source() -> str:
+    """The Python source of the dispatch functions generated from the registry."""
+    lines = ['"""Generated by esoarm.kinds from the registered kinds (do not edit)."""', ""]
+    for component in COMPONENTS:
+        compiled = [(i, m) for i, m in enumerate(_registered(component)) if m.JIT]
+        known = ", ".join(f"{m.KIND}={m.CODE}" for _, m in compiled) or "none"
+        for step, args in STEPS[component].items():
+            lines += ["", f"def {component}_{step}({args}):",
+                      f'    """``{step}`` of the compiled {component} kind whose CODE is p[0]."""',
+                      "    code = p[0]"]
+            for n, (i, m) in enumerate(compiled):
+                lines += [f"    {'if' if n == 0 else 'elif'} code == {float(m.CODE)!r}:",
+                          f"        _{component}_{i}.{step}({args})"]
+            fail = (f"    raise ValueError('esoarm: no compiled {component} kind has this CODE "
+                    f"(compiled: {known})')")
+            lines += ["    else:", "    " + fail] if compiled else [fail]
+            lines += ["    return None"] if not compiled else []
+    return "\n".join(lines) + "\n"
 
 
-@jitable
-def observer_initialize(z: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
-    """``initialize`` of the observer kind whose CODE is p[0]."""
-    if p[0] == nonlinear.CODE:
-        nonlinear.initialize(z, y, p)
-    elif p[0] == cascade.CODE:
-        cascade.initialize(z, y, p)
-    else:
-        linear.initialize(z, y, p)
+def _generate_dispatch() -> None:
+    """(Re)build the dispatch functions from the registry, marked for numba."""
+    global _DISPATCH_SOURCE, _generation
+    source = dispatch_source()
+    _generation += 1
+    filename = f"<esoarm.kinds dispatch {_generation}>"
+    linecache.cache[filename] = (len(source), None, source.splitlines(True), filename)
+    namespace: dict[str, Any] = {f"_{c}_{i}": m for c in COMPONENTS
+                                 for i, m in enumerate(_registered(c))}
+    exec(compile(source, filename, "exec"), namespace)  # noqa: S102 - our own generated code
+    for component in COMPONENTS:
+        for step in STEPS[component]:
+            func = namespace[f"{component}_{step}"]
+            func.__module__ = __name__
+            globals()[f"{component}_{step}"] = _jit.jitable(cast(Callable[..., None], func))
+    _DISPATCH_SOURCE = source
 
 
-@jitable
-def observer_estimate(z: np.ndarray, y: np.ndarray, p: np.ndarray, zhat: np.ndarray) -> None:
-    """``estimate`` of the observer kind whose CODE is p[0]."""
-    if p[0] == nonlinear.CODE:
-        nonlinear.estimate(z, y, p, zhat)
-    elif p[0] == cascade.CODE:
-        cascade.estimate(z, y, p, zhat)
-    else:
-        linear.estimate(z, y, p, zhat)
-
-
-@jitable
-def observer_advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
-                     p: np.ndarray) -> None:
-    """``advance`` of the observer kind whose CODE is p[0]."""
-    if p[0] == nonlinear.CODE:
-        nonlinear.advance(z, zhat, y, u, p)
-    elif p[0] == cascade.CODE:
-        cascade.advance(z, zhat, y, u, p)
-    else:
-        linear.advance(z, zhat, y, u, p)
-
-
-@jitable
-def controller_initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
-    """``initialize`` of the controller kind whose CODE is p[0]."""
-    if p[0] == pid.CODE:
-        pid.initialize(c, y, p)
-    elif p[0] == computed_torque.CODE:
-        computed_torque.initialize(c, y, p)
-    else:
-        flc.initialize(c, y, p)
-
-
-@jitable
-def controller_control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
-                       p: np.ndarray, u: np.ndarray) -> None:
-    """``control`` of the controller kind whose CODE is p[0]."""
-    if p[0] == pid.CODE:
-        pid.control(c, zhat, y, refs, k, p, u)
-    elif p[0] == computed_torque.CODE:
-        computed_torque.control(c, zhat, y, refs, k, p, u)
-    else:
-        flc.control(c, zhat, y, refs, k, p, u)
+_check_all()
+_generate_dispatch()

@@ -32,9 +32,22 @@ FREE = {
 }
 
 
-def test_every_plant_kind_says_whether_it_takes_a_motor() -> None:
-    assert {m.KIND: m.MOTOR for m in PLANTS} == {"lever-arm": True, "urdf": False,
-                                                 "axis": True}
+def test_the_plant_kinds_say_whether_they_take_a_motor() -> None:
+    declared = {m.KIND: getattr(m, "MOTOR", False) for m in PLANTS}
+    assert all(isinstance(value, bool) for value in declared.values())
+    assert {k: declared[k] for k in ("lever-arm", "urdf", "axis")} == {
+        "lever-arm": True, "urdf": False, "axis": True}
+
+
+def test_a_kind_without_motor_support_is_refused_by_the_engine(monkeypatch) -> None:
+    """A plant kind declaring no MOTOR and no check of its own: prepare() refuses [motor]."""
+    from esoarm.engines.simulation import prepare
+    from esoarm.plants import lever_arm
+
+    scn = load_scenario("test-1", MOTOR)
+    monkeypatch.delattr(lever_arm, "MOTOR")
+    with pytest.raises(ScenarioError, match=r"key 'motor': plant.kind = 'lever-arm'"):
+        prepare(scn)
 
 
 def test_the_damping_is_the_closed_form() -> None:

@@ -209,13 +209,12 @@ def cli_wording(message: str) -> str:
 
 def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scenario:
     """Load a scenario with overrides and print its warnings (one line each)."""
-    from esoarm._schema import show_joint_values
+    from esoarm.kinds import observer_summary
     from esoarm.scenario import ScenarioWarning, load_scenario, scenario_warnings
 
     scn = load_scenario(name, list(overrides))
     detail(f"scenario '{scn.name}': {scn.n_samples} samples at {scn.sensor.rate_hz:g} Hz, "
-           f"{scn.substeps} RK4 steps per sample, ε = {show_joint_values(scn.observer.eps)} s "
-           f"({scn.observer.discretization})")
+           f"{scn.substeps} RK4 steps per sample, {observer_summary(scn)}")
 
     for msg in scenario_warnings(scn):
         warnings.warn(msg, ScenarioWarning, stacklevel=2)

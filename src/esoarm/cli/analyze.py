@@ -55,10 +55,14 @@ THETA0_LIMIT = 2 * math.pi
               "[N·m], "
               "rms_error [rad]: noise-driven, from the scenario's sensor.noise_deg} (with "
               "--vary: 'points', one object per value).")
+@click.option("--bandwidth", "target_bw", type=float, default=None, metavar="RAD/S",
+              help="Recommend an observer kind and ε for this disturbance-rejection bandwidth "
+              "(−3 dB of the perturbation estimate f → ẑ3) [rad/s]: the ε of each kind "
+              "(linear, cascade) that reaches it, ranked by the noise budget's RMS Δu.")
 @bad_input_guard
 def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
             max_points: int, theta0: float | None, friction: str, plot: str | None,
-            as_json: bool) -> None:
+            as_json: bool, target_bw: float | None) -> None:
     """Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.
 
     The rig is linearized at the operating angle θ0 (gravity becomes a spring,
@@ -87,6 +91,8 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
     if theta0 is not None and not (math.isfinite(theta0) and abs(theta0) <= THETA0_LIMIT):
         raise BadInput(f"--theta0 {theta0:g}: must be an angle within ±2π rad (±6.283; gravity "
                        "repeats every turn)")
+    if target_bw is not None and not (math.isfinite(target_bw) and target_bw > 0):
+        raise BadInput(f"--bandwidth {target_bw:g}: must be a positive frequency [rad/s]")
     if max_points < 1:
         raise BadInput(f"--max-points {max_points}: must be a whole number >= 1")
     if vary is not None:
@@ -100,11 +106,14 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
 
             figure_frequency(res, plot_path)
         budget = _noise_budget(scn, theta0, friction)
+        recs = _recommend(scn, target_bw)
         if as_json:
-            click.echo(json.dumps({**res.to_dict(), "noise_budget": budget}))
+            extra = {} if recs is None else {"recommendation": recs}
+            click.echo(json.dumps({**res.to_dict(), "noise_budget": budget, **extra}))
         else:
             _print_one(res)
             _print_budget(budget)
+            _print_recommendation(target_bw, recs)
             if plot_path is not None:
                 click.echo(f"figure: {plot_path}")
         return
@@ -268,3 +277,37 @@ def _print_budget(b: dict[str, Any]) -> None:
     click.echo(f"noise budget (white encoder noise σ = {math.degrees(b['noise_rms']):.3g}°, "
                f"linear loop): noise-driven RMS u {b['rms_u']:.4g} N·m, RMS Δu (u_k − u_k−1) "
                f"{b['rms_du']:.4g} N·m, RMS error {b['rms_error']:.3g} rad")
+
+
+def _recommend(scn: Any, target_bw: float | None) -> list[dict[str, Any]] | None:
+    if target_bw is None:
+        return None
+    from esoarm.studies.frequency.noise import recommend_eps
+
+    if scn.plant.kind != "lever-arm" or getattr(scn, "motor", None) is not None:
+        return []
+    return [{"kind": r.kind, "eps": r.eps, "bandwidth": r.bandwidth,
+             "disturbance_peak": r.disturbance_peak, **r.budget.to_dict()}
+            for r in recommend_eps(scn, target_bw)]
+
+
+def _print_recommendation(target_bw: float | None, recs: list[dict[str, Any]] | None) -> None:
+    if recs is None:
+        return
+    if not recs:
+        click.echo(f"--bandwidth {target_bw:g} rad/s: no observer kind reaches it below the "
+                   "Nyquist frequency with a stable loop (or a [motor] scenario: not modelled)")
+        return
+    best = recs[0]
+    click.echo(f"for a perturbation-estimate bandwidth of {target_bw:g} rad/s: "
+               f"observer.kind={best['kind']} observer.eps={best['eps']:.4g} "
+               f"has the least chatter (noise-driven RMS Δu {best['rms_du']:.3g} N·m, RMS u "
+               f"{best['rms_u']:.3g} N·m; disturbance → error peak "
+               f"{best['disturbance_peak']:.3g} rad/(N·m))")
+    for r in recs[1:]:
+        click.echo(f"  else observer.kind={r['kind']} observer.eps={r['eps']:.4g}: RMS Δu "
+                   f"{r['rms_du']:.3g} N·m, RMS u {r['rms_u']:.3g} N·m, disturbance → error peak "
+                   f"{r['disturbance_peak']:.3g} rad/(N·m)")
+    if len({r["kind"] for r in recs}) > 1:
+        click.echo("  equal f → ẑ3 bandwidths are not equal rejection: check the disturbance "
+                   "peaks, and the tracking error with 'esoarm sweep'")

@@ -70,6 +70,9 @@ def arm_study(scenario: str, overrides: tuple[str, ...], out_dir: str, eps: str 
     if scn.plant.kind != "urdf":
         raise BadInput(f"scenario '{scn.name}': arm-study needs plant.kind = 'urdf' "
                        f"(got '{scn.plant.kind}'); for the lever arm use 'esoarm reproduce'")
+    if "eps" not in type(scn.observer).model_fields:  # what the observer kind declares
+        raise BadInput(f"observer.kind: arm-study sweeps observer.eps, which observer kind "
+                       f"'{scn.observer.kind}' does not have; simulate, sweep and tune run it")
     what = (f"simulating {len(VARIANTS)} controllers and the ε sweep "
             f"({len(grid) if grid else 9} values), in worker processes")
     if stderr_is_tty():  # a spinner; in a log one line says what the wait is for

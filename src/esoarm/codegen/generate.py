@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from esoarm import __version__
+from esoarm.contract import Kind
 from esoarm.kinds import kinds_of
 from esoarm.plants.actuator import actuator_vector
 from esoarm.reference import Multisine, QuinticSteps
@@ -66,7 +67,7 @@ class CodegenError(ValueError):
     """A scenario, kind, target or precision the generator cannot serve (one line)."""
 
 
-def c_source(module: ModuleType) -> str | None:
+def c_source(module: Kind | ModuleType) -> str | None:
     """The C of a kind module (its ``C_SOURCE`` file beside it), None if it has none.
 
     Parameters

@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = ["CODE", "JIT", "KIND", "Params", "check", "control", "control_compiled", "design",
-           "initialize", "per_joint", "tracking_acceleration"]
+           "initialize", "label", "per_joint", "tracking_acceleration"]
 
 KIND = "computed-torque"
 CODE = 2
@@ -76,7 +76,20 @@ class Params(Section):
 
 
 def per_joint(value: float | list[float], n: int) -> np.ndarray:
-    """A per-joint key as n values (one number applies to every joint)."""
+    """A per-joint key as n values (one number applies to every joint).
+
+    Parameters
+    ----------
+    value : float or list of float
+        The key's value: one number, or one per joint (the loader checks the length).
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The values as floats, in the key's unit.
+    """
     if isinstance(value, list):
         return np.array(value, dtype=float)
     return np.full(n, float(value))
@@ -98,13 +111,47 @@ def tracking_acceleration(z1: float, z2: float, q_ref: float, v_ref: float, a_re
 
     ``unit_ctl`` is the FLC vector of a unit-inertia joint without perturbation
     estimate; :func:`esoarm.controllers.flc.flc_command` then returns α exactly.
+
+    Parameters
+    ----------
+    z1, z2 : float
+        Estimated joint angle ẑ1 [rad] and rate ẑ2 [rad/s].
+    q_ref, v_ref, a_ref : float
+        Reference qd [rad], q̇d [rad/s], q̈d [rad/s²].
+    unit_ctl : ndarray, shape (6,)
+        The joint's unit FLC vector (k1 [1/s], k2 [1/s²], I0 = 1, 0, "eso", limit ∞).
+
+    Returns
+    -------
+    float
+        The tracking acceleration α [rad/s²], positive along increasing q.
     """
     return float(_flc.flc_command(z1, z2, 0.0, q_ref, v_ref, a_ref, unit_ctl))
 
 
 def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     """(CODE, handle, model flag, feed-forward flag, one unit FLC vector per joint, the
-    nominal model packed for the compiled engine)."""
+    nominal model packed for the compiled engine).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The validated scenario (its ``[controller]``, ``[plant]`` and ``[actuator]`` tables).
+    plant : PlantDesign
+        The plant's design (number of joints n, its vector).
+    ts : float
+        Sample period Ts [s] (unused: the law is static).
+
+    Returns
+    -------
+    ComponentDesign
+        The packed vector above, one unused state.
+
+    Raises
+    ------
+    ValueError
+        If the plant is not a URDF arm.
+    """
     from esoarm.plants import urdf
     from esoarm.plants.urdf_compiled import nominal_offset, true_offset
 
@@ -122,7 +169,17 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
 
 @jitable
 def initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
-    """Computed torque has no state of its own."""
+    """Computed torque has no state of its own.
+
+    Parameters
+    ----------
+    c : ndarray
+        The controller's own state (length ``n_state`` of its design); left untouched.
+    y : ndarray, shape (n,)
+        First measured angle(s) y_0 [rad].
+    p : ndarray
+        The design vector; ``p[0]`` is the kind's CODE.
+    """
 
 
 @jitable
@@ -155,7 +212,28 @@ def control_compiled(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.nd
 @jitable_as(control_compiled, array_arg=5)
 def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
             p: np.ndarray, u: np.ndarray) -> None:
-    """Raw torque u_k [N·m] per joint from ẑ_k and the reference at sample k (module docstring)."""
+    """Raw torque u_k [N·m] per joint from ẑ_k and the reference at sample k (module docstring).
+
+    Parameters
+    ----------
+    c : ndarray
+        The controller's own state (unused).
+    zhat : ndarray, shape (3n,)
+        The estimate ẑ_k: angle [rad], rate [rad/s] and total perturbation [rad/s²] of
+        joint j in ``zhat[3j:3j+3]``.
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad] (unused: the law uses ẑ_k).
+    refs : ndarray, shape (3n, N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    k : int
+        Sample index (column of ``refs``).
+    p : ndarray
+        The design vector; ``p[0]`` is the kind's CODE.
+    u : ndarray, shape (n,)
+        Output: the raw command u_k [N·m] per joint, written in place (positive along
+        increasing θ; before the actuator's saturation).
+    """
     from esoarm.plants.urdf import arm_of
 
     arm = arm_of(p)
@@ -179,8 +257,35 @@ def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k:
 
 
 def check(scn: Scenario) -> str | None:
-    """One line if the plant is not a URDF arm (computed torque needs M̂ and n̂), else None."""
+    """One line if the plant is not a URDF arm (computed torque needs M̂ and n̂), else None.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The validated scenario.
+
+    Returns
+    -------
+    str or None
+        The error line naming ``controller.kind``, or None when the scenario fits.
+    """
     if scn.plant.kind != "urdf":
         return ("key 'controller.kind': 'computed-torque' needs plant.kind = 'urdf' "
                 "(the lever arm uses 'flc')")
     return None
+
+
+def label(params: Params) -> str:
+    """The controller in titles: ``eso compensation`` (or ``model compensation``).
+
+    Parameters
+    ----------
+    params : Params
+        The ``[controller]`` table.
+
+    Returns
+    -------
+    str
+        The label.
+    """
+    return f"{params.compensation} compensation"

@@ -32,12 +32,14 @@ from esoarm.plants.model import gravity_coefficient, gravity_torque
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "FLCParams", "Params", "control", "design", "flc_command",
-           "flc_control", "initialize", "saturate"]
+__all__ = ["CODE", "FAST", "JIT", "KIND", "FLCParams", "Params", "control", "design", "flc_command",
+           "flc_control", "initialize", "label", "saturate"]
 
 KIND = "flc"
 CODE = 0
 JIT = True
+#: The fast engine's C kernel models this controller.
+FAST = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "flc.c"
 
@@ -86,13 +88,38 @@ def flc_command(z1: float, z2: float, z3: float, theta_ref: float, omega_ref: fl
     else:
         beta_hat = -gravity_torque(z1, ctl[GCOEF]) / ctl[I0]  # eq. 15 without d
     # u = I0 (α − β̂)                                    (eq. 14)
-    return ctl[I0] * (alpha - beta_hat)
+    u: float = ctl[I0] * (alpha - beta_hat)
+    return u
 
 
 @jitable
 def flc_control(z1: float, z2: float, z3: float, theta_ref: float, omega_ref: float,
                 accel_ref: float, ctl: np.ndarray) -> float:
-    """FLC law (eq. 14-16), saturated to ±torque_limit [N·m] (:func:`flc_command`)."""
+    """FLC law (eq. 14-16), saturated to ±torque_limit [N·m] (:func:`flc_command`).
+
+    Parameters
+    ----------
+    z1, z2, z3 : float
+        Estimated angle [rad], rate [rad/s] and total perturbation [rad/s²].
+    theta_ref, omega_ref, accel_ref : float
+        Reference θd [rad], θ̇d [rad/s], θ̈d [rad/s²].
+    ctl : ndarray, shape (6,)
+        :attr:`FLCParams.vector` (``ctl[5]`` = torque_limit [N·m]).
+
+    Returns
+    -------
+    float
+        Torque command u [N·m] in [−torque_limit, torque_limit], positive along increasing θ.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ctl = np.array([10.0, 25.0, 0.5, 0.0, 0.0, 2.0])  # k1, k2, I0, gcoef, eso, limit
+    >>> float(flc_control(0.0, 0.0, 0.0, 0.1, 0.0, 0.0, ctl))  # I0 · k2 · 0.1
+    1.25
+    >>> float(flc_control(0.0, 0.0, 0.0, 1.0, 0.0, 0.0, ctl))  # saturated
+    2.0
+    """
     return saturate(flc_command(z1, z2, z3, theta_ref, omega_ref, accel_ref, ctl), ctl[LIMIT])
 
 
@@ -124,7 +151,20 @@ class FLCParams:
 
     @classmethod
     def from_scenario(cls, scn: Scenario) -> FLCParams:
-        """Controller parameters of a :class:`~esoarm.scenario.Scenario`."""
+        """Controller parameters of a :class:`~esoarm.scenario.Scenario`.
+
+        Parameters
+        ----------
+        scn : Scenario
+            The validated scenario (``[controller]`` gains, ``[plant]`` nominal I0 and
+            masses/lengths, ``[actuator]`` torque_limit).
+
+        Returns
+        -------
+        FLCParams
+            k1 [1/s], k2 [1/s²], I0 [kg·m²], (m1 l1 − m2 l2) g [N·m], compensation,
+            torque_limit [N·m].
+        """
         p = scn.plant
         return cls(
             k1=scn.controller.k1,
@@ -137,7 +177,14 @@ class FLCParams:
 
     @cached_property
     def vector(self) -> np.ndarray:
-        """Packed float vector for :func:`flc_control` (computed once)."""
+        """Packed float vector for :func:`flc_control` (computed once).
+
+        Returns
+        -------
+        ndarray, shape (6,)
+            (k1 [1/s], k2 [1/s²], I0 [kg·m²], gcoef [N·m], compensation code
+            (0 "eso", 1 "model"), torque_limit [N·m]), read-only.
+        """
         vec = np.empty(VECTOR_SIZE)
         vec[K1], vec[K2], vec[I0], vec[GCOEF] = self.k1, self.k2, self.inertia, self.gcoef
         vec[COMP] = COMPENSATIONS.index(self.compensation)
@@ -158,7 +205,22 @@ class FLCParams:
 
 
 def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
-    """(CODE, :attr:`FLCParams.vector`) of the scenario; no controller state."""
+    """(CODE, :attr:`FLCParams.vector`) of the scenario; no controller state.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The validated scenario (its ``[controller]``, ``[plant]`` and ``[actuator]`` tables).
+    plant : PlantDesign
+        The plant's design (number of joints n, its vector).
+    ts : float
+        Sample period Ts [s] (unused: the law is static).
+
+    Returns
+    -------
+    ComponentDesign
+        Vector (CODE, k1, k2, I0, gcoef, compensation, torque_limit), one unused state.
+    """
     if plant.n_joints != 1:
         raise ValueError("the FLC kind is designed for one joint")
     return ComponentDesign(
@@ -167,7 +229,17 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
 
 @jitable
 def initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
-    """The FLC has no state of its own."""
+    """The FLC has no state of its own.
+
+    Parameters
+    ----------
+    c : ndarray
+        The controller's own state (length ``n_state`` of its design); left untouched.
+    y : ndarray, shape (n,)
+        First measured angle(s) y_0 [rad].
+    p : ndarray
+        The design vector; ``p[0]`` is the kind's CODE.
+    """
 
 
 @jitable
@@ -176,6 +248,42 @@ def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k:
     """Raw command u_k [N·m] (eq. 14-16) from ẑ_k and the reference at sample k into ``u``.
 
     ``refs`` holds (θd, θ̇d, θ̈d) of joint j in rows 3j … 3j+2, one column per sample.
+
+    Parameters
+    ----------
+    c : ndarray
+        The controller's own state (unused).
+    zhat : ndarray, shape (3n,)
+        The estimate ẑ_k: angle [rad], rate [rad/s] and total perturbation [rad/s²] of
+        joint j in ``zhat[3j:3j+3]``.
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad] (unused: the law uses ẑ_k).
+    refs : ndarray, shape (3n, N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    k : int
+        Sample index (column of ``refs``).
+    p : ndarray
+        The design vector; ``p[0]`` is the kind's CODE.
+    u : ndarray, shape (n,)
+        Output: the raw command u_k [N·m] per joint, written in place (positive along
+        increasing θ; before saturation).
     """
     ctl = p[1:]
     u[0] = flc_command(zhat[0], zhat[1], zhat[2], refs[0, k], refs[1, k], refs[2, k], ctl)
+
+
+def label(params: Params) -> str:
+    """The controller in titles: ``eso compensation`` (or ``model compensation``).
+
+    Parameters
+    ----------
+    params : Params
+        The ``[controller]`` table.
+
+    Returns
+    -------
+    str
+        The label.
+    """
+    return f"{params.compensation} compensation"

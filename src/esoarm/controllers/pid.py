@@ -67,7 +67,23 @@ class Params(Section):
 
 
 def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
-    """(CODE, kp, ki, kd, Tf, torque_limit, Ts); state: integrator, derivative, last error."""
+    """(CODE, kp, ki, kd, Tf, torque_limit, Ts); state: integrator, derivative, last error.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The validated scenario (its ``[controller]``, ``[plant]`` and ``[actuator]`` tables).
+    plant : PlantDesign
+        The plant's design (number of joints n, its vector).
+    ts : float
+        Sample period Ts [s] (the PID's discretization step).
+
+    Returns
+    -------
+    ComponentDesign
+        kp [N·m/rad], ki [N·m/(rad·s)], kd [N·m·s/rad], Tf [s], torque_limit [N·m],
+        Ts [s] after the CODE; three states (I [N·m], D [N·m], e_{k−1} [rad]).
+    """
     ctl = scn.controller
     if not isinstance(ctl, Params):  # pragma: no cover - the registry dispatches by kind
         raise TypeError("not a PID controller table")
@@ -84,6 +100,24 @@ def pid_command(e: float, k: int, c: np.ndarray, pid: Vector) -> float:
 
     ``pid`` is the design vector without its CODE; ``c`` = (I, D, e_{k−1}).
 
+    Parameters
+    ----------
+    e : float
+        Tracking error e_k = θd(t_k) − y_k [rad] (positive when the arm is below the
+        reference).
+    k : int
+        Sample index (k = 0: no derivative kick, e_{−1} = e_0).
+    c : ndarray, shape (3,)
+        Controller state (I_k [N·m], D_{k−1} [N·m], e_{k−1} [rad]), updated in place to
+        (I_{k+1}, D_k, e_k).
+    pid : ndarray or tuple of float
+        (kp [N·m/rad], ki [N·m/(rad·s)], kd [N·m·s/rad], Tf [s], torque_limit [N·m], Ts [s]).
+
+    Returns
+    -------
+    float
+        The command u_k = P_k + I_k + D_k [N·m], before saturation.
+
     Examples
     --------
     >>> import numpy as np
@@ -96,7 +130,7 @@ def pid_command(e: float, k: int, c: np.ndarray, pid: Vector) -> float:
     e_prev = e if k == 0 else c[EPREV]
     a = pid[TF] / (pid[TF] + ts)
     der = a * c[DER] + pid[KD] * (1.0 - a) * (e - e_prev) / ts
-    u = pid[KP] * e + c[INT] + der
+    u: float = pid[KP] * e + c[INT] + der
     limit = pid[LIMIT]
     saturated = (u > limit and e > 0.0) or (u < -limit and e < 0.0)
     if not saturated:
@@ -108,7 +142,17 @@ def pid_command(e: float, k: int, c: np.ndarray, pid: Vector) -> float:
 
 @jitable
 def initialize(c: np.ndarray, y: np.ndarray, p: Vector) -> None:
-    """I_0 = 0, D_0 = 0 (the first sample has no derivative kick)."""
+    """I_0 = 0, D_0 = 0 (the first sample has no derivative kick).
+
+    Parameters
+    ----------
+    c : ndarray
+        The controller's own state (length ``n_state`` of its design): (I, D, e_{k−1}), set to zero.
+    y : ndarray, shape (n,)
+        First measured angle(s) y_0 [rad].
+    p : ndarray
+        The design vector; ``p[0]`` is the kind's CODE.
+    """
     for i in range(len(c)):
         c[i] = 0.0
 
@@ -116,5 +160,26 @@ def initialize(c: np.ndarray, y: np.ndarray, p: Vector) -> None:
 @jitable
 def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
             p: Vector, u: np.ndarray) -> None:
-    """Raw PID command u_k [N·m] from the measured y_k and θd(t_k) into ``u`` (joint 0)."""
+    """Raw PID command u_k [N·m] from the measured y_k and θd(t_k) into ``u`` (joint 0).
+
+    Parameters
+    ----------
+    c : ndarray
+        The controller's own state: (I, D, e_{k−1}), updated in place (:func:`pid_command`).
+    zhat : ndarray, shape (3n,)
+        The estimate ẑ_k: angle [rad], rate [rad/s] and total perturbation [rad/s²] of
+        joint j in ``zhat[3j:3j+3]``.
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad]; e_k = θd(t_k) − y_k.
+    refs : ndarray, shape (3n, N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    k : int
+        Sample index (column of ``refs``).
+    p : ndarray
+        The design vector; ``p[0]`` is the kind's CODE.
+    u : ndarray, shape (n,)
+        Output: the raw command u_k [N·m] per joint, written in place (positive along
+        increasing θ; before saturation).
+    """
     u[0] = pid_command(refs[0, k] - y[0], k, c, p[1:])

@@ -167,7 +167,14 @@ def _install_cache_locator() -> None:
     def make(base: type) -> type:
         class Locator(base):  # type: ignore[misc, valid-type]
             def get_source_stamp(self):  # type: ignore[no-untyped-def]
-                return f"{super().get_source_stamp()}-{stamp}"
+                extra = _kinds.registry_stamp()  # '' for the package's own kinds
+                return f"{super().get_source_stamp()}-{stamp}" + (f"-{extra}" if extra else "")
+
+            def get_cache_path(self):  # type: ignore[no-untyped-def]
+                # kinds registered at run time: their kernels apart from the package's own
+                extra = _kinds.registry_stamp()
+                path = super().get_cache_path()
+                return os.path.join(path, f"kinds-{extra}") if extra else path
 
             @classmethod
             def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
@@ -184,6 +191,22 @@ def _install_cache_locator() -> None:
 
 
 _install_cache_locator()
+
+
+def _drop_compiled_kernels() -> None:
+    """After a kind is (un)registered: recompile every kernel with the new dispatch.
+
+    Each kernel's on-disk cache is looked up again (a registry with kinds added at
+    run time has its own cache directory, :func:`esoarm.kinds.registry_stamp`).
+    """
+    for value in list(globals().values()):
+        if isinstance(value, numba.core.registry.CPUDispatcher):
+            value._reset_overloads()  # type: ignore[attr-defined]  # numba internal
+            if type(getattr(value, "_cache", None)).__name__ != "NullCache":
+                value.enable_caching()
+
+
+_kinds.on_change(_drop_compiled_kernels)
 
 
 # ---------------------------------------------------------------------------

@@ -40,7 +40,7 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
     scenario stands out.
     """
     from esoarm._schema import joint_values, show_joint_values
-    from esoarm.observers.stability import observer_warnings
+    from esoarm.kinds import observer_warnings
 
     causes: list[str] = []
     ts = scn.sample_time
@@ -58,11 +58,13 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
     if d * scn.duration**2 >= limit / 10:
         causes.append(f"rig.disturbance.amplitude = {rig.disturbance.amplitude:g} rad/s²")
     obs = scn.observer
-    unstable = [m for eps in dict.fromkeys(joint_values(obs.eps))
-                for m in observer_warnings(eps, ts, obs.discretization) if "unstable" in m]
-    if unstable:
-        causes.append(f"observer.eps = {show_joint_values(obs.eps)} s, an unstable observer at "
-                      f"Ts = {ts:g} s with '{obs.discretization}'")
+    unstable = [m for m in observer_warnings(scn) if "unstable" in m]
+    eps, disc = getattr(obs, "eps", None), getattr(obs, "discretization", None)
+    if unstable and eps is not None and disc is not None:  # the ESO kinds: name ε
+        causes.append(f"observer.eps = {show_joint_values(eps)} s, an unstable observer at "
+                      f"Ts = {ts:g} s with '{disc}'")
+    elif unstable:  # another kind: its own message
+        causes.append(f"an unstable observer (observer.kind = '{obs.kind}'): {unstable[0]}")
     if not 0.1 <= rig.inertia_scale <= 10:
         causes.append(f"rig.inertia_scale = {rig.inertia_scale:g} (the controller's model is "
                       "far from the rig)")

@@ -49,6 +49,7 @@ from esoarm.controllers import flc as _ctl
 from esoarm.engines import packing as _packing
 from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache
 from esoarm.engines.simulation import DIVERGENCE_LIMIT
+from esoarm.kinds import hook, kinds_of
 from esoarm.observers import linear as _obs
 from esoarm.plants import lever_arm as _rig
 from esoarm.scenario import Scenario
@@ -226,11 +227,9 @@ def available() -> bool:
 
 def unsupported(scn: Scenario) -> str | None:
     """Why ``scn`` needs the exact engine, or None if the fast engine runs it."""
-    for section, default in (("plant", "lever-arm"), ("observer", "linear"),
-                             ("controller", "flc")):
-        kind = getattr(scn, section).kind
-        if kind != default:
-            return f"{section}.kind = {kind!r}"
+    for section, module in zip(("plant", "observer", "controller"), kinds_of(scn), strict=True):
+        if not hook(module, "FAST"):  # the kind does not declare FAST = True
+            return f"{section}.kind = {module.KIND!r}"
     if getattr(scn, "motor", None) is not None:
         return "a [motor] model"
     kind = getattr(scn.rig.disturbance, "kind", "sine")

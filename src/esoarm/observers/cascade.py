@@ -57,14 +57,15 @@ from pydantic import Field
 
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
-from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
-from esoarm.observers.linear import CURRENT, design_observer
+from esoarm.contract import ComponentDesign, ObserverLinearization, PlantDesign, Vector, read_only
+from esoarm.observers.linear import CURRENT, design_observer, observer_warnings
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = ["CODE", "JIT", "KIND", "MAX_LEVELS", "Params", "advance", "design", "estimate",
-           "initialize", "level_eps", "linear_model"]
+           "initialize", "label", "level_eps", "linear_model", "linearization", "summary",
+           "warnings"]
 
 KIND = "cascade"
 CODE = 2
@@ -265,7 +266,11 @@ def linear_model(scn: Scenario, b0: float, ts: float
         z the 3p states (level 1 first); ẑ = (angle [rad], rate [rad/s],
         perturbation [rad/s²]).
     """
-    obs = scn.observer
+    return _model(scn.observer, b0, ts)
+
+
+def _model(obs: Params, b0: float, ts: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     p = obs.levels
     lin = [design_observer(e, ts, b0, obs.discretization)
            for e in level_eps(obs.eps, p, obs.ratio)]
@@ -302,3 +307,45 @@ def linear_model(scn: Scenario, b0: float, ts: float
     hz = np.vstack([ez[0:2], w_z])
     hy = np.vstack([ey[0:2], w_y])
     return pm, qm, gm, hz, hy
+
+
+# ---------------------------------------------------------------------------
+# what the rest of esoarm asks the kind
+
+
+def label(params: Params) -> str:
+    """The observer in titles: ``euler cascade ESO``."""
+    return f"{params.discretization} cascade ESO"
+
+
+def summary(params: Params) -> str:
+    """One line on the settings: ``ε = 0.09 s (euler)`` (ε of the last level)."""
+    return f"ε = {params.eps:g} s ({params.discretization})"
+
+
+def warnings(params: Params, ts: float) -> list[str]:
+    """The linear ESO's warnings for the last level's ε at Ts [s]."""
+    return observer_warnings(params.eps, ts, params.discretization)
+
+
+def linearization(params: Params, ts: float, b0: float) -> ObserverLinearization:
+    """The cascade as one discrete LTI system for ``analyze`` (exact; :func:`linear_model`).
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+    ts : float
+        Sample period Ts [s].
+    b0 : float
+        Input gain 1/I0 [1/(kg·m²)].
+
+    Returns
+    -------
+    ObserverLinearization
+        Its pole is the spectral radius of P.
+    """
+    pm, qm, gm, hz, hy = _model(params, b0, ts)
+    pole = float(np.max(np.abs(np.linalg.eigvals(pm))))
+    return ObserverLinearization(pm, qm, gm, hz, hy, pole, params.eps, params.discretization,
+                                 "cascade ESO")

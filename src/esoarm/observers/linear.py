@@ -36,6 +36,7 @@ step functions (one 3-state ESO per joint) every engine calls.
 
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Annotated, Literal
@@ -44,14 +45,15 @@ import numpy as np
 from pydantic import Field
 
 from esoarm._jit import jitable
-from esoarm._schema import Section, unit
-from esoarm.contract import ComponentDesign, PlantDesign, read_only
+from esoarm._schema import Section, joint_values, show_joint_values, unit
+from esoarm.contract import ComponentDesign, ObserverLinearization, PlantDesign, read_only
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = [
     "CODE",
+    "FAST",
     "JIT",
     "KIND",
     "Params",
@@ -59,6 +61,10 @@ __all__ = [
     "design",
     "estimate",
     "initialize",
+    "label",
+    "linearization",
+    "summary",
+    "warnings",
     "DISCRETIZATIONS",
     "ESODesign",
     "ExtendedStateObserver",
@@ -71,6 +77,8 @@ __all__ = [
     "eso_estimate",
     "eso_rhs",
     "extended_plant",
+    "observer_warnings",
+    "pole_damping",
 ]
 
 Discretization = Literal["euler", "zoh", "current"]
@@ -87,6 +95,8 @@ EULER, ZOH, CURRENT = 0, 1, 2
 KIND = "linear"
 CODE = 0
 JIT = True
+#: The fast engine's C kernel models this observer (every discretization).
+FAST = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "linear.c"
 
@@ -271,6 +281,83 @@ def discrete_error_poles(eps: float, ts: float, discretization: str) -> np.ndarr
     return np.full(3, p)
 
 
+def pole_damping(pole: complex, ts: float | None = None) -> float:
+    """Damping ratio ζ of a pole: s-plane if ``ts`` is None, else z-plane.
+
+    A z-plane pole is mapped to s = ln(z)/Ts (principal branch); a negative
+    real z-pole (ringing at the Nyquist frequency, Euler with Ts/ε > 1)
+    gives ζ = −ln|z| / √(ln²|z| + π²) < 1.  ζ = 1 for a positive real pole
+    and for z = 0 (deadbeat); ζ ≤ 0 on or outside the stability boundary.
+
+    Parameters
+    ----------
+    pole : complex
+        The pole, s-plane [1/s] when ``ts`` is None, else z-plane.
+    ts : float, optional
+        Sample period [s] of a z-plane pole.
+
+    Returns
+    -------
+    float
+        ζ (1 for a real stable pole; below 0 when unstable).
+    """
+    if ts is None:
+        s = complex(pole)
+    else:
+        z = complex(pole)
+        if z == 0:
+            return 1.0
+        s = cmath.log(z) / ts
+    mag = abs(s)
+    if mag == 0.0:
+        return 0.0
+    return -s.real / mag
+
+
+def observer_warnings(eps: float, ts: float, discretization: str) -> list[str]:
+    """One-line warnings when ε is too small for the sample period Ts.
+
+    Parameters
+    ----------
+    eps : float
+        Free parameter ε [s].
+    ts : float
+        Sample period Ts [s].
+    discretization : {"euler", "zoh", "current"}
+
+    Returns
+    -------
+    list of str
+        Empty when the design is fine.  Checks, in order: the discrete error
+        poles unstable (radius ≥ 1: "euler" with Ts/ε ≥ 2); Euler poles on
+        the negative real axis (1 < Ts/ε < 2: estimates ring at the Nyquist
+        frequency, damping ζ < 1); an observer faster than the samples
+        support for the exact discretizations (ε < 2 Ts: noisy estimates).
+    """
+    poles = discrete_error_poles(eps, ts, discretization)
+    radius = float(np.max(np.abs(poles)))
+    ratio = ts / eps
+    out: list[str] = []
+    if not radius < 1.0:
+        out.append(
+            f"observer.eps = {eps:g} s with discretization '{discretization}' at Ts = {ts:g} s: "
+            f"the discrete observer is unstable (pole radius {radius:.3g} >= 1); "
+            f"use eps > {ts / 2:g} s or discretization 'zoh'/'current'"
+        )
+    elif discretization == "euler" and ratio > 1.0:
+        out.append(
+            f"observer.eps = {eps:g} s with Euler at Ts = {ts:g} s: Ts/eps = {ratio:.3g}"
+            f" > 1 puts the observer poles on the negative real axis (damping "
+            f"{pole_damping(poles[0], ts):.2g}, oscillating estimates)"
+        )
+    if eps < 2.0 * ts and discretization != "euler":
+        out.append(
+            f"observer.eps = {eps:g} s is below 2·Ts = {2 * ts:g} s: the observer is faster "
+            "than the sample rate supports well; expect noisy estimates"
+        )
+    return out
+
+
 # ---------------------------------------------------------------------------
 # plain step functions, shared by every engine
 
@@ -399,6 +486,88 @@ def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
         obs_j = vec[1 + VECTOR_SIZE * j:1 + VECTOR_SIZE * (j + 1)]
         z[i], z[i + 1], z[i + 2] = eso_advance(z[i], z[i + 1], z[i + 2], zhat[i], zhat[i + 1],
                                                zhat[i + 2], y[j], u[j], obs_j)
+
+
+def label(params: Params) -> str:
+    """The observer in titles: its discretization ("euler"), the paper's ESO being the default."""
+    return str(params.discretization)
+
+
+def summary(params: Params) -> str:
+    """One line on the settings: ``ε = 0.09 s (euler)``."""
+    return f"ε = {show_joint_values(params.eps)} s ({params.discretization})"
+
+
+def warnings(params: Params, ts: float) -> list[str]:
+    """:func:`observer_warnings` of each ε of ``params`` (once each) at Ts [s]."""
+    out: list[str] = []
+    for eps in dict.fromkeys(joint_values(params.eps)):
+        out.extend(m for m in observer_warnings(eps, ts, params.discretization) if m not in out)
+    return out
+
+
+def _one_eps(params: Params) -> float:
+    values = joint_values(params.eps)
+    if len(values) != 1:
+        raise ValueError(f"observer.eps: the linear analysis takes one ε, got {len(values)}")
+    return values[0]
+
+
+def discrete_linearization(d: ESODesign, gain: np.ndarray, pole: float,
+                           label: str) -> ObserverLinearization:
+    """z⁺ = P z + Q y + Γ u, ẑ = Hz z + Hy y (Hz = I − M C, Hy = M) for the ESO ``d``.
+
+    Parameters
+    ----------
+    d : ESODesign
+        The design (Φ, Γ and the discretization).
+    gain : ndarray, shape (3,)
+        The injection gain (``d.gain``, or the nonlinear ESO's slopes times it).
+    pole : float
+        The slowest error pole reported (z-plane).
+    label : str
+        The observer's name in titles.
+
+    Returns
+    -------
+    ObserverLinearization
+    """
+    c = np.array([[1.0, 0.0, 0.0]])
+    g = np.asarray(gain, dtype=float).reshape(3, 1)
+    gam = d.gamma.reshape(3, 1)
+    if d.discretization == "current":
+        # z⁺ = Φ ẑ + Γ u with ẑ = z + Lc (y − z1)
+        mgain = g
+        pmat = d.phi @ (np.eye(3) - mgain @ c)
+        qmat = d.phi @ mgain
+    else:
+        # z⁺ = F z + Γ u + L (y − z1), F = Φ (zoh) or I + Ts A (euler), L = Lp or Ts β
+        mgain = np.zeros((3, 1))
+        pmat = d.phi - g @ c
+        qmat = g
+    return ObserverLinearization(pmat, qmat, gam, np.eye(3) - mgain @ c, mgain, pole, d.eps,
+                                 d.discretization, label)
+
+
+def linearization(params: Params, ts: float, b0: float) -> ObserverLinearization:
+    """The ESO as a linear system for ``analyze`` (exact: the ESO is linear).
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table (one ε).
+    ts : float
+        Sample period Ts [s].
+    b0 : float
+        Input gain 1/I0 [1/(kg·m²)].
+
+    Returns
+    -------
+    ObserverLinearization
+        Its design pole is the triple pole of the discretization.
+    """
+    d = design_observer(_one_eps(params), ts, b0, params.discretization)
+    return discrete_linearization(d, d.gain, float(d.poles[0]), "ESO")
 
 
 class ExtendedStateObserver:

@@ -43,7 +43,7 @@ from pydantic import Field, field_validator
 
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
-from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
+from esoarm.contract import ComponentDesign, ObserverLinearization, PlantDesign, Vector, read_only
 from esoarm.observers.linear import B0 as _B0
 from esoarm.observers.linear import (
     BETA1,
@@ -58,6 +58,8 @@ from esoarm.observers.linear import (
     VECTOR_SIZE,
     ZOH,
     design_observer,
+    discrete_linearization,
+    observer_warnings,
 )
 from esoarm.observers.linear import TS as _TS
 
@@ -65,7 +67,7 @@ if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = ["CODE", "JIT", "KIND", "Params", "advance", "design", "estimate", "fal",
-           "initialize"]
+           "initialize", "label", "linearization", "summary", "warnings"]
 
 KIND = "nonlinear"
 CODE = 1
@@ -124,7 +126,8 @@ def fal(e: float, alpha: float, delta: float) -> float:
     0.3
     """
     if abs(e) <= delta:
-        return e / delta ** (1.0 - alpha)
+        linear: float = e / delta ** (1.0 - alpha)  # float ** float: Any to mypy
+        return linear
     return math.copysign(abs(e) ** alpha, e)
 
 
@@ -207,3 +210,49 @@ def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray, p: Ve
         i = 3 * j
         z[i], z[i + 1], z[i + 2] = _advance1(z[i], z[i + 1], z[i + 2], zhat[i], zhat[i + 1],
                                              zhat[i + 2], y[j], u[j], obs)
+
+
+# ---------------------------------------------------------------------------
+# what the rest of esoarm asks the kind
+
+
+def label(params: Params) -> str:
+    """The observer in titles: ``euler nonlinear ESO``."""
+    return f"{params.discretization} nonlinear ESO"
+
+
+def summary(params: Params) -> str:
+    """One line on the settings: ``ε = 0.09 s (euler)``."""
+    return f"ε = {params.eps:g} s ({params.discretization})"
+
+
+def warnings(params: Params, ts: float) -> list[str]:
+    """The linear ESO's warnings for ε and the discretization at Ts [s] (its linear part)."""
+    return observer_warnings(params.eps, ts, params.discretization)
+
+
+def linearization(params: Params, ts: float, b0: float) -> ObserverLinearization:
+    """The fal-ESO in fal's linear zone |y − z1| ≤ δ, where fal(e, α, δ) = δ^(α−1) e.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+    ts : float
+        Sample period Ts [s].
+    b0 : float
+        Input gain 1/I0 [1/(kg·m²)].
+
+    Returns
+    -------
+    ObserverLinearization
+        Its pole is the spectral radius of P (the poles are no longer a triple).
+    """
+    d = design_observer(params.eps, ts, b0, params.discretization)
+    slopes = np.array([1.0, params.delta ** (params.alpha[0] - 1.0),
+                       params.delta ** (params.alpha[1] - 1.0)])
+    lin = discrete_linearization(d, d.gain * slopes, 0.0,
+                                 "fal-ESO (its linear zone |e| ≤ δ)")
+    pole = float(np.max(np.abs(np.linalg.eigvals(lin.p))))
+    return ObserverLinearization(lin.p, lin.q, lin.gamma, lin.hz, lin.hy, pole, lin.eps,
+                                 lin.discretization, lin.label)

@@ -35,7 +35,6 @@ Tracking-error bound (eq. 17-20, Theorem 2)
 
 from __future__ import annotations
 
-import cmath
 import math
 from dataclasses import dataclass
 
@@ -48,6 +47,8 @@ from esoarm.observers.linear import (
     design_observer,
     discrete_error_matrix,
     discrete_error_poles,
+    observer_warnings,
+    pole_damping,
 )
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
 
@@ -204,39 +205,6 @@ def characteristic_polynomial(matrix: np.ndarray) -> np.ndarray:
     return np.array([1.0, -tr, 0.5 * (tr * tr - tr2), -np.linalg.det(m)])
 
 
-def pole_damping(pole: complex, ts: float | None = None) -> float:
-    """Damping ratio ζ of a pole: s-plane if ``ts`` is None, else z-plane.
-
-    A z-plane pole is mapped to s = ln(z)/Ts (principal branch); a negative
-    real z-pole (ringing at the Nyquist frequency, Euler with Ts/ε > 1)
-    gives ζ = −ln|z| / √(ln²|z| + π²) < 1.  ζ = 1 for a positive real pole
-    and for z = 0 (deadbeat); ζ ≤ 0 on or outside the stability boundary.
-
-    Parameters
-    ----------
-    pole : complex
-        The pole, s-plane [1/s] when ``ts`` is None, else z-plane.
-    ts : float, optional
-        Sample period [s] of a z-plane pole.
-
-    Returns
-    -------
-    float
-        ζ (1 for a real stable pole; below 0 when unstable).
-    """
-    if ts is None:
-        s = complex(pole)
-    else:
-        z = complex(pole)
-        if z == 0:
-            return 1.0
-        s = cmath.log(z) / ts
-    mag = abs(s)
-    if mag == 0.0:
-        return 0.0
-    return -s.real / mag
-
-
 @dataclass(frozen=True)
 class ObserverAnalysis:
     """Gains, error dynamics and stability of one ESO design.
@@ -314,48 +282,6 @@ def analyze_observer(eps: float, ts: float | None = None, discretization: str = 
         ratio = ts_val / eps
     return ObserverAnalysis(eps, ts_val, discretization, gains, mat, poles, radius, zeta,
                             stable, ratio)
-
-
-def observer_warnings(eps: float, ts: float, discretization: str) -> list[str]:
-    """One-line warnings when ε is too small for the sample period Ts.
-
-    Parameters
-    ----------
-    eps : float
-        Free parameter ε [s].
-    ts : float
-        Sample period Ts [s].
-    discretization : {"euler", "zoh", "current"}
-
-    Returns
-    -------
-    list of str
-        Empty when the design is fine.  Checks, in order: the discrete error
-        poles unstable (radius ≥ 1: "euler" with Ts/ε ≥ 2); Euler poles on
-        the negative real axis (1 < Ts/ε < 2: estimates ring at the Nyquist
-        frequency, damping ζ < 1); an observer faster than the samples
-        support for the exact discretizations (ε < 2 Ts: noisy estimates).
-    """
-    a = analyze_observer(eps, ts, discretization)
-    out: list[str] = []
-    if not a.stable:
-        out.append(
-            f"observer.eps = {eps:g} s with discretization '{discretization}' at Ts = {ts:g} s: "
-            f"the discrete observer is unstable (pole radius {a.spectral_radius:.3g} >= 1); "
-            f"use eps > {ts / 2:g} s or discretization 'zoh'/'current'"
-        )
-    elif discretization == "euler" and a.ts_over_eps > 1.0:
-        out.append(
-            f"observer.eps = {eps:g} s with Euler at Ts = {ts:g} s: Ts/eps = {a.ts_over_eps:.3g}"
-            f" > 1 puts the observer poles on the negative real axis (damping "
-            f"{a.damping:.2g}, oscillating estimates)"
-        )
-    if eps < 2.0 * ts and discretization != "euler":
-        out.append(
-            f"observer.eps = {eps:g} s is below 2·Ts = {2 * ts:g} s: the observer is faster "
-            "than the sample rate supports well; expect noisy estimates"
-        )
-    return out
 
 
 # ---------------------------------------------------------------------------
@@ -486,4 +412,6 @@ def estimation_error(result) -> np.ndarray:  # type: ignore[no-untyped-def]
         p = scn.plant
         gcoef = gravity_coefficient(p.m1, p.m2, p.l1, p.l2, p.g)
         beta_hat = -np.array([gravity_torque(v, gcoef) for v in z1]) * input_gain(p.inertia)
-    return (result.f_true - beta_hat) + k1 * (result.omega - z2) + k2 * (result.theta - z1)
+    kappa: np.ndarray = ((result.f_true - beta_hat) + k1 * (result.omega - z2)
+                         + k2 * (result.theta - z1))
+    return kappa

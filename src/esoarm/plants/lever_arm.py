@@ -42,13 +42,16 @@ from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "MOTOR", "Params", "RigParams", "acceleration", "advance",
+__all__ = ["CODE", "FAST", "JIT", "KIND", "MOTOR", "Params", "RigParams", "acceleration",
+           "advance",
            "advance_block", "design", "observer_input", "rig_acceleration", "rig_advance",
            "rig_derivative", "rig_rk4_step"]
 
 KIND = "lever-arm"
 CODE = 0
 JIT = True
+#: The fast engine's C kernel models this plant.
+FAST = True
 #: Driven by the actuator's motor when the scenario has a ``[motor]`` table (its back-EMF
 #: damping, :func:`esoarm.plants.actuator.back_emf_damping`, joins the viscous friction).
 MOTOR = True

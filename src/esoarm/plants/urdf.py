@@ -239,7 +239,7 @@ def packed_models(arm: ArmModel) -> tuple[np.ndarray, np.ndarray]:
     cached = arm._data.get("packed")
     if cached is None:
         cached = arm._data["packed"] = (pack_model(arm.nominal), pack_model(arm.true))
-    return cached  # type: ignore[no-any-return]
+    return cached
 
 
 def _twin(p: np.ndarray) -> np.ndarray:

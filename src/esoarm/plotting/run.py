@@ -81,7 +81,8 @@ def plot_run(result: SimResult, path: str | Path | None = None) -> Figure:
     scn = result.scenario
     fig = Figure(figsize=(8, 9), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
-    color = eps_color(scn.observer.eps)
+    eps = getattr(scn.observer, "eps", None)  # an observer kind may have no ε
+    color = eps_color(eps) if isinstance(eps, float) else "C0"
     axes[0].plot(result.t, result.theta_ref, **REF_STYLE)
     axes[0].plot(result.t, result.theta, color=color, label="angle θ")
     axes[0].set_ylabel("angle [rad]")

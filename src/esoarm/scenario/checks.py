@@ -163,9 +163,9 @@ def _check_computable(scn: Scenario, fail: Callable[[str, str], None]) -> None:
 def scenario_warnings(scn: Scenario) -> list[str]:
     """Legal but risky settings of ``scn``, as one-line messages.
 
-    A discrete observer whose error poles are unstable or poorly damped at
-    this sample rate, or faster than the samples support (see
-    :func:`esoarm.observers.stability.observer_warnings`); and settings that
+    What the observer kind finds doubtful at this sample rate (its ``warnings``,
+    :func:`esoarm.kinds.observer_warnings`: for the ESO, error poles unstable or
+    poorly damped, or faster than the samples support); and settings that
     silently do nothing or less than asked (:func:`timing_warnings`).
 
     Parameters
@@ -184,16 +184,7 @@ def scenario_warnings(scn: Scenario) -> list[str]:
     >>> scenario_warnings(load_scenario("test-1"))
     []
     """
-    from esoarm.observers.stability import observer_warnings
-
-    obs = scn.observer
-    eps, disc = getattr(obs, "eps", None), getattr(obs, "discretization", None)
-    observer: list[str] = []
-    if eps is not None and disc is not None:
-        for value in dict.fromkeys(eps if isinstance(eps, list) else [eps]):  # each ε once
-            observer.extend(m for m in observer_warnings(value, scn.sample_time, disc)
-                            if m not in observer)
-    return [*observer, *timing_warnings(scn)]
+    return [*_kinds.observer_warnings(scn), *timing_warnings(scn)]
 
 
 def timing_warnings(scn: Scenario) -> list[str]:

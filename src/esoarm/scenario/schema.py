@@ -256,6 +256,19 @@ class Scenario(_Section):
 # building: keys over the defaults, validated
 
 
+def _kinds_changed() -> None:
+    """A kind was (un)registered (:func:`esoarm.kinds.register`): rebuild the kind tables."""
+    for name, kinds in (("plant", _kinds.PLANTS), ("observer", _kinds.OBSERVERS),
+                        ("controller", _kinds.CONTROLLERS)):
+        KIND_SECTIONS[name] = tuple(m.Params for m in kinds)
+        Scenario.model_fields[name].annotation = _kinds.tagged_union(kinds)
+    Scenario.model_rebuild(force=True)
+    _valid_keys_cached.cache_clear()
+
+
+_kinds.on_change(_kinds_changed)
+
+
 def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     """``base`` updated by ``over``, table by table; neither is modified.
 

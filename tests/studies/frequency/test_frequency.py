@@ -405,7 +405,9 @@ def test_nonlinear_eso_is_analyzed_in_its_linear_zone() -> None:
     # linear ESO's triple pole are accurate to ~eps^(1/3); everything else is the same bits
     pole = "observer_pole_frequency"
     assert same.observer_pole_frequency == pytest.approx(lin.observer_pole_frequency, rel=1e-4)
-    assert {**same.to_dict(), pole: None} == {**lin.to_dict(), "observer": "nonlinear", pole: None}
+    assert {**same.to_dict(), pole: None} == {**lin.to_dict(), "observer": "nonlinear",
+                                              "observer_label": same.observer_label, pole: None}
+    assert same.observer_label.startswith("fal-ESO") and lin.observer_label == "ESO"
     fal = F.analyze("test-1", {"observer.kind": "nonlinear"})
     assert fal.observer == "nonlinear" and fal.phase_margin != lin.phase_margin
     p_lin, q_lin, *_ = L.observer_matrices(load_scenario("test-1"))

@@ -75,3 +75,19 @@ def test_analyze_reports_the_budget_or_says_why_not() -> None:
     res = CliRunner().invoke(cli, ["analyze", "uno-rig"])
     assert res.exit_code == 0, res.output
     assert "noise budget: not modelled" in res.output
+
+
+def test_recommended_eps_reaches_the_bandwidth_and_ranks_by_chatter() -> None:
+    from esoarm.studies.frequency.noise import perturbation_bandwidth, recommend_eps
+
+    scn = load_scenario("test-1", {"sensor.noise_deg": 0.5})
+    recs = recommend_eps(scn, 10.0)
+    assert [r.kind for r in recs] == ["cascade", "linear"]
+    for r in recs:
+        point = scn.with_overrides({"observer.kind": r.kind, "observer.eps": r.eps})
+        assert perturbation_bandwidth(point) == pytest.approx(10.0, rel=1e-4)
+    # the twin agrees on the chatter ranking (seed 0)
+    du = [simulate("test-1", {"sensor.noise_deg": 0.5, "observer.kind": r.kind,
+                              "observer.eps": r.eps}, warn=False).metrics["rms_du"] for r in recs]
+    assert du[0] < du[1]
+    assert recs[0].budget.rms_du < recs[1].budget.rms_du

@@ -65,11 +65,9 @@ Controller (one discrete LTI system)
     slope, which is exact for innovations within ±δ (larger ones are outside a
     linear analysis).
 
-The cascade ESO (observer kind ``"cascade"``) is linear: its own
-``linear_model`` gives the exact matrices (:func:`observer_model`).
-
 Supported: the lever-arm plant kind with the FLC controller kind and every
-observer kind; other kinds are refused (:class:`~esoarm.scenario.ScenarioError`).
+observer kind that gives its linear model (``linearization``, see
+:mod:`esoarm.contract`); other kinds are refused (:class:`~esoarm.scenario.ScenarioError`).
 """
 
 from __future__ import annotations
@@ -83,7 +81,8 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
-from esoarm.observers.linear import design_observer
+from esoarm.contract import ObserverLinearization
+from esoarm.kinds import hook, kinds_of
 from esoarm.plants.actuator import motor_of
 from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario, ScenarioError, load_scenario
@@ -257,53 +256,46 @@ def check_supported(scn: Scenario) -> None:
         raise ScenarioError(
             f"controller.kind: the frequency-domain analysis models the FLC (controller.kind = "
             f"'flc'), not '{scn.controller.kind}'; simulate, sweep and tune run it")
+    observer_linearization(scn)  # refuses an observer kind without one
+
+
+def observer_linearization(scn: Scenario) -> ObserverLinearization:
+    """The observer kind's linear model at the scenario's Ts (its ``linearization``).
+
+    Raises
+    ------
+    ScenarioError
+        The kind declares none (not modelled): one line naming ``observer.kind``.
+    """
+    kind = kinds_of(scn).observer
+    lin = hook(kind, "linearization")
+    if lin is None:
+        raise ScenarioError(
+            f"observer.kind: the frequency-domain analysis has no linear model of observer "
+            f"kind '{kind.KIND}' (the kind declares none); simulate, sweep and tune run it")
+    model: ObserverLinearization = lin(scn.observer, scn.sample_time, 1.0 / scn.plant.inertia)
+    return model
 
 
 def observer_matrices(scn: Scenario) -> tuple[np.ndarray, ...]:
-    """The ESO of the scenario as z⁺ = P z + Q y + Γ u, ẑ = (I − M C) z + M y.
+    """A 3-state observer of the scenario as z⁺ = P z + Q y + Γ u, ẑ = (I − M C) z + M y.
 
-    Returns (P, Q, Γ, M) as arrays of shapes (3,3), (3,1), (3,1), (3,1).  For the
-    nonlinear ESO, the loop for innovations |y − z1| ≤ δ (fal's linear zone).
+    Returns (P, Q, Γ, M) as arrays of shapes (3,3), (3,1), (3,1), (3,1), from the
+    observer kind (:func:`observer_linearization`); for the nonlinear ESO, the loop
+    for innovations |y − z1| ≤ δ (fal's linear zone).  Any kind: :func:`observer_model`.
     """
-    ts = scn.sample_time
-    b0 = 1.0 / scn.plant.inertia
-    obs = scn.observer
-    d = design_observer(obs.eps, ts, b0, obs.discretization)
-    c = np.array([[1.0, 0.0, 0.0]])
-    gain = d.gain.reshape(3, 1)
-    if obs.kind == "nonlinear":  # fal(e, α, δ) = δ^(α−1) e for |e| ≤ δ
-        gain = gain * np.array([[1.0], [obs.delta ** (obs.alpha[0] - 1.0)],
-                                [obs.delta ** (obs.alpha[1] - 1.0)]])
-    gam = d.gamma.reshape(3, 1)
-    if d.discretization == "current":
-        # z⁺ = Φ ẑ + Γ u with ẑ = z + Lc (y − z1)
-        mgain = gain
-        pmat = d.phi @ (np.eye(3) - mgain @ c)
-        qmat = d.phi @ mgain
-    else:
-        # z⁺ = F z + Γ u + L (y − z1), F = Φ (zoh) or I + Ts A (euler), L = Lp or Ts β
-        mgain = np.zeros((3, 1))
-        pmat = d.phi - gain @ c
-        qmat = gain
-    return pmat, qmat, gam, mgain
+    lin = observer_linearization(scn)
+    return lin.p, lin.q, lin.gamma, lin.hy
 
 
 def observer_model(scn: Scenario) -> tuple[np.ndarray, ...]:
     """Any observer kind as z⁺ = P z + Q y + Γ u, ẑ = Hz z + Hy y (one joint).
 
-    A kind that defines ``linear_model(scn, b0, ts)`` (the cascade ESO) gives its
-    own matrices; the linear and nonlinear ESOs come from :func:`observer_matrices`
-    (Hz = I − M C, Hy = M).  Returns (P, Q, Γ, Hz, Hy); Hz has 3 rows.
+    The kind's ``linearization`` (:func:`observer_linearization`; the ESOs: Hz = I − M C,
+    Hy = M).  Returns (P, Q, Γ, Hz, Hy); Hz has 3 rows.
     """
-    from esoarm.kinds import OBSERVERS, by_name
-
-    module = by_name(OBSERVERS, scn.observer.kind)
-    own = getattr(module, "linear_model", None)
-    if own is not None:
-        return tuple(own(scn, 1.0 / scn.plant.inertia, scn.sample_time))
-    pmat, qmat, gam, mgain = observer_matrices(scn)
-    c = np.array([[1.0, 0.0, 0.0]])
-    return pmat, qmat, gam, np.eye(3) - mgain @ c, mgain
+    lin = observer_linearization(scn)
+    return lin.p, lin.q, lin.gamma, lin.hz, lin.hy
 
 
 def observer_system(scn: Scenario) -> Matrices:

@@ -30,7 +30,6 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
-from esoarm.observers.linear import design_observer
 from esoarm.plants.actuator import motor_of
 from esoarm.scenario import Scenario
 from esoarm.studies.frequency.linearization import (
@@ -40,7 +39,7 @@ from esoarm.studies.frequency.linearization import (
     closed_loop_radius,
     freqresp,
     linearize,
-    observer_model,
+    observer_linearization,
     perturbation_estimate,
 )
 
@@ -184,6 +183,7 @@ class FrequencyAnalysis:
     eps: float
     discretization: str
     observer: str = "linear"
+    observer_label: str = "ESO"
     range: dict[str, Any] = field(default_factory=dict)
     motor: dict[str, Any] = field(default_factory=dict)
     curves: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
@@ -233,9 +233,9 @@ def motor_note(a: FrequencyAnalysis, values: bool = True) -> str:
 
 
 def eso_label(a: FrequencyAnalysis) -> str:
-    """"ESO", or for the nonlinear kind the zone the linear analysis holds in."""
-    return {"linear": "ESO", "cascade": "cascade ESO"}.get(
-        a.observer, "fal-ESO (its linear zone |e| ≤ δ)")
+    """The observer kind's name for its linear model ("ESO"; the nonlinear kind adds the
+    zone the linear analysis holds in)."""
+    return a.observer_label
 
 
 def _clean(obj: Any) -> Any:
@@ -321,10 +321,8 @@ def analyze(scenario: Scenario | str | Path = "test-1", overrides: dict | list[s
     inertia = scn.rig.inertia_scale * scn.plant.inertia
     d_at = float(abs(d_fun(np.array([dist_w]))[0])) if 0 < dist_w < wn else math.nan
     d_dc = float(abs(freqresp_dc(lin)))
-    if scn.observer.kind != "linear":  # fal's zone or the cascade: not one triple pole
-        pole = float(np.max(np.abs(np.linalg.eigvals(observer_model(scn)[0]))))
-    else:
-        pole = design_observer(scn.observer.eps, ts, 1.0, scn.observer.discretization).poles[0]
+    olin = observer_linearization(scn)  # the kind's model, its design pole
+    pole = olin.pole
     pole_freq = -math.log(abs(pole)) / ts if pole != 0 else math.inf
     rng: dict[str, Any] = {}
     if over_range:
@@ -342,8 +340,8 @@ def analyze(scenario: Scenario | str | Path = "test-1", overrides: dict | list[s
         disturbance_peak=dpk, disturbance_peak_frequency=w_dpk, disturbance_dc=d_dc,
         disturbance_at_scenario=d_at,
         scenario_disturbance_error=d_at * inertia * abs(scn.rig.disturbance.amplitude),
-        eps=scn.observer.eps, discretization=scn.observer.discretization,
-        observer=scn.observer.kind, range=rng, motor=motor_terms(scn),
+        eps=olin.eps, discretization=olin.discretization,
+        observer=scn.observer.kind, observer_label=olin.label, range=rng, motor=motor_terms(scn),
         curves={"w": w, "loop": L, "sensitivity": sens, "complementary": comp,
                 "disturbance": dist, "perturbation_estimate": f_fun(w)},
     )

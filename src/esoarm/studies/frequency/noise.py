@@ -35,7 +35,8 @@ from scipy.linalg import solve_discrete_lyapunov
 from esoarm.scenario import Scenario
 from esoarm.studies.frequency.linearization import linearize, motor_damping
 
-__all__ = ["NoiseBudget", "noise_budget"]
+__all__ = ["NoiseBudget", "Recommendation", "noise_budget", "perturbation_bandwidth",
+           "recommend_eps"]
 
 
 @dataclass(frozen=True)
@@ -119,3 +120,78 @@ def noise_budget(scn: Scenario, *, theta0: float | None = None, friction: str = 
     rms_u = math.sqrt(max(var_u, 0.0))
     return NoiseBudget(sigma, rms_u, math.sqrt(max(var_du, 0.0)), math.sqrt(max(var_e, 0.0)),
                        rms_u / sigma if sigma > 0 else math.nan, True)
+
+
+def perturbation_bandwidth(scn: Scenario) -> float:
+    """−3 dB bandwidth [rad/s] of the observer's perturbation estimate f → ẑ3 (nan: none)."""
+    from esoarm.studies.frequency.linearization import freqresp, perturbation_estimate
+    from esoarm.studies.frequency.margins import _bandwidth, frequency_grid
+
+    ts = scn.sample_time
+    sys = perturbation_estimate(scn)
+    return _bandwidth(lambda x: freqresp(sys, np.exp(1j * x * ts)), frequency_grid(ts, 800),
+                      1.0 / math.sqrt(2.0))
+
+
+@dataclass(frozen=True)
+class Recommendation:
+    """The ε of one observer kind that gives a target perturbation-estimate bandwidth.
+
+    Attributes
+    ----------
+    kind : str
+        Observer kind.
+    eps : float
+        ε [s] (for the cascade: of its last level, other keys as in the scenario or
+        the kind's defaults).
+    bandwidth : float
+        Its f → ẑ3 bandwidth [rad/s].
+    budget : NoiseBudget
+        The noise budget at that ε.
+    disturbance_peak : float
+        Peak gain from a torque disturbance to the error [rad/(N·m)] of the loop at
+        that ε: equal f → ẑ3 bandwidths do not mean equal rejection (the cascade's
+        estimate lags more), so compare this too.
+    """
+
+    kind: str
+    eps: float
+    bandwidth: float
+    budget: NoiseBudget
+    disturbance_peak: float
+
+
+def recommend_eps(scn: Scenario, bandwidth: float,
+                  kinds: tuple[str, ...] = ("linear", "cascade")) -> list[Recommendation]:
+    """For each observer kind, the ε whose f → ẑ3 bandwidth is ``bandwidth`` [rad/s].
+
+    Sorted by the noise-driven RMS Δu of the budget (the first is the recommendation:
+    the least control chatter at that disturbance-rejection bandwidth).  A kind that
+    cannot reach the bandwidth below the Nyquist frequency (or stay stable) is left out.
+    """
+    from scipy.optimize import brentq
+
+    ts = scn.sample_time
+    out = []
+    for kind in kinds:
+        base = scn.with_overrides({"observer.kind": kind}) if scn.observer.kind != kind else scn
+
+        def gap(log_eps: float, base: Scenario = base) -> float:
+            bw = perturbation_bandwidth(base.with_overrides({"observer.eps": math.exp(log_eps)}))
+            return (bw if math.isfinite(bw) else math.pi / ts) - bandwidth
+
+        lo, hi = math.log(0.55 * ts), math.log(5.0)
+        try:
+            if gap(lo) < 0 or gap(hi) > 0:
+                continue
+            eps = math.exp(brentq(gap, lo, hi, xtol=1e-6))
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        point = base.with_overrides({"observer.eps": eps})
+        b = noise_budget(point)
+        if b.stable:
+            from esoarm.studies.frequency.margins import analyze
+
+            peak = analyze(point, over_range=False, n_freq=800).disturbance_peak
+            out.append(Recommendation(kind, eps, perturbation_bandwidth(point), b, peak))
+    return sorted(out, key=lambda r: r.budget.rms_du)

@@ -94,9 +94,11 @@ def check_supported(scn: object, what: str = "identification") -> None:
         raise ScenarioError(f"plant.kind = {kind!r}: {what} supports the lever arm "
                             "(plant.kind = \"lever-arm\") only")
     observer = getattr(scn, "observer", None)
-    if not hasattr(observer, "eps"):
+    fields = getattr(type(observer), "model_fields", {})
+    if not ("eps" in fields and "discretization" in fields):  # what the kind declares
         raise ScenarioError(f"observer.kind = {getattr(observer, 'kind', '?')!r}: {what} "
-                            "needs the linear ESO (observer.eps) for its rate estimate")
+                            "needs the linear ESO (observer.eps, observer.discretization) for "
+                            "its rate estimate")
 
 
 def read_ident_log(path: str | Path, torque_limit: float,
