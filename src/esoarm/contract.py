@@ -49,7 +49,24 @@ Vector: TypeAlias = np.ndarray | tuple[float, ...]
 
 
 def read_only(array: np.ndarray) -> np.ndarray:
-    """``array`` as float64, flagged read-only (designs are immutable)."""
+    """``array`` as float64, flagged read-only (designs are immutable).
+
+    Parameters
+    ----------
+    array : ndarray or array_like
+        Values to freeze (copied; the argument itself is left writable).
+
+    Returns
+    -------
+    ndarray
+        A float64 copy with ``flags.writeable`` False.
+
+    Examples
+    --------
+    >>> v = read_only([1, 2])
+    >>> v.dtype.name, v.flags.writeable
+    ('float64', False)
+    """
     out = np.array(array, dtype=float)
     out.setflags(write=False)
     return out
@@ -165,51 +182,205 @@ class PlantKind(Kind, Protocol):
     """A plant kind (the true system). ``advance_block`` too when JIT is true."""
 
     def design(self, scn: Scenario, /) -> PlantDesign:
-        """The scenario turned into the plant's vector, initial state, sizes and b0."""
+        """The scenario turned into the plant's vector, initial state, sizes and b0.
+
+        Parameters
+        ----------
+        scn : Scenario
+            A validated scenario.
+
+        Returns
+        -------
+        PlantDesign
+            Vector (p[0] = CODE), x0, n_joints and b0 [1/(kg·m²) per joint].
+        """
 
     def advance(self, x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
                 p: np.ndarray, /) -> None:
-        """Integrate x over one sample [t0, t0 + nsub·h], input u held (in place)."""
+        """Integrate x over one sample [t0, t0 + nsub·h], input u held (in place).
+
+        Parameters
+        ----------
+        x : ndarray
+            Plant state: angles [rad] in ``x[:n]``, rates [rad/s] in ``x[n:2n]``, further
+            states after them; updated in place.
+        u : ndarray, shape (n,)
+            Applied drive per joint [N·m], held over the sample (positive along
+            increasing θ).
+        t0 : float
+            Start of the sample [s].
+        h : float
+            Integration step [s] (RK4 for the built-in kinds).
+        nsub : int
+            Number of steps; nsub·h is the sample time Ts [s].
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        """
 
     def acceleration(self, x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                      out: np.ndarray, /) -> None:
-        """The true angular acceleration per joint [rad/s²] into ``out``."""
+        """The true angular acceleration per joint [rad/s²] into ``out``.
+
+        Parameters
+        ----------
+        x : ndarray
+            Plant state (layout as in :meth:`advance`).
+        u : ndarray, shape (n,)
+            Applied drive per joint [N·m], from t on.
+        t : float
+            Time [s].
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        out : ndarray, shape (n,)
+            Output: θ̈ per joint [rad/s²], written in place.
+        """
 
     def observer_input(self, zhat: np.ndarray, u: np.ndarray, p: np.ndarray,
                        v: np.ndarray, /) -> None:
-        """What the observers take as input for the command u, per joint, into ``v``."""
+        """What the observers take as input for the command u, per joint, into ``v``.
+
+        Parameters
+        ----------
+        zhat : ndarray, shape (3n,)
+            The observer estimate ẑ_k (angle [rad], rate [rad/s], perturbation [rad/s²]
+            of joint j in ``zhat[3j:3j+3]``).
+        u : ndarray, shape (n,)
+            The command as applied [N·m].
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        v : ndarray, shape (n,)
+            Output: the observer input per joint (b0·v enters the ESO's rate equation).
+        """
 
 
 class ObserverKind(Kind, Protocol):
     """An observer kind: ẑ_k from the measurements and the observer input."""
 
     def design(self, scn: Scenario, plant: PlantDesign, ts: float, /) -> ComponentDesign:
-        """The observer's vector and state size for the plant at sample period ts [s]."""
+        """The observer's vector and state size for the plant at sample period ts [s].
+
+        Parameters
+        ----------
+        scn : Scenario
+            A validated scenario.
+        plant : PlantDesign
+            The plant's design (joints, b0).
+        ts : float
+            Sample period Ts [s].
+
+        Returns
+        -------
+        ComponentDesign
+            Vector (``vector[0]`` = CODE) and the size of the component's state.
+        """
 
     def initialize(self, z: np.ndarray, y: np.ndarray, p: np.ndarray, /) -> None:
-        """Its state z_0 from the first measurement y_0 (in place)."""
+        """Its state z_0 from the first measurement y_0 (in place).
+
+        Parameters
+        ----------
+        z : ndarray
+            Observer state, set in place to z_0.
+        y : ndarray, shape (n,)
+            First measured angle(s) y_0 [rad].
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        """
 
     def estimate(self, z: np.ndarray, y: np.ndarray, p: np.ndarray,
                  zhat: np.ndarray, /) -> None:
-        """The estimate ẑ_k the controller uses at t_k into ``zhat``."""
+        """The estimate ẑ_k the controller uses at t_k into ``zhat``.
+
+        Parameters
+        ----------
+        z : ndarray
+            Observer state z_k (not changed).
+        y : ndarray, shape (n,)
+            Measured angle(s) y_k [rad].
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        zhat : ndarray, shape (3n,)
+            Output: the estimate ẑ_k: angle [rad], rate [rad/s], total perturbation [rad/s²] of
+            joint j in ``zhat[3j:3j+3]``.
+        """
 
     def advance(self, z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
                 p: np.ndarray, /) -> None:
-        """z_{k+1} in place from z_k, ẑ_k, y_k and the observer input u_k."""
+        """z_{k+1} in place from z_k, ẑ_k, y_k and the observer input u_k.
+
+        Parameters
+        ----------
+        z : ndarray
+            Observer state z_k, updated in place to z_{k+1}.
+        zhat : ndarray, shape (3n,)
+            The estimate ẑ_k: angle [rad], rate [rad/s], total perturbation [rad/s²] of
+            joint j in ``zhat[3j:3j+3]``.
+        y : ndarray, shape (n,)
+            Measured angle(s) y_k [rad].
+        u : ndarray, shape (n,)
+            The observer input u_k (from the plant's ``observer_input``).
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        """
 
 
 class ControllerKind(Kind, Protocol):
     """A controller kind: the raw command from the estimate and the references."""
 
     def design(self, scn: Scenario, plant: PlantDesign, ts: float, /) -> ComponentDesign:
-        """The controller's vector and state size for the plant at sample period ts [s]."""
+        """The controller's vector and state size for the plant at sample period ts [s].
+
+        Parameters
+        ----------
+        scn : Scenario
+            A validated scenario.
+        plant : PlantDesign
+            The plant's design (joints, b0).
+        ts : float
+            Sample period Ts [s].
+
+        Returns
+        -------
+        ComponentDesign
+            Vector (``vector[0]`` = CODE) and the size of the component's state.
+        """
 
     def initialize(self, c: np.ndarray, y: np.ndarray, p: np.ndarray, /) -> None:
-        """Its own state from the first measurement (in place)."""
+        """Its own state from the first measurement (in place).
+
+        Parameters
+        ----------
+        c : ndarray
+            Controller state, set in place.
+        y : ndarray, shape (n,)
+            First measured angle(s) y_0 [rad].
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        """
 
     def control(self, c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray,
                 k: int, p: np.ndarray, u: np.ndarray, /) -> None:
-        """The raw command of sample k per joint into ``u`` (the actuator saturates)."""
+        """The raw command of sample k per joint into ``u`` (the actuator saturates).
+
+        Parameters
+        ----------
+        c : ndarray
+            Controller state (updated in place by kinds that have one).
+        zhat : ndarray, shape (3n,)
+            The estimate ẑ_k: angle [rad], rate [rad/s], total perturbation [rad/s²] of
+            joint j in ``zhat[3j:3j+3]``.
+        y : ndarray, shape (n,)
+            Measured angle(s) y_k [rad].
+        refs : ndarray, shape (3n, N)
+            θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column
+            per sample.
+        k : int
+            Sample index (column of ``refs``).
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        u : ndarray, shape (n,)
+            Output: the raw command u_k per joint [N·m], positive along increasing θ.
+        """
 
 
 #: The three components, as named in the scenario's tables.

@@ -153,7 +153,19 @@ def _check_all() -> None:
 
 
 def tagged_union(kinds: tuple[Any, ...]) -> Any:
-    """The pydantic tagged union of the kinds' ``Params`` (discriminator ``kind``)."""
+    """The pydantic tagged union of the kinds' ``Params`` (discriminator ``kind``).
+
+    Parameters
+    ----------
+    kinds : tuple of modules
+        The registered kinds of one component (at least one), e.g. :data:`PLANTS`.
+
+    Returns
+    -------
+    typing.Annotated
+        ``Params₁ | Params₂ | …`` annotated with ``Field(discriminator="kind")``, the type
+        of the component's table in the scenario schema.
+    """
     models = tuple(m.Params for m in kinds)
     union = models[0]
     for model in models[1:]:
@@ -162,7 +174,30 @@ def tagged_union(kinds: tuple[Any, ...]) -> Any:
 
 
 def by_name(kinds: tuple[Any, ...], name: str) -> Any:
-    """The kind module registered as ``name``."""
+    """The kind module registered as ``name``.
+
+    Parameters
+    ----------
+    kinds : tuple of modules
+        The registered kinds of one component.
+    name : str
+        A KIND tag, as written in the scenario (``"lever-arm"``).
+
+    Returns
+    -------
+    module
+        The kind whose KIND is ``name``.
+
+    Raises
+    ------
+    KeyError
+        No kind has that tag (the scenario schema refuses such a name first).
+
+    Examples
+    --------
+    >>> by_name(PLANTS, "axis").CODE
+    2
+    """
     for module in kinds:
         if module.KIND == name:
             return module
@@ -170,7 +205,25 @@ def by_name(kinds: tuple[Any, ...], name: str) -> Any:
 
 
 def hook(module: Any, name: str) -> Any:
-    """The optional name ``name`` of a kind module, or its default (:data:`OPTIONAL`)."""
+    """The optional name ``name`` of a kind module, or its default (:data:`OPTIONAL`).
+
+    Parameters
+    ----------
+    module : module
+        A kind module.
+    name : str
+        One of the keys of :data:`esoarm.contract.OPTIONAL` (``"FAST"``, ``"check"``, ...).
+
+    Returns
+    -------
+    object
+        The module's attribute, or the default when it does not define it.
+
+    Examples
+    --------
+    >>> hook(by_name(PLANTS, "lever-arm"), "MOTOR"), hook(by_name(OBSERVERS, "linear"), "MOTOR")
+    (True, False)
+    """
     return getattr(module, name, OPTIONAL[name])
 
 
@@ -195,6 +248,16 @@ class Kinds(NamedTuple):
 def kinds_of(scn: Scenario) -> Kinds:
     """The kind modules a scenario selects.
 
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    Kinds
+        The plant, observer and controller modules named by its ``kind`` keys.
+
     Examples
     --------
     >>> from esoarm.scenario import load_scenario
@@ -213,6 +276,16 @@ def kind_labels(scn: Scenario) -> tuple[str, str]:
     linear ESO and FLC, "euler nonlinear ESO"; a kind without ``label`` is named
     ("luenberger observer", "pid controller").
 
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    (observer, controller) : (str, str)
+        The two labels.
+
     Examples
     --------
     >>> from esoarm.scenario import load_scenario
@@ -229,6 +302,16 @@ def kind_labels(scn: Scenario) -> tuple[str, str]:
 def observer_summary(scn: Scenario) -> str:
     """One line on the observer's settings (the kind's ``summary``), e.g. ``ε = 0.09 s (euler)``.
 
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    str
+        The kind's summary, or ``observer kind '<KIND>'`` for a kind without one.
+
     Examples
     --------
     >>> from esoarm.scenario import load_scenario
@@ -242,6 +325,17 @@ def observer_summary(scn: Scenario) -> str:
 
 def observer_warnings(scn: Scenario) -> list[str]:
     """What the observer kind finds doubtful in its settings at the scenario's Ts (``warnings``).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    list of str
+        One message each (empty: nothing doubtful, or the kind has no ``warnings``); a
+        message containing "unstable" marks an observer that cannot work.
 
     Examples
     --------
@@ -262,6 +356,11 @@ def on_change(callback: Callable[[], None]) -> None:
 
     The scenario schema rebuilds its tagged unions, the compiled engine drops
     kernels compiled with the former dispatch functions.
+
+    Parameters
+    ----------
+    callback : callable
+        Called without arguments; its return value is ignored.
     """
     _listeners.append(callback)
 
@@ -285,6 +384,13 @@ def register(component: str, module: ModuleType) -> None:
     The kind is checked first (:func:`check_kind`); after this call scenarios accept
     ``<component>.kind = module.KIND`` and every engine runs it.
 
+    Parameters
+    ----------
+    component : {"plant", "observer", "controller"}
+        The component the kind belongs to.
+    module : module
+        The kind module (see :mod:`esoarm.contract`).
+
     Raises
     ------
     ImportError
@@ -296,7 +402,20 @@ def register(component: str, module: ModuleType) -> None:
 
 
 def unregister(component: str, module: ModuleType) -> None:
-    """Remove a kind added by :func:`register` (the package's own kinds stay)."""
+    """Remove a kind added by :func:`register` (the package's own kinds stay).
+
+    Parameters
+    ----------
+    component : {"plant", "observer", "controller"}
+        The component it was registered to.
+    module : module
+        The kind module; a module not registered there is ignored.
+
+    Raises
+    ------
+    ValueError
+        ``module`` is one of the package's own kinds.
+    """
     if module in _BUILTIN.get(component, ()):
         raise ValueError(f"{component} kind {module.KIND!r} belongs to esoarm; it stays")
     _set(component, tuple(m for m in _registered(component) if m is not module))
@@ -312,6 +431,16 @@ def registry_stamp() -> str:
     The compiled engine keys its on-disk cache on it (kernels compiled with other
     dispatch functions are kept apart): the added modules' sources, their
     components and the generated dispatch.
+
+    Returns
+    -------
+    str
+        ``""`` or 16 hexadecimal digits of a SHA-256.
+
+    Examples
+    --------
+    >>> registry_stamp()
+    ''
     """
     extra = [(c, m) for c in COMPONENTS for m in _registered(c) if m not in _BUILTIN[c]]
     if not extra and all(_registered(c) == _BUILTIN[c] for c in COMPONENTS):
@@ -342,6 +471,32 @@ STEPS: dict[str, dict[str, str]] = {
                    "control": "c, zhat, y, refs, k, p, u"},
 }
 
+#: Each argument of :data:`STEPS`: (type, description), for the generated docstrings.
+STEP_ARGS: dict[str, tuple[str, str]] = {
+    "x": ("ndarray", "Plant state: angles [rad] in x[:n], rates [rad/s] in x[n:2n], then "
+          "further states."),
+    "xs": ("ndarray", "Plant states of a block of runs, one row per run."),
+    "u": ("ndarray", "Drive [N·m] per joint (plant), observer input (observer) or output "
+          "command [N·m] (controller)."),
+    "us": ("ndarray", "Drive [N·m] per run and joint."),
+    "live": ("ndarray", "Which runs of the block to advance (bool)."),
+    "t0": ("float", "Start of the sample [s]."),
+    "t": ("float", "Time [s]."),
+    "h": ("float", "Integration step [s]."),
+    "nsub": ("int", "Steps per sample (nsub·h = Ts)."),
+    "p": ("ndarray", "The kind's design vector; p[0] is its CODE."),
+    "out": ("ndarray", "Output: true acceleration per joint [rad/s²]."),
+    "zhat": ("ndarray", "Estimate: angle [rad], rate [rad/s], perturbation [rad/s²] of "
+             "joint j in zhat[3j:3j+3]."),
+    "v": ("ndarray", "Output: the observer input per joint."),
+    "z": ("ndarray", "Observer state."),
+    "y": ("ndarray", "Measured angle(s) [rad]."),
+    "c": ("ndarray", "Controller state."),
+    "refs": ("ndarray", "References θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows "
+             "3j..3j+2, one column per sample."),
+    "k": ("int", "Sample index (column of refs)."),
+}
+
 # The generated functions (typed here for mypy; bodies made by _generate_dispatch).
 plant_advance: Callable[[np.ndarray, np.ndarray, float, float, int, np.ndarray], None]
 plant_advance_block: Callable[[np.ndarray, np.ndarray, np.ndarray, float, float, int,
@@ -360,15 +515,26 @@ _generation = 0
 
 
 def dispatch_source() -> str:
-    """The Python source of the dispatch functions generated from the registry."""
+    """The Python source of the dispatch functions generated from the registry.
+
+    Returns
+    -------
+    str
+        A module's source: one function ``<component>_<step>(<args>)`` per entry of
+        :data:`STEPS`, each with a numpydoc docstring (:data:`STEP_ARGS`).
+    """
     lines = ['"""Generated by esoarm.kinds from the registered kinds (do not edit)."""', ""]
     for component in COMPONENTS:
         compiled = [(i, m) for i, m in enumerate(_registered(component)) if m.JIT]
         known = ", ".join(f"{m.KIND}={m.CODE}" for _, m in compiled) or "none"
         for step, args in STEPS[component].items():
             lines += ["", f"def {component}_{step}({args}):",
-                      f'    """``{step}`` of the compiled {component} kind whose CODE is p[0]."""',
-                      "    code = p[0]"]
+                      f'    """``{step}`` of the compiled {component} kind whose CODE is p[0].',
+                      "", "    Parameters", "    ----------"]
+            for arg in args.split(", "):
+                kind_of, text = STEP_ARGS[arg]
+                lines += [f"    {arg} : {kind_of}", f"        {text}"]
+            lines += ['    """', "    code = p[0]"]
             for n, (i, m) in enumerate(compiled):
                 lines += [f"    {'if' if n == 0 else 'elif'} code == {float(m.CODE)!r}:",
                           f"        _{component}_{i}.{step}({args})"]

@@ -255,7 +255,7 @@ def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k:
         The controller's own state (unused).
     zhat : ndarray, shape (3n,)
         The estimate ẑ_k: angle [rad], rate [rad/s] and total perturbation [rad/s²] of
-        joint j in ``zhat[3j:3j+3]``.
+        joint j in ``zhat[3j:3j+3]``; the perturbation is f = θ̈ − b0·u (eq. 7).
     y : ndarray, shape (n,)
         Measured angle(s) y_k [rad] (unused: the law uses ẑ_k).
     refs : ndarray, shape (3n, N)

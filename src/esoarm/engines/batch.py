@@ -135,6 +135,11 @@ def cover_with_physics_stamp(path: str) -> None:
 
     For modules outside the engines whose kernels call the physics functions
     (e.g. the identification's segment simulator); call before the first use.
+
+    Parameters
+    ----------
+    path : str
+        The module's source file (its ``__file__``).
     """
     _COVERED_FILES.add(os.path.realpath(path))
 
@@ -460,6 +465,9 @@ def run_metrics(
         Advance the runs of a grid point together, in blocks of up to :data:`BLOCK`
         (:func:`~esoarm.engines.loop.closed_loop_block`: the same numbers, faster);
         False runs them one at a time (kept for comparison in the benchmarks).
+    _noise_cache : NoiseCache, optional
+        Internal: the noise sequences already drawn, shared with a caller that runs the
+        same seeds again (a fresh cache by default).
 
     Returns
     -------
@@ -577,7 +585,18 @@ def simulate_many(
 
 
 def compile_kernels(series: bool = True, metrics: bool = True) -> None:
-    """Compile (or load from the on-disk cache) the kernels ahead of use."""
+    """Compile (or load from the on-disk cache) the kernels ahead of use.
+
+    Runs a 0.04 s default scenario through the chosen kernels (numba compiles them on
+    first use, 30-90 s without a cache).
+
+    Parameters
+    ----------
+    series : bool
+        Compile the time-series kernel (:func:`simulate_many`).
+    metrics : bool
+        Compile the metrics kernel (:func:`run_metrics`).
+    """
     scn = Scenario(duration=0.04)
     if series:
         simulate_many([scn], workers=1)

@@ -22,7 +22,29 @@ SATURATION_WARNING = 0.5
 
 
 def what_left(theta: float, z1: float, z2: float, z3: float, u: float, limit: float) -> str:
-    """The first quantity of the last logged row that is out of range, with its value."""
+    """The first quantity of the last logged row that is out of range, with its value.
+
+    Parameters
+    ----------
+    theta : float
+        True angle θ [rad].
+    z1, z2, z3 : float
+        Estimate ẑ: angle [rad], rate [rad/s], total perturbation [rad/s²].
+    u : float
+        Command u [N·m].
+    limit : float
+        Divergence limit on |θ| and |ẑ1| [rad].
+
+    Returns
+    -------
+    str
+        E.g. ``"the angle θ = 2e+06 rad"``; ``"the state"`` if every value is in range.
+
+    Examples
+    --------
+    >>> what_left(0.1, float("nan"), 0.0, 0.0, 0.0, 1e6)
+    'the angle estimate ẑ1 = nan rad'
+    """
     for name, value, unit, bounded in (("the angle θ", theta, "rad", True),
                                        ("the angle estimate ẑ1", z1, "rad", True),
                                        ("the rate estimate ẑ2", z2, "rad/s", False),
@@ -38,6 +60,18 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
 
     Each item names the key and its value.  Empty when nothing in the
     scenario stands out.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario of the diverged run.
+    limit : float
+        Divergence limit on |θ| and |ẑ1| [rad].
+
+    Returns
+    -------
+    list of str
+        One phrase per plausible cause, most likely first.
     """
     from esoarm._schema import joint_values, show_joint_values
     from esoarm.kinds import observer_warnings
@@ -88,7 +122,20 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
 
 
 def saturation_warning(fraction: float, torque_limit: float) -> str | None:
-    """A one-line warning when the command was saturated for most of a run, else None."""
+    """A one-line warning when the command was saturated for most of a run, else None.
+
+    Parameters
+    ----------
+    fraction : float
+        Share of the samples with the command at ±torque_limit, in [0, 1] (NaN: none).
+    torque_limit : float
+        The actuator's limit [N·m].
+
+    Returns
+    -------
+    str or None
+        The warning when ``fraction`` > :data:`SATURATION_WARNING`, else None.
+    """
     if not fraction > SATURATION_WARNING:  # also None for NaN
         return None
     return (f"the command sat at the torque limit ±{torque_limit:g} N·m in "

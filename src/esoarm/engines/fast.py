@@ -128,7 +128,13 @@ def _cpu_flags() -> str:
 def cache_dir() -> Path:
     """Where built kernels are kept: ``$ESOARM_CACHE_DIR``, else ``~/.cache/esoarm`` if
     writable, else a directory of the user's in the temporary directory
-    (:func:`esoarm._cache.cache_dir`)."""
+    (:func:`esoarm._cache.cache_dir`).
+
+    Returns
+    -------
+    Path
+        The cache directory (the built kernels are ``fast-kernel-<stamp>.so`` in it).
+    """
     from esoarm._cache import cache_dir as esoarm_cache
 
     return esoarm_cache()
@@ -184,6 +190,12 @@ def _bind(lib: ctypes.CDLL) -> ctypes.CDLL:
 def load_kernel() -> ctypes.CDLL:
     """Build (first time only) and load the C kernel.
 
+    Returns
+    -------
+    ctypes.CDLL
+        The loaded kernel with ``esoarm_fast_block``'s C signature declared (one per
+        process, shared by every caller).
+
     Raises
     ------
     FastEngineUnavailable
@@ -213,7 +225,13 @@ def load_kernel() -> ctypes.CDLL:
 
 
 def available() -> bool:
-    """Whether the fast engine can run here (builds the kernel if needed)."""
+    """Whether the fast engine can run here (builds the kernel if needed).
+
+    Returns
+    -------
+    bool
+        True if the C kernel builds and loads; False otherwise (no compiler, build failed).
+    """
     try:
         load_kernel()
     except FastEngineUnavailable:
@@ -226,7 +244,18 @@ def available() -> bool:
 
 
 def unsupported(scn: Scenario) -> str | None:
-    """Why ``scn`` needs the exact engine, or None if the fast engine runs it."""
+    """Why ``scn`` needs the exact engine, or None if the fast engine runs it.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    str or None
+        The setting the fast engine does not model (e.g. ``"a [motor] model"``), or None.
+    """
     for section, module in zip(("plant", "observer", "controller"), kinds_of(scn), strict=True):
         if not hook(module, "FAST"):  # the kind does not declare FAST = True
             return f"{section}.kind = {module.KIND!r}"
@@ -354,6 +383,17 @@ def run_metrics(
         Runs per packed chunk; memory is O(chunk · N).
     progress : callable, optional
         Called with the number of runs finished after each chunk.
+    _noise_cache : NoiseCache, optional
+        Internal: the noise sequences already drawn, shared with a caller that runs the
+        same seeds again (a fresh cache by default).
+
+    Returns
+    -------
+    MetricsTable
+        One row per run (point-major, seed fastest), columns
+        :data:`esoarm.engines.metrics.METRICS`; a run that diverged has the exact engine's
+        partial metrics and ``diverged`` = 1.  Without a C compiler the exact engine's table,
+        with a :class:`FastEngineWarning` (once per process).
 
     Raises
     ------

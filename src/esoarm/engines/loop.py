@@ -94,6 +94,26 @@ def closed_loop_block(logs: np.ndarray, rows: np.ndarray, xs: np.ndarray, noises
     before the next, and what depends on time only (the disturbance d(t)) is computed once
     for the block.  A run that diverges stops (its row is logged, as in
     :func:`closed_loop`) while the others go on.
+
+    Parameters
+    ----------
+    logs : ndarray, shape (m, len(LOG_ROWS)·joints, ≥ N)
+        One log per run (as ``log`` of :func:`closed_loop`).
+    rows : ndarray of int, shape (m,)
+        Output: N, or −(k+1) if run i diverged at sample k.
+    xs : ndarray, shape (m, plant states)
+        Plant states, initial on entry; advanced in place.
+    noises : ndarray, shape (m, N·joints)
+        Standard-normal draws per run.
+    refs : ndarray, shape (3·joints, ≥ N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    sg : Sampling
+        Samples N, timing [s] and sensor [rad].
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
     """
     m = xs.shape[0]
     n = sg.n

@@ -93,6 +93,14 @@ def series_metrics(error: np.ndarray, u: np.ndarray, *, z: np.ndarray | None = N
     diverged : bool
         The run left the finite range.
 
+    Returns
+    -------
+    dict of str to float
+        Every name of :data:`METRICS`: rms_error, max_abs_error [rad]; rms_u, max_abs_u,
+        rms_du [N·m]; rms_f_error [rad/s²]; rms_rate_error [rad/s]; saturated_fraction in
+        [0, 1]; samples N; diverged 0 or 1.  NaN where an input is missing (all but samples
+        and diverged for N = 0).
+
     Examples
     --------
     >>> import numpy as np
@@ -127,6 +135,22 @@ def combine_joints(joints: list[dict[str, float]]) -> dict[str, float]:
     Every joint has the same samples, so an RMS over all of them is the root of
     the joints' mean squares, a maximum the largest joint maximum, a fraction
     the joints' mean.  One joint: its metrics unchanged.
+
+    Parameters
+    ----------
+    joints : list of dict of str to float
+        One :func:`series_metrics` dict per joint (same samples).
+
+    Returns
+    -------
+    dict of str to float
+        The arm's metrics, same names and units; ``diverged`` 1 if any joint diverged.
+
+    Examples
+    --------
+    >>> m = combine_joints([{n: 3.0 for n in METRICS}, {n: 4.0 for n in METRICS}])
+    >>> m["rms_error"], m["max_abs_u"], m["saturated_fraction"]
+    (3.5355339059327378, 4.0, 3.5)
     """
     if len(joints) == 1:
         return dict(joints[0])
@@ -184,6 +208,18 @@ def pairwise_sum(a: np.ndarray, n: int) -> float:
     NumPy splits a block of n > 128 values at n2 = n//2 rounded down to a
     multiple of 8 and adds the two halves' sums; blocks of ≤ 128 values use 8
     interleaved accumulators.  Written with an explicit stack (no recursion).
+
+    Parameters
+    ----------
+    a : ndarray
+        The values (float64); only ``a[:n]`` is read.
+    n : int
+        Number of values summed (n ≥ 0).
+
+    Returns
+    -------
+    float
+        The sum, the same bits as ``np.add.reduce(a[:n])``.
     """
     # stack of (lo, n, partial sum of the left half, state) frames
     los = np.empty(64, dtype=np.int64)
@@ -250,6 +286,17 @@ def log_metrics(log: np.ndarray, rows: int, diverged: bool, out: np.ndarray) -> 
     """:data:`METRICS` of joint 0 of an engine log with ``rows`` samples, into ``out``.
 
     The compiled twin of :func:`series_metrics` (same numbers, bit for bit).
+
+    Parameters
+    ----------
+    log : ndarray, shape (len(LOG_ROWS)·joints, ≥ rows)
+        An engine log (:data:`LOG_ROWS`); joint 0's rows are read.
+    rows : int
+        Samples logged (columns 0 … rows−1), ≥ 1.
+    diverged : bool
+        The run left the finite range.
+    out : ndarray, shape (len(METRICS),)
+        Output: the metrics in :data:`METRICS` order and units, written in place.
     """
     scratch = np.empty(max(rows, 1))
     e, u = log[ERR], log[U]
@@ -315,7 +362,18 @@ def joints_metrics(log: np.ndarray, nj: int, rows: int, diverged: bool, out: np.
 
 
 def metrics_dict(values: np.ndarray) -> dict[str, Any]:
-    """One row of :data:`METRICS` values as a dict."""
+    """One row of :data:`METRICS` values as a dict.
+
+    Parameters
+    ----------
+    values : ndarray, shape (len(METRICS),)
+        The metrics in :data:`METRICS` order.
+
+    Returns
+    -------
+    dict of str to float
+        Name to value (units as :func:`series_metrics`).
+    """
     return {name: float(v) for name, v in zip(METRICS, values, strict=True)}
 
 
@@ -336,11 +394,38 @@ class MetricsTable:
     values: np.ndarray
 
     def column(self, name: str) -> np.ndarray:
-        """One metric for every run (see :data:`METRICS` for names and units)."""
+        """One metric for every run (see :data:`METRICS` for names and units).
+
+        Parameters
+        ----------
+        name : str
+            A name of :data:`METRICS`.
+
+        Returns
+        -------
+        ndarray, shape (R,)
+            The metric of each run, in run order (a view of :attr:`values`).
+
+        Raises
+        ------
+        ValueError
+            ``name`` is not a metric.
+        """
         return self.values[:, METRICS.index(name)]
 
     def row(self, i: int) -> dict[str, float]:
-        """Metrics of run ``i`` as a dict."""
+        """Metrics of run ``i`` as a dict.
+
+        Parameters
+        ----------
+        i : int
+            Run index (row).
+
+        Returns
+        -------
+        dict of str to float
+            Name to value (units as :func:`series_metrics`).
+        """
         return {name: float(v) for name, v in zip(METRICS, self.values[i], strict=True)}
 
     def __len__(self) -> int:
@@ -354,7 +439,24 @@ class NoiseCache:
         self._store: dict[tuple[int, int], np.ndarray] = {}
 
     def get(self, seed: int, n: int, noise_deg: float) -> tuple[tuple[int, int], np.ndarray]:
-        """(key, sequence) of a seed; runs without noise share one zero sequence."""
+        """(key, sequence) of a seed; runs without noise share one zero sequence.
+
+        Parameters
+        ----------
+        seed : int
+            The sensor's noise seed.
+        n : int
+            Length of the sequence (samples · joints).
+        noise_deg : float
+            Noise standard deviation [deg]; 0 gives the shared zero sequence.
+
+        Returns
+        -------
+        tuple
+            ``((seed, n), sequence)`` (key ``(-1, n)`` without noise); the sequence is the
+            cached standard-normal draws of
+            :func:`esoarm.plants.sensor.noise_sequence`, not to be modified.
+        """
         key = (seed, n) if noise_deg > 0 else (-1, n)
         if key not in self._store:
             self._store[key] = noise_sequence(seed, n, noise_deg)

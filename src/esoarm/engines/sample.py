@@ -178,7 +178,18 @@ class Work(NamedTuple):
 
 
 def steps_of(kinds: Any) -> Steps:
-    """The step functions of a scenario's kind modules (:class:`esoarm.kinds.Kinds`)."""
+    """The step functions of a scenario's kind modules (:class:`esoarm.kinds.Kinds`).
+
+    Parameters
+    ----------
+    kinds : Kinds
+        The (plant, observer, controller) kind modules of a scenario.
+
+    Returns
+    -------
+    Steps
+        Their step functions; ``plant_advance_block`` None when the plant has none.
+    """
     plant, observer, controller = kinds
     return Steps(plant.advance, getattr(plant, "advance_block", None), plant.acceleration,
                  plant.observer_input, observer.initialize, observer.estimate,
@@ -187,7 +198,23 @@ def steps_of(kinds: Any) -> Steps:
 
 @jitable
 def new_work(n: int, nj: int, nz: int, nc: int) -> Work:
-    """Fresh arrays for a run of n samples, nj joints, observer and controller sizes nz, nc."""
+    """Fresh arrays for a run of n samples, nj joints, observer and controller sizes nz, nc.
+
+    Parameters
+    ----------
+    n : int
+        Samples N (the transport-delay history holds N·nj drives).
+    nj : int
+        Number of joints.
+    nz, nc : int
+        Lengths of the observer's and the controller's state arrays (at least 1 is
+        allocated).
+
+    Returns
+    -------
+    Work
+        Per-joint arrays uninitialized; z, ẑ, c and the drive history zero.
+    """
     return Work(np.empty(nj), np.empty(nj), np.empty(nj), np.empty(nj), np.empty(nj),
                 np.empty(nj), np.empty(nj), np.empty(nj), np.zeros(max(nz, 1)),
                 np.zeros(max(nz, 1)), np.zeros(max(nc, 1)), np.zeros(max(n, 1) * nj))
@@ -198,6 +225,20 @@ def within_limits(theta: float, z1: float, z2: float, z3: float, u: float) -> bo
     """The divergence rule shared by every engine: all finite, |θ| and |z1| below the limit.
 
     A NaN anywhere fails (NaN compares false), so does ±inf.
+
+    Parameters
+    ----------
+    theta : float
+        True angle θ(t_k) [rad].
+    z1, z2, z3 : float
+        Estimate ẑ_k: angle [rad], rate [rad/s], total perturbation [rad/s²].
+    u : float
+        Logged command u_k [N·m].
+
+    Returns
+    -------
+    bool
+        True while every value is finite and |θ|, |ẑ1| < :data:`DIVERGENCE_LIMIT` [rad].
     """
     lim = DIVERGENCE_LIMIT
     return (
@@ -213,6 +254,37 @@ def log_sample(log: np.ndarray, k: int, j: int, nj: int, x: np.ndarray, ref: flo
     Rows as :data:`esoarm.engines.metrics.LOG_ROWS`; ``x`` is the plant state (angles,
     rates, ... of the nj joints), ``zhat`` the estimate (3 per joint), ``f`` the true
     perturbation θ̈(t_k) − b0·v_k.  True while :func:`within_limits` holds.
+
+    Parameters
+    ----------
+    log : ndarray, shape (len(LOG_ROWS)·nj, ≥ N)
+        The run's log; rows j·NROW … of column k are written.
+    k : int
+        Sample index (t_k = k·Ts).
+    j : int
+        Joint index.
+    nj : int
+        Number of joints.
+    x : ndarray
+        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
+        further states).
+    ref : float
+        Reference θd(t_k) of joint j [rad]; the logged error is e = θ − θd [rad].
+    u : float
+        The host's torque u_k of joint j [N·m].
+    zhat : ndarray, shape (3·nj,)
+        Estimate ẑ_k (angle [rad], rate [rad/s], perturbation [rad/s²] per joint).
+    f : float
+        True total perturbation θ̈(t_k) − b0·v_k [rad/s²].
+    y : float
+        Measured angle y_k [rad].
+    sat : float
+        1.0 if the command was clipped at ±torque_limit, else 0.0.
+
+    Returns
+    -------
+    bool
+        :func:`within_limits` of the logged row (False: the run diverged).
     """
     r = j * NROW
     i = 3 * j
@@ -236,7 +308,22 @@ def log_sample(log: np.ndarray, k: int, j: int, nj: int, x: np.ndarray, ref: flo
 
 @jitable
 def sense(w: Work, x: np.ndarray, noise: np.ndarray, k: int, sg: Sampling) -> None:
-    """Step 1: y_k = Q(θ_j(t_k) + σ n) per joint j, n = ``noise[k·joints + j]``."""
+    """Step 1: y_k = Q(θ_j(t_k) + σ n) per joint j, n = ``noise[k·joints + j]``.
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays; ``w.y`` receives y_k [rad].
+    x : ndarray
+        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
+        further states) at t_k.
+    noise : ndarray
+        Standard-normal draws, ``joints`` per sample.
+    k : int
+        Sample index (t_k = k·Ts).
+    sg : Sampling
+        Samples N, timing [s] and sensor [rad].
+    """
     nj = len(w.y)
     for j in range(nj):
         w.y[j] = measure(x[j], noise[k * nj + j], sg.sigma, sg.q)
@@ -244,20 +331,56 @@ def sense(w: Work, x: np.ndarray, noise: np.ndarray, k: int, sg: Sampling) -> No
 
 @jitable
 def start(w: Work, d: Designs, s: Steps) -> None:
-    """The observer's and the controller's initial state from the first measurement ``w.y``."""
+    """The observer's and the controller's initial state from the first measurement ``w.y``.
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays; ``w.z`` and ``w.c`` are initialized from ``w.y`` [rad].
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
     s.observer_initialize(w.z, w.y, d.observer)
     s.controller_initialize(w.c, w.y, d.controller)
 
 
 @jitable
 def estimate(w: Work, d: Designs, s: Steps) -> None:
-    """Step 2a: the estimate ẑ_k from z_k and y_k (observer kind)."""
+    """Step 2a: the estimate ẑ_k from z_k and y_k (observer kind).
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays; ``w.zhat`` receives ẑ_k.
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
     s.observer_estimate(w.z, w.y, d.observer, w.zhat)
 
 
 @jitable
 def control(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
-    """Step 2b: the raw command into ``w.u`` (controller kind)."""
+    """Step 2b: the raw command into ``w.u`` (controller kind).
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays; ``w.u`` receives the raw command [N·m], ``w.c`` is
+        updated.
+    k : int
+        Sample index (t_k = k·Ts).
+    refs : ndarray, shape (3·joints, ≥ N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
     s.controller_control(w.c, w.zhat, w.y, refs, k, d.controller, w.u)
 
 
@@ -266,6 +389,14 @@ def saturate_commands(w: Work, a: Vector) -> None:
     """Step 2c: ``w.u`` clipped to ±torque_limit; ``w.sat`` flags the clipped joints.
 
     A NaN command passes (and is not flagged), so a fault stays visible.
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays; ``w.u`` [N·m] clipped in place, ``w.sat`` set.
+    a : ndarray or tuple of float
+        The actuator vector (:func:`esoarm.plants.actuator.actuator_vector`; ``a[LIMIT]`` =
+        torque_limit [N·m]).
     """
     limit = a[LIMIT]
     for j in range(len(w.u)):
@@ -280,6 +411,15 @@ def actuate_commands(w: Work, a: Vector) -> None:
 
     ``w.u`` becomes the host's torque, ``w.drive`` the torque driving the
     plant, ``w.duty`` the PWM duty (NaN without a motor).
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays; ``w.zhat`` supplies the rate estimate [rad/s] for the
+        motor's back-EMF.
+    a : ndarray or tuple of float
+        The actuator vector (:func:`esoarm.plants.actuator.actuator_vector`; ``a[LIMIT]`` =
+        torque_limit [N·m]).
     """
     for j in range(len(w.u)):
         w.u[j], w.drive[j], w.duty[j] = actuate(w.u[j], w.zhat[3 * j + 1], a)
@@ -287,7 +427,22 @@ def actuate_commands(w: Work, a: Vector) -> None:
 
 @jitable
 def command(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
-    """The controller half after the measurement: estimate, control, saturate, actuate."""
+    """The controller half after the measurement: estimate, control, saturate, actuate.
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays (``w.y`` holds y_k).
+    k : int
+        Sample index (t_k = k·Ts).
+    refs : ndarray, shape (3·joints, ≥ N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
     estimate(w, d, s)
     control(w, k, refs, d, s)
     saturate_commands(w, d.actuator)
@@ -300,7 +455,17 @@ def command(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
 
 @jitable
 def hold(w: Work, k: int, delay: int) -> None:
-    """Step 3: record sample k's drive; ``w.applied`` = the drive of sample k − delay (or 0)."""
+    """Step 3: record sample k's drive; ``w.applied`` = the drive of sample k − delay (or 0).
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays; ``w.hist`` and ``w.applied`` [N·m] are written.
+    k : int
+        Sample index (t_k = k·Ts).
+    delay : int
+        Transport delay [samples].
+    """
     delayed_input(w.hist, k, delay, w.drive, w.applied)
 
 
@@ -311,6 +476,33 @@ def record(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg
 
     Also leaves the true acceleration in ``w.acc`` and the observer input v_k
     (the plant kind's ``observer_input`` of the host's torque) in ``w.v``.
+
+    Parameters
+    ----------
+    log : ndarray, shape (len(LOG_ROWS)·joints, ≥ N)
+        The run's log (:data:`esoarm.engines.metrics.LOG_ROWS` per joint); column k is
+        written.
+    w : Work
+        The run's state and scratch arrays.
+    x : ndarray
+        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
+        further states) at t_k.
+    k : int
+        Sample index (t_k = k·Ts).
+    refs : ndarray, shape (3·joints, ≥ N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    sg : Sampling
+        Samples N, timing [s] and sensor [rad].
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+
+    Returns
+    -------
+    bool
+        False if a joint's logged row breaks :func:`within_limits`.
     """
     nj = len(w.y)
     s.plant_acceleration(x, w.applied, k * sg.ts, d.plant, w.acc)
@@ -324,13 +516,33 @@ def record(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg
 
 @jitable
 def update_observer(w: Work, d: Designs, s: Steps) -> None:
-    """Step 5: z_{k+1} from (z_k, ẑ_k, y_k) and the observer input ``w.v``."""
+    """Step 5: z_{k+1} from (z_k, ẑ_k, y_k) and the observer input ``w.v``.
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays; ``w.z`` is advanced in place.
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
     s.observer_advance(w.z, w.zhat, w.y, w.v, d.observer)
 
 
 @jitable
 def observe(w: Work, d: Designs, s: Steps) -> None:
-    """Step 5 for the rig's host: v_k of the torque ``w.u`` (as in step 4), then z_{k+1}."""
+    """Step 5 for the rig's host: v_k of the torque ``w.u`` (as in step 4), then z_{k+1}.
+
+    Parameters
+    ----------
+    w : Work
+        The run's state and scratch arrays; ``w.v`` and ``w.z`` are written.
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
     s.plant_observer_input(w.zhat, w.u, d.plant, w.v)
     update_observer(w, d, s)
 
@@ -341,6 +553,33 @@ def respond(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, s
     """Steps 3-5: hold the delayed drive, log column k, update the observer.
 
     Returns False (and skips the update) if the run left the finite range.
+
+    Parameters
+    ----------
+    log : ndarray, shape (len(LOG_ROWS)·joints, ≥ N)
+        The run's log (:data:`esoarm.engines.metrics.LOG_ROWS` per joint); column k is
+        written.
+    w : Work
+        The run's state and scratch arrays.
+    x : ndarray
+        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
+        further states) at t_k.
+    k : int
+        Sample index (t_k = k·Ts).
+    refs : ndarray, shape (3·joints, ≥ N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    sg : Sampling
+        Samples N, timing [s] and sensor [rad].
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+
+    Returns
+    -------
+    bool
+        True if the run goes on; False if it diverged at sample k (row k is logged).
     """
     hold(w, k, sg.delay)
     if not record(log, w, x, k, refs, sg, d, s):
@@ -352,5 +591,22 @@ def respond(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, s
 @jitable
 def advance_plant(x: np.ndarray, w: Work, k: int, sg: Sampling, plant: Vector,
                   plant_advance: Callable[..., None]) -> None:
-    """Step 6: the plant kind integrates x from t_k to t_{k+1} under ``w.applied``."""
+    """Step 6: the plant kind integrates x from t_k to t_{k+1} under ``w.applied``.
+
+    Parameters
+    ----------
+    x : ndarray
+        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
+        further states), advanced in place to t_{k+1}.
+    w : Work
+        The run's state and scratch arrays (``w.applied`` [N·m]).
+    k : int
+        Sample index (t_k = k·Ts).
+    sg : Sampling
+        Samples N, timing [s] and sensor [rad].
+    plant : ndarray or tuple of float
+        The plant kind's parameter vector (element 0 its CODE).
+    plant_advance : callable
+        The plant kind's ``advance(x, u, t0, h, nsub, p)``.
+    """
     plant_advance(x, w.applied, k * sg.ts, sg.h, sg.nsub, plant)

@@ -153,6 +153,24 @@ def prepare(scn: Scenario, *, draw_noise: bool = True) -> RunInputs:
 
     ``draw_noise=False`` leaves ``noise`` empty, for engines that draw the
     noise of each seed once for many runs (:mod:`esoarm.engines.batch`).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+    draw_noise : bool
+        Draw the sensor's standard-normal sequence (N·joints values) for ``sensor.seed``.
+
+    Returns
+    -------
+    RunInputs
+        Sample times [s], reference rows [rad, rad/s, rad/s²], noise, sensor σ and
+        quantization step [rad], the kinds and their designs, the actuator vector, timing.
+
+    Raises
+    ------
+    ScenarioError
+        A ``[motor]`` table with a plant kind that does not model a motor.
     """
     n = scn.n_samples
     ts = scn.sample_time
@@ -238,6 +256,27 @@ def run_reference(scn: Scenario, inp: RunInputs,
 
     ``progress`` (optional) receives the samples logged since its last call, from a
     watcher thread; Ctrl-C raises :class:`SimulationInterrupted` with the rows logged.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (kept in the result).
+    inp : RunInputs
+        Its prepared inputs (:func:`prepare`).
+    progress : callable, optional
+        Called with the number of samples logged since the last call.
+
+    Returns
+    -------
+    SimResult
+        Time series and metrics of the N samples.
+
+    Raises
+    ------
+    SimulationDiverged
+        The state left the finite range; the exception holds the partial result.
+    SimulationInterrupted
+        Ctrl-C during the run; it holds the partial result.
     """
     n = len(inp.t)
     nj = inp.plant.n_joints
@@ -310,6 +349,28 @@ def diverged_message(name: str, tk: float, k: int, result: SimResult | None = No
 
     With the partial ``result`` it says which quantity left the range first
     and names the likely causes in the scenario (:mod:`esoarm.engines.diagnosis`).
+
+    Parameters
+    ----------
+    name : str
+        The scenario's name.
+    tk : float
+        Time t_k of the last logged sample [s].
+    k : int
+        Index of the last logged sample.
+    result : SimResult, optional
+        The partial result (rows 0 … k); without it the message is generic.
+
+    Returns
+    -------
+    str
+        One line: where it diverged, what left the range, the likely cause.
+
+    Examples
+    --------
+    >>> diverged_message("demo", 0.5, 25).startswith(
+    ...     "simulation of 'demo' diverged at t = 0.5 s (sample 25): the state left")
+    True
     """
     head = f"simulation of '{name}' diverged at t = {tk:.4g} s (sample {k}): "
     bound = f"|θ|, |ẑ1| < {DIVERGENCE_LIMIT:g} rad, all finite"
@@ -343,6 +404,23 @@ def reference_metrics(
     Same arguments and result as :func:`esoarm.engines.batch.run_metrics`, and
     the same numbers; about 0.1 s per 20 s run, so meant for a handful of runs
     (no compiled kernel to load).
+
+    Parameters
+    ----------
+    points : sequence of Scenario
+        Validated scenarios.
+    seeds : sequence of int, optional
+        Noise seeds run at every point (seed fastest); default each point's own.
+    progress : callable, optional
+        Called with 1 after each run.
+    **_ignored : object
+        The batch engine's other keywords (``workers``, ``chunk``, ...), accepted and unused.
+
+    Returns
+    -------
+    MetricsTable
+        One row per run, columns :data:`esoarm.engines.metrics.METRICS`; a diverged run
+        has its partial metrics and ``diverged`` = 1.
     """
     if seeds is None:
         runs = [scn for scn in points]

@@ -81,7 +81,18 @@ DISC, TS, B0, PHI, GAMMA, LEVELS, GAINS = 0, 1, 2, 3, 12, 15, 16
 
 @jitable
 def block_size(levels: int) -> int:
-    """Values per joint in the design vector for ``levels`` levels."""
+    """Values per joint in the design vector for ``levels`` levels.
+
+    Parameters
+    ----------
+    levels : int
+        Number of cascaded ESOs p.
+
+    Returns
+    -------
+    int
+        16 + 3·p (discretization, Ts, b0, Φ, Γ, p, then 3 gains per level).
+    """
     return GAINS + 3 * levels
 
 
@@ -110,6 +121,20 @@ class Params(Section):
 def level_eps(eps: float, levels: int, ratio: float) -> list[float]:
     """ε_i [s] of levels 1 … p (slowest first): ε_i = ε·α^(p−i).
 
+    Parameters
+    ----------
+    eps : float
+        ε of the last (fastest) level [s].
+    levels : int
+        Number of levels p.
+    ratio : float
+        Bandwidth ratio α > 1 between consecutive levels [1].
+
+    Returns
+    -------
+    list of float
+        ε_1 … ε_p [s], the last one ``eps``.
+
     Examples
     --------
     >>> level_eps(0.05, 2, 2.0)
@@ -123,6 +148,20 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
 
     Each level's gain is the linear ESO's for ε_i (:func:`level_eps`) and the
     scenario's discretization.  State: 3·p per joint.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The validated scenario (its ``[observer]`` table).
+    plant : PlantDesign
+        The plant's design (n joints, nominal input gains b0 [1/(kg·m²)]).
+    ts : float
+        Sample period Ts [s].
+
+    Returns
+    -------
+    ComponentDesign
+        The vector above, 3·p·n states.
     """
     obs = scn.observer
     if not isinstance(obs, Params):  # pragma: no cover - the registry dispatches by kind
@@ -199,7 +238,18 @@ def _advance_joint(z: np.ndarray, base: int, y: float, u: float, obs: Vector) ->
 
 @jitable
 def initialize(z: np.ndarray, y: np.ndarray, p: Vector) -> None:
-    """z_0: every level at (y_0, 0, 0) per joint."""
+    """z_0: every level at (y_0, 0, 0) per joint.
+
+    Parameters
+    ----------
+    z : ndarray, shape (3·p·n,)
+        Observer state (joint j's levels in ``z[3pj:3p(j+1)]``, level 1 first), set in place.
+    y : ndarray, shape (n,)
+        First measured angle(s) y_0 [rad].
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then one block per joint
+        (:func:`design`).
+    """
     obs = p[1:]
     levels = int(obs[LEVELS])
     for j in range(len(y)):
@@ -212,7 +262,22 @@ def initialize(z: np.ndarray, y: np.ndarray, p: Vector) -> None:
 
 @jitable
 def estimate(z: np.ndarray, y: np.ndarray, p: Vector, zhat: np.ndarray) -> None:
-    """ẑ_k = (ẑᵖ1, ẑᵖ2, Σ_i ẑⁱ3) per joint (module docstring)."""
+    """ẑ_k = (ẑᵖ1, ẑᵖ2, Σ_i ẑⁱ3) per joint (module docstring).
+
+    Parameters
+    ----------
+    z : ndarray, shape (3·p·n,)
+        Observer state z_k of every level; not changed.
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad].
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then one block per joint
+        (:func:`design`).
+    zhat : ndarray, shape (3n,)
+        Output: ẑ_k, angle [rad], rate [rad/s] and total perturbation [rad/s²] of joint j
+        in ``zhat[3j:3j+3]``, written in place.
+        The perturbation is f = θ̈ − b0·u (eq. 7): what accelerates θ besides the input.
+    """
     if len(y) == 1:
         zhat[0], zhat[1], zhat[2] = _estimate_joint(z, 0, y[0], p[1:])
         return
@@ -231,6 +296,21 @@ def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray, p: Ve
 
     ``u`` is the plant's observer input (the command for the lever arm); ``zhat``
     is not needed (each level's estimate is recomputed from z_k and y_k).
+
+    Parameters
+    ----------
+    z : ndarray, shape (3·p·n,)
+        Observer state z_k of every level, updated in place to z_{k+1}.
+    zhat : ndarray, shape (3n,)
+        The estimate ẑ_k (unused).
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad].
+    u : ndarray, shape (n,)
+        The observer input u_k as applied (the saturated command [N·m] on the lever arm),
+        entering as b0·u [rad/s²].
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then one block per joint
+        (:func:`design`).
     """
     if len(y) == 1:
         _advance_joint(z, 0, y[0], u[0], p[1:])
@@ -314,17 +394,52 @@ def _model(obs: Params, b0: float, ts: float
 
 
 def label(params: Params) -> str:
-    """The observer in titles: ``euler cascade ESO``."""
+    """The observer in titles: ``euler cascade ESO``.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+
+    Returns
+    -------
+    str
+        The label.
+    """
     return f"{params.discretization} cascade ESO"
 
 
 def summary(params: Params) -> str:
-    """One line on the settings: ``ε = 0.09 s (euler)`` (ε of the last level)."""
+    """One line on the settings: ``ε = 0.09 s (euler)`` (ε of the last level).
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+
+    Returns
+    -------
+    str
+        ε [s] of the last level and the discretization.
+    """
     return f"ε = {params.eps:g} s ({params.discretization})"
 
 
 def warnings(params: Params, ts: float) -> list[str]:
-    """The linear ESO's warnings for the last level's ε at Ts [s]."""
+    """The linear ESO's warnings for the last level's ε at Ts [s].
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+    ts : float
+        Sample period Ts [s].
+
+    Returns
+    -------
+    list of str
+        One-line warnings, empty when the design is fine.
+    """
     return observer_warnings(params.eps, ts, params.discretization)
 
 

@@ -39,7 +39,7 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import numpy as np
 from pydantic import Field
@@ -122,6 +122,21 @@ def continuous_gains(eps: float) -> tuple[float, float, float]:
     ----------
     eps : float
         Free parameter ε > 0 [s]; all three error poles at −1/ε [1/s].
+
+    Returns
+    -------
+    tuple of float
+        β1 = 3/ε [1/s], β2 = 3/ε² [1/s²], β3 = 1/ε³ [1/s³].
+
+    Raises
+    ------
+    ValueError
+        If ε is not positive.
+
+    Examples
+    --------
+    >>> continuous_gains(0.5)
+    (6.0, 12.0, 8.0)
     """
     if not eps > 0:
         raise ValueError(f"eps must be > 0, got {eps!r}")
@@ -129,7 +144,19 @@ def continuous_gains(eps: float) -> tuple[float, float, float]:
 
 
 def extended_plant(b0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The extended plant of eq. 7 as (A, B, C): x = (θ, θ̇, f), u [N·m]."""
+    """The extended plant of eq. 7 as (A, B, C): x = (θ, θ̇, f), u [N·m].
+
+    Parameters
+    ----------
+    b0 : float
+        Input gain 1/I0 [1/(kg·m²)].
+
+    Returns
+    -------
+    tuple of ndarray
+        A, shape (3, 3) (the triple integrator); B = (0, b0, 0); C = (1, 0, 0), so that
+        ẋ = A x + B u, y = C x with the state (θ [rad], θ̇ [rad/s], f [rad/s²]).
+    """
     a = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
     b = np.array([0.0, b0, 0.0])
     c = np.array([1.0, 0.0, 0.0])
@@ -137,7 +164,19 @@ def extended_plant(b0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def continuous_error_matrix(eps: float) -> np.ndarray:
-    """The estimation-error matrix of eq. 10, A − βC; eigenvalues all −1/ε."""
+    """The estimation-error matrix of eq. 10, A − βC; eigenvalues all −1/ε.
+
+    Parameters
+    ----------
+    eps : float
+        Free parameter ε > 0 [s].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        A − βC: −β1 [1/s], −β2 [1/s²], −β3 [1/s³] in the first column, the shift
+        (ones above the diagonal) elsewhere; β the gains of Theorem 1.
+    """
     b1, b2, b3 = continuous_gains(eps)
     return np.array([[-b1, 1.0, 0.0], [-b2, 0.0, 1.0], [-b3, 0.0, 0.0]])
 
@@ -214,6 +253,16 @@ def design_observer(eps: float, ts: float, b0: float, discretization: str = "eul
         Input gain 1/I0 [1/(kg·m²)].
     discretization : {"euler", "zoh", "current"}
         See the module docstring and the sampled-data loop, step 5.
+
+    Returns
+    -------
+    ESODesign
+        Gains, discrete matrices and the packed :attr:`ESODesign.vector` (read-only).
+
+    Raises
+    ------
+    ValueError
+        If ``discretization`` is unknown, or ``ts`` or ``eps`` is not positive.
     """
     if discretization not in DISCRETIZATIONS:
         raise ValueError(
@@ -249,13 +298,28 @@ def design_observer(eps: float, ts: float, b0: float, discretization: str = "eul
     vec[GAIN : GAIN + 3] = gain
     for arr in (beta, phi, gamma, gain, vec):
         arr.setflags(write=False)
-    return ESODesign(discretization, eps, ts, b0, beta, phi, gamma, gain, vec)  # type: ignore[arg-type]
+    return ESODesign(cast(Discretization, discretization), eps, ts, b0, beta, phi, gamma, gain,
+                     vec)
 
 
 def discrete_error_matrix(eps: float, ts: float, discretization: str) -> np.ndarray:
     """Matrix M of the estimation-error recursion z̃⁺ = M z̃ (γ = 0).
 
     "euler": I + Ts (A − βC); "zoh": Φ − Lp C; "current": Φ − Lc C Φ.
+
+    Parameters
+    ----------
+    eps : float
+        Free parameter ε > 0 [s].
+    ts : float
+        Sample period Ts > 0 [s].
+    discretization : {"euler", "zoh", "current"}
+        The discretization (module docstring).
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        M (dimensionless in the z-plane: its eigenvalues are the error poles).
     """
     d = design_observer(eps, ts, 1.0, discretization)
     c_row = np.array([[1.0, 0.0, 0.0]])
@@ -271,6 +335,30 @@ def discrete_error_poles(eps: float, ts: float, discretization: str) -> np.ndarr
 
     "euler": 1 − Ts/ε (stable only while Ts/ε < 2); "zoh" and "current":
     e^{−Ts/ε}, the exact image of the continuous poles −1/ε.
+
+    Parameters
+    ----------
+    eps : float
+        Free parameter ε > 0 [s].
+    ts : float
+        Sample period Ts [s].
+    discretization : {"euler", "zoh", "current"}
+        The discretization (module docstring).
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        The triple pole, three times.
+
+    Raises
+    ------
+    ValueError
+        If ``discretization`` is unknown.
+
+    Examples
+    --------
+    >>> discrete_error_poles(0.1, 0.05, "euler")
+    array([0.5, 0.5, 0.5])
     """
     if discretization == "euler":
         p = 1.0 - ts / eps
@@ -365,7 +453,26 @@ def observer_warnings(eps: float, ts: float, discretization: str) -> list[str]:
 @jitable
 def eso_rhs(z1: float, z2: float, z3: float, y: float, u: float, b0: float, beta1: float,
             beta2: float, beta3: float) -> tuple[float, float, float]:
-    """Right side of eq. 8 at (z, y, u): returns (ż1, ż2, ż3)."""
+    """Right side of eq. 8 at (z, y, u): returns (ż1, ż2, ż3).
+
+    Parameters
+    ----------
+    z1, z2, z3 : float
+        Observer state: angle [rad], rate [rad/s], total perturbation [rad/s²].
+    y : float
+        Measured angle [rad]; the innovation is e = y − z1.
+    u : float
+        Observer input [N·m] (the command on the lever arm).
+    b0 : float
+        Input gain 1/I0 [1/(kg·m²)].
+    beta1, beta2, beta3 : float
+        Gains β1 [1/s], β2 [1/s²], β3 [1/s³].
+
+    Returns
+    -------
+    tuple of float
+        (ż1 [rad/s], ż2 [rad/s²], ż3 [rad/s³]).
+    """
     e = y - z1
     return z2 + beta1 * e, z3 + b0 * u + beta2 * e, beta3 * e
 
@@ -377,6 +484,20 @@ def eso_estimate(z1: float, z2: float, z3: float, y: float,
 
     For "euler" and "zoh" this is the state itself; for "current" it is the
     prediction corrected with y_k: ẑ = z + Lc (y − z1).
+
+    Parameters
+    ----------
+    z1, z2, z3 : float
+        Observer state z_k: angle [rad], rate [rad/s], total perturbation [rad/s²].
+    y : float
+        Measured angle y_k [rad].
+    obs : ndarray, shape (21,)
+        :attr:`ESODesign.vector`.
+
+    Returns
+    -------
+    tuple of float
+        ẑ_k = (θ̂ [rad], θ̇̂ [rad/s], f̂ [rad/s²]).
     """
     if obs[DISC] == CURRENT:
         e = y - z1
@@ -401,6 +522,11 @@ def eso_advance(z1: float, z2: float, z3: float, zh1: float, zh2: float, zh3: fl
         Control u_k [N·m] (saturated, as commanded).
     obs : ndarray, shape (21,)
         :attr:`ESODesign.vector`.
+
+    Returns
+    -------
+    tuple of float
+        z_{k+1}: angle [rad], rate [rad/s], total perturbation [rad/s²].
     """
     kind = obs[DISC]
     if kind == EULER:
@@ -430,6 +556,25 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
 
     Joint j's ESO uses ε_j (one ε applies to every joint) and the plant's b0_j at
     Ts [s].  State: 3 per joint.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The validated scenario (its ``[observer]`` table).
+    plant : PlantDesign
+        The plant's design (n joints, nominal input gains b0 [1/(kg·m²)]).
+    ts : float
+        Sample period Ts [s].
+
+    Returns
+    -------
+    ComponentDesign
+        (CODE, one 21-float :attr:`ESODesign.vector` per joint), 3n states.
+
+    Raises
+    ------
+    ValueError
+        If ``observer.eps`` has not one entry per joint.
     """
     n = plant.n_joints
     eps = scn.observer.eps
@@ -443,7 +588,18 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
 
 @jitable
 def initialize(z: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
-    """Initial state z_0 = (y_0, 0, 0) per joint from the first measurement y_0 [rad]."""
+    """Initial state z_0 = (y_0, 0, 0) per joint from the first measurement y_0 [rad].
+
+    Parameters
+    ----------
+    z : ndarray, shape (3n,)
+        Observer state, set in place to z_0.
+    y : ndarray, shape (n,)
+        First measured angle(s) y_0 [rad].
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then
+        one :attr:`ESODesign.vector` per joint (unused here).
+    """
     for j in range(len(y)):
         z[3 * j] = y[j]
         z[3 * j + 1] = 0.0
@@ -456,6 +612,20 @@ def estimate(z: np.ndarray, y: np.ndarray, p: np.ndarray, zhat: np.ndarray) -> N
 
     ``p`` holds one design per joint; the compiled kernels run one joint and
     hand ``p`` over as a tuple, which is sliced statically there.
+
+    Parameters
+    ----------
+    z : ndarray, shape (3n,)
+        Observer state z_k (joint j in ``z[3j:3j+3]``); not changed.
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad].
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then
+        one :attr:`ESODesign.vector` per joint.
+    zhat : ndarray, shape (3n,)
+        Output: the estimate ẑ_k, angle [rad], rate [rad/s] and total perturbation
+        [rad/s²] of joint j in ``zhat[3j:3j+3]``, written in place.
+        The perturbation is f = θ̈ − b0·u (eq. 7): what accelerates θ besides the input.
     """
     if len(y) == 1:
         obs = p[1:]
@@ -474,6 +644,21 @@ def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
     """z_{k+1} in place from z_k, ẑ_k, y_k and the input u_k (:func:`eso_advance`).
 
     ``u`` is the plant's observer input (the command for the lever arm).
+
+    Parameters
+    ----------
+    z : ndarray, shape (3n,)
+        Observer state z_k, updated in place to z_{k+1}.
+    zhat : ndarray, shape (3n,)
+        The estimate ẑ_k from :func:`estimate` (used by "current").
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad].
+    u : ndarray, shape (n,)
+        The observer input u_k as applied (the saturated command [N·m] on the lever arm),
+        entering as b0·u [rad/s²].
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then
+        one :attr:`ESODesign.vector` per joint.
     """
     if len(y) == 1:
         obs = p[1:]
@@ -489,17 +674,52 @@ def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
 
 
 def label(params: Params) -> str:
-    """The observer in titles: its discretization ("euler"), the paper's ESO being the default."""
+    """The observer in titles: its discretization ("euler"), the paper's ESO being the default.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+
+    Returns
+    -------
+    str
+        The discretization's name.
+    """
     return str(params.discretization)
 
 
 def summary(params: Params) -> str:
-    """One line on the settings: ``ε = 0.09 s (euler)``."""
+    """One line on the settings: ``ε = 0.09 s (euler)``.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+
+    Returns
+    -------
+    str
+        ε [s] per joint and the discretization.
+    """
     return f"ε = {show_joint_values(params.eps)} s ({params.discretization})"
 
 
 def warnings(params: Params, ts: float) -> list[str]:
-    """:func:`observer_warnings` of each ε of ``params`` (once each) at Ts [s]."""
+    """:func:`observer_warnings` of each ε of ``params`` (once each) at Ts [s].
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+    ts : float
+        Sample period Ts [s].
+
+    Returns
+    -------
+    list of str
+        One-line warnings, empty when the design is fine.
+    """
     out: list[str] = []
     for eps in dict.fromkeys(joint_values(params.eps)):
         out.extend(m for m in observer_warnings(eps, ts, params.discretization) if m not in out)
@@ -595,14 +815,37 @@ class ExtendedStateObserver:
         self._y = float(y0)
 
     def estimate(self, y: float) -> tuple[float, float, float]:
-        """Take measurement y_k [rad]; return ẑ_k = (θ̂, θ̇̂, f̂)."""
+        """Take measurement y_k [rad]; return ẑ_k = (θ̂, θ̇̂, f̂).
+
+        Parameters
+        ----------
+        y : float
+            Measured angle y_k [rad].
+
+        Returns
+        -------
+        tuple of float
+            ẑ_k = (θ̂ [rad], θ̇̂ [rad/s], f̂ [rad/s²]), also kept as :attr:`zhat`.
+        """
         self._y = y
         z1, z2, z3 = self.z
         self.zhat = eso_estimate(z1, z2, z3, y, self._obs)
         return self.zhat
 
     def update(self, u: float) -> tuple[float, float, float]:
-        """Advance to z_{k+1} with the control u_k [N·m] computed from ẑ_k."""
+        """Advance to z_{k+1} with the control u_k [N·m] computed from ẑ_k.
+
+        Parameters
+        ----------
+        u : float
+            The applied (saturated) control u_k [N·m].
+
+        Returns
+        -------
+        tuple of float
+            z_{k+1}: angle [rad], rate [rad/s], total perturbation [rad/s²], also kept as
+            :attr:`z`.
+        """
         z1, z2, z3 = self.z
         h1, h2, h3 = self.zhat
         self.z = eso_advance(z1, z2, z3, h1, h2, h3, self._y, u, self._obs)

@@ -116,6 +116,20 @@ class Params(Section):
 def fal(e: float, alpha: float, delta: float) -> float:
     """Han's fal(e, α, δ): e/δ^(1−α) for |e| ≤ δ, else |e|^α·sign(e); fal = e for α = 1.
 
+    Parameters
+    ----------
+    e : float
+        The innovation e = y − z1 [rad].
+    alpha : float
+        Exponent α in (0, 1] [1].
+    delta : float
+        Half-width δ > 0 of the linear zone [rad].
+
+    Returns
+    -------
+    float
+        fal(e, α, δ), with the sign of e (odd in e).
+
     Examples
     --------
     >>> fal(0.04, 0.5, 0.01)  # |e| > δ: sqrt(0.04)
@@ -135,6 +149,25 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     """(CODE, the linear ESO's vector for ε and the discretization at Ts, α2, α3, δ).
 
     One joint: b0 from the plant's nominal model.  State: 3 per joint.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The validated scenario (its ``[observer]`` table).
+    plant : PlantDesign
+        The plant's design (n joints, nominal input gains b0 [1/(kg·m²)]).
+    ts : float
+        Sample period Ts [s].
+
+    Returns
+    -------
+    ComponentDesign
+        (CODE, the 21-float linear vector, α2, α3, δ [rad]), 3 states.
+
+    Raises
+    ------
+    ValueError
+        If the plant has more than one joint.
     """
     obs = scn.observer
     if not isinstance(obs, Params):  # pragma: no cover - the registry dispatches by kind
@@ -186,7 +219,18 @@ def _advance1(z1: float, z2: float, z3: float, zh1: float, zh2: float, zh3: floa
 
 @jitable
 def initialize(z: np.ndarray, y: np.ndarray, p: Vector) -> None:
-    """Initial state z_0 = (y_0, 0, 0) per joint."""
+    """Initial state z_0 = (y_0, 0, 0) per joint.
+
+    Parameters
+    ----------
+    z : ndarray, shape (3n,)
+        Observer state, set in place to z_0.
+    y : ndarray, shape (n,)
+        First measured angle(s) y_0 [rad].
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then
+        the linear ESO's vector, α2, α3, δ (unused here).
+    """
     for j in range(len(y)):
         z[3 * j] = y[j]
         z[3 * j + 1] = 0.0
@@ -195,7 +239,22 @@ def initialize(z: np.ndarray, y: np.ndarray, p: Vector) -> None:
 
 @jitable
 def estimate(z: np.ndarray, y: np.ndarray, p: Vector, zhat: np.ndarray) -> None:
-    """Estimate ẑ_k for the controller (the state, or its fal-correction for "current")."""
+    """Estimate ẑ_k for the controller (the state, or its fal-correction for "current").
+
+    Parameters
+    ----------
+    z : ndarray, shape (3n,)
+        Observer state z_k (joint j in ``z[3j:3j+3]``); not changed.
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad].
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then
+        the linear ESO's vector, α2, α3, δ.
+    zhat : ndarray, shape (3n,)
+        Output: the estimate ẑ_k, angle [rad], rate [rad/s] and total perturbation
+        [rad/s²] of joint j in ``zhat[3j:3j+3]``, written in place.
+        The perturbation is f = θ̈ − b0·u (eq. 7): what accelerates θ besides the input.
+    """
     obs = p[1:]
     for j in range(len(y)):
         i = 3 * j
@@ -204,7 +263,23 @@ def estimate(z: np.ndarray, y: np.ndarray, p: Vector, zhat: np.ndarray) -> None:
 
 @jitable
 def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray, p: Vector) -> None:
-    """z_{k+1} in place from z_k, ẑ_k, y_k and the applied u_k."""
+    """z_{k+1} in place from z_k, ẑ_k, y_k and the applied u_k.
+
+    Parameters
+    ----------
+    z : ndarray, shape (3n,)
+        Observer state z_k, updated in place to z_{k+1}.
+    zhat : ndarray, shape (3n,)
+        The estimate ẑ_k from :func:`estimate` (used by "current").
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad].
+    u : ndarray, shape (n,)
+        The observer input u_k as applied (the saturated command [N·m] on the lever arm),
+        entering as b0·u [rad/s²].
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then
+        the linear ESO's vector, α2, α3, δ.
+    """
     obs = p[1:]
     for j in range(len(y)):
         i = 3 * j
@@ -217,17 +292,52 @@ def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray, p: Ve
 
 
 def label(params: Params) -> str:
-    """The observer in titles: ``euler nonlinear ESO``."""
+    """The observer in titles: ``euler nonlinear ESO``.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+
+    Returns
+    -------
+    str
+        The label.
+    """
     return f"{params.discretization} nonlinear ESO"
 
 
 def summary(params: Params) -> str:
-    """One line on the settings: ``ε = 0.09 s (euler)``."""
+    """One line on the settings: ``ε = 0.09 s (euler)``.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+
+    Returns
+    -------
+    str
+        ε [s] and the discretization.
+    """
     return f"ε = {params.eps:g} s ({params.discretization})"
 
 
 def warnings(params: Params, ts: float) -> list[str]:
-    """The linear ESO's warnings for ε and the discretization at Ts [s] (its linear part)."""
+    """The linear ESO's warnings for ε and the discretization at Ts [s] (its linear part).
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+    ts : float
+        Sample period Ts [s].
+
+    Returns
+    -------
+    list of str
+        One-line warnings, empty when the design is fine.
+    """
     return observer_warnings(params.eps, ts, params.discretization)
 
 

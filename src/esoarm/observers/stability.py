@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -51,6 +52,9 @@ from esoarm.observers.linear import (
     pole_damping,
 )
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
+
+if TYPE_CHECKING:
+    from esoarm.result import SimResult
 
 __all__ = [
     "CONTINUOUS",
@@ -376,7 +380,7 @@ def theorem2_bound(kappa: np.ndarray | float, k2: float, k1: float | None = None
     return mu * tracking_l1_gain(k1, k2)
 
 
-def estimation_error(result) -> np.ndarray:  # type: ignore[no-untyped-def]
+def estimation_error(result: SimResult) -> np.ndarray:
     """The estimation error κ_k of eq. 17 at each sample of a simulated run.
 
     With u = I0 (α − β̂) unsaturated and θ̈ = f + b0 u (f the true total

@@ -131,7 +131,25 @@ def actuator_vector(scn: Scenario) -> np.ndarray:
 
 @jitable
 def saturate(u: float, limit: float) -> float:
-    """Clip u to ±limit [N·m]; NaN passes through so faults stay visible."""
+    """Clip u to ±limit [N·m]; NaN passes through so faults stay visible.
+
+    Parameters
+    ----------
+    u : float
+        Torque command [N·m], positive in the direction of positive θ.
+    limit : float
+        Torque limit [N·m], ≥ 0.
+
+    Returns
+    -------
+    float
+        u clipped to [−limit, limit] [N·m] (NaN if u is NaN).
+
+    Examples
+    --------
+    >>> saturate(3.0, 2.0), saturate(-3.0, 2.0), saturate(1.5, 2.0)
+    (2.0, -2.0, 1.5)
+    """
     if u > limit:
         return limit
     if u < -limit:
@@ -173,6 +191,19 @@ def delayed_input(hist: np.ndarray, k: int, delay: int, drive: np.ndarray,
 
     ``hist`` holds the drives of samples 0 … k (n per sample); ``applied``
     receives the drive of sample k − delay, or 0 before the first command.
+
+    Parameters
+    ----------
+    hist : ndarray
+        History of drives [N·m], at least (k + 1)·n long; written at ``hist[k*n:(k+1)*n]``.
+    k : int
+        Index of the current sample, ≥ 0.
+    delay : int
+        Transport delay [samples], ≥ 0.
+    drive : ndarray, shape (n,)
+        Drive of sample k per joint [N·m] (the actuator's torque to the plant).
+    applied : ndarray, shape (n,)
+        Output, overwritten: the drive held over [t_k, t_{k+1}) [N·m].
     """
     n = len(drive)
     for j in range(n):

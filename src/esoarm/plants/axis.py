@@ -92,6 +92,16 @@ class Params(Section):
 def units(motion: str) -> dict[str, str]:
     """SI units of an axis's quantities by name, for ``motion`` "rotary" or "prismatic".
 
+    Parameters
+    ----------
+    motion : str
+        "rotary" or "prismatic" (anything else is taken as rotary).
+
+    Returns
+    -------
+    dict of str to str
+        Quantity name ("position", "velocity", "force", ...) to its SI unit.
+
     Examples
     --------
     >>> units("prismatic")["viscous_friction"]
@@ -106,7 +116,18 @@ def units(motion: str) -> dict[str, str]:
 
 
 def check(scn: Scenario) -> str | None:
-    """A prismatic axis has no G cos q term; friction in each direction must be ≥ 0."""
+    """A prismatic axis has no G cos q term; friction in each direction must be ≥ 0.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A scenario whose ``[plant]`` is of kind "axis".
+
+    Returns
+    -------
+    str or None
+        A one-line message naming the offending key, or None when the plant is consistent.
+    """
     p = scn.plant
     if p.motion == "prismatic" and p.gravity != 0.0:
         return ("plant.gravity: only a rotary axis has a G·cos q term; a prismatic axis's "
@@ -124,7 +145,19 @@ def design(scn: Scenario) -> PlantDesign:
     offset, G, vs, T), x0 = (q0, 0, 0), b0 = 1/M.
 
     With a ``[motor]`` table the motor's back-EMF damping (N·Kt)²/R (the actuator's,
-    :func:`esoarm.plants.actuator.back_emf_damping`) is added to Fv+ and Fv−."""
+    :func:`esoarm.plants.actuator.back_emf_damping`) is added to Fv+ and Fv−.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario whose ``[plant]`` is of kind "axis".
+
+    Returns
+    -------
+    PlantDesign
+        vector [CODE, kg or kg·m², N·s/m or N·m·s/rad (×2), N or N·m (×3), N·m, m/s or
+        rad/s, s], x0 [m or rad, m/s or rad/s, N or N·m], n_joints = 1, b0 = 1/M.
+    """
     p = scn.plant
     fv = p.viscous_friction
     damping = back_emf_damping(scn)
@@ -144,7 +177,25 @@ def design(scn: Scenario) -> PlantDesign:
 @jitable
 def inverse_dynamics(q: float, v: float, a: float, ax: Vector) -> float:
     """The force/torque τ [N or N·m] that gives acceleration ``a`` at (q, v): M a + F(v) +
-    offset + G cos q, ``ax`` the vector after the CODE (see :func:`design`)."""
+    offset + G cos q, ``ax`` the vector after the CODE (see :func:`design`).
+
+    Parameters
+    ----------
+    q : float
+        Position [m or rad].
+    v : float
+        Velocity q̇ [m/s or rad/s]; friction opposes it.
+    a : float
+        Acceleration q̈ [m/s² or rad/s²].
+    ax : tuple of float
+        The design vector after its CODE: (M, Fv+, Fv−, Fc+, Fc−, offset, G, vs, T) (see
+        :func:`design`).
+
+    Returns
+    -------
+    float
+        τ [N or N·m], positive in the direction of positive q.
+    """
     pos = v >= 0.0
     fc = ax[FCP] if pos else ax[FCN]
     fv = ax[FVP] if pos else ax[FVN]
@@ -154,7 +205,25 @@ def inverse_dynamics(q: float, v: float, a: float, ax: Vector) -> float:
 
 @jitable
 def axis_acceleration(q: float, v: float, tau: float, ax: Vector) -> float:
-    """q̈ [m/s² or rad/s²] under the force/torque ``tau`` acting on the axis."""
+    """q̈ [m/s² or rad/s²] under the force/torque ``tau`` acting on the axis.
+
+    Parameters
+    ----------
+    q : float
+        Position [m or rad].
+    v : float
+        Velocity q̇ [m/s or rad/s].
+    tau : float
+        Force or torque acting on the axis [N or N·m], positive towards positive q.
+    ax : tuple of float
+        The design vector after its CODE: (M, Fv+, Fv−, Fc+, Fc−, offset, G, vs, T) (see
+        :func:`design`).
+
+    Returns
+    -------
+    float
+        q̈ = (τ − F(q̇) − offset − G cos q)/M [m/s² or rad/s²].
+    """
     return (tau - inverse_dynamics(q, v, 0.0, ax)) / ax[MASS]
 
 
@@ -171,7 +240,29 @@ def _derivative(q: float, v: float, tau: float, u: float,
 @jitable
 def axis_rk4_step(q: float, v: float, tau: float, u: float, h: float,
                   ax: Vector) -> tuple[float, float, float]:
-    """One classical RK4 step of length h [s] of (q, q̇, τ) with u held."""
+    """One classical RK4 step of length h [s] of (q, q̇, τ) with u held.
+
+    Parameters
+    ----------
+    q : float
+        Position [m or rad].
+    v : float
+        Velocity [m/s or rad/s].
+    tau : float
+        Lagged actuator force/torque τ [N or N·m] (unused and unchanged when T = 0).
+    u : float
+        Applied force/torque command [N or N·m], held over the step.
+    h : float
+        Step length [s], > 0.
+    ax : tuple of float
+        The design vector after its CODE: (M, Fv+, Fv−, Fc+, Fc−, offset, G, vs, T) (see
+        :func:`design`).
+
+    Returns
+    -------
+    (q, v, tau) : (float, float, float)
+        The state after the step, same units.
+    """
     half = 0.5 * h
     a1, b1, c1 = _derivative(q, v, tau, u, ax)
     a2, b2, c2 = _derivative(q + half * a1, v + half * b1, tau + half * c1, u, ax)
@@ -194,7 +285,23 @@ def _tuple(p: np.ndarray) -> tuple[float, float, float, float, float, float, flo
 def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
             p: np.ndarray) -> None:
     """Integrate x = (q, q̇, τ) in place over one sample: ``nsub`` RK4 steps of h [s], u[0]
-    held (the axis is time-invariant: t0 is not used)."""
+    held (the axis is time-invariant: t0 is not used).
+
+    Parameters
+    ----------
+    x : ndarray, shape (3,)
+        State (q [m or rad], q̇ [m/s or rad/s], τ [N or N·m]), updated in place.
+    u : ndarray, shape (1,)
+        Applied force/torque [N or N·m], held over [t0, t0 + nsub·h).
+    t0 : float
+        Start of the sample [s] (unused: time-invariant).
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps (nsub·h = the sample time Ts).
+    p : ndarray
+        The design vector, p[0] = CODE (see :func:`design`).
+    """
     ax = _tuple(p)
     q, v, tau, u0 = float(x[0]), float(x[1]), float(x[2]), float(u[0])
     for _ in range(nsub):
@@ -205,7 +312,25 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
 @jitable
 def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
                   nsub: int, p: np.ndarray) -> None:
-    """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``), the same bits."""
+    """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``), the same bits.
+
+    Parameters
+    ----------
+    xs : ndarray, shape (runs, 3)
+        States of the block's runs (as ``x`` of :func:`advance`), updated in place.
+    us : ndarray, shape (runs, 1)
+        Applied force/torque of each run [N or N·m].
+    live : ndarray of bool, shape (runs,)
+        Which runs to advance; the others are left untouched.
+    t0 : float
+        Start of the sample [s] (unused).
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps per sample.
+    p : ndarray
+        The design vector, p[0] = CODE, shared by the block.
+    """
     ax = _tuple(p)
     for i in range(xs.shape[0]):
         if live[i]:
@@ -218,7 +343,21 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
 @jitable
 def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                  out: np.ndarray) -> None:
-    """True q̈ at state x with input u[0] applied from t on, into out[0]."""
+    """True q̈ at state x with input u[0] applied from t on, into out[0].
+
+    Parameters
+    ----------
+    x : ndarray, shape (3,)
+        State (q, q̇, τ) [m or rad, m/s or rad/s, N or N·m].
+    u : ndarray, shape (1,)
+        Applied force/torque [N or N·m] (used when there is no lag, T = 0).
+    t : float
+        Time [s] (unused: time-invariant).
+    p : ndarray
+        The design vector, p[0] = CODE.
+    out : ndarray, shape (1,)
+        Output: q̈ [m/s² or rad/s²].
+    """
     ax = _tuple(p)
     torque = x[2] if ax[LAG] > 0.0 else u[0]
     out[0] = axis_acceleration(x[0], x[1], torque, ax)
@@ -226,5 +365,17 @@ def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
 
 @jitable
 def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
-    """The observer's input: the command u itself (b0 = 1/M scales it)."""
+    """The observer's input: the command u itself (b0 = 1/M scales it).
+
+    Parameters
+    ----------
+    zhat : ndarray, shape (3,)
+        Observer estimate (q̂, q̂̇, f̂) (unused).
+    u : ndarray, shape (1,)
+        Command as logged [N or N·m].
+    p : ndarray
+        The design vector (unused).
+    v : ndarray, shape (1,)
+        Output: the observer input [N or N·m].
+    """
     v[0] = u[0]

@@ -189,7 +189,23 @@ _POW2 = tuple(2.0**k for k in range(64))
 
 @jitable_as(_tanh_vec)
 def tanh(x: float) -> float:
-    """Hyperbolic tangent, ≤ 3 ulp (see the module docstring); NaN, ±0, ±inf as libm."""
+    """Hyperbolic tangent, ≤ 3 ulp (see the module docstring); NaN, ±0, ±inf as libm.
+
+    Parameters
+    ----------
+    x : float
+        Argument (dimensionless).
+
+    Returns
+    -------
+    float
+        tanh x, in [−1, 1], odd in x.
+
+    Examples
+    --------
+    >>> tanh(0.0), tanh(30.0), tanh(-30.0)
+    (0.0, 1.0, -1.0)
+    """
     a = abs(x)
     if a > 20.0:
         a = 20.0  # as _tanh_vec: tanh(20) is 1 to 17 digits
@@ -205,7 +221,23 @@ def tanh(x: float) -> float:
 
 @jitable_as(_exp_neg_vec)
 def exp_neg(x: float) -> float:
-    """e^{−x} for x ≥ 0, ≤ 2 ulp; 0 for x > 708."""
+    """e^{−x} for x ≥ 0, ≤ 2 ulp; 0 for x > 708.
+
+    Parameters
+    ----------
+    x : float
+        Argument (dimensionless), x ≥ 0 (other values go to the vectorizable fallback).
+
+    Returns
+    -------
+    float
+        e^{−x}, in [0, 1] for x ≥ 0.
+
+    Examples
+    --------
+    >>> exp_neg(0.0), exp_neg(800.0)
+    (1.0, 0.0)
+    """
     if not 0.0 <= x <= 708.0:
         return _exp_neg_vec(x)
     k = (x * INV_LN2 + SHIFT) - SHIFT
@@ -215,7 +247,23 @@ def exp_neg(x: float) -> float:
 
 @jitable_as(_cos_vec)
 def cos(x: float) -> float:
-    """Cosine, ≤ 2.5 ulp for |x| ≤ 1e5 (see the module docstring); NaN for ±inf."""
+    """Cosine, ≤ 2.5 ulp for |x| ≤ 1e5 (see the module docstring); NaN for ±inf.
+
+    Parameters
+    ----------
+    x : float
+        Angle [rad].
+
+    Returns
+    -------
+    float
+        cos x, in [−1, 1].
+
+    Examples
+    --------
+    >>> cos(0.0)
+    1.0
+    """
     if not abs(x) < 1e9:
         return _cos_vec(x)
     n = (x * TWO_OVER_PI + SHIFT) - SHIFT

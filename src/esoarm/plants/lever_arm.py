@@ -82,14 +82,50 @@ LANES = 8
 
 @jitable
 def disturbance(t: float, rig: Vector) -> float:
-    """External disturbance d(t) = amplitude · sin(frequency · t) [rad/s²] (eq. 6)."""
+    """External disturbance d(t) = amplitude · sin(frequency · t) [rad/s²] (eq. 6).
+
+    Parameters
+    ----------
+    t : float
+        Time [s].
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s],
+        b [N·m·s/rad], amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]);
+        the last two may be left off (Fst = 0).
+
+    Returns
+    -------
+    float
+        d(t) [rad/s²], added to θ̈.
+    """
     return rig[DAMP] * math.sin(rig[DFREQ] * t)
 
 
 @jitable
 def rig_acceleration_at(theta: float, omega: float, tau: float, d: float,
                         rig: Vector) -> float:
-    """True angular acceleration θ̈ [rad/s²] given the disturbance value d = d(t) [rad/s²]."""
+    """True angular acceleration θ̈ [rad/s²] given the disturbance value d = d(t) [rad/s²].
+
+    Parameters
+    ----------
+    theta : float
+        Arm angle θ [rad], positive in the direction of positive torque.
+    omega : float
+        Arm rate θ̇ [rad/s]; friction opposes it.
+    tau : float
+        Torque acting on the arm [N·m] (already lagged, see :func:`applied_torque`).
+    d : float
+        Disturbance d(t) [rad/s²].
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s],
+        b [N·m·s/rad], amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]);
+        the last two may be left off (Fst = 0).
+
+    Returns
+    -------
+    float
+        θ̈ = (τ − G(θ) − F(θ̇))/I + d [rad/s²].
+    """
     coulomb = rig[FC]
     if len(rig) > FST:  # a rig given without its Stribeck entries has Fst = 0 (see advance_block)
         # with Fst = 0 this is Fc bit for bit (Fc + 0·e^(−x²) is Fc)
@@ -101,14 +137,64 @@ def rig_acceleration_at(theta: float, omega: float, tau: float, d: float,
 
 @jitable
 def rig_acceleration(theta: float, omega: float, tau: float, t: float, rig: Vector) -> float:
-    """True angular acceleration θ̈ [rad/s²] at angle θ, rate θ̇, torque τ, time t."""
+    """True angular acceleration θ̈ [rad/s²] at angle θ, rate θ̇, torque τ, time t.
+
+    Parameters
+    ----------
+    theta : float
+        Arm angle θ [rad], positive in the direction of positive torque.
+    omega : float
+        Arm rate θ̇ [rad/s]; friction opposes it.
+    tau : float
+        Torque acting on the arm [N·m].
+    t : float
+        Time [s] (for d(t)).
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s],
+        b [N·m·s/rad], amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]);
+        the last two may be left off (Fst = 0).
+
+    Returns
+    -------
+    float
+        θ̈ [rad/s²].
+
+    Examples
+    --------
+    >>> rig = RigParams(0.02, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0).vector
+    >>> float(rig_acceleration(0.0, 0.0, 0.1, 0.0, rig))
+    5.0
+    """
     return rig_acceleration_at(theta, omega, tau, disturbance(t, rig), rig)
 
 
 @jitable
 def rig_derivative_at(theta: float, omega: float, tau: float, u: float, d: float,
                       rig: Vector) -> tuple[float, float, float]:
-    """Time derivative of the rig state (θ, θ̇, τ) under the input u [N·m], d(t) = d given."""
+    """Time derivative of the rig state (θ, θ̇, τ) under the input u [N·m], d(t) = d given.
+
+    Parameters
+    ----------
+    theta : float
+        Arm angle θ [rad], positive in the direction of positive torque.
+    omega : float
+        Arm rate θ̇ [rad/s]; friction opposes it.
+    tau : float
+        Actuator lag state τ [N·m] (the torque on the arm when T > 0; unchanged when T = 0).
+    u : float
+        Applied input [N·m] (the lag's input when T > 0, else the torque itself).
+    d : float
+        Disturbance d(t) [rad/s²].
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s],
+        b [N·m·s/rad], amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]);
+        the last two may be left off (Fst = 0).
+
+    Returns
+    -------
+    (dtheta, domega, dtau) : (float, float, float)
+        θ̇ [rad/s], θ̈ [rad/s²], τ̇ [N·m/s] (0 when T = 0).
+    """
     lag = rig[LAG]
     lagged = lag > 0.0
     # selects, not branches: a compiled block of runs stays one vector loop
@@ -120,14 +206,66 @@ def rig_derivative_at(theta: float, omega: float, tau: float, u: float, d: float
 @jitable
 def rig_derivative(theta: float, omega: float, tau: float, u: float, t: float,
                    rig: Vector) -> tuple[float, float, float]:
-    """Time derivative of the rig state (θ, θ̇, τ) under the applied input u [N·m]."""
+    """Time derivative of the rig state (θ, θ̇, τ) under the applied input u [N·m].
+
+    Parameters
+    ----------
+    theta : float
+        Arm angle θ [rad], positive in the direction of positive torque.
+    omega : float
+        Arm rate θ̇ [rad/s]; friction opposes it.
+    tau : float
+        Actuator lag state τ [N·m] (the torque on the arm when T > 0; unchanged when T = 0).
+    u : float
+        Applied input [N·m].
+    t : float
+        Time [s] (for d(t)).
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s],
+        b [N·m·s/rad], amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]);
+        the last two may be left off (Fst = 0).
+
+    Returns
+    -------
+    (dtheta, domega, dtau) : (float, float, float)
+        θ̇ [rad/s], θ̈ [rad/s²], τ̇ [N·m/s].
+    """
     return rig_derivative_at(theta, omega, tau, u, disturbance(t, rig), rig)
 
 
 @jitable
 def rig_rk4_step_at(theta: float, omega: float, tau: float, u: float, d0: float, dhalf: float,
                     d1: float, h: float, rig: Vector) -> tuple[float, float, float]:
-    """One RK4 step of length h [s] with u held, given d at the step's start, middle and end."""
+    """One RK4 step of length h [s] with u held, given d at the step's start, middle and end.
+
+    Parameters
+    ----------
+    theta : float
+        Arm angle θ [rad], positive in the direction of positive torque.
+    omega : float
+        Arm rate θ̇ [rad/s]; friction opposes it.
+    tau : float
+        Actuator lag state τ [N·m] (the torque on the arm when T > 0; unchanged when T = 0).
+    u : float
+        Applied input [N·m], held over the step.
+    d0 : float
+        d(t) at the step's start [rad/s²].
+    dhalf : float
+        d(t + h/2) [rad/s²].
+    d1 : float
+        d(t + h) [rad/s²].
+    h : float
+        Step length [s].
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s],
+        b [N·m·s/rad], amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]);
+        the last two may be left off (Fst = 0).
+
+    Returns
+    -------
+    (theta, omega, tau) : (float, float, float)
+        The rig state after the step(s) [rad, rad/s, N·m].
+    """
     half = 0.5 * h
     a1, b1, c1 = rig_derivative_at(theta, omega, tau, u, d0, rig)
     a2, b2, c2 = rig_derivative_at(theta + half * a1, omega + half * b1, tau + half * c1, u,
@@ -146,7 +284,32 @@ def rig_rk4_step_at(theta: float, omega: float, tau: float, u: float, d0: float,
 @jitable
 def rig_rk4_step(theta: float, omega: float, tau: float, u: float, t: float, h: float,
                  rig: Vector) -> tuple[float, float, float]:
-    """One classical RK4 step of length h [s] from time t with u held."""
+    """One classical RK4 step of length h [s] from time t with u held.
+
+    Parameters
+    ----------
+    theta : float
+        Arm angle θ [rad], positive in the direction of positive torque.
+    omega : float
+        Arm rate θ̇ [rad/s]; friction opposes it.
+    tau : float
+        Actuator lag state τ [N·m] (the torque on the arm when T > 0; unchanged when T = 0).
+    u : float
+        Applied input [N·m], held over the step.
+    t : float
+        Start of the step [s].
+    h : float
+        Step length [s].
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s],
+        b [N·m·s/rad], amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]);
+        the last two may be left off (Fst = 0).
+
+    Returns
+    -------
+    (theta, omega, tau) : (float, float, float)
+        The rig state after the step(s) [rad, rad/s, N·m].
+    """
     half = 0.5 * h
     return rig_rk4_step_at(theta, omega, tau, u, disturbance(t, rig),
                            disturbance(t + half, rig), disturbance(t + h, rig), h, rig)
@@ -155,7 +318,34 @@ def rig_rk4_step(theta: float, omega: float, tau: float, u: float, t: float, h: 
 @jitable
 def rig_advance(theta: float, omega: float, tau: float, u: float, t0: float, h: float,
                 nsub: int, rig: Vector) -> tuple[float, float, float]:
-    """Integrate the rig over one sample: ``nsub`` RK4 steps of h from t0, u held."""
+    """Integrate the rig over one sample: ``nsub`` RK4 steps of h from t0, u held.
+
+    Parameters
+    ----------
+    theta : float
+        Arm angle θ [rad], positive in the direction of positive torque.
+    omega : float
+        Arm rate θ̇ [rad/s]; friction opposes it.
+    tau : float
+        Actuator lag state τ [N·m] (the torque on the arm when T > 0; unchanged when T = 0).
+    u : float
+        Applied input [N·m], held over [t0, t0 + nsub·h).
+    t0 : float
+        Start of the sample [s].
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps (nsub·h = the sample time Ts).
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s],
+        b [N·m·s/rad], amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]);
+        the last two may be left off (Fst = 0).
+
+    Returns
+    -------
+    (theta, omega, tau) : (float, float, float)
+        The rig state after the step(s) [rad, rad/s, N·m].
+    """
     for j in range(nsub):
         theta, omega, tau = rig_rk4_step(theta, omega, tau, u, t0 + j * h, h, rig)
     return theta, omega, tau
@@ -163,7 +353,24 @@ def rig_advance(theta: float, omega: float, tau: float, u: float, t0: float, h: 
 
 @jitable
 def applied_torque(tau: float, u: float, rig: Vector) -> float:
-    """Torque acting on the arm: the lag state τ when T > 0, else u itself."""
+    """Torque acting on the arm: the lag state τ when T > 0, else u itself.
+
+    Parameters
+    ----------
+    tau : float
+        Actuator lag state τ [N·m].
+    u : float
+        Applied input [N·m].
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s],
+        b [N·m·s/rad], amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]);
+        the last two may be left off (Fst = 0).
+
+    Returns
+    -------
+    float
+        The torque on the arm [N·m].
+    """
     if rig[LAG] > 0.0:
         return tau
     return u
@@ -210,7 +417,18 @@ class RigParams:
 
     @classmethod
     def from_scenario(cls, scn: Scenario) -> RigParams:
-        """Rig parameters of a :class:`~esoarm.scenario.Scenario` (ideal torque source)."""
+        """Rig parameters of a :class:`~esoarm.scenario.Scenario` (ideal torque source).
+
+        Parameters
+        ----------
+        scn : Scenario
+            A validated scenario with a lever-arm ``[plant]`` and its ``[rig]``.
+
+        Returns
+        -------
+        RigParams
+            The true rig (without the motor's back-EMF damping, see :func:`design`).
+        """
         p, r = scn.plant, scn.rig
         return cls(
             inertia=r.inertia_scale * p.inertia,
@@ -227,7 +445,14 @@ class RigParams:
 
     @cached_property
     def vector(self) -> np.ndarray:
-        """Packed float vector for the rig functions (computed once)."""
+        """Packed float vector for the rig functions (computed once).
+
+        Returns
+        -------
+        ndarray, shape (10,)
+            Read-only (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s], b [N·m·s/rad],
+            amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]).
+        """
         vec = np.array(
             [
                 self.inertia,
@@ -252,6 +477,17 @@ class RigParams:
 
 def design(scn: Scenario) -> PlantDesign:
     """The true rig of ``scn`` for the step functions.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario whose ``[plant]`` is of kind "lever-arm".
+
+    Returns
+    -------
+    PlantDesign
+        vector = (CODE, rig vector), x0 = (θ0 [rad], 0, 0), n_joints = 1,
+        b0 = 1/I0 [1/(kg·m²)] (the nominal inertia, not the rig's).
 
     ``vector`` = (CODE, :attr:`RigParams.vector`); with a ``[motor]`` table the
     motor's back-EMF damping (N·Kt)²/R, which the actuator supplies
@@ -278,6 +514,21 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
 
     ``nsub`` RK4 steps of h [s] from t0 [s] (:func:`rig_advance`); ``p`` is
     :attr:`PlantDesign.vector`.
+
+    Parameters
+    ----------
+    x : ndarray, shape (3,)
+        State (θ [rad], θ̇ [rad/s], τ [N·m]), updated in place.
+    u : ndarray, shape (1,)
+        Applied torque [N·m], held over [t0, t0 + nsub·h).
+    t0 : float
+        Start of the sample [s] (d(t) depends on it).
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps (nsub·h = the sample time Ts).
+    p : ndarray
+        The design vector, p[0] = CODE, then :attr:`RigParams.vector`.
     """
     # the parameters as a tuple: compiled, they live in registers through the RK4 loop;
     # without a Stribeck term, the tuple without its entries skips e^(−x²) (same bits).
@@ -302,6 +553,23 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
     The same RK4 steps as :func:`advance` on each run with ``live[i]`` true, the
     runs innermost; d(t), which depends on t only, is computed once per stage
     time for the whole block.  The same numbers as :func:`advance`, bit for bit.
+
+    Parameters
+    ----------
+    xs : ndarray, shape (runs, 3)
+        States of the runs (θ [rad], θ̇ [rad/s], τ [N·m]), live ones updated in place.
+    us : ndarray, shape (runs, 1)
+        Applied torque of each run [N·m].
+    live : ndarray of bool, shape (runs,)
+        Which runs to write back; the others are left untouched.
+    t0 : float
+        Start of the sample [s].
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps per sample.
+    p : ndarray
+        The design vector shared by the block, p[0] = CODE.
     """
     if p[1 + FST] == 0.0:  # no Stribeck term: the rig without its entries skips e^(−x²)
         _advance_block(xs, us, live, t0, h, nsub, (p[1], p[2], p[3], p[4], p[5], p[6], p[7],
@@ -342,12 +610,38 @@ def _advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, 
 @jitable
 def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                  out: np.ndarray) -> None:
-    """True θ̈ [rad/s²] at state x, time t, with input u[0] applied from t on, into out[0]."""
+    """True θ̈ [rad/s²] at state x, time t, with input u[0] applied from t on, into out[0].
+
+    Parameters
+    ----------
+    x : ndarray, shape (3,)
+        State (θ [rad], θ̇ [rad/s], τ [N·m]).
+    u : ndarray, shape (1,)
+        Applied torque [N·m] (acts directly when T = 0).
+    t : float
+        Time [s] (for d(t)).
+    p : ndarray
+        The design vector, p[0] = CODE.
+    out : ndarray, shape (1,)
+        Output: θ̈ [rad/s²].
+    """
     rig = p[1:]
     out[0] = rig_acceleration(x[0], x[1], applied_torque(x[2], u[0], rig), t, rig)
 
 
 @jitable
 def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
-    """The observer's input: the command u itself (the observer's b0 = 1/I0 scales it)."""
+    """The observer's input: the command u itself (the observer's b0 = 1/I0 scales it).
+
+    Parameters
+    ----------
+    zhat : ndarray, shape (3,)
+        Observer estimate (θ̂, θ̂̇, f̂) (unused).
+    u : ndarray, shape (1,)
+        Command as logged [N·m].
+    p : ndarray
+        The design vector (unused).
+    v : ndarray, shape (1,)
+        Output: the observer input [N·m].
+    """
     v[0] = u[0]

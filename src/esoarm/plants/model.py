@@ -21,7 +21,31 @@ from esoarm.plants.elementary import cos
 
 @jitable
 def gravity_coefficient(m1: float, m2: float, l1: float, l2: float, g: float) -> float:
-    """Amplitude of the gravity torque, (m1 l1 − m2 l2) g [N·m] (eq. 4)."""
+    """Amplitude of the gravity torque, (m1 l1 − m2 l2) g [N·m] (eq. 4).
+
+    Parameters
+    ----------
+    m1 : float
+        Mass on the motor side of the pivot [kg].
+    m2 : float
+        Counterweight mass on the other side [kg].
+    l1 : float
+        Distance of m1 from the pivot [m].
+    l2 : float
+        Distance of m2 from the pivot [m].
+    g : float
+        Gravitational acceleration [m/s²], positive.
+
+    Returns
+    -------
+    float
+        gcoef = (m1 l1 − m2 l2) g [N·m]; positive when the m1 side is heavier.
+
+    Examples
+    --------
+    >>> gravity_coefficient(1.0, 0.5, 0.2, 0.2, 10.0)
+    1.0
+    """
     return (m1 * l1 - m2 * l2) * g
 
 
@@ -35,11 +59,32 @@ def gravity_torque(theta: float, gcoef: float) -> float:
         Arm angle θ [rad].
     gcoef : float
         (m1 l1 − m2 l2) g [N·m], from :func:`gravity_coefficient`.
+
+    Returns
+    -------
+    float
+        G(θ) [N·m]; it enters as I0 θ̈ + G(θ) = u, so a positive G pulls θ̈ negative.
     """
     return gcoef * cos(theta)
 
 
 @jitable
 def input_gain(inertia: float) -> float:
-    """Nominal input gain b0 = 1/I0 [1/(kg·m²)] of eq. 5 and eq. 8."""
+    """Nominal input gain b0 = 1/I0 [1/(kg·m²)] of eq. 5 and eq. 8.
+
+    Parameters
+    ----------
+    inertia : float
+        Moment of inertia I0 about the pivot [kg·m²], positive.
+
+    Returns
+    -------
+    float
+        b0 = 1/I0 [1/(kg·m²)].
+
+    Examples
+    --------
+    >>> input_gain(0.25)
+    4.0
+    """
     return 1.0 / inertia

@@ -46,6 +46,22 @@ def torque_to_duty(torque: float, omega: float, m: Vector) -> float:
     Saturates at ±pwm_max (full supply); includes the deadband
     pre-compensation; a non-finite request gives 0.  ``m`` is the motor block
     (stall gain, damping, pwm_max, deadband).
+
+    Parameters
+    ----------
+    torque : float
+        Requested arm torque [N·m], positive in the direction of positive arm rate.
+    omega : float
+        Arm rate [rad/s] (the host uses the estimate ẑ2) for the back-EMF compensation.
+    m : ndarray or tuple
+        Motor block (stall gain N·Kt·Vs/R [N·m], damping (N·Kt)²/R [N·m·s/rad], pwm_max
+        [counts], deadband δ [1]), :attr:`MotorParams.block`.
+
+    Returns
+    -------
+    float
+        Signed duty [counts], a whole number in [−pwm_max, pwm_max]; positive duty gives
+        positive torque.
     """
     frac = (torque + m[DAMPING] * omega) / m[STALL_GAIN]
     if not math.isfinite(frac):
@@ -63,7 +79,21 @@ def torque_to_duty(torque: float, omega: float, m: Vector) -> float:
 
 @jitable
 def effective_fraction(duty: float, m: Vector) -> float:
-    """Fraction of Vs the driver actually applies for ``duty`` counts (deadband)."""
+    """Fraction of Vs the driver actually applies for ``duty`` counts (deadband).
+
+    Parameters
+    ----------
+    duty : float
+        Signed duty [counts].
+    m : ndarray or tuple
+        Motor block (stall gain N·Kt·Vs/R [N·m], damping (N·Kt)²/R [N·m·s/rad], pwm_max
+        [counts], deadband δ [1]), :attr:`MotorParams.block`.
+
+    Returns
+    -------
+    float
+        d = sign(d')·max(0, (|d'| − δ)/(1 − δ)), clipped to [−1, 1], d' = duty/pwm_max.
+    """
     frac = duty / m[PWM_MAX]
     db = m[DEADBAND]
     mag = (abs(frac) - db) / (1.0 - db)
@@ -74,13 +104,43 @@ def effective_fraction(duty: float, m: Vector) -> float:
 
 @jitable
 def source_torque(duty: float, m: Vector) -> float:
-    """The rate-independent arm torque N·Kt·Vs·d/R [N·m] of ``duty`` (what drives the twin)."""
+    """The rate-independent arm torque N·Kt·Vs·d/R [N·m] of ``duty`` (what drives the twin).
+
+    Parameters
+    ----------
+    duty : float
+        Signed duty [counts].
+    m : ndarray or tuple
+        Motor block (stall gain N·Kt·Vs/R [N·m], damping (N·Kt)²/R [N·m·s/rad], pwm_max
+        [counts], deadband δ [1]), :attr:`MotorParams.block`.
+
+    Returns
+    -------
+    float
+        Arm torque at rest [N·m], the sign of ``duty`` (0 inside the deadband).
+    """
     return m[STALL_GAIN] * effective_fraction(duty, m)
 
 
 @jitable
 def duty_to_torque(duty: float, omega: float, m: Vector) -> float:
-    """Arm torque [N·m] that ``duty`` gives at arm rate ``omega`` [rad/s]."""
+    """Arm torque [N·m] that ``duty`` gives at arm rate ``omega`` [rad/s].
+
+    Parameters
+    ----------
+    duty : float
+        Signed duty [counts].
+    omega : float
+        Arm rate [rad/s]; positive rate opposes positive torque (back-EMF).
+    m : ndarray or tuple
+        Motor block (stall gain N·Kt·Vs/R [N·m], damping (N·Kt)²/R [N·m·s/rad], pwm_max
+        [counts], deadband δ [1]), :attr:`MotorParams.block`.
+
+    Returns
+    -------
+    float
+        N·Kt·Vs·d/R − (N·Kt)²/R · ω [N·m].
+    """
     return source_torque(duty, m) - m[DAMPING] * omega
 
 
@@ -113,7 +173,18 @@ class MotorParams:
 
     @classmethod
     def from_scenario(cls, scn: Scenario) -> MotorParams | None:
-        """The scenario's motor, or None for an ideal torque source."""
+        """The scenario's motor, or None for an ideal torque source.
+
+        Parameters
+        ----------
+        scn : Scenario
+            A validated scenario.
+
+        Returns
+        -------
+        MotorParams or None
+            The ``[motor]`` table's constants, or None when the scenario has none.
+        """
         m = scn.motor
         if m is None:
             return None
@@ -136,17 +207,71 @@ class MotorParams:
         return np.array([self.stall_gain, self.damping, float(self.pwm_max), self.deadband])
 
     def torque_to_duty(self, torque: float, omega: float) -> int:
-        """Duty counts that produce ``torque`` [N·m] at arm rate ``omega`` [rad/s]."""
+        """Duty counts that produce ``torque`` [N·m] at arm rate ``omega`` [rad/s].
+
+        Parameters
+        ----------
+        torque : float
+            Requested arm torque [N·m].
+        omega : float
+            Arm rate [rad/s].
+
+        Returns
+        -------
+        int
+            Signed duty [counts] in [−pwm_max, pwm_max] (:func:`torque_to_duty`).
+
+        Examples
+        --------
+        >>> m = MotorParams(12.0, 2.0, 0.5, 1.0, 255, 0.0)
+        >>> m.stall_gain, m.torque_to_duty(1.5, 0.0), m.torque_to_duty(99.0, 0.0)
+        (3.0, 128, 255)
+        """
         return int(torque_to_duty(torque, omega, self.block))
 
     def effective_fraction(self, duty: int) -> float:
-        """Fraction of Vs the driver actually applies for ``duty`` counts."""
+        """Fraction of Vs the driver actually applies for ``duty`` counts.
+
+        Parameters
+        ----------
+        duty : int
+            Signed duty [counts].
+
+        Returns
+        -------
+        float
+            Signed fraction of Vs in [−1, 1] after the deadband.
+        """
         return float(effective_fraction(float(duty), self.block))
 
     def duty_to_torque(self, duty: int, omega: float) -> float:
-        """Arm torque [N·m] that ``duty`` gives at arm rate ``omega`` [rad/s]."""
+        """Arm torque [N·m] that ``duty`` gives at arm rate ``omega`` [rad/s].
+
+        Parameters
+        ----------
+        duty : int
+            Signed duty [counts].
+        omega : float
+            Arm rate [rad/s].
+
+        Returns
+        -------
+        float
+            Arm torque [N·m], source torque minus back-EMF damping · omega.
+        """
         return float(duty_to_torque(float(duty), omega, self.block))
 
     def source_torque(self, duty: int) -> float:
-        """The rate-independent part N·Kt·Vs·d/R [N·m] (the twin's applied torque)."""
+        """The rate-independent part N·Kt·Vs·d/R [N·m] (the twin's applied torque).
+
+        Parameters
+        ----------
+        duty : int
+            Signed duty [counts].
+
+        Returns
+        -------
+        float
+            Arm torque at rest [N·m].
+        """
         return float(source_torque(float(duty), self.block))
