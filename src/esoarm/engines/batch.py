@@ -44,6 +44,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numba
 import numpy as np
@@ -170,19 +171,19 @@ def _install_cache_locator() -> None:
     stamp = _physics_stamp()
 
     def make(base: type) -> type:
-        class Locator(base):  # type: ignore[misc, valid-type]
-            def get_source_stamp(self):  # type: ignore[no-untyped-def]
+        class Locator(base):  # type: ignore[misc]
+            def get_source_stamp(self) -> str:
                 extra = _kinds.registry_stamp()  # '' for the package's own kinds
                 return f"{super().get_source_stamp()}-{stamp}" + (f"-{extra}" if extra else "")
 
-            def get_cache_path(self):  # type: ignore[no-untyped-def]
+            def get_cache_path(self) -> str:
                 # kinds registered at run time: their kernels apart from the package's own
                 extra = _kinds.registry_stamp()
                 path = super().get_cache_path()
                 return os.path.join(path, f"kinds-{extra}") if extra else path
 
             @classmethod
-            def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
+            def from_function(cls, py_func: Any, py_file: str) -> Any:
                 if os.path.realpath(py_file) not in _COVERED_FILES:
                     return None
                 return super().from_function(py_func, py_file)
