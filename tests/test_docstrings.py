@@ -46,6 +46,9 @@ COVERED = [
     "esoarm.plants.model",
     "esoarm.plants.motor",
     "esoarm.plants.sensor",
+    "esoarm.plants.urdf",
+    "esoarm.plants.urdf_model",
+    "esoarm.plants.urdf_twin",
 ]
 
 
