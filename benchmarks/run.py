@@ -331,6 +331,90 @@ def bench_startup(reps: int) -> dict:  # type: ignore[type-arg]
     return out
 
 
+#: The arms' sweep: 200 runs of 20 s at 200 Hz (20 observer bandwidths x 10 seeds).
+ARM_VARY = ["--vary", "observer.eps=geom:0.01:0.05:20", "--seeds", "10", "--set", "duration=20"]
+LEVER_AT_200 = ["sweep", "test-1", "--vary", "observer.eps=geom:0.03:0.3:20", "--seeds", "10",
+                "--set", "duration=20", "--set", "sensor.rate_hz=200"]
+
+
+def _ur5_scenario(work: Path) -> Path | None:
+    """A 6-dof UR5 scenario (example-robot-data's URDF, 200 Hz), if that package is installed."""
+    from importlib import metadata
+
+    try:
+        dist = metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        return None
+    urdf = Path(str(dist.locate_file(
+        "cmeel.prefix/share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")))
+    if not urdf.is_file():
+        return None
+    path = work / "ur5.toml"
+    path.write_text(f'''name = "ur5"
+duration = 20.0
+[plant]
+kind = "urdf"
+file = "{urdf}"
+payload_mass = 1.0
+payload_offset = [0.0, 0.0, 0.05]
+[sensor]
+rate_hz = 200.0
+[observer]
+eps = 0.02
+[controller]
+kind = "computed-torque"
+k1 = 20.0
+k2 = 100.0
+[actuator]
+torque_limit = 150.0
+[reference]
+kind = "range"
+fraction = 0.15
+''', encoding="utf-8")
+    return path
+
+
+def bench_arms(work: Path, rounds: int, quick: bool) -> dict:  # type: ignore[type-arg]
+    """Arms' sweeps (two-link, a 6-dof UR5) against the lever arm's at 200 Hz, whole commands.
+
+    Each round runs the two-link sweep then the lever arm's, back to back (the ratio is
+    per round); the UR5 sweep and Pinocchio's own loop (``tests/reference_arm.py`` with
+    ``pinocchio.aba``, one run timed and extrapolated to 200 runs on every core) once.
+    """
+    sys.path.insert(0, str(HERE))
+    from bench_arms import _plain_run, plain_params
+
+    from esoarm.scenario import load_scenario
+
+    vary = ARM_VARY if not quick else [*ARM_VARY[:-1], "duration=2"]
+    lever = LEVER_AT_200 if not quick else [*LEVER_AT_200[:-3], "duration=2", *LEVER_AT_200[-2:]]
+    arm_cmd = [*esoarm_cmd(), "sweep", "two-link", *vary]
+    lever_cmd = [*esoarm_cmd(), *lever]
+    run_proc(arm_cmd)  # compile / load the kernels of both once
+    run_proc(lever_cmd)
+    out: dict = {"arm": [], "lever": [], "ratio": [], "load_before": load(),  # type: ignore[type-arg]
+                 "arm_cmd": " ".join(["esoarm", "sweep", "two-link", *vary]),
+                 "lever_cmd": " ".join(["esoarm", *lever])}
+    for _ in range(rounds):
+        a = run_proc(arm_cmd)[0]
+        b = run_proc(lever_cmd)[0]
+        out["arm"].append(a)
+        out["lever"].append(b)
+        out["ratio"].append(a / b)
+    ur5 = _ur5_scenario(work)
+    if ur5 is not None:
+        ur5_cmd = [*esoarm_cmd(), "sweep", str(ur5), *vary]
+        run_proc(ur5_cmd)
+        out["ur5"] = run_proc(ur5_cmd)[0]
+        out["ur5_cmd"] = " ".join(["esoarm", "sweep", "ur5.toml", *vary])
+    scn = load_scenario("two-link", [vary[-1]])
+    one = _plain_run(plain_params(scn))
+    out["pinocchio_one"] = one
+    out["pinocchio_200"] = one * 200 / (os.cpu_count() or 1)
+    out["load_after"] = load()
+    return out
+
+
 def bench_scaling(c: CLoop, sizes: list[int], c_max: int) -> dict:  # type: ignore[type-arg]
     """Whole commands (and the C loop) against the number of runs; peak memory of each."""
     res: dict = {"runs": sizes, "exact": [], "fast": [], "c": [], "c_measured": [],  # type: ignore[type-arg]
@@ -421,7 +505,14 @@ def main() -> None:
                         help="largest sweep of the throughput curve (powers of 10 up to it)")
     parser.add_argument("--big", type=int, default=1_000_000,
                         help="runs of the large metrics-only sweep (memory)")
+    parser.add_argument("--only-arms", action="store_true",
+                        help="only the arms' sweeps (printed; the page is not written)")
     args = parser.parse_args()
+    if args.only_arms:
+        with tempfile.TemporaryDirectory(prefix="esoarm-bench-") as tmp:
+            print(f"load {load()}", flush=True)
+            print(bench_arms(Path(tmp), 1 if args.quick else args.rounds, args.quick))
+        return
     from bench_doc import plot_scaling, write_doc
 
     machine = machine_info()
@@ -439,11 +530,14 @@ def main() -> None:
         ("python-control", lambda: bench_control(grid, 1 if args.quick else 3)),
         ("throughput against runs", lambda: bench_scaling(c, sizes, 100 if args.quick
                                                           else 10_000)),
+        ("arms: two-link and UR5 sweeps against the lever arm's at 200 Hz",
+         lambda: bench_arms(work, 1 if args.quick else args.rounds, args.quick)),
     ]
     if not args.quick:
         steps += [(f"{args.big:,}-run sweep", lambda: bench_million(work, args.big)),
                   ("tuning study", bench_tune)]
-    names = ["startup", "canonical", "inproc", "python", "control", "scaling", "million", "tune"]
+    names = ["startup", "canonical", "inproc", "python", "control", "scaling", "arms", "million",
+             "tune"]
     with tempfile.TemporaryDirectory(prefix="esoarm-bench-") as tmp:
         work = Path(tmp)
         c = CLoop(grid, work)

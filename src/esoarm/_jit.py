@@ -24,22 +24,41 @@ from typing import TypeVar
 
 F = TypeVar("F", bound=Callable[..., object])
 
-_pending: list[tuple[Callable[..., object], Callable[..., object] | None]] = []
+_pending: list[tuple[Callable[..., object], Callable[..., object] | None, int | None]] = []
 _registered = False
 #: Every function marked :func:`jitable` or :func:`jitable_as` (by id).
 _marked: set[int] = set()
 
 
-def _register(func: Callable[..., object], compiled: Callable[..., object] | None) -> None:
+def _noop_like(func: Callable[..., object]) -> Callable[..., object]:
+    """A function with ``func``'s parameter names that does nothing (numba checks the names)."""
+    import inspect
+
+    signature = inspect.signature(func)
+    scope: dict[str, object] = {}
+    exec(f"def noop({', '.join(signature.parameters)}):\n    return None\n",  # noqa: S102
+         scope)  # (func's parameter names only)
+    noop = scope["noop"]
+    noop.__signature__ = signature  # type: ignore[attr-defined]  # numba compares annotations
+    return noop  # type: ignore[return-value]
+
+
+def _register(func: Callable[..., object], compiled: Callable[..., object] | None,
+              array_arg: int | None = None) -> None:
     try:
+        from numba import types
         from numba.extending import overload, register_jitable
     except ImportError:  # pragma: no cover - the reference engine needs no numba
         return
     if compiled is None:
         register_jitable(func)  # returns func itself: the interpreter keeps calling it
     else:
+        noop = _noop_like(func) if array_arg is not None else None
+
         @functools.wraps(func)  # the typer takes func's signature, as numba requires
         def typer(*args: object) -> Callable[..., object]:
+            if noop is not None and isinstance(args[array_arg], types.BaseTuple):  # type: ignore[index]
+                return noop
             return compiled
 
         overload(func)(typer)
@@ -51,26 +70,35 @@ def jitable(func: F) -> F:
     if _registered:
         _register(func, None)
     else:
-        _pending.append((func, None))
+        _pending.append((func, None, None))
     return func
 
 
-def jitable_as(compiled: Callable[..., object]) -> Callable[[F], F]:
+def jitable_as(compiled: Callable[..., object], *,
+               array_arg: int | None = None) -> Callable[[F], F]:
     """Like :func:`jitable`, but kernels compile ``compiled`` in place of the function.
 
     For a function written twice, once for the interpreter and once for the
     compiler, with the same floating-point operations in the same order (so the
     same bits; the tests compare the two): e.g. a power of two by
     :func:`math.ldexp` in Python and by exact products in a vector loop.
-    ``compiled`` must itself be :func:`jitable`.
+    Or, for a URDF arm, Pinocchio in the interpreter (the reference) and
+    :mod:`esoarm.plants.rigid_body` compiled (the same numbers to rounding;
+    the tests state the tolerance).  ``compiled`` must itself be :func:`jitable`.
+
+    ``array_arg``: the position of a parameter vector that ``compiled`` needs as
+    an array (it slices it).  Where a kernel passes a tuple there -- the
+    kernels of the short vectors (:data:`esoarm.engines.packing.VECTOR_WIDTH`),
+    which never carry this kind's vector -- a function that does nothing is
+    compiled instead, so those kernels compile without it.
     """
 
     def mark(func: F) -> F:
         _marked.add(id(func))
         if _registered:
-            _register(func, compiled)
+            _register(func, compiled, array_arg)
         else:
-            _pending.append((func, compiled))
+            _pending.append((func, compiled, array_arg))
         return func
 
     return mark

@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from esoarm.engines import batch
-from esoarm.engines.metrics import pairwise_sum
+from esoarm.engines.metrics import METRICS, pairwise_sum
 from esoarm.engines.simulation import SimulationDiverged, prepare, run_reference
 from esoarm.scenario import builtin_names, load_scenario
 
@@ -228,3 +228,23 @@ def test_kinds_that_do_not_compile_run_in_processes(monkeypatch) -> None:
     np.testing.assert_array_equal(fallback.values, compiled.values)
     (series,) = batch.simulate_many(pts[:1])
     assert series.metrics == run_reference(pts[0], prepare(pts[0])).metrics
+
+
+@pytest.mark.parametrize("joints", [1, 2, 3, 7])
+def test_joints_metrics_is_combine_joints(joints: int) -> None:
+    """The kernels' metrics of an arm's log are the result's (every joint), bit for bit."""
+    from esoarm.engines.metrics import NROW, SAT, joints_metrics
+    from esoarm.result import SimResult
+
+    scn = load_scenario("test-1", {"duration": 0.5})
+    n = scn.n_samples
+    rng = np.random.default_rng(joints)
+    log = rng.normal(size=(NROW * joints, n))
+    for j in range(joints):
+        log[j * NROW + SAT] = rng.random(n) < 0.3
+    for rows, diverged in ((n, False), (n - 7, True), (1, True)):
+        res = SimResult.from_log(scn, np.arange(rows) * scn.sample_time, log[:, :rows],
+                                 diverged=diverged)
+        out = np.empty(len(METRICS))
+        joints_metrics(log, joints, rows, diverged, out)
+        assert [res.metrics[m] for m in METRICS] == list(out)

@@ -187,9 +187,9 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
     """Sweep SCENARIO over a grid of parameters × noise seeds (compiled engine).
 
     Every run follows the sampled-data closed loop (docs/semantics.md) exactly
-    (same numbers as `esoarm simulate`; --engine fast: to round-off); only
-    metrics are kept; a URDF arm runs on the reference engine in worker
-    processes. Rows reach --out as chunks finish, so memory does not
+    (same numbers as `esoarm simulate`; --engine fast: to round-off; a URDF
+    arm: its compiled rigid body, to round-off of Pinocchio's); only metrics
+    are kept. Rows reach --out as chunks finish, so memory does not
     grow with the number of runs (except with --plot). Ctrl-C (or SIGTERM)
     stops the sweep and keeps
     the finished rows in --out. Example:
@@ -393,7 +393,7 @@ def _print_sweep(result: Any, diverged: int) -> None:
               "first use with the system C compiler, agrees to relative 1e-9 (see the "
               "benchmarks page); falls back to exact with a warning where no compiler works.")
 @click.option("--workers", "workers", type=int, default=None, metavar="N",
-              help="Threads (cores) [default: all]; for a URDF arm, worker processes.")
+              help="Threads (cores) [default: all].")
 @click.option("--out", "out", metavar="FILE.csv",
               help="Write every candidate scored: its values, mean metrics, objective.")
 @click.option("--plot", "plot", default="tune-pareto.png", show_default=True, metavar="FILE.png",
@@ -410,7 +410,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     """Tune keys of SCENARIO to minimize an objective (SciPy differential evolution).
 
     Each candidate is scored on K noise seeds (and M sampled rig variants with
-    --robust) on the compiled engine (a URDF arm: worker processes); prints the
+    --robust) on the compiled engine; prints the
     best values with their metrics next to the scenario's own values, and draws
     the Pareto front of tracking error against control effort. Example:
 

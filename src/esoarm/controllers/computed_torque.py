@@ -18,7 +18,10 @@ Each joint's ẑ3 estimates q̈ − v with v = M̂⁻¹(τ − c n̂) the observ
 M̂(q̈ − ẑ3) = τ − c n̂ gives q̈ = α: the paper's error dynamics (eq. 17) on
 every joint.  On one joint τ = I0 (α − z3): the FLC exactly.
 
-As a kind (see :mod:`esoarm.contract`): Pinocchio is called, so ``JIT = False``.
+As a kind (see :mod:`esoarm.contract`): the reference engine calls Pinocchio
+for M̂ and n̂; the compiled engine runs :func:`control_compiled` in its place
+(``JIT = True``), the same law on :mod:`esoarm.plants.rigid_body` and the
+nominal model packed at the end of the vector.
 """
 
 from __future__ import annotations
@@ -29,20 +32,24 @@ from typing import TYPE_CHECKING, Annotated, Literal
 import numpy as np
 from pydantic import Field
 
+from esoarm._jit import jitable, jitable_as
 from esoarm._schema import Section, unit
 from esoarm.contract import ComponentDesign, PlantDesign, read_only
 from esoarm.controllers import flc as _flc
+from esoarm.plants.rigid_body import mass_and_bias, model_size, workspace_size
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "Params", "check", "control", "design", "initialize", "label",
-           "per_joint",
-           "tracking_acceleration"]
+__all__ = ["CODE", "JIT", "KIND", "Params", "check", "control", "control_compiled", "design",
+           "initialize", "label", "per_joint", "tracking_acceleration"]
 
 KIND = "computed-torque"
 CODE = 2
-JIT = False
+JIT = True
+#: The compiled step functions agree with the reference (Pinocchio) to rounding, not
+#: bit for bit (:data:`esoarm.plants.urdf_compiled.ENGINE_TOLERANCE`).
+COMPILED_EXACT = False
 
 _PositiveGain = Annotated[float, Field(gt=0)]
 _HANDLE, _COMP, _FF, _UNIT = 1, 2, 3, 4
@@ -97,6 +104,7 @@ def _unit_vector(k1: float, k2: float) -> np.ndarray:
     return vec
 
 
+@jitable
 def tracking_acceleration(z1: float, z2: float, q_ref: float, v_ref: float, a_ref: float,
                           unit_ctl: np.ndarray) -> float:
     """α = q̈d − k1 (ẑ2 − q̇d) − k2 (ẑ1 − qd) [rad/s²] (eq. 16), by the lever arm's law.
@@ -122,7 +130,8 @@ def tracking_acceleration(z1: float, z2: float, q_ref: float, v_ref: float, a_re
 
 
 def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
-    """(CODE, handle, model flag, feed-forward flag, one unit FLC vector per joint).
+    """(CODE, handle, model flag, feed-forward flag, one unit FLC vector per joint, the
+    nominal model packed for the compiled engine).
 
     Parameters
     ----------
@@ -144,6 +153,7 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
         If the plant is not a URDF arm.
     """
     from esoarm.plants import urdf
+    from esoarm.plants.urdf_compiled import nominal_offset, true_offset
 
     if int(plant.vector[0]) != urdf.CODE:
         raise ValueError("the computed-torque controller needs plant.kind = 'urdf'")
@@ -153,9 +163,11 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     head = [float(CODE), float(plant.vector[urdf.HANDLE]), float(ctl.compensation == "model"),
             float(urdf.feeds_forward(scn))]
     units = [_unit_vector(float(a), float(b)) for a, b in zip(k1, k2, strict=True)]
-    return ComponentDesign(read_only(np.concatenate([head, *units])), 1)
+    nominal = plant.vector[nominal_offset(n):true_offset(n)]
+    return ComponentDesign(read_only(np.concatenate([head, *units, nominal])), 1)
 
 
+@jitable
 def initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
     """Computed torque has no state of its own.
 
@@ -170,6 +182,34 @@ def initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
     """
 
 
+@jitable
+def control_compiled(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
+                     p: np.ndarray, u: np.ndarray) -> None:
+    """:func:`control` as the compiled engine runs it: M̂, n̂ by :mod:`esoarm.plants.rigid_body`."""
+    n = u.shape[0]
+    size = _flc.VECTOR_SIZE
+    nominal = p[_UNIT + size * n:_UNIT + size * n + model_size(n)]
+    alpha = np.empty(n)
+    q_hat = np.empty(n)
+    v_hat = np.empty(n)
+    for j in range(n):
+        i = 3 * j
+        alpha[j] = tracking_acceleration(zhat[i], zhat[i + 1], refs[i, k], refs[i + 1, k],
+                                         refs[i + 2, k], p[_UNIT + size * j:_UNIT + size * (j + 1)])
+        q_hat[j] = zhat[i]
+        v_hat[j] = zhat[i + 1]
+    m_hat = np.empty((n, n))
+    n_hat = np.empty(n)
+    mass_and_bias(nominal, q_hat, v_hat, np.empty(workspace_size(n)), m_hat, n_hat)
+    model = p[_COMP] != 0.0
+    for r in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += m_hat[r, j] * (alpha[j] if model else alpha[j] - zhat[3 * j + 2])
+        u[r] = acc + n_hat[r] if model or p[_FF] != 0.0 else acc
+
+
+@jitable_as(control_compiled, array_arg=5)
 def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
             p: np.ndarray, u: np.ndarray) -> None:
     """Raw torque u_k [N·m] per joint from ẑ_k and the reference at sample k (module docstring).

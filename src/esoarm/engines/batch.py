@@ -6,8 +6,17 @@ with numba and in parallel over runs (``prange``) on all cores, with the
 registry's dispatch functions (:mod:`esoarm.kinds`) as step functions.  Both
 engines therefore give the same numbers (the tests require bit-for-bit
 equality on every kind, discretization, noise, quantization, lag, delay,
-motor, saturation and compensation setting).  A point whose kinds do not
-compile (``JIT = False``) is run by the reference engine in worker processes.
+motor, saturation and compensation setting).  The exception is a URDF arm:
+the reference engine calls Pinocchio, the kernels the compiled rigid body of
+:mod:`esoarm.plants.rigid_body` (``COMPILED_EXACT = False``), equal to rounding
+(the tests hold every metric within
+:data:`esoarm.plants.urdf_compiled.ENGINE_TOLERANCE`).  A point whose kinds do
+not compile (``JIT = False``) is run by the reference engine in worker processes.
+
+The kinds' parameter vectors reach the kernels as tuples (they live in
+registers) when they fit :data:`~esoarm.engines.packing.VECTOR_WIDTH`; longer
+ones -- an arm's carry its packed models -- as arrays, through a second set of
+kernels (``*_wide``) compiled the first time such a point is run.
 
 Two modes:
 
@@ -18,7 +27,7 @@ Two modes:
   runs, each run keeps one scratch log while it runs, and the noise of a
   seed is drawn once and shared by every run that uses it.
 
-Metrics come from :func:`esoarm.engines.metrics.log_metrics`, which sums in NumPy's
+Metrics come from :func:`esoarm.engines.metrics.joints_metrics`, which sums in NumPy's
 pairwise order, so they are identical to the reference engine's
 (:func:`esoarm.engines.metrics.series_metrics`), not merely close.
 
@@ -43,7 +52,14 @@ from numba import njit, prange
 from esoarm import _jit
 from esoarm import kinds as _kinds
 from esoarm.engines.loop import closed_loop, closed_loop_block
-from esoarm.engines.metrics import METRICS, NMETRIC, NROW, MetricsTable, NoiseCache, log_metrics
+from esoarm.engines.metrics import (
+    METRICS,
+    NMETRIC,
+    NROW,
+    MetricsTable,
+    NoiseCache,
+    joints_metrics,
+)
 from esoarm.engines.packing import (  # packing needs no numba (the fast engine uses it alone)
     _DELAY,
     _H,
@@ -233,6 +249,87 @@ def _records(n, fpar, ipar, b0, pp, op, cp, ap):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
+def _records_wide(n, fpar, ipar, b0, pp, op, cp, ap):  # pragma: no cover - compiled
+    """:func:`_records` with the vectors as arrays: points whose vectors are longer than
+    :data:`VECTOR_WIDTH` (a URDF arm's carry its rigid-body models).  The kernels below
+    compile for them only when such a point is run."""
+    sg = Sampling(n, fpar[_TS], fpar[_H], ipar[_NSUB], ipar[_DELAY], fpar[_SIGMA], fpar[_Q])
+    d = Designs(b0, pp, op, cp, ap, ipar[_NZ], ipar[_NC])
+    s = Steps(_kinds.plant_advance, _kinds.plant_advance_block, _kinds.plant_acceleration,
+              _kinds.plant_observer_input, _kinds.observer_initialize, _kinds.observer_estimate,
+              _kinds.observer_advance, _kinds.controller_initialize, _kinds.controller_control)
+    return sg, d, s
+
+
+@njit(cache=True, error_model="numpy")
+def _run_wide(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp,
+              ap):  # pragma: no cover - compiled
+    """:func:`_run` with the vectors as arrays (:func:`_records_wide`)."""
+    x = x0.copy()
+    sg, d, s = _records_wide(n, fpar, ipar, b0, pp, op, cp, ap)
+    return closed_loop(log, x, noise, ref, sg, d, s)
+
+
+@njit(cache=True, error_model="numpy")
+def _run_block_wide(logs, rows, n, xs, noises, fpar, ipar, ref, b0, pp, op, cp,
+                    ap):  # pragma: no cover - compiled
+    """:func:`_run_block` with the vectors as arrays (:func:`_records_wide`)."""
+    sg, d, s = _records_wide(n, fpar, ipar, b0, pp, op, cp, ap)
+    closed_loop_block(logs, rows, xs, noises, ref, sg, d, s)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _blocked_metrics_kernel_wide(blk_point, blk_start, blk_len, run_noise, fpar, ipar, x0, b0,
+                                 pp, op, cp, ap, refs, noises,
+                                 out):  # pragma: no cover - compiled
+    """:func:`_blocked_metrics_kernel` with the vectors as arrays."""
+    for b in prange(blk_point.shape[0]):
+        p = blk_point[b]
+        r0 = blk_start[b]
+        m = blk_len[b]
+        n = ipar[p, _N]
+        nj = ipar[p, _NJ]
+        logs = np.empty((m, NROW * nj, max(n, 1)))
+        xs = np.empty((m, x0.shape[1]))
+        nz = np.empty((m, noises.shape[1]))
+        for i in range(m):
+            xs[i] = x0[p]
+            nz[i] = noises[run_noise[r0 + i]]
+        rows = np.empty(m, dtype=np.int64)
+        _run_block_wide(logs, rows, n, xs, nz, fpar[p], ipar[p], refs[ipar[p, _REFIDX]],
+                        b0[p, :nj], pp[p], op[p], cp[p], ap[p])
+        for i in range(m):
+            joints_metrics(logs[i], nj, abs(rows[i]), rows[i] < 0, out[r0 + i])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _metrics_kernel_wide(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
+                         out):  # pragma: no cover - compiled
+    """:func:`_metrics_kernel` with the vectors as arrays."""
+    nmax = refs.shape[2]
+    for r in prange(run_point.shape[0]):
+        p = run_point[r]
+        n = ipar[p, _N]
+        nj = ipar[p, _NJ]
+        log = np.empty((NROW * nj, nmax))
+        status = _run_wide(log, n, x0[p], noises[run_noise[r]], fpar[p], ipar[p],
+                           refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p], cp[p], ap[p])
+        joints_metrics(log, nj, abs(status), status < 0, out[r])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _series_kernel_wide(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
+                        logs, rows_out):  # pragma: no cover - compiled
+    """:func:`_series_kernel` with the vectors as arrays."""
+    for r in prange(run_point.shape[0]):
+        p = run_point[r]
+        nj = ipar[p, _NJ]
+        rows_out[r] = _run_wide(logs[r], ipar[p, _N], x0[p], noises[run_noise[r]], fpar[p],
+                                ipar[p], refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p],
+                                cp[p], ap[p])
+
+
+@njit(cache=True, error_model="numpy")
 def _run(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp, ap):  # pragma: no cover - compiled
     """One run of :func:`closed_loop` with the registry's dispatch functions."""
     x = x0.copy()
@@ -251,7 +348,7 @@ def _metrics_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, re
         log = np.empty((NROW * nj, nmax))
         status = _run(log, n, x0[p], noises[run_noise[r]], fpar[p], ipar[p],
                       refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p], cp[p], ap[p])
-        log_metrics(log, abs(status), status < 0, out[r])
+        joints_metrics(log, nj, abs(status), status < 0, out[r])
 
 
 @njit(cache=True, error_model="numpy")
@@ -281,7 +378,7 @@ def _blocked_metrics_kernel(blk_point, blk_start, blk_len, run_noise, fpar, ipar
         _run_block(logs, rows, n, xs, nz, fpar[p], ipar[p], refs[ipar[p, _REFIDX]],
                    b0[p, :nj], pp[p], op[p], cp[p], ap[p])
         for i in range(m):
-            log_metrics(logs[i], abs(rows[i]), rows[i] < 0, out[r0 + i])
+            joints_metrics(logs[i], nj, abs(rows[i]), rows[i] < 0, out[r0 + i])
 
 
 def _blocks(run_point: np.ndarray, ipar: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -398,9 +495,10 @@ def run_metrics(
                 res = np.empty((len(jit_idx), NMETRIC))
                 if blocked:
                     blk = _blocks(pack.run_point, pack.ipar)
-                    _blocked_metrics_kernel(*blk, *pack.args()[1:], res)  # type: ignore[call-arg]
+                    kernel = _blocked_metrics_kernel_wide if pack.wide else _blocked_metrics_kernel
+                    kernel(*blk, *pack.args()[1:], res)  # type: ignore[call-arg]
                 else:
-                    _metrics_kernel(*pack.args(), res)  # type: ignore[call-arg]
+                    (_metrics_kernel_wide if pack.wide else _metrics_kernel)(*pack.args(), res)  # type: ignore[call-arg]
                 out[start + np.array(jit_idx)] = res
             if py_idx:
                 jobs = [points[part[i][0]].with_overrides({"sensor.seed": part[i][1]})
@@ -473,7 +571,7 @@ def simulate_many(
             nmax = pack.refs.shape[2]
             logs = np.empty((len(part), NROW * int(pack.ipar[:, _NJ].max()), nmax))
             rows = np.empty(len(part), dtype=np.int64)  # rows logged, < 0: diverged
-            _series_kernel(*pack.args(), logs, rows)  # type: ignore[call-arg]
+            (_series_kernel_wide if pack.wide else _series_kernel)(*pack.args(), logs, rows)  # type: ignore[call-arg]
             for i, scn in enumerate(part):
                 n = scn.n_samples
                 k = abs(int(rows[i]))

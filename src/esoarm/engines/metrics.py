@@ -63,6 +63,11 @@ METRICS: tuple[str, ...] = (
     "rms_du", "saturated_fraction", "samples", "diverged",
 )
 NMETRIC = len(METRICS)
+# how :func:`combine_joints` combines each column over the joints (compiled twin: joints_metrics)
+_RMS_COLUMNS = tuple(i for i, name in enumerate(METRICS) if name.startswith("rms_"))
+_MAX_COLUMNS = tuple(i for i, name in enumerate(METRICS)
+                     if name.startswith("max_") or name == "diverged")
+_SAMPLES = METRICS.index("samples")
 
 
 def _rms(x: np.ndarray) -> float:
@@ -323,6 +328,37 @@ def log_metrics(log: np.ndarray, rows: int, diverged: bool, out: np.ndarray) -> 
     out[7] = pairwise_sum(scratch, rows) / rows
     out[8] = rows
     out[9] = 1.0 if diverged else 0.0
+
+
+@jitable
+def joints_metrics(log: np.ndarray, nj: int, rows: int, diverged: bool, out: np.ndarray) -> None:
+    """:data:`METRICS` over the ``nj`` joints of an engine log, into ``out``.
+
+    The compiled twin of :func:`combine_joints` of each joint's :func:`series_metrics`
+    (same numbers, bit for bit): each joint's metrics by :func:`log_metrics`, then RMS
+    over joints as the root of the mean square (NumPy's summation order), maxima
+    the largest, the saturated fraction the mean.  One joint: :func:`log_metrics`.
+    """
+    if nj == 1:
+        log_metrics(log, rows, diverged, out)
+        return
+    each = np.empty((nj, out.shape[0]))
+    for j in range(nj):
+        log_metrics(log[j * NROW:(j + 1) * NROW], rows, diverged, each[j])
+    column = np.empty(nj)
+    for c in range(out.shape[0]):
+        for j in range(nj):
+            column[j] = each[j, c]
+        if c in _RMS_COLUMNS:
+            for j in range(nj):
+                column[j] = column[j] * column[j]
+            out[c] = math.sqrt(pairwise_sum(column, nj) / nj)
+        elif c in _MAX_COLUMNS:
+            out[c] = _max_abs(column, nj)  # maxima are >= 0 (and NaN propagates)
+        elif c == _SAMPLES:
+            out[c] = column[0]
+        else:
+            out[c] = pairwise_sum(column, nj) / nj
 
 
 def metrics_dict(values: np.ndarray) -> dict[str, Any]:

@@ -42,18 +42,25 @@ class _Pack:
     refs: np.ndarray
     noises: np.ndarray
 
+    @property
+    def wide(self) -> bool:
+        """A vector is longer than :data:`VECTOR_WIDTH`: the kernels take them as arrays."""
+        return any(a.shape[1] > w for a, w in zip((self.pp, self.op, self.cp, self.ap),
+                                                   VECTOR_WIDTH, strict=True))
+
     def args(self) -> tuple[np.ndarray, ...]:
         return (self.run_point, self.run_noise, self.fpar, self.ipar, self.x0, self.b0, self.pp,
                 self.op, self.cp, self.ap, self.refs, self.noises)
 
 
 def _stack(rows: list[np.ndarray], width: int | None = None) -> np.ndarray:
-    """Rows of different lengths as one zero-padded 2-D array, at least ``width`` wide."""
+    """Rows of different lengths as one zero-padded 2-D array, at least ``width`` wide.
+
+    Wider than ``width`` if a row is longer (a URDF arm's vectors carry its models):
+    the batch engine then runs the point with its vectors as arrays (:attr:`_Pack.wide`).
+    """
     longest = max((len(r) for r in rows), default=1)
-    if width is not None and longest > width:  # pragma: no cover - guards a new kind
-        raise ValueError(f"a parameter vector of {longest} values; the compiled engine takes "
-                         f"at most {width} (see esoarm.engines.batch.VECTOR_WIDTH)")
-    out = np.zeros((len(rows), max(width or longest, 1)))
+    out = np.zeros((len(rows), max(width or 0, longest, 1)))
     for i, row in enumerate(rows):
         out[i, : len(row)] = row
     return out

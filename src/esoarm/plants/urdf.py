@@ -11,14 +11,19 @@ As a kind (see :mod:`esoarm.contract`): :func:`design` gives the state
 x = (q, q̇, τ) of n joints and b0 = 1 per joint, because the observers'
 input is already an acceleration: :func:`observer_input` maps the command to
 v = M̂(q̂)⁻¹ (u − c·n̂(q̂, q̂̇)) -- the joint's component of M̂⁻¹τ, c = 1 when
-the controller feeds the nominal n̂ forward.  :func:`advance` and
-:func:`acceleration` call Pinocchio, which numba cannot compile
-(``JIT = False``): the batch engine runs these points in worker processes.
+the controller feeds the nominal n̂ forward.  In the reference engine
+:func:`advance`, :func:`acceleration` and :func:`observer_input` call
+Pinocchio; numba cannot, so the compiled engine runs
+:mod:`esoarm.plants.urdf_compiled` in their place (``JIT = True``): the same
+twin on the rigid-body dynamics of :mod:`esoarm.plants.rigid_body`, the same
+numbers to rounding.
 
-The parameter vector holds (CODE, handle, c, twin parameters); the handle
-names the loaded models in this process (:func:`arm_of`), so a design is
-valid in the process that made it -- the engines design each run where they
-run it.
+The parameter vector holds (CODE, handle, c, n, twin parameters, nominal
+model, true model), the models packed for the compiled engine.  The handle
+names the loaded Pinocchio models in this process (:func:`arm_of`), so a
+design is valid for the reference engine in the process that made it -- the
+engines design each run where they run it; the compiled engine needs only the
+vector.
 """
 
 from __future__ import annotations
@@ -31,8 +36,10 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from pydantic import Field
 
+from esoarm._jit import jitable_as
 from esoarm._schema import PER_JOINT_KEYS, Section, unit
 from esoarm.contract import PlantDesign, read_only
+from esoarm.plants import urdf_compiled
 from esoarm.plants.actuator import motor_refused
 from esoarm.plants.urdf_model import ArmModel, UrdfError, load_arm
 from esoarm.plants.urdf_twin import TwinParams, pack_params, twin_acceleration, twin_advance
@@ -40,18 +47,22 @@ from esoarm.plants.urdf_twin import TwinParams, pack_params, twin_acceleration, 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "MOTOR", "Params",
-           "acceleration", "advance", "arm_of", "check",
-           "design", "joint_limits", "joint_names", "observer_input", "scenario_arm"]
+__all__ = ["CODE", "JIT", "KIND", "MOTOR", "Params", "acceleration", "advance", "advance_block",
+           "arm_of", "check", "design", "joint_limits", "joint_names", "observer_input",
+           "packed_models", "scenario_arm"]
 
 KIND = "urdf"
 CODE = 1
-JIT = False
+JIT = True
+#: The compiled step functions agree with the reference (Pinocchio) to rounding, not
+#: bit for bit (:data:`esoarm.plants.urdf_compiled.ENGINE_TOLERANCE`).
+COMPILED_EXACT = False
 #: No motor: one ``[motor]`` table cannot describe the drive of each joint, so a scenario
 #: with one is refused (:func:`check`, :func:`esoarm.plants.actuator.motor_refused`).
 MOTOR = False
 
-HANDLE, _FEEDFORWARD, _TWIN = 1, 2, 3
+HANDLE, _FEEDFORWARD = 1, 2
+_NJ, _TWIN = urdf_compiled.NJ, urdf_compiled.TWIN
 
 class Params(Section):
     """``[plant]`` of kind "urdf": a serial arm from a URDF file (Pinocchio)."""
@@ -231,7 +242,7 @@ def check(scn: Scenario) -> str | None:
 
 
 def design(scn: Scenario) -> PlantDesign:
-    """Initial state x0 = (q0, 0, 0) per joint, b0 = 1, vector (CODE, handle, c, twin).
+    """Initial state x0 = (q0, 0, 0) per joint, b0 = 1, vector (CODE, handle, c, n, twin, models).
 
     Parameters
     ----------
@@ -241,8 +252,9 @@ def design(scn: Scenario) -> PlantDesign:
     Returns
     -------
     PlantDesign
-        vector = (CODE, handle, c = 1 if the controller feeds n̂ forward else 0,
-        :func:`esoarm.plants.urdf_twin.pack_params`); x0 = (q0 [rad], q̇ = 0, τ = 0);
+        vector = (CODE, handle, c = 1 if the controller feeds n̂ forward else 0, n,
+        :func:`esoarm.plants.urdf_twin.pack_params`, nominal and true models of
+        :func:`packed_models`); x0 = (q0 [rad], q̇ = 0, τ = 0);
         b0 = 1 per joint (the observers' input is already an acceleration, see
         :func:`observer_input`).
     """
@@ -258,8 +270,9 @@ def design(scn: Scenario) -> PlantDesign:
     twin = TwinParams(each(rig.coulomb_friction), each(rig.friction_velocity),
                       each(rig.viscous_friction), each(rig.disturbance.amplitude),
                       each(rig.disturbance.frequency), lag)
-    vector = np.concatenate([[float(CODE), float(handle), float(feeds_forward(scn))],
-                             pack_params(twin, arm.inertia_scale)])
+    nominal, true = packed_models(arm)
+    vector = np.concatenate([[float(CODE), float(handle), float(feeds_forward(scn)), float(n)],
+                             pack_params(twin, arm.inertia_scale), nominal, true])
     q0 = np.array(scn.plant.q0, dtype=float) if scn.plant.q0 else each(rig.theta0)
     x0 = np.concatenate([q0, np.zeros(2 * n)])
     return PlantDesign(vector=read_only(vector), x0=read_only(x0), n_joints=n,
@@ -299,6 +312,33 @@ def joint_limits(scn: Scenario) -> tuple[np.ndarray, np.ndarray]:
     return arm.lower, arm.upper
 
 
+def packed_models(arm: ArmModel) -> tuple[np.ndarray, np.ndarray]:
+    """The nominal and true models packed for the compiled engine (once per loaded arm).
+
+    Parameters
+    ----------
+    arm : ArmModel
+        A loaded arm; the packed pair is cached in it.
+
+    Returns
+    -------
+    (nominal, true) : (ndarray, ndarray)
+        :func:`esoarm.plants.rigid_body.pack_model` of ``arm.nominal`` and ``arm.true``.
+    """
+    from esoarm.plants.rigid_body import pack_model
+
+    cached = arm._data.get("packed")
+    if cached is None:
+        cached = arm._data["packed"] = (pack_model(arm.nominal), pack_model(arm.true))
+    return cached
+
+
+def _twin(p: np.ndarray) -> np.ndarray:
+    n = int(p[_NJ])
+    return p[_TWIN:_TWIN + 5 * n + 2]
+
+
+@jitable_as(urdf_compiled.advance, array_arg=5)
 def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
             p: np.ndarray) -> None:
     """Integrate x = (q, q̇, τ) in place over one sample: ``nsub`` RK4 steps of h [s], u held.
@@ -319,9 +359,37 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
     p : ndarray
         The design vector, p[0] = CODE (see :func:`design`).
     """
-    twin_advance(arm_of(p), x, u, t0, h, nsub, p[_TWIN:])
+    twin_advance(arm_of(p), x, u, t0, h, nsub, _twin(p))
 
 
+@jitable_as(urdf_compiled.advance_block, array_arg=6)
+def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
+                  nsub: int, p: np.ndarray) -> None:
+    """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``).
+
+    Parameters
+    ----------
+    xs : ndarray, shape (runs, 3n)
+        States of the runs (as ``x`` of :func:`advance`), live ones updated in place.
+    us : ndarray, shape (runs, n)
+        Applied torque of each run [N·m].
+    live : ndarray of bool, shape (runs,)
+        Which runs to advance.
+    t0 : float
+        Start of the sample [s].
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps per sample.
+    p : ndarray
+        The design vector shared by the block, p[0] = CODE.
+    """
+    for i in range(xs.shape[0]):
+        if live[i]:
+            advance(xs[i], us[i], t0, h, nsub, p)
+
+
+@jitable_as(urdf_compiled.acceleration, array_arg=3)
 def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                  out: np.ndarray) -> None:
     """True q̈ [rad/s²] at state x, time t, input u applied from t on, into ``out``.
@@ -339,9 +407,10 @@ def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
     out : ndarray, shape (n,)
         Output: q̈ [rad/s²].
     """
-    twin_acceleration(arm_of(p), x, u, t, p[_TWIN:], out)
+    twin_acceleration(arm_of(p), x, u, t, _twin(p), out)
 
 
+@jitable_as(urdf_compiled.observer_input, array_arg=2)
 def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
     """The observers' input v = M̂(q̂)⁻¹ (u − c·n̂(q̂, q̂̇)) [rad/s²] into ``v``.
 

@@ -91,6 +91,17 @@ def test_dask_rows_identical_to_in_process(scheduler: str) -> None:
     np.testing.assert_array_equal(remote2.values, local.values)
 
 
+def test_arm_sweep_on_dask_same_rows(scheduler: str) -> None:
+    """A URDF arm's sweep (compiled engine) on the cluster: the in-process rows exactly."""
+    pytest.importorskip("pinocchio")
+    base = load_scenario("two-link", {"duration": 1.0})
+    grid = sweep.build_grid(base, ["observer.eps=0.02,0.03,0.05"], seeds=2)
+    local = sweep.run_sweep(grid)
+    remote = sweep.run_sweep(grid, scheduler=scheduler, chunk=2)
+    assert remote.complete
+    np.testing.assert_array_equal(remote.values, local.values)
+
+
 @pytest.mark.parametrize("engine", ["exact", "fast"])
 def test_cli_scheduler_same_csv(scheduler: str, tmp_path: Path, engine: str) -> None:
     args = ["sweep", "test-2", "--vary", "observer.eps=0.05,0.09,0.2", "--seeds", "4",

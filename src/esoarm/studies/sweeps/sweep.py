@@ -76,10 +76,22 @@ ENGINES: tuple[str, ...] = ("exact", "fast")
 REFERENCE_RUNS = 3
 
 
+def _same_bits(scn: Scenario) -> bool:
+    """The compiled engine gives the reference engine's bits for ``scn``'s kinds.
+
+    Not for a URDF arm (Pinocchio in the reference engine, the compiled rigid body in
+    the batch engine: equal to rounding), whose sweeps always use the compiled
+    engine, so that a run's row does not depend on the size of the sweep.
+    """
+    from esoarm.kinds import kinds_of
+
+    return all(getattr(kind, "COMPILED_EXACT", True) for kind in kinds_of(scn))
+
+
 def _run_exact(points: Sequence[Scenario], seeds: Sequence[int] | None = None,
                **kwargs: Any) -> MetricsTable:
     runs = len(points) * (len(seeds) if seeds is not None else 1)
-    if runs <= REFERENCE_RUNS:
+    if runs <= REFERENCE_RUNS and all(_same_bits(scn) for scn in points):
         from esoarm.engines.simulation import reference_metrics  # no compiled kernel to load
 
         return reference_metrics(points, seeds, progress=kwargs.get("progress"))
