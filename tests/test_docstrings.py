@@ -45,7 +45,12 @@ COVERED = [
     "esoarm.plants.lever_arm",
     "esoarm.plants.model",
     "esoarm.plants.motor",
+    "esoarm.plants.rigid_body",
     "esoarm.plants.sensor",
+    "esoarm.plants.urdf",
+    "esoarm.plants.urdf_compiled",
+    "esoarm.plants.urdf_model",
+    "esoarm.plants.urdf_twin",
 ]
 
 

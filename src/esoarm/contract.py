@@ -202,11 +202,11 @@ class PlantKind(Kind, Protocol):
         Parameters
         ----------
         x : ndarray
-            Plant state: angles [rad] in ``x[:n]``, rates [rad/s] in ``x[n:2n]``, further
-            states after them; updated in place.
+            Plant state: angles [rad] in ``x[:n]``, rates [rad/s] in ``x[n:2n]`` ([m], [m/s]
+            on a prismatic axis), further states after them; updated in place.
         u : ndarray, shape (n,)
-            Applied drive per joint [N·m], held over the sample (positive along
-            increasing θ).
+            Applied drive per joint [N·m] (force [N] on a prismatic axis), held over the
+            sample (positive along increasing θ).
         t0 : float
             Start of the sample [s].
         h : float
@@ -226,7 +226,7 @@ class PlantKind(Kind, Protocol):
         x : ndarray
             Plant state (layout as in :meth:`advance`).
         u : ndarray, shape (n,)
-            Applied drive per joint [N·m], from t on.
+            Applied drive per joint [N·m] (force [N] on a prismatic axis), from t on.
         t : float
             Time [s].
         p : ndarray

@@ -51,14 +51,41 @@ REVOLUTE, PRISMATIC = 0, 1
 
 @jitable
 def model_size(n: int) -> int:
-    """Length of a packed model of n joints."""
+    """Length of a packed model of n joints.
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    int
+        HEAD + ROW·n values.
+
+    Examples
+    --------
+    >>> model_size(2)
+    110
+    """
     return HEAD + ROW * n
 
 
 @jitable
 def workspace_size(n: int) -> int:
     """Length of the scratch array :func:`rnea`, :func:`crba` and
-    :func:`forward_dynamics` take for n joints."""
+    :func:`forward_dynamics` take for n joints.
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    int
+        Number of float64 values.
+    """
     return n * (36 + 36 + 24) + n * n + 2 * n + 42
 
 
@@ -442,7 +469,21 @@ def rnea(m: np.ndarray, q: np.ndarray, v: np.ndarray, a: np.ndarray, ws: np.ndar
 
 @jitable
 def bias(m: np.ndarray, q: np.ndarray, v: np.ndarray, ws: np.ndarray, out: np.ndarray) -> None:
-    """n(q, q̇) = C(q, q̇) q̇ + g(q) [N·m] into ``out`` (RNEA with q̈ = 0); ``ws`` as :func:`rnea`."""
+    """n(q, q̇) = C(q, q̇) q̇ + g(q) [N·m] into ``out`` (RNEA with q̈ = 0); ``ws`` as :func:`rnea`.
+
+    Parameters
+    ----------
+    m : ndarray
+        Packed model (:func:`pack_model`).
+    q : ndarray, shape (n,)
+        Joint positions [rad or m].
+    v : ndarray, shape (n,)
+        Joint velocities [rad/s or m/s].
+    ws : ndarray
+        Scratch of length :func:`workspace_size` (n), overwritten.
+    out : ndarray, shape (n,)
+        Output: n(q, q̇) [N·m, N for prismatic joints], the torque that holds q̈ = 0.
+    """
     xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
     _transforms(m, q, xs, ss)
     zero[:] = 0.0
@@ -451,7 +492,19 @@ def bias(m: np.ndarray, q: np.ndarray, v: np.ndarray, ws: np.ndarray, out: np.nd
 
 @jitable
 def crba(m: np.ndarray, q: np.ndarray, ws: np.ndarray, out: np.ndarray) -> None:
-    """The joint-space inertia M(q) [kg·m²] into ``out`` (n, n), both triangles."""
+    """The joint-space inertia M(q) [kg·m²] into ``out`` (n, n), both triangles.
+
+    Parameters
+    ----------
+    m : ndarray
+        Packed model (:func:`pack_model`).
+    q : ndarray, shape (n,)
+        Joint positions [rad or m].
+    ws : ndarray
+        Scratch of length :func:`workspace_size` (n), overwritten.
+    out : ndarray, shape (n, n)
+        Output: M(q) [kg·m², kg for prismatic joints], symmetric.
+    """
     xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
     _transforms(m, q, xs, ss)
     _crba_pass(m, xs, ss, ic, col, tmp, out)
@@ -460,7 +513,23 @@ def crba(m: np.ndarray, q: np.ndarray, ws: np.ndarray, out: np.ndarray) -> None:
 @jitable
 def mass_and_bias(m: np.ndarray, q: np.ndarray, v: np.ndarray, ws: np.ndarray,
                   mass: np.ndarray, out: np.ndarray) -> None:
-    """M(q) into ``mass`` and n(q, q̇) into ``out`` with one transform pass."""
+    """M(q) into ``mass`` and n(q, q̇) into ``out`` with one transform pass.
+
+    Parameters
+    ----------
+    m : ndarray
+        Packed model (:func:`pack_model`).
+    q : ndarray, shape (n,)
+        Joint positions [rad or m].
+    v : ndarray, shape (n,)
+        Joint velocities [rad/s or m/s].
+    ws : ndarray
+        Scratch of length :func:`workspace_size` (n), overwritten.
+    mass : ndarray, shape (n, n)
+        Output: M(q) (as :func:`crba`).
+    out : ndarray, shape (n,)
+        Output: n(q, q̇) (as :func:`bias`).
+    """
     xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
     _transforms(m, q, xs, ss)
     zero[:] = 0.0
@@ -473,6 +542,13 @@ def cholesky_solve(a: np.ndarray, b: np.ndarray) -> None:
     """Solve A x = b in place (x into ``b``) for a symmetric positive-definite A.
 
     ``a`` is overwritten by its Cholesky factor L (lower triangle).
+
+    Parameters
+    ----------
+    a : ndarray, shape (n, n)
+        A, symmetric positive definite (its lower triangle is read); overwritten.
+    b : ndarray, shape (n,)
+        The right-hand side b; overwritten by the solution x.
     """
     n = b.shape[0]
     for j in range(n):
@@ -505,6 +581,21 @@ def forward_dynamics(m: np.ndarray, q: np.ndarray, v: np.ndarray, tau: np.ndarra
 
     One transform pass, RNEA with q̈ = 0 for the bias, CRBA for M, a Cholesky
     solve (Pinocchio's ``aba`` gives the same to rounding).  ``out`` may be ``tau``.
+
+    Parameters
+    ----------
+    m : ndarray
+        Packed model (:func:`pack_model`).
+    q : ndarray, shape (n,)
+        Joint positions [rad or m].
+    v : ndarray, shape (n,)
+        Joint velocities [rad/s or m/s].
+    tau : ndarray, shape (n,)
+        Joint torques [N·m] (forces [N] for prismatic joints), positive along increasing q.
+    ws : ndarray
+        Scratch of length :func:`workspace_size` (n), overwritten.
+    out : ndarray, shape (n,)
+        Output: q̈ [rad/s² or m/s²].
     """
     n = int(m[0])
     xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)

@@ -94,7 +94,18 @@ _MAX_LOADED = 64
 
 
 def scenario_arm(scn: Scenario) -> ArmModel:
-    """The nominal and true models of a urdf scenario (loaded once per process, cached)."""
+    """The nominal and true models of a urdf scenario (loaded once per process, cached).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A scenario whose ``[plant]`` is of kind "urdf".
+
+    Returns
+    -------
+    ArmModel
+        The arm of ``plant.file`` with the scenario's gravity, inertia scale and payload.
+    """
     return _ARMS[_handle(scn)]
 
 
@@ -123,12 +134,34 @@ def _handle(scn: Scenario) -> int:
 
 
 def arm_of(p: np.ndarray) -> ArmModel:
-    """The models named by a design vector's handle."""
+    """The models named by a design vector's handle.
+
+    Parameters
+    ----------
+    p : ndarray
+        The design vector of :func:`design` (p[1] is the handle).
+
+    Returns
+    -------
+    ArmModel
+        The arm loaded in this process under that handle.
+    """
     return _ARMS[int(p[HANDLE])]
 
 
 def feeds_forward(scn: Scenario) -> bool:
-    """Whether the controller adds the nominal n̂ (so the observers must not estimate it)."""
+    """Whether the controller adds the nominal n̂ (so the observers must not estimate it).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    bool
+        True for ``controller.feedforward`` with ``compensation = "eso"``.
+    """
     ctl = scn.controller
     return bool(getattr(ctl, "feedforward", False)) and getattr(ctl, "compensation", "") == "eso"
 
@@ -148,6 +181,16 @@ def check(scn: Scenario) -> str | None:
     Refuses a ``[motor]`` table (the kind declares ``MOTOR = False``), loads the URDF
     (Pinocchio must be installed), checks the per-joint keys against the number of joints
     and the reference against the joint limits.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A scenario whose ``[plant]`` is of kind "urdf".
+
+    Returns
+    -------
+    str or None
+        A one-line message naming the key, or None when the scenario fits.
     """
     refused = motor_refused(scn, KIND)
     if refused is not None:
@@ -199,7 +242,22 @@ def check(scn: Scenario) -> str | None:
 
 
 def design(scn: Scenario) -> PlantDesign:
-    """Initial state x0 = (q0, 0, 0) per joint, b0 = 1, vector (CODE, handle, c, twin)."""
+    """Initial state x0 = (q0, 0, 0) per joint, b0 = 1, vector (CODE, handle, c, n, twin, models).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A scenario whose ``[plant]`` is of kind "urdf".
+
+    Returns
+    -------
+    PlantDesign
+        vector = (CODE, handle, c = 1 if the controller feeds n̂ forward else 0, n,
+        :func:`esoarm.plants.urdf_twin.pack_params`, nominal and true models of
+        :func:`packed_models`); x0 = (q0 [rad], q̇ = 0, τ = 0);
+        b0 = 1 per joint (the observers' input is already an acceleration, see
+        :func:`observer_input`).
+    """
     handle = _handle(scn)
     arm = _ARMS[handle]
     n = arm.n_joints
@@ -222,18 +280,51 @@ def design(scn: Scenario) -> PlantDesign:
 
 
 def joint_names(scn: Scenario) -> tuple[str, ...]:
-    """The arm's actuated joints, in URDF (Pinocchio) order."""
+    """The arm's actuated joints, in URDF (Pinocchio) order.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A scenario whose ``[plant]`` is of kind "urdf".
+
+    Returns
+    -------
+    tuple of str
+        The joint names, n entries.
+    """
     return scenario_arm(scn).joint_names
 
 
 def joint_limits(scn: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper position limits of every joint [rad or m] (±inf: continuous)."""
+    """Lower and upper position limits of every joint [rad or m] (±inf: continuous).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A scenario whose ``[plant]`` is of kind "urdf".
+
+    Returns
+    -------
+    (lower, upper) : (ndarray, ndarray)
+        Shape (n,) each, read-only [rad or m].
+    """
     arm = scenario_arm(scn)
     return arm.lower, arm.upper
 
 
 def packed_models(arm: ArmModel) -> tuple[np.ndarray, np.ndarray]:
-    """The nominal and true models packed for the compiled engine (once per loaded arm)."""
+    """The nominal and true models packed for the compiled engine (once per loaded arm).
+
+    Parameters
+    ----------
+    arm : ArmModel
+        A loaded arm; the packed pair is cached in it.
+
+    Returns
+    -------
+    (nominal, true) : (ndarray, ndarray)
+        :func:`esoarm.plants.rigid_body.pack_model` of ``arm.nominal`` and ``arm.true``.
+    """
     from esoarm.plants.rigid_body import pack_model
 
     cached = arm._data.get("packed")
@@ -250,14 +341,49 @@ def _twin(p: np.ndarray) -> np.ndarray:
 @jitable_as(urdf_compiled.advance, array_arg=5)
 def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
             p: np.ndarray) -> None:
-    """Integrate x = (q, q̇, τ) in place over one sample: ``nsub`` RK4 steps of h [s], u held."""
+    """Integrate x = (q, q̇, τ) in place over one sample: ``nsub`` RK4 steps of h [s], u held.
+
+    Parameters
+    ----------
+    x : ndarray, shape (3n,)
+        State: q [rad] in x[:n], q̇ [rad/s] in x[n:2n], lag τ [N·m] in x[2n:3n]; updated in
+        place.
+    u : ndarray, shape (n,)
+        Applied torque per joint [N·m], held over [t0, t0 + nsub·h).
+    t0 : float
+        Start of the sample [s] (d(t) depends on it).
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps (nsub·h = Ts).
+    p : ndarray
+        The design vector, p[0] = CODE (see :func:`design`).
+    """
     twin_advance(arm_of(p), x, u, t0, h, nsub, _twin(p))
 
 
 @jitable_as(urdf_compiled.advance_block, array_arg=6)
 def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
                   nsub: int, p: np.ndarray) -> None:
-    """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``)."""
+    """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``).
+
+    Parameters
+    ----------
+    xs : ndarray, shape (runs, 3n)
+        States of the runs (as ``x`` of :func:`advance`), live ones updated in place.
+    us : ndarray, shape (runs, n)
+        Applied torque of each run [N·m].
+    live : ndarray of bool, shape (runs,)
+        Which runs to advance.
+    t0 : float
+        Start of the sample [s].
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps per sample.
+    p : ndarray
+        The design vector shared by the block, p[0] = CODE.
+    """
     for i in range(xs.shape[0]):
         if live[i]:
             advance(xs[i], us[i], t0, h, nsub, p)
@@ -266,7 +392,21 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
 @jitable_as(urdf_compiled.acceleration, array_arg=3)
 def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                  out: np.ndarray) -> None:
-    """True q̈ [rad/s²] at state x, time t, input u applied from t on, into ``out``."""
+    """True q̈ [rad/s²] at state x, time t, input u applied from t on, into ``out``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (3n,)
+        State (q [rad], q̇ [rad/s], τ [N·m]).
+    u : ndarray, shape (n,)
+        Applied torque [N·m] (acts directly when T = 0).
+    t : float
+        Time [s].
+    p : ndarray
+        The design vector, p[0] = CODE.
+    out : ndarray, shape (n,)
+        Output: q̈ [rad/s²].
+    """
     twin_acceleration(arm_of(p), x, u, t, _twin(p), out)
 
 
@@ -277,6 +417,17 @@ def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray
     q̂, q̂̇ are the estimates ẑ1, ẑ2 of every joint; c = 1 when the controller
     feeds n̂ forward.  Then ẑ3 of joint i estimates q̈_i − v_i: gravity,
     Coriolis (unless fed forward), coupling, friction, model error, disturbance.
+
+    Parameters
+    ----------
+    zhat : ndarray, shape (3n,)
+        Estimate (q̂ [rad], q̂̇ [rad/s], f̂ [rad/s²]) of joint j in zhat[3j:3j+3].
+    u : ndarray, shape (n,)
+        Command as applied [N·m].
+    p : ndarray
+        The design vector (handle, feed-forward flag).
+    v : ndarray, shape (n,)
+        Output: v [rad/s²].
     """
     arm = arm_of(p)
     q_hat = zhat[0::3]

@@ -49,13 +49,35 @@ ENGINE_TOLERANCE = 1e-6
 
 @jitable
 def nominal_offset(n: int) -> int:
-    """Start of the nominal model in the design vector of n joints."""
+    """Start of the nominal model in the design vector of n joints.
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    int
+        Index of the nominal model's first value (TWIN + 5n + 2).
+    """
     return TWIN + 5 * n + 2
 
 
 @jitable
 def true_offset(n: int) -> int:
-    """Start of the true model in the design vector of n joints."""
+    """Start of the true model in the design vector of n joints.
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    int
+        Index of the true model's first value (after the nominal model).
+    """
     return TWIN + 5 * n + 2 + model_size(n)
 
 
@@ -89,7 +111,24 @@ def _advance_one(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int, n
 @jitable
 def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
             p: np.ndarray) -> None:
-    """Integrate x = (q, q̇, τ) in place over ``nsub`` RK4 steps of h [s], u held (compiled)."""
+    """Integrate x = (q, q̇, τ) in place over ``nsub`` RK4 steps of h [s], u held (compiled).
+
+    Parameters
+    ----------
+    x : ndarray, shape (3n,)
+        State: q [rad] in x[:n], q̇ [rad/s] in x[n:2n], lag τ [N·m] in x[2n:3n]; updated in
+        place.
+    u : ndarray, shape (n,)
+        Applied torque per joint [N·m], held over [t0, t0 + nsub·h).
+    t0 : float
+        Start of the sample [s].
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps (nsub·h = Ts).
+    p : ndarray
+        The design vector (see the module docstring), p[0] = CODE.
+    """
     n, tp, _, true = _parts(p)
     _advance_one(x, u, t0, h, nsub, n, tp, true, np.zeros((8, n)),
                  np.empty(workspace_size(n)), np.empty(n))
@@ -98,7 +137,25 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
 @jitable
 def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
                   nsub: int, p: np.ndarray) -> None:
-    """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``), the same bits."""
+    """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``), the same bits.
+
+    Parameters
+    ----------
+    xs : ndarray, shape (runs, 3n)
+        States of the runs, live ones updated in place.
+    us : ndarray, shape (runs, n)
+        Applied torque of each run [N·m].
+    live : ndarray of bool, shape (runs,)
+        Which runs to advance.
+    t0 : float
+        Start of the sample [s].
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps per sample.
+    p : ndarray
+        The design vector (see the module docstring), p[0] = CODE.
+    """
     n, tp, _, true = _parts(p)
     w = np.zeros((8, n))
     ws = np.empty(workspace_size(n))
@@ -111,7 +168,21 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
 @jitable
 def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                  out: np.ndarray) -> None:
-    """True q̈ [rad/s²] at state x, time t, input u applied from t on, into ``out`` (compiled)."""
+    """True q̈ [rad/s²] at state x, time t, input u applied from t on, into ``out`` (compiled).
+
+    Parameters
+    ----------
+    x : ndarray, shape (3n,)
+        State (q [rad], q̇ [rad/s], τ [N·m]).
+    u : ndarray, shape (n,)
+        Applied torque [N·m] (acts directly when T = 0).
+    t : float
+        Time [s].
+    p : ndarray
+        The design vector (see the module docstring), p[0] = CODE.
+    out : ndarray, shape (n,)
+        Output: q̈ [rad/s²].
+    """
     n, tp, _, true = _parts(p)
     v = x[n:2 * n]
     lag = tp[tp.shape[0] - 1]
@@ -125,7 +196,19 @@ def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
 
 @jitable
 def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
-    """v = M̂(q̂)⁻¹ (u − c·n̂(q̂, q̂̇)) [rad/s²] into ``v`` (compiled)."""
+    """v = M̂(q̂)⁻¹ (u − c·n̂(q̂, q̂̇)) [rad/s²] into ``v`` (compiled).
+
+    Parameters
+    ----------
+    zhat : ndarray, shape (3n,)
+        Estimate (q̂ [rad], q̂̇ [rad/s], f̂ [rad/s²]) of joint j in zhat[3j:3j+3].
+    u : ndarray, shape (n,)
+        Command as applied [N·m].
+    p : ndarray
+        The design vector (see the module docstring), p[0] = CODE.
+    v : ndarray, shape (n,)
+        Output: v [rad/s²].
+    """
     n, _, nominal, _ = _parts(p)
     q_hat = np.empty(n)
     v_hat = np.empty(n)

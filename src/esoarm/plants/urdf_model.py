@@ -60,6 +60,11 @@ class UrdfError(ValueError):
 def import_pinocchio() -> Any:
     """Import Pinocchio, or fail with one line naming the extra to install.
 
+    Returns
+    -------
+    module
+        The ``pinocchio`` module.
+
     Raises
     ------
     UrdfError
@@ -73,7 +78,23 @@ def import_pinocchio() -> Any:
 
 
 def builtin_robot(name: str) -> Path:
-    """Path of a URDF shipped with esoarm (``two-link``, ``lever-arm``)."""
+    """Path of a URDF shipped with esoarm (``two-link``, ``lever-arm``).
+
+    Parameters
+    ----------
+    name : str
+        The robot's name, the file name without ``.urdf``.
+
+    Returns
+    -------
+    Path
+        ``esoarm/scenarios/robots/<name>.urdf`` (not checked to exist).
+
+    Examples
+    --------
+    >>> builtin_robot("two-link").name
+    'two-link.urdf'
+    """
     path = resources.files("esoarm") / "scenarios" / "robots" / f"{name}.urdf"
     return Path(str(path))
 
@@ -149,13 +170,30 @@ class ArmModel:
         return len(self.joint_names)
 
     def data(self, which: str = "nominal") -> Any:
-        """Pinocchio workspace (``pinocchio.Data``) of the nominal or true model, reused."""
+        """Pinocchio workspace (``pinocchio.Data``) of the nominal or true model, reused.
+
+        Parameters
+        ----------
+        which : {"nominal", "true"}
+            The model.
+
+        Returns
+        -------
+        pinocchio.Data
+            Created on first use, then the same object.
+        """
         if which not in self._data:
             self._data[which] = getattr(self, which).createData()
         return self._data[which]
 
     def workspace(self) -> np.ndarray:
-        """Scratch (8, n) array of the twin's RK4 stages (reused)."""
+        """Scratch (8, n) array of the twin's RK4 stages (reused).
+
+        Returns
+        -------
+        ndarray, shape (8, n)
+            The same array on every call (see :func:`esoarm.plants.urdf_twin.rk4_stage`).
+        """
         if "rk4" not in self._data:
             self._data["rk4"] = np.zeros((8, self.n_joints))
         return self._data["rk4"]  # type: ignore[no-any-return]
@@ -166,7 +204,19 @@ class ArmModel:
         return import_pinocchio().aba
 
     def configuration(self, q: np.ndarray) -> np.ndarray:
-        """Pinocchio configuration vector of the joint angles q (cos/sin for continuous)."""
+        """Pinocchio configuration vector of the joint angles q (cos/sin for continuous).
+
+        Parameters
+        ----------
+        q : ndarray, shape (n,)
+            Joint positions [rad or m].
+
+        Returns
+        -------
+        ndarray
+            Pinocchio's q (nq values): q itself without continuous joints, else
+            (cos qi, sin qi) in place of each continuous qi.
+        """
         if not self.has_continuous:
             return q
         parts: list[float] = []
@@ -183,6 +233,16 @@ class ArmModel:
 
         The last evaluation is kept: the controller and the observers' input
         ask for M̂ at the same estimate q̂ in every sample.
+
+        Parameters
+        ----------
+        q : ndarray, shape (n,)
+            Joint positions [rad or m].
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+            M̂(q) [kg·m² (revolute), kg (prismatic)], read-only.
         """
         key = np.asarray(q, dtype=float).tobytes()
         cached = self._data.get("mass")
@@ -199,13 +259,37 @@ class ArmModel:
         return m
 
     def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Nominal n̂(q, q̇) = Ĉ(q, q̇) q̇ + ĝ(q) [N·m] (RNEA with q̈ = 0)."""
+        """Nominal n̂(q, q̇) = Ĉ(q, q̇) q̇ + ĝ(q) [N·m] (RNEA with q̈ = 0).
+
+        Parameters
+        ----------
+        q : ndarray, shape (n,)
+            Joint positions [rad or m].
+        v : ndarray, shape (n,)
+            Joint rates [rad/s or m/s].
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            n̂ [N·m or N], the torque that holds q̈ = 0 (M̂ q̈ + n̂ = τ).
+        """
         pin = import_pinocchio()
         return np.array(pin.nonLinearEffects(self.nominal, self.data(),
                                              self.configuration(q), v))
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
-        """Nominal gravity torque ĝ(q) [N·m]."""
+        """Nominal gravity torque ĝ(q) [N·m].
+
+        Parameters
+        ----------
+        q : ndarray, shape (n,)
+            Joint positions [rad or m].
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            ĝ(q) [N·m or N], the torque that holds the arm still against gravity.
+        """
         pin = import_pinocchio()
         return np.array(pin.computeGeneralizedGravity(self.nominal, self.data(),
                                                       self.configuration(q)))
@@ -305,6 +389,11 @@ def load_arm(
         Its position [m] in the frame of the last joint.
     source : str, optional
         How to name the file in error messages (default ``file '<path>'``).
+
+    Returns
+    -------
+    ArmModel
+        Nominal and true models, joint names and limits.
 
     Raises
     ------

@@ -44,7 +44,21 @@ _FC, _VS, _B, _DA, _DW = range(5)
 
 
 def pack_params(params: TwinParams, inertia_scale: float) -> np.ndarray:
-    """One float vector of the twin's per-joint parameters, 1/s and the lag T."""
+    """One float vector of the twin's per-joint parameters, 1/s and the lag T.
+
+    Parameters
+    ----------
+    params : TwinParams
+        Friction, disturbance and lag per joint.
+    inertia_scale : float
+        s > 0, the factor on the true kinetic energy.
+
+    Returns
+    -------
+    ndarray, shape (5n + 2,)
+        (Fc [N·m] × n, vs [rad/s] × n, b [N·m·s/rad] × n, amplitude [rad/s²] × n,
+        frequency [rad/s] × n, 1/s [1], T [s]).
+    """
     blocks = [np.asarray(getattr(params, name), dtype=float) for name in (
         "coulomb_friction", "friction_velocity", "viscous_friction",
         "disturbance_amplitude", "disturbance_frequency")]
@@ -53,7 +67,19 @@ def pack_params(params: TwinParams, inertia_scale: float) -> np.ndarray:
 
 @jitable
 def joint_drive(v: np.ndarray, tau: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """ABA input (τ − F(q̇))/s into ``out``: torque less friction, over the scale s."""
+    """ABA input (τ − F(q̇))/s into ``out``: torque less friction, over the scale s.
+
+    Parameters
+    ----------
+    v : ndarray, shape (n,)
+        Joint rates q̇ [rad/s]; friction opposes them.
+    tau : ndarray, shape (n,)
+        Torque acting on each joint [N·m], positive along increasing q.
+    p : ndarray
+        :func:`pack_params` of an arm of n joints (5n + 2 values).
+    out : ndarray, shape (n,)
+        Output: (τ − F(q̇))/s [N·m].
+    """
     n = v.shape[0]
     inv_s = p[5 * n]
     for i in range(n):
@@ -63,7 +89,22 @@ def joint_drive(v: np.ndarray, tau: np.ndarray, p: np.ndarray, out: np.ndarray) 
 
 @jitable
 def add_disturbance(acc: np.ndarray, t: float, p: np.ndarray) -> np.ndarray:
-    """q̈ = ABA output + d(t), d_i = amplitude_i sin(frequency_i t) [rad/s²] (eq. 6)."""
+    """q̈ = ABA output + d(t), d_i = amplitude_i sin(frequency_i t) [rad/s²] (eq. 6).
+
+    Parameters
+    ----------
+    acc : ndarray, shape (n,)
+        Rigid-body acceleration from the ABA [rad/s²].
+    t : float
+        Time [s].
+    p : ndarray
+        :func:`pack_params` of an arm of n joints (5n + 2 values).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        q̈ [rad/s²] (a new array).
+    """
     n = acc.shape[0]
     out = np.empty(n)
     for i in range(n):
@@ -74,7 +115,23 @@ def add_disturbance(acc: np.ndarray, t: float, p: np.ndarray) -> np.ndarray:
 @jitable
 def rk4_begin(q: np.ndarray, v: np.ndarray, tau: np.ndarray, u: np.ndarray, p: np.ndarray,
               w: np.ndarray) -> None:
-    """Load the state (q, q̇, τ) as RK4 stage 0 into the workspace ``w`` (8, n)."""
+    """Load the state (q, q̇, τ) as RK4 stage 0 into the workspace ``w`` (8, n).
+
+    Parameters
+    ----------
+    q : ndarray, shape (n,)
+        Joint angles at the start of the step [rad].
+    v : ndarray, shape (n,)
+        Joint rates at the start of the step [rad/s].
+    tau : ndarray, shape (n,)
+        Actuator lag state at the start of the step [N·m].
+    u : ndarray, shape (n,)
+        Applied input [N·m], held over the step.
+    p : ndarray
+        :func:`pack_params` of an arm of n joints (5n + 2 values).
+    w : ndarray, shape (8, n)
+        Workspace (:meth:`ArmModel.workspace`), written in place.
+    """
     lag = p[p.shape[0] - 1]
     w[0, :] = q
     w[1, :] = v
@@ -92,6 +149,29 @@ def rk4_stage(stage: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, u: np.n
     for it, 4-6 the weighted sums of the stage derivatives.  After stage 3
     rows 0-2 hold the state at t + h (and row 3 its ABA input: the next
     step's stage 0).
+
+    Parameters
+    ----------
+    stage : int
+        The RK4 stage, 0 to 3.
+    q : ndarray, shape (n,)
+        Joint angles at the start of the step [rad].
+    v : ndarray, shape (n,)
+        Joint rates at the start of the step [rad/s].
+    tau : ndarray, shape (n,)
+        Actuator lag state at the start of the step [N·m].
+    u : ndarray, shape (n,)
+        Applied input [N·m], held over the step.
+    t : float
+        The stage's time [s] (t, t + h/2, t + h/2, t + h), for d(t).
+    h : float
+        Step length [s].
+    acc : ndarray, shape (n,)
+        ABA output at the stage state [rad/s²].
+    p : ndarray
+        :func:`pack_params` of an arm of n joints (5n + 2 values).
+    w : ndarray, shape (8, n)
+        Workspace (:meth:`ArmModel.workspace`), written in place.
     """
     n = q.shape[0]
     lag = p[p.shape[0] - 1]
@@ -130,6 +210,17 @@ def compiled(name: str) -> Any:
 
     numba is imported only here, so importing the arm's modules stays light;
     without numba the plain functions run (slowly, the same numbers).
+
+    Parameters
+    ----------
+    name : str
+        A helper of this module: "joint_drive", "add_disturbance", "rk4_begin" or
+        "rk4_stage".
+
+    Returns
+    -------
+    callable
+        The compiled function (the plain one without numba).
     """
     func = _COMPILED.get(name)
     if func is None:
@@ -180,6 +271,21 @@ def twin_acceleration(arm: ArmModel, x: np.ndarray, u: np.ndarray, t: float, tp:
     """True q̈ [rad/s²] at the state x = (q, q̇, τ), time t, input u applied from t, into out.
 
     ``tp`` is :func:`pack_params`; with a lag the torque acting is the state τ.
+
+    Parameters
+    ----------
+    arm : ArmModel
+        The arm (its ``true`` model is stepped).
+    x : ndarray, shape (3n,)
+        State: q [rad] in x[:n], q̇ [rad/s] in x[n:2n], τ [N·m] in x[2n:3n].
+    u : ndarray, shape (n,)
+        Applied input [N·m] (acts directly when T = 0).
+    t : float
+        Time [s].
+    tp : ndarray
+        :func:`pack_params`.
+    out : ndarray, shape (n,)
+        Output: q̈ [rad/s²].
     """
     n = arm.n_joints
     v = x[n:2 * n]
@@ -196,6 +302,23 @@ def twin_advance(arm: ArmModel, x: np.ndarray, u: np.ndarray, t0: float, h: floa
     """Integrate x = (q, q̇, τ) in place over ``nsub`` classical RK4 steps of h [s], u held.
 
     One Pinocchio ABA call and one compiled :func:`rk4_stage` call per stage.
+
+    Parameters
+    ----------
+    arm : ArmModel
+        The arm (its ``true`` model is stepped).
+    x : ndarray, shape (3n,)
+        State (q [rad], q̇ [rad/s], τ [N·m]), updated in place.
+    u : ndarray, shape (n,)
+        Applied input [N·m], held over [t0, t0 + nsub·h).
+    t0 : float
+        Start of the sample [s].
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps (nsub·h = Ts).
+    tp : ndarray
+        :func:`pack_params`.
     """
     n = arm.n_joints
     q, v, tau = x[:n], x[n:2 * n], x[2 * n:3 * n]
@@ -231,7 +354,24 @@ class ArmTwin:
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                      t: float) -> np.ndarray:
-        """True joint acceleration q̈ [rad/s²] at (q, q̇), torque τ [N·m] acting, time t [s]."""
+        """True joint acceleration q̈ [rad/s²] at (q, q̇), torque τ [N·m] acting, time t [s].
+
+        Parameters
+        ----------
+        q : ndarray, shape (n,)
+            Joint angles [rad].
+        v : ndarray, shape (n,)
+            Joint rates [rad/s].
+        tau : ndarray, shape (n,)
+            Torque acting on each joint [N·m] (not lagged further).
+        t : float
+            Time [s], for d(t).
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            q̈ [rad/s²].
+        """
         out = np.empty(len(q))
         x = np.concatenate([q, v, tau])
         tp = self._p.copy()
@@ -240,7 +380,20 @@ class ArmTwin:
         return out
 
     def applied(self, tau: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Torque acting on the arm: the lag state τ when T > 0, else u itself."""
+        """Torque acting on the arm: the lag state τ when T > 0, else u itself.
+
+        Parameters
+        ----------
+        tau : ndarray, shape (n,)
+            Actuator lag state [N·m].
+        u : ndarray, shape (n,)
+            Applied input [N·m].
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            ``tau`` or ``u`` (the same array, not a copy).
+        """
         return tau if self._lag > 0.0 else u
 
     def advance(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, u: np.ndarray,
@@ -249,6 +402,28 @@ class ArmTwin:
 
         Returns the state (q, q̇, τ) at t0 + nsub·h; τ is the lag state (zeros
         without lag).
+
+        Parameters
+        ----------
+        q : ndarray, shape (n,)
+            Joint angles [rad].
+        v : ndarray, shape (n,)
+            Joint rates [rad/s].
+        tau : ndarray, shape (n,)
+            Actuator lag state [N·m].
+        u : ndarray, shape (n,)
+            Applied input [N·m], held.
+        t0 : float
+            Start of the sample [s].
+        h : float
+            RK4 step [s].
+        nsub : int
+            Number of RK4 steps.
+
+        Returns
+        -------
+        (q, v, tau) : (ndarray, ndarray, ndarray)
+            New arrays [rad, rad/s, N·m]; the arguments are not changed.
         """
         n = len(q)
         x = np.concatenate([q, v, tau]).astype(float)
@@ -256,7 +431,20 @@ class ArmTwin:
         return x[:n], x[n:2 * n], x[2 * n:]
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> float:
-        """Mechanical energy s·T(q, q̇) + V(q) of the true arm [J] (no friction, no d)."""
+        """Mechanical energy s·T(q, q̇) + V(q) of the true arm [J] (no friction, no d).
+
+        Parameters
+        ----------
+        q : ndarray, shape (n,)
+            Joint angles [rad].
+        v : ndarray, shape (n,)
+            Joint rates [rad/s].
+
+        Returns
+        -------
+        float
+            Energy [J]; V with Pinocchio's reference (zero at the base frame's height).
+        """
         pin = import_pinocchio()
         cfg = self.arm.configuration(q)
         model, data = self.arm.true, self.arm.data("true")
