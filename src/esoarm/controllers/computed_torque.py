@@ -185,7 +185,29 @@ def initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
 @jitable
 def control_compiled(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
                      p: np.ndarray, u: np.ndarray) -> None:
-    """:func:`control` as the compiled engine runs it: M̂, n̂ by :mod:`esoarm.plants.rigid_body`."""
+    """:func:`control` as the compiled engine runs it: M̂, n̂ by :mod:`esoarm.plants.rigid_body`.
+
+    Parameters
+    ----------
+    c : ndarray
+        The controller's own state (unused).
+    zhat : ndarray, shape (3n,)
+        The estimate ẑ_k: angle [rad], rate [rad/s] and total perturbation [rad/s²] of
+        joint j in ``zhat[3j:3j+3]``.
+    y : ndarray, shape (n,)
+        Measured angle(s) y_k [rad] (unused: the law uses ẑ_k).
+    refs : ndarray, shape (3n, N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    k : int
+        Sample index (column of ``refs``).
+    p : ndarray
+        The design vector; ``p[0]`` is the kind's CODE, the nominal model packed after the
+        per-joint gains.
+    u : ndarray, shape (n,)
+        Output: the raw torque u_k [N·m] per joint, written in place (positive along
+        increasing q; before saturation).
+    """
     n = u.shape[0]
     size = _flc.VECTOR_SIZE
     nominal = p[_UNIT + size * n:_UNIT + size * n + model_size(n)]

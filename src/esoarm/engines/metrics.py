@@ -339,6 +339,19 @@ def joints_metrics(log: np.ndarray, nj: int, rows: int, diverged: bool, out: np.
     (same numbers, bit for bit): each joint's metrics by :func:`log_metrics`, then RMS
     over joints as the root of the mean square (NumPy's summation order), maxima
     the largest, the saturated fraction the mean.  One joint: :func:`log_metrics`.
+
+    Parameters
+    ----------
+    log : ndarray, shape (len(LOG_ROWS)·nj, ≥ rows)
+        An engine log (:data:`LOG_ROWS` per joint).
+    nj : int
+        Number of joints, ≥ 1.
+    rows : int
+        Samples logged (columns 0 … rows−1), ≥ 1.
+    diverged : bool
+        The run left the finite range.
+    out : ndarray, shape (len(METRICS),)
+        Output: the metrics in :data:`METRICS` order and units, written in place.
     """
     if nj == 1:
         log_metrics(log, rows, diverged, out)
