@@ -19,6 +19,7 @@ engine quick to start.
 from __future__ import annotations
 
 import functools
+import pickle
 from collections.abc import Callable
 from typing import TypeVar
 
@@ -151,8 +152,12 @@ def _tolerate_cache_write_errors() -> None:
 
     numba writes its cache beside the sources (or in NUMBA_CACHE_DIR); a full
     disk, a file-size limit or a read-only tree would otherwise end the run
-    with an OSError that has nothing to do with the user's outputs.  The
-    kernel is then simply compiled again next time.
+    with an OSError that has nothing to do with the user's outputs; and a
+    kernel whose compiled form holds a function value numba cannot pickle (a
+    record of first-class dispatch functions compiled after the arm kernels,
+    "cannot pickle '_dynfunc._Closure'") would end it with a TypeError.  The
+    kernel is then simply compiled again next time; nothing is written, since
+    numba pickles an entry before it opens the cache file.
     """
     try:
         from numba.core import caching
@@ -166,7 +171,7 @@ def _tolerate_cache_write_errors() -> None:
     def save_overload(self, sig, data):  # type: ignore[no-untyped-def]
         try:
             original(self, sig, data)
-        except OSError:
+        except (OSError, TypeError, pickle.PicklingError):
             pass  # not cached; compiled again on the next start
 
     save_overload._esoarm_tolerant = True  # type: ignore[attr-defined]

@@ -248,3 +248,25 @@ def test_joints_metrics_is_combine_joints(joints: int) -> None:
         out = np.empty(len(METRICS))
         joints_metrics(log, joints, rows, diverged, out)
         assert [res.metrics[m] for m in METRICS] == list(out)
+
+
+@pytest.mark.parametrize("error", [OSError(28, "No space left on device"),
+                                   TypeError("cannot pickle '_dynfunc._Closure' object")])
+def test_a_kernel_numba_cannot_save_still_runs(error: Exception) -> None:
+    """numba's cache write failing (a full disk; a function value it cannot pickle, as after
+    the arm kernels in one process) leaves the kernel uncached, not the run failed."""
+    from numba.core import caching
+
+    import esoarm.engines.batch  # noqa: F401  (installs the tolerant save)
+
+    class Failing:
+        def _guard_against_spurious_io_errors(self):  # type: ignore[no-untyped-def]
+            import contextlib
+
+            return contextlib.nullcontext()
+
+        def _save_overload(self, sig, data):  # type: ignore[no-untyped-def]
+            raise error
+
+    assert getattr(caching.Cache.save_overload, "_esoarm_tolerant", False)
+    caching.Cache.save_overload(Failing(), (), None)  # no exception
