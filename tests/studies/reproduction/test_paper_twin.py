@@ -225,5 +225,6 @@ def test_residual_table_and_twin_files(tmp_path):
     for text in (html, md):
         assert PUBLISHED in text and "Residuals" in text and f"target {RESIDUAL_TARGET:g}" in text
         assert f"paper twin {total / 12:.3f}" in text
-        one = math.log(reps["paper"].metric("test-2", 0.2, "rms_u") / PAPER_TABLES["test-2"][0.2][1])
+        one = math.log(reps["paper"].metric("test-2", 0.2, "rms_u")
+                       / PAPER_TABLES["test-2"][0.2][1])
         assert f"{one:+.2f}" in text
