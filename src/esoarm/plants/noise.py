@@ -189,7 +189,8 @@ def stationary_covariance(phi: tuple[float, ...] | np.ndarray) -> np.ndarray:
     q = np.zeros_like(f)
     q[0, 0] = 1.0
     out: np.ndarray = solve_discrete_lyapunov(f, q)
-    return 0.5 * (out + out.T)
+    sym: np.ndarray = 0.5 * (out + out.T)
+    return sym
 
 
 def ar_autocovariance(phi: tuple[float, ...] | np.ndarray, lags: int) -> np.ndarray:
@@ -222,7 +223,7 @@ def ar_autocovariance(phi: tuple[float, ...] | np.ndarray, lags: int) -> np.ndar
     m = stationary_covariance(phi)
     for h in range(lags + 1):
         out[h] = m[0, 0]
-        m = f @ m
+        m = np.asarray(f @ m)
     return out
 
 
@@ -253,7 +254,8 @@ def ar_spectrum(phi: tuple[float, ...] | np.ndarray, freq_hz: np.ndarray, ts: fl
     den = np.ones_like(zinv)
     for i, a in enumerate(phi, start=1):
         den = den - a * zinv ** i
-    return np.asarray(2.0 * ts * innovation_var / np.abs(den) ** 2)
+    spectrum: np.ndarray = 2.0 * ts * innovation_var / np.abs(den) ** 2
+    return spectrum
 
 
 def _pole_modulus(phi: tuple[float, ...] | list[float]) -> float:
