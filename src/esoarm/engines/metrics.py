@@ -38,13 +38,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from esoarm._jit import jitable
+from esoarm.plants.noise import NoiseModel, draws
 from esoarm.plants.sensor import noise_sequence
 
 if TYPE_CHECKING:
-    pass
+    from esoarm.contract import Units
 
-__all__ = ["LOG_ROWS", "METRICS", "SERIES_COLUMNS", "MetricsTable", "NoiseCache", "combine_joints",
-           "log_metrics", "series_metrics"]
+__all__ = ["LOG_ROWS", "METRICS", "METRIC_QUANTITY", "SERIES_COLUMNS", "MetricsTable",
+           "NoiseCache", "combine_joints", "log_metrics", "metric_units", "series_metrics"]
 
 #: Rows of the engine log per joint (joint j occupies rows j·len(LOG_ROWS) …).
 LOG_ROWS: tuple[str, ...] = ("theta", "theta_ref", "error", "u", "z1", "z2", "z3", "f_true",
@@ -63,6 +64,37 @@ METRICS: tuple[str, ...] = (
     "rms_du", "saturated_fraction", "samples", "diverged",
 )
 NMETRIC = len(METRICS)
+
+#: The quantity (a field of :class:`esoarm.contract.Units`) each metric is measured in;
+#: "" for a plain number.
+METRIC_QUANTITY: dict[str, str] = {
+    "rms_error": "position", "rms_u": "force", "max_abs_error": "position",
+    "max_abs_u": "force", "rms_f_error": "acceleration", "rms_rate_error": "velocity",
+    "rms_du": "force", "saturated_fraction": "", "samples": "", "diverged": "",
+}
+
+
+def metric_units(units: Units) -> dict[str, str]:
+    """The unit of every metric of :data:`METRICS` for a plant's units ("" for a number).
+
+    Parameters
+    ----------
+    units : Units
+        The plant's units (:func:`esoarm.kinds.units`).
+
+    Returns
+    -------
+    dict of str to str
+        Metric name to unit, e.g. ``rms_error`` to "rad" (rotary) or "m" (prismatic).
+
+    Examples
+    --------
+    >>> from esoarm.contract import PRISMATIC_UNITS
+    >>> metric_units(PRISMATIC_UNITS)["rms_u"]
+    'N'
+    """
+    return {name: getattr(units, q) if q else "" for name, q in METRIC_QUANTITY.items()}
+
 # how :func:`combine_joints` combines each column over the joints (compiled twin: joints_metrics)
 _RMS_COLUMNS = tuple(i for i, name in enumerate(METRICS) if name.startswith("rms_"))
 _MAX_COLUMNS = tuple(i for i, name in enumerate(METRICS)
@@ -447,12 +479,13 @@ class MetricsTable:
 
 
 class NoiseCache:
-    """Standard-normal sequences, drawn once per (seed, N) (the sensor noise of a run)."""
+    """Noise sequences, drawn once per (seed, N, noise model) (the sensor noise of a run)."""
 
     def __init__(self) -> None:
-        self._store: dict[tuple[int, int], np.ndarray] = {}
+        self._store: dict[tuple[Any, ...], np.ndarray] = {}
 
-    def get(self, seed: int, n: int, noise_deg: float) -> tuple[tuple[int, int], np.ndarray]:
+    def get(self, seed: int, n: int, noise_deg: float, model: NoiseModel | None = None,
+            joints: int = 1) -> tuple[tuple[Any, ...], np.ndarray]:
         """(key, sequence) of a seed; runs without noise share one zero sequence.
 
         Parameters
@@ -462,16 +495,29 @@ class NoiseCache:
         n : int
             Length of the sequence (samples · joints).
         noise_deg : float
-            Noise standard deviation [deg]; 0 gives the shared zero sequence.
+            Noise standard deviation [deg]; 0 gives the shared zero sequence (white model).
+        model : NoiseModel, optional
+            The measurement disturbance (:func:`esoarm.plants.noise.noise_model`); None or a
+            white model: the standard-normal draws of
+            :func:`esoarm.plants.sensor.noise_sequence`.
+        joints : int
+            Number of joints (a coloured model has one process per joint).
 
         Returns
         -------
         tuple
-            ``((seed, n), sequence)`` (key ``(-1, n)`` without noise); the sequence is the
-            cached standard-normal draws of
-            :func:`esoarm.plants.sensor.noise_sequence`, not to be modified.
+            ``(key, sequence)`` (key ``(seed, n)``, ``(-1, n)`` without noise, longer for a
+            coloured model); the sequence is cached, not to be modified
+            (:func:`esoarm.plants.noise.draws`).
         """
-        key = (seed, n) if noise_deg > 0 else (-1, n)
-        if key not in self._store:
-            self._store[key] = noise_sequence(seed, n, noise_deg)
+        extra = None if model is None else model.key
+        if extra is None:
+            key: tuple[Any, ...] = (seed, n) if noise_deg > 0 else (-1, n)
+            if key not in self._store:
+                self._store[key] = noise_sequence(seed, n, noise_deg)
+        else:
+            assert model is not None
+            key = (seed, n, joints, *extra)
+            if key not in self._store:
+                self._store[key] = draws(model, seed, n, joints)
         return key, self._store[key]
