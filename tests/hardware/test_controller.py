@@ -26,6 +26,7 @@ VARIANTS = {
     "motor": ["motor.pwm_max=1023", "motor.deadband=0.05", "actuator.delay_samples=1"],
     "coloured": ["sensor.noise_ar=[0.7, 0.1]", "sensor.noise_deg=0.3",
                  "sensor.vibration_deg=0.05", "sensor.vibration_hz=6"],
+    "backlash-pwm": ["rig.backlash_deg=1.5", "actuator.pwm_bits=8"],
 }
 
 
