@@ -29,7 +29,8 @@ clearly lacks, and an output-error inertia grossly off its own.  The encoder
 noise goes into the fitted scenario only when the validation residual is white, or when it
 is coloured sensor noise: then with its AR spectrum as ``sensor.noise_ar``
 (:mod:`esoarm.studies.identification.noise_ar`: Yule-Walker, order by AIC, the AR innovation
-white and uncorrelated with the past input); otherwise the spectrum is reported as model
+white and uncorrelated with the past input, and the validation residual's RMS at most
+:data:`NOISE_CARRY_OVER` times the fit's); otherwise the spectrum is reported as model
 error.
 
 Held at the scenario's values: ``rig.friction_velocity`` (the tanh smoothing
@@ -75,6 +76,9 @@ __all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
 DELAY_KEY = "actuator.delay_samples"
 NOISE_KEY = "sensor.noise_deg"
 NOISE_AR_KEY = "sensor.noise_ar"
+#: Coloured noise is written only when the validation residual's RMS is at most this many
+#: times the fit's (sensor noise does not grow on new data; model error does).
+NOISE_CARRY_OVER = 1.25
 FREE_KEYS = (*PARAMS, DELAY_KEY)
 #: Why the inertia is held by default with a ``[motor]`` table.
 MOTOR_SCALE_NOTE = (
@@ -192,6 +196,10 @@ class IdentResult:
         is coloured sensor noise (:mod:`esoarm.studies.identification.noise_ar`), else None."""
         spec = self.validation.get("noise_spectrum")
         if self.noise_is_sensor() or not spec or not spec["sensor_noise"] or not spec["order"]:
+            return None
+        # sensor noise has the same level on the validation logs as on the fit's: a
+        # validation residual well above the fit's is the model failing to carry over
+        if not self.validation["residual_rms_rad"] <= NOISE_CARRY_OVER * self.residual_rms:
             return None
         return [float(v) for v in spec["noise_ar"]]
 

@@ -77,7 +77,9 @@ def result_text(res: IdentResult) -> str:
         spec = v.get("noise_spectrum")
         if spec:
             what = ("sensor noise, written to the fitted scenario" if res.coloured_noise()
-                    else "sensor noise (white)" if spec["sensor_noise"] and w["white"]
+                    else "sensor noise (white)" if w["white"]
+                    else "model error: the validation residual is well above the fit's"
+                    if spec["sensor_noise"] and spec["order"]
                     else spec["meaning"])
             lines.append(f"residual spectrum: AR({spec['order']}) "
                          f"{[round(c, 4) for c in spec['noise_ar']]} by AIC, innovation "
