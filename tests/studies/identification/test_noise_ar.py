@@ -71,3 +71,37 @@ def test_verdict_is_deterministic() -> None:
     x = _ar((0.6,), 3000, 9)
     u = np.random.default_rng(1).standard_normal(3000)
     assert noise_verdict(x, u).to_dict() == noise_verdict(x, u).to_dict()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("truth_sets, coloured", [
+    ({"sensor.noise_ar": [0.7], "sensor.noise_deg": 0.3}, True),
+    ({"rig.backlash_deg": 2.0}, False),  # model error the rigid model cannot explain
+])
+def test_identify_writes_an_ar_noise_only_when_it_is_one(tmp_path, truth_sets: dict,
+                                                         coloured: bool) -> None:
+    """Never written wrong: a coloured noise, if written, is the truth's (φ within 0.1);
+    the residual of a rig with backlash fitted by the rigid model is never written as noise."""
+    from esoarm.hardware.excite import excite_twin
+    from esoarm.scenario import load_scenario
+    from esoarm.studies.identification.data import read_ident_log
+    from esoarm.studies.identification.excitation import ExcitationPlan
+    from esoarm.studies.identification.identify import FitFailed, identify
+
+    fine = {"sensor.resolution_deg": 0.001, "sensor.seed": 3}
+    truth = load_scenario("test-1", {**fine, **truth_sets})
+    excite_twin(truth, ExcitationPlan(), tmp_path / "ex.csv")
+    nominal = load_scenario("test-1", fine)
+    log = read_ident_log(tmp_path / "ex.csv", nominal.actuator.torque_limit, None)
+    try:
+        res = identify(nominal, [log])
+    except FitFailed as exc:  # refused: nothing written
+        assert exc.result is None or exc.result.coloured_noise() is None or coloured
+        return
+    spec = res.validation["noise_spectrum"]
+    assert spec["order"] >= 0 and len(spec["noise_ar"]) == spec["order"]
+    written = res.fitted_scenario().sensor.noise_ar
+    if coloured:
+        assert not written or written[0] == pytest.approx(0.7, abs=0.1), spec
+    else:
+        assert written == [], spec
