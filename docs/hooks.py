@@ -47,21 +47,33 @@ class DocsError(Exception):
 
 
 def cli_reference_markdown() -> str:
-    """``--help`` of the ``esoarm`` group and of every subcommand, as Markdown."""
+    """``--help`` of the ``esoarm`` group and of every subcommand, as Markdown.
+
+    Groups are descended: ``esoarm log`` is followed by ``esoarm log import`` and every
+    other command of the group, at any depth, each under its own heading.
+    """
     import click
 
     from esoarm.cli import cli
 
     root = click.Context(cli, info_name="esoarm", terminal_width=100, max_content_width=100)
     parts = ["## `esoarm`\n", "```text\n" + cli.get_help(root) + "\n```\n"]
-    for name in cli.list_commands(root):
-        cmd = cli.get_command(root, name)
-        if cmd is None:
-            raise DocsError(f"esoarm CLI: command '{name}' is registered but cannot be loaded")
-        ctx = click.Context(cmd, info_name=name, parent=root, terminal_width=100,
-                            max_content_width=100)
-        parts.append(f"## `esoarm {name}`\n")
-        parts.append("```text\n" + cmd.get_help(ctx) + "\n```\n")
+
+    def descend(group: click.Group, parent: click.Context, path: str) -> None:
+        for name in group.list_commands(parent):
+            cmd = group.get_command(parent, name)
+            if cmd is None:
+                raise DocsError(f"esoarm CLI: command '{path} {name}' is registered but "
+                                "cannot be loaded")
+            ctx = click.Context(cmd, info_name=name, parent=parent, terminal_width=100,
+                                max_content_width=100)
+            full = f"{path} {name}"
+            parts.append(f"## `{full}`\n")
+            parts.append("```text\n" + cmd.get_help(ctx) + "\n```\n")
+            if isinstance(cmd, click.Group):
+                descend(cmd, ctx, full)
+
+    descend(cli, root, "esoarm")
     return "\n".join(parts)
 
 

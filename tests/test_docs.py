@@ -76,24 +76,51 @@ def test_scenario_reference_lists_every_key(site):
         assert unit in text
 
 
-def test_cli_reference_is_the_help_of_every_command(site):
+def _all_commands():
+    """(full name, command) of every command of the CLI, groups descended at any depth."""
     import click
 
     from esoarm.cli import cli
 
-    text = _text(site / "cli" / "index.html")
-    root = click.Context(cli, info_name="esoarm")
-    names = cli.list_commands(root)
-    assert {"reproduce", "simulate", "scenarios", "show"} <= set(names)
-    for name in names:
-        cmd = cli.get_command(root, name)
-        assert f"esoarm {name}" in text
+    out = []
+
+    def walk(group, parent, path):
+        for name in group.list_commands(parent):
+            cmd = group.get_command(parent, name)
+            ctx = click.Context(cmd, info_name=name, parent=parent)
+            out.append((f"{path} {name}", cmd))
+            if isinstance(cmd, click.Group):
+                walk(cmd, ctx, f"{path} {name}")
+
+    walk(cli, click.Context(cli, info_name="esoarm"), "esoarm")
+    return out
+
+
+def _assert_every_command_in(text):
+    commands = _all_commands()
+    names = {full for full, _cmd in commands}
+    assert {"esoarm reproduce", "esoarm simulate", "esoarm log", "esoarm log import"} <= names
+    for full, cmd in commands:
+        assert f"`{full}`" in text or f"{full}\n" in text, full
         first = (cmd.help or "").strip().splitlines()[0]
-        assert first in text, name
+        assert first in text, full
         for param in cmd.params:
             for opt in getattr(param, "opts", []):
                 if opt.startswith("--"):
-                    assert opt in text, (name, opt)
+                    assert opt in text, (full, opt)
+
+
+def test_cli_reference_markdown_descends_into_groups():
+    # `esoarm log import` (a command of the group `esoarm log`) has its own section with
+    # its options (--map, --scale): the reference used to stop at the group's help
+    text = _hooks().cli_reference_markdown()
+    assert "## `esoarm log import`" in text
+    _assert_every_command_in(text)
+
+
+def test_cli_reference_is_the_help_of_every_command(site):
+    text = _text(site / "cli" / "index.html")
+    _assert_every_command_in(text)
 
 
 def test_results_pages_show_computed_numbers(site):

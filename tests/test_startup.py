@@ -101,3 +101,20 @@ def test_reference_metrics_equal_the_compiled_engine() -> None:
     ref = reference_metrics(pts, seeds=[0, 3]).values
     np.testing.assert_array_equal(ref, batch.run_metrics(pts, seeds=[0, 3]).values)
     assert ref[:4, -1].all() and not ref[4:, -1].any()
+
+
+@pytest.mark.slow  # loads (or, on a cold cache, compiles) the metrics kernel
+def test_compiled_sweep_loads_no_scipy_linalg() -> None:
+    """numba's BLAS probe (an import of all of scipy.linalg, ~0.3 s) is kept off a sweep's
+    start-up, and numba's linear algebra still works in the same process afterwards."""
+    code = ("from esoarm.cli import main\n"
+            "try:\n    main(['sweep', 'test-1', '--set', 'duration=0.2', "
+            "'--vary', 'observer.eps=0.05,0.09', '--seeds', '4'])\nexcept SystemExit:\n    pass\n"
+            "assert 'scipy.linalg' not in sys.modules\n"
+            "import numpy as np, numba\n"
+            "from numba.np import arraymath, linalg\n"
+            "assert arraymath._HAVE_BLAS and linalg.ensure_blas.__module__ == 'numba.np.linalg'\n"
+            "solve = numba.njit(lambda a, b: np.linalg.solve(a, b))\n"
+            "assert solve(2.0 * np.eye(2), np.ones(2)).tolist() == [0.5, 0.5]")
+    loaded = _modules_after(code)
+    assert "numba" in loaded and "scipy" in loaded  # scipy's package (7 ms), not its linalg

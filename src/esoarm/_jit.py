@@ -19,7 +19,9 @@ engine quick to start.
 from __future__ import annotations
 
 import functools
+import importlib.util
 import pickle
+import sys
 from collections.abc import Callable
 from typing import TypeVar
 
@@ -120,6 +122,7 @@ def register_all() -> None:
     if not _registered:
         _tolerate_cache_write_errors()
         _inline_physics()
+        _defer_blas_probe()
     _registered = True
     while _pending:
         _register(*_pending.pop(0))
@@ -145,6 +148,38 @@ def _inline_physics() -> None:
     except ImportError:  # pragma: no cover
         return
     llvm.set_option("esoarm", f"-inline-threshold={INLINE_THRESHOLD}")
+
+
+def _defer_blas_probe() -> None:
+    """Keep numba from importing :mod:`scipy.linalg` when it loads a cached kernel.
+
+    The first compile or cache load of a process imports numba's array
+    implementations, whose import probes for BLAS by importing
+    ``scipy.linalg.cython_blas``, i.e. all of :mod:`scipy.linalg` (0.3 s, a
+    quarter of a warm sweep's start-up; measured with ``python -X importtime``).
+    The probe only sets a flag (whether ``np.cov``-like inner products may call
+    ``np.dot``); every linear-algebra function numba compiles imports SciPy
+    itself when it is lowered.  Until its first call, numba's probe is replaced
+    by one that asks only whether SciPy is installed (without importing it)
+    and then puts numba's own back, so the flag is the same and nothing else
+    changes.  The kernels here use no BLAS.
+    """
+    if "numba.np.arraymath" in sys.modules:
+        return  # the probe has run already
+    try:
+        from numba.np import linalg
+    except ImportError:  # pragma: no cover - the reference engine needs no numba
+        return
+    probe = getattr(linalg, "ensure_blas", None)
+    if probe is None:  # pragma: no cover - numba's layout changed: leave it alone
+        return
+
+    def ensure_blas() -> None:
+        linalg.ensure_blas = probe  # once only: numba's own from now on
+        if importlib.util.find_spec("scipy") is None:
+            raise ImportError("scipy 0.16+ is required for linear algebra")
+
+    linalg.ensure_blas = ensure_blas
 
 
 def _tolerate_cache_write_errors() -> None:

@@ -107,3 +107,15 @@ def test_instruction_proxy_does_not_depend_on_the_icount_shift() -> None:
         counts.append(lockstep(scn, chip).cycles)
         chip.close()
     assert counts[0] == counts[1]
+
+
+def test_cascade_eso_on_avr_and_cortex_m4() -> None:
+    """The cascade ESO (observer.kind = "cascade") on both chips: agrees and fits."""
+    data = _pil("test-1", "--target", "avr", "--set", "observer.kind=cascade")
+    assert data["ok"] and data["max_rel_du"] <= 1e-4 and data["steps"] == 1000
+    m4 = _pil("test-1", "--target", "cortex-m4", "--set", "sensor.rate_hz=1000", "--set",
+              "observer.kind=cascade", "--steps", "4000")
+    assert m4["ok"] and m4["max_rel_du"] <= 1e-4
+    exact = _pil("test-1", "--target", "cortex-m4", "--precision", "float64", "--steps", "300",
+                 "--set", "observer.kind=cascade", "--set", "observer.levels=3")
+    assert exact["max_abs_du"] == 0.0

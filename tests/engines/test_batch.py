@@ -41,6 +41,10 @@ CASES = {
     "motor": {"motor.pwm_max": 1023, "motor.deadband": 0.05, "actuator.delay_samples": 1},
     "motor+lag": {"motor.supply_voltage": 6.0, "actuator.lag": 0.02},
     "stiction": {"rig.stiction": 0.15, "rig.stribeck_velocity": 0.05},
+    "ar-noise": {"sensor.noise_ar": [0.7, 0.1], "sensor.noise_deg": 0.3},
+    "vibration": {"sensor.vibration_deg": 0.1, "sensor.vibration_hz": 7.0},
+    "ar+vibration": {"sensor.noise_ar": [0.5], "sensor.vibration_deg": 0.05,
+                     "sensor.vibration_damping": 0.02},
 }
 DISCRETIZATIONS = ("euler", "zoh", "current")
 

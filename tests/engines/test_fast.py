@@ -35,6 +35,8 @@ SETTINGS = {
     "theta0": {"rig.theta0": 0.3},
     "fine-step": {"rig.step": 0.0005, "sensor.rate_hz": 100.0},
     "no-disturbance": {"rig.disturbance.amplitude": 0.0},
+    "ar-noise": {"sensor.noise_ar": [0.7, 0.1], "sensor.noise_deg": 0.3},
+    "vibration": {"sensor.vibration_deg": 0.1, "sensor.vibration_hz": 7.0},
 }
 DISCRETIZATIONS = ("euler", "zoh", "current")
 

@@ -23,6 +23,7 @@ SIMULATED = [
                 "actuator.lag": 0.02, "actuator.delay_samples": 2}),
     ("test-1", {"actuator.torque_limit": 0.3, "duration": 6.0}),  # saturating
     ("test-2", {"rig.stiction": 0.05, "duration": 8.0}),  # Stribeck friction
+    ("test-1", {"sensor.noise_ar": [0.8], "sensor.vibration_deg": 0.05}),  # coloured noise
 ]
 
 

@@ -24,6 +24,8 @@ VARIANTS = {
     "lag-delay": ["actuator.lag=0.03", "actuator.delay_samples=2"],
     "1kHz": ["sensor.rate_hz=1000", "observer.eps=0.02"],
     "motor": ["motor.pwm_max=1023", "motor.deadband=0.05", "actuator.delay_samples=1"],
+    "coloured": ["sensor.noise_ar=[0.7, 0.1]", "sensor.noise_deg=0.3",
+                 "sensor.vibration_deg=0.05", "sensor.vibration_hz=6"],
 }
 
 

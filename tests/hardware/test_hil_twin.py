@@ -107,3 +107,11 @@ def test_needs_a_motor_and_a_whole_number_of_counts():
         PinTwin(load_scenario("test-1"), F_CPU)
     with pytest.raises(ScenarioError, match="resolution_deg"):
         PinTwin(load_scenario("uno-rig", {"sensor.resolution_deg": 0.07}), F_CPU)
+
+
+@pytest.mark.parametrize("over, key", [({"sensor.noise_ar": [0.5]}, "sensor.noise_ar"),
+                                       ({"sensor.vibration_deg": 0.1}, "sensor.vibration_deg")])
+def test_refuses_coloured_noise_in_one_line(over, key):
+    with pytest.raises(ScenarioError, match=f"key '{key}': the hil engine") as err:
+        PinTwin(load_scenario("uno-rig", over), F_CPU)
+    assert "\n" not in str(err.value)

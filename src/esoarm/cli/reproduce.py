@@ -56,7 +56,12 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
         run_reproduction,
         write_outputs,
     )
-    from esoarm.studies.reproduction.twins import NOISE_SCAN, compared_twins, twins_section
+    from esoarm.studies.reproduction.twins import (
+        NOISE_SCAN,
+        compared_twins,
+        twins_section,
+        write_twin_tables,
+    )
 
     out = output_dir(out_dir, "--out")
     overrides = twin_overrides(twin)
@@ -82,7 +87,7 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
             reps = compared_twins({twin: rep}, progress=lambda key: step(f"simulated {key}"))
         except SimulationDiverged as exc:  # nothing written yet: no half-complete results
             raise RunFailure(str(exc)) from None
-        bar.update(task, total=n_runs + len(figure_specs(rep)) + 2)
+        bar.update(task, total=n_runs + len(figure_specs(rep)) + 4)
         section = ("twins", "Two twins: nominal and calibrated to the paper",
                    twins_section(reps))
         # written into a temporary directory, moved into DIR once all is complete: a
@@ -90,6 +95,8 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
         with staged_dir(out) as staging:
             write_outputs(rep, staging, fmt=fmt, progress=lambda what: step(f"wrote {what}"),
                           extra_sections=[section])
+            for path in write_twin_tables(reps, staging):
+                step(f"wrote {path.name}")
     _print(rep, out, fmt, twin)
 
 
@@ -125,5 +132,6 @@ def _print(rep, out: Path, fmt: str, twin: str) -> None:  # type: ignore[no-unty
     console.print(claims)
     n_ok = sum(c.reproduced for c in rep.claims)
     console.print(f"{n_ok} of {len(rep.claims)} claims reproduced. Results in {out}/ "
-                  f"(tables.csv, tables.json, runs/*.csv, fig4-7.{fmt}); the full report: "
+                  "(tables.csv, tables.json; twins.csv and twins.md: both twins against the "
+                  f"paper; runs/*.csv, fig4-7.{fmt}); the full report: "
                   f"{out / 'report.html'}", highlight=False)

@@ -13,12 +13,15 @@ The generated translation unit is the sampled-data loop's steps 2, 3 and 5
 Each kind provides its C once, beside its Python step: the module attribute
 ``C_SOURCE`` names a ``.c`` file in the kind's package (``observers/linear.c``
 beside ``observers/linear.py``) that reads the kind's design vector (without its
-CODE) as ``OBS_P`` / ``CTL_P`` with the Python step's indices.  The generator
-emits the design vectors as constants, the reference trajectory of
-:mod:`esoarm.reference`, the actuator (:file:`actuator.c`) and the step; a kind
-without ``C_SOURCE`` is refused (:class:`CodegenError`).  No heap, no host code:
-``esoarm_controller.h`` / ``esoarm_controller.c`` compile with any C99 compiler
-and ``<math.h>``.
+CODE) as ``OBS_P`` / ``CTL_P`` with the Python step's indices, and defines the
+size of its C state, ``OBS_NZ`` / ``CTL_NC``, as an integer or an expression of
+``OBS_N`` / ``CTL_N``, the Python state's length for the design at hand (the
+cascade ESO: ``2 * OBS_N``, the states of its p levels and their carried
+errors).  The generator emits the design vectors and those lengths as
+constants, the reference trajectory of :mod:`esoarm.reference`, the actuator
+(:file:`actuator.c`) and the step; a kind without ``C_SOURCE`` is refused
+(:class:`CodegenError`).  No heap, no host code: ``esoarm_controller.h`` /
+``esoarm_controller.c`` compile with any C99 compiler and ``<math.h>``.
 
 Precision: ``float64`` is the Python reference's arithmetic (on the host the
 same operations in the same order); ``float32`` evaluates the same expressions
@@ -223,11 +226,27 @@ def _prelude(target: str, precision: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _state_size(text: str, macro: str, kind: str) -> int:
+def _state_size(text: str, macro: str, kind: str, names: dict[str, int]) -> int:
+    """The value of ``#define MACRO expr`` in a kind's C: an integer expression of
+    literals, ``+ - *``, parentheses and the generator's ``names`` (``OBS_N``)."""
+    import ast
+
+    def value(node: ast.AST) -> int:
+        if isinstance(node, ast.Constant) and isinstance(node.value, int):
+            return node.value
+        if isinstance(node, ast.Name) and node.id in names:
+            return names[node.id]
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add | ast.Sub | ast.Mult):
+            a, b = value(node.left), value(node.right)
+            return a + b if isinstance(node.op, ast.Add) else (
+                a - b if isinstance(node.op, ast.Sub) else a * b)
+        raise CodegenError(f"the C of kind '{kind}': {macro} is not an integer expression "
+                           f"of {', '.join(names)}")  # pragma: no cover
+
     for line in text.splitlines():
-        parts = line.split()
+        parts = line.split(None, 2)
         if len(parts) == 3 and parts[0] == "#define" and parts[1] == macro:
-            return int(parts[2])
+            return value(ast.parse(parts[2].split("/*")[0].strip(), mode="eval").body)
     raise CodegenError(f"the C of kind '{kind}' does not define {macro}")  # pragma: no cover
 
 
@@ -285,8 +304,9 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     ctl = kinds.controller.design(scn, plant, ts)
     act = actuator_vector(scn)
     digest = scenario_hash(scn)
-    nz = _state_size(texts["observer"], "OBS_NZ", kinds.observer.KIND)
-    nc = _state_size(texts["controller"], "CTL_NC", kinds.controller.KIND)
+    sizes = {"OBS_N": obs.n_state, "CTL_N": ctl.n_state}
+    nz = _state_size(texts["observer"], "OBS_NZ", kinds.observer.KIND, sizes)
+    nc = _state_size(texts["controller"], "CTL_NC", kinds.controller.KIND, sizes)
     real = "float" if precision == "float32" else "double"
     disc = getattr(scn.observer, "discretization", None)
     summary = (f" * observer: {kinds.observer.KIND}" + (f" ({disc})" if disc else "")
@@ -336,6 +356,7 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
              f"#define REF_TS {_literal(ts)}\n",
              _array("OBS_P", obs.vector[1:]), _array("CTL_P", ctl.vector[1:]),
              _array("ACT_P", act),
+             f"#define OBS_N {obs.n_state}\n#define CTL_N {ctl.n_state}\n",
              f"\n/* ---- plant kind '{kinds.plant.KIND}' ---- */\n", texts["plant"],
              f"\n/* ---- observer kind '{kinds.observer.KIND}' ---- */\n", texts["observer"],
              f"\n/* ---- controller kind '{kinds.controller.KIND}' ---- */\n",

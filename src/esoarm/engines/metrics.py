@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from esoarm._jit import jitable
+from esoarm.plants.noise import NoiseModel, draws
 from esoarm.plants.sensor import noise_sequence
 
 if TYPE_CHECKING:
@@ -447,12 +448,13 @@ class MetricsTable:
 
 
 class NoiseCache:
-    """Standard-normal sequences, drawn once per (seed, N) (the sensor noise of a run)."""
+    """Noise sequences, drawn once per (seed, N, noise model) (the sensor noise of a run)."""
 
     def __init__(self) -> None:
-        self._store: dict[tuple[int, int], np.ndarray] = {}
+        self._store: dict[tuple[Any, ...], np.ndarray] = {}
 
-    def get(self, seed: int, n: int, noise_deg: float) -> tuple[tuple[int, int], np.ndarray]:
+    def get(self, seed: int, n: int, noise_deg: float, model: NoiseModel | None = None,
+            joints: int = 1) -> tuple[tuple[Any, ...], np.ndarray]:
         """(key, sequence) of a seed; runs without noise share one zero sequence.
 
         Parameters
@@ -462,16 +464,29 @@ class NoiseCache:
         n : int
             Length of the sequence (samples · joints).
         noise_deg : float
-            Noise standard deviation [deg]; 0 gives the shared zero sequence.
+            Noise standard deviation [deg]; 0 gives the shared zero sequence (white model).
+        model : NoiseModel, optional
+            The measurement disturbance (:func:`esoarm.plants.noise.noise_model`); None or a
+            white model: the standard-normal draws of
+            :func:`esoarm.plants.sensor.noise_sequence`.
+        joints : int
+            Number of joints (a coloured model has one process per joint).
 
         Returns
         -------
         tuple
-            ``((seed, n), sequence)`` (key ``(-1, n)`` without noise); the sequence is the
-            cached standard-normal draws of
-            :func:`esoarm.plants.sensor.noise_sequence`, not to be modified.
+            ``(key, sequence)`` (key ``(seed, n)``, ``(-1, n)`` without noise, longer for a
+            coloured model); the sequence is cached, not to be modified
+            (:func:`esoarm.plants.noise.draws`).
         """
-        key = (seed, n) if noise_deg > 0 else (-1, n)
-        if key not in self._store:
-            self._store[key] = noise_sequence(seed, n, noise_deg)
+        extra = None if model is None else model.key
+        if extra is None:
+            key: tuple[Any, ...] = (seed, n) if noise_deg > 0 else (-1, n)
+            if key not in self._store:
+                self._store[key] = noise_sequence(seed, n, noise_deg)
+        else:
+            assert model is not None
+            key = (seed, n, joints, *extra)
+            if key not in self._store:
+                self._store[key] = draws(model, seed, n, joints)
         return key, self._store[key]

@@ -8,11 +8,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from esoarm.engines.metrics import NoiseCache
 from esoarm.engines.simulation import prepare
+from esoarm.plants.noise import noise_model
 from esoarm.scenario import Scenario
 
 # point-parameter columns
@@ -97,14 +99,15 @@ def _pack(points: Sequence[Scenario], runs: Sequence[tuple[int, int]],
     refs = np.zeros((len(ref_list), nref, nmax))
     for i, ref in enumerate(ref_list):
         refs[i, : ref.shape[0], : ref.shape[1]] = ref
-    noise_rows: dict[tuple[int, int], int] = {}
+    noise_rows: dict[tuple[Any, ...], int] = {}
     noise_list: list[np.ndarray] = []
     run_point = np.empty(len(runs), dtype=np.int64)
     run_noise = np.empty(len(runs), dtype=np.int64)
     for r, (pi, seed) in enumerate(runs):
         scn = points[pi]
         length = scn.n_samples * int(ipar[pi, _NJ])
-        key, seq = noise_cache.get(seed, length, scn.sensor.noise_deg)
+        key, seq = noise_cache.get(seed, length, scn.sensor.noise_deg, noise_model(scn),
+                                   int(ipar[pi, _NJ]))
         if key not in noise_rows:
             noise_rows[key] = len(noise_list)
             noise_list.append(seq)

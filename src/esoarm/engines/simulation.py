@@ -25,7 +25,7 @@ from esoarm.engines.metrics import METRICS, NROW, SAT, MetricsTable
 from esoarm.engines.sample import Designs, Sampling, Steps, steps_of
 from esoarm.kinds import Kinds, kinds_of
 from esoarm.plants.actuator import actuator_vector, motor_refused
-from esoarm.plants.sensor import noise_sequence
+from esoarm.plants.noise import draws, noise_model, sequence_scale
 from esoarm.reference import reference_rows
 from esoarm.result import SimResult
 from esoarm.scenario import (
@@ -77,9 +77,11 @@ class RunInputs:
     refs : ndarray (3·joints, N)
         θd, θ̇d, θ̈d per joint at t_k [rad, rad/s, rad/s²].
     noise : ndarray (N·joints,)
-        Standard-normal draws n_k (zeros without noise).
+        The noise sequence (:func:`esoarm.plants.noise.draws`): standard-normal draws n_k for
+        white noise (zeros without noise), the disturbance w_k [rad] for coloured noise.
     sigma, q : float
-        Noise std dev and quantization step [rad].
+        Scale of the noise sequence (:func:`esoarm.plants.noise.sequence_scale`: the noise
+        std dev σ [rad] for white noise, 1 for coloured) and quantization step [rad].
     kinds : Kinds
         The scenario's plant, observer and controller kind modules.
     plant : PlantDesign
@@ -186,12 +188,13 @@ def prepare(scn: Scenario, *, draw_noise: bool = True) -> RunInputs:
     plant = kinds.plant.design(scn)
     limits = kinds.plant.joint_limits(scn) if hasattr(kinds.plant, "joint_limits") else None
     refs = reference_rows(scn.reference, t, plant.n_joints, limits)
+    noise = noise_model(scn)
     return RunInputs(
         t=t,
         refs=refs,
-        noise=(noise_sequence(scn.sensor.seed, n * plant.n_joints, scn.sensor.noise_deg)
+        noise=(draws(noise, scn.sensor.seed, n * plant.n_joints, plant.n_joints)
                if draw_noise else np.empty(0)),
-        sigma=math.radians(scn.sensor.noise_deg),
+        sigma=sequence_scale(noise),
         q=math.radians(scn.sensor.resolution_deg),
         kinds=kinds,
         plant=plant,

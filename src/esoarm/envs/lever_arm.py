@@ -61,7 +61,7 @@ from esoarm.engines.sample import (
 )
 from esoarm.engines.simulation import prepare
 from esoarm.plants.actuator import LIMIT
-from esoarm.plants.sensor import noise_sequence
+from esoarm.plants.noise import draws, noise_model
 from esoarm.scenario import Scenario, load_scenario
 
 __all__ = ["ACTION_MODES", "EsoFlcPolicy", "LeverArmEnv"]
@@ -150,7 +150,7 @@ class LeverArmEnv(gym.Env):
         self._seeded_once = True
         self.noise_seed = noise_seed
         self._new_arrays()
-        self._noise = noise_sequence(noise_seed, self.n_steps, self.scenario.sensor.noise_deg)
+        self._noise = draws(noise_model(self.scenario), noise_seed, self.n_steps)
         if self.n_steps:
             sense(self._w, self._x, self._noise, 0, self._sampling)
         start(self._w, self._designs, self._steps)

@@ -11,7 +11,9 @@ and the measurement leaves the device as an encoder count
 
 so that the host's q·count_k is exactly ``quantize(θ + σ n_k, q)`` of
 :mod:`esoarm.plants.sensor`; the noise n_k is drawn on the device side exactly as
-:func:`esoarm.plants.sensor.noise_sequence` (one ``default_rng(seed)`` stream).
+:func:`esoarm.plants.sensor.noise_sequence` (one ``default_rng(seed)`` stream), and a
+coloured noise model (AR encoder noise, arm vibration) exactly as
+:func:`esoarm.plants.noise.draws` (σ n_k is then w_k with σ = 1).
 
 Timing.  ``lockstep``: sample k+1 is integrated and sent when the command
 answering sample k arrives, so a run over the link commands the same u
@@ -41,6 +43,8 @@ from esoarm.hardware import protocol as P
 from esoarm.hardware.device import PtyDevice, TimedFault, due_faults, parse_timed_fault
 from esoarm.kinds import kinds_of
 from esoarm.plants.actuator import motor_of
+from esoarm.plants.noise import NoiseModel, noise_model, sequence_scale
+from esoarm.plants.noise import NoiseStream as ColouredStream
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["FAULT_KINDS", "Emulator", "FaultSpec", "NoiseStream", "Twin", "parse_fault",
@@ -84,31 +88,42 @@ def encoder_counts_per_rev(scn: Scenario) -> int:
 
 
 class NoiseStream:
-    """n_0, n_1, … of ``default_rng(seed).standard_normal`` drawn in blocks.
+    """n_0, n_1, … of the sensor noise drawn in blocks (:class:`esoarm.plants.noise.NoiseStream`).
 
-    The first N values equal :func:`esoarm.plants.sensor.noise_sequence` (seed, N)
-    (tested); the stream continues past N if a host runs longer.
+    White noise: ``default_rng(seed).standard_normal``, whose first N values equal
+    :func:`esoarm.plants.sensor.noise_sequence` (seed, N) (tested); with a coloured model
+    (``model``, :func:`esoarm.plants.noise.noise_model`) the disturbance w_k [rad] of
+    :func:`esoarm.plants.noise.draws`.  The stream continues past N if a host runs longer.
+
+    Parameters
+    ----------
+    seed : int
+        The sensor's seed.
+    noise_deg : float
+        Noise standard deviation [deg] (0 and no model: zeros).
+    block : int
+        Draws per call of the generator.
+    model : NoiseModel, optional
+        The measurement disturbance; default white noise of ``noise_deg``.
     """
 
-    __slots__ = ("_block", "_buf", "_i", "_rng", "_zero")
+    __slots__ = ("_stream",)
 
-    def __init__(self, seed: int, noise_deg: float, block: int = 4096) -> None:
-        self._zero = not noise_deg > 0
-        self._rng = np.random.default_rng(seed)
-        self._block = block
-        self._buf: list[float] = []
-        self._i = 0
+    def __init__(self, seed: int, noise_deg: float, block: int = 4096,
+                 model: NoiseModel | None = None) -> None:
+        if model is None:
+            model = NoiseModel(math.radians(noise_deg), (), 0.0, 1.0, 0.5, 1.0)
+        self._stream = ColouredStream(model, seed, 1, block)
 
     def next(self) -> float:
-        """The next draw (0.0 without noise)."""
-        if self._zero:
-            return 0.0
-        if self._i == len(self._buf):
-            self._buf = self._rng.standard_normal(self._block).tolist()
-            self._i = 0
-        value = self._buf[self._i]
-        self._i += 1
-        return value
+        """The next value (0.0 without noise).
+
+        Returns
+        -------
+        float
+            A standard-normal draw (white model, scaled by σ by the caller) or w_k [rad].
+        """
+        return self._stream.next()
 
 
 class Twin:
@@ -130,7 +145,8 @@ class Twin:
         self.nsub = scn.substeps
         self.delay = scn.actuator.delay_samples
         self.q = math.radians(scn.sensor.resolution_deg)
-        self.sigma = math.radians(scn.sensor.noise_deg)
+        self.noise_model = noise_model(scn)
+        self.sigma = sequence_scale(self.noise_model)
         self.sampling = Sampling(scn.n_samples, self.ts, self.h, self.nsub, self.delay,
                                  self.sigma, self.q)
         self.counts_per_rev = encoder_counts_per_rev(scn)
@@ -141,7 +157,8 @@ class Twin:
         """Back to the initial state θ(0) = theta0, at rest, k = 0."""
         self.k = 0
         self.x = np.array(self.design.x0)
-        self.noise = NoiseStream(self.scn.sensor.seed, self.scn.sensor.noise_deg)
+        self.noise = NoiseStream(self.scn.sensor.seed, self.scn.sensor.noise_deg,
+                                 model=self.noise_model)
         self.work = new_work(self.scn.n_samples, 1, 0, 0)  # the plant half's arrays
         self.work.applied[0] = 0.0
         self.glitch_offset = 0

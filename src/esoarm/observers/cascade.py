@@ -63,13 +63,15 @@ from esoarm.observers.linear import CURRENT, design_observer, observer_warnings
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "MAX_LEVELS", "Params", "advance", "design", "estimate",
-           "initialize", "label", "level_eps", "linear_model", "linearization", "summary",
-           "warnings"]
+__all__ = ["CODE", "C_SOURCE", "JIT", "KIND", "MAX_LEVELS", "Params", "advance", "design",
+           "estimate", "initialize", "label", "level_eps", "linear_model", "linearization",
+           "summary", "warnings"]
 
 KIND = "cascade"
 CODE = 2
 JIT = True
+#: The same step in C99 for ``esoarm codegen`` (:mod:`esoarm.codegen.generate`).
+C_SOURCE = "cascade.c"
 
 #: most levels (the compiled engine's observer vector holds 32 values)
 MAX_LEVELS = 5

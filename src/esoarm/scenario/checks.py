@@ -16,6 +16,7 @@ import numpy as np
 from esoarm import kinds as _kinds
 from esoarm._limits import MAX_SAMPLES
 from esoarm._schema import PER_JOINT_KEYS
+from esoarm.plants.noise import check_noise
 from esoarm.reference import Multisine, PerJoint, QuinticSteps, RangeMoves
 from esoarm.scenario.errors import ScenarioError
 
@@ -59,6 +60,9 @@ def check_consistency(scn: Scenario, source: str,
             "into a whole number of RK4 steps",
         )
     _check_computable(scn, fail)
+    bad_noise = check_noise(scn)
+    if bad_noise is not None:
+        fail(*bad_noise)
     samples = scn.duration * scn.sensor.rate_hz
     if not samples <= MAX_SAMPLES:  # also catches an overflow to inf
         fail("duration", f"{scn.duration:g} s at {scn.sensor.rate_hz:g} Hz is {samples:.3g} "

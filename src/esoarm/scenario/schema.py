@@ -93,7 +93,7 @@ class Rig(_Section):
 
 
 class Sensor(_Section):
-    """Encoder model: sampling, Gaussian noise, quantization."""
+    """Encoder model: sampling, Gaussian noise (white or AR), arm vibration, quantization."""
 
     rate_hz: float = Field(
         50.0, gt=0, description="sample rate 1/Ts", json_schema_extra=_unit("Hz")
@@ -106,6 +106,30 @@ class Sensor(_Section):
         json_schema_extra=_unit("deg"),
     )
     seed: int = Field(0, ge=0, description="seed of numpy.random.default_rng for the noise")
+    noise_ar: list[float] = Field(
+        default_factory=list,
+        description="AR coefficients φ1…φp of the encoder noise, n_k = φ1 n_{k−1} + … + "
+        "φp n_{k−p} + e_k, scaled so its stationary std is noise_deg ([]: white); "
+        "stationary (poles inside |z| < 0.999), at most 20; plausible φ1 = exp(−Ts/τc) for "
+        "a correlation time τc (e.g. [0.6] at 50 Hz: τc = 40 ms, cable drag, a filtered "
+        "magnetic encoder); see docs/noise-model.md",
+        json_schema_extra=_unit("1"),
+    )
+    vibration_deg: float = Field(
+        0.0, ge=0, description="RMS of band-limited arm vibration seen by the encoder (a "
+        "white-noise-driven mode, added to the encoder noise; 0: none); plausible 0 … 0.2 "
+        "for a bolted lever arm (docs/noise-model.md)",
+        json_schema_extra=_unit("deg"),
+    )
+    vibration_hz: float = Field(
+        10.0, gt=0, description="natural frequency f0 of the vibration mode; below rate_hz/2 "
+        "(a faster mode: give its alias)", json_schema_extra=_unit("Hz"),
+    )
+    vibration_damping: float = Field(
+        0.05, gt=0, lt=1, description="damping ratio ζ of the vibration mode; plausible "
+        "0.005 … 0.1 (bolted metal structures, docs/noise-model.md)",
+        json_schema_extra=_unit("1"),
+    )
 
 
 class Actuator(_Section):

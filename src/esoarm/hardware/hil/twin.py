@@ -61,6 +61,13 @@ class PinTwin:
             raise ScenarioError(
                 f"sensor.resolution_deg = {res:g}: must be 360° divided by the encoder's "
                 "counts per revolution (0.15 for 600 pulses/rev decoded x4)")
+        for key, value, off in (("sensor.noise_ar", scn.sensor.noise_ar, []),
+                                ("sensor.vibration_deg", scn.sensor.vibration_deg, 0.0)):
+            if value != off:
+                raise ScenarioError(
+                    f"key '{key}': the hil engine does not model coloured noise or vibration "
+                    "(its encoder pins count the true angle); remove it or use 'esoarm "
+                    "emulate', whose twin applies it")
         self.motor = motor
         self.plant = kinds_of(scn).plant
         self.design = self.plant.design(scn)

@@ -8,6 +8,7 @@ gains one section.
 from __future__ import annotations
 
 import html
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -26,14 +27,22 @@ from esoarm.studies.reproduction.run import (
     run_reproduction,
 )
 
-__all__ = ["GAINS_FREE", "NOISE_SCAN", "Obstacle", "compared_twins", "noise_scan", "obstacles",
-           "twin_rows", "twins_markdown", "twins_section"]
+__all__ = ["GAINS_FREE", "NOISE_SCAN", "RESIDUAL_TARGET", "Obstacle", "compared_twins",
+           "mean_abs_log", "noise_scan", "obstacles", "residual_rows", "twin_rows",
+           "twins_markdown", "twins_section", "write_twin_tables"]
 
 #: Name of the evidence column: the paper twin calibrated with k1, k2 free as well.
 GAINS_FREE = "k1, k2 free"
 #: Encoder noise levels [deg] the paper twin is run again with (everything else as
 #: calibrated): the evidence of what the calibrated noise does to each claim.
 NOISE_SCAN = (0.0, 0.25, 0.5, 1.0, 2.0)
+#: The calibration's target: mean |ln(twin / paper)| over the twelve values (each value
+#: within about 30 % of the paper's: ln 1.3 ≈ 0.26).
+RESIDUAL_TARGET = 0.25
+#: Label of the paper's published (hardware) values in every table: they are theirs.
+PUBLISHED = "paper (hardware, published)"
+#: Columns of ``twins.csv`` before the per-twin ones.
+_CSV_HEAD = ("test", "table", "eps", "metric", "unit", "published")
 _SCANS: dict[tuple[str, ...], dict[float, Reproduction]] = {}
 
 
@@ -152,16 +161,88 @@ def twin_rows(reps: Mapping[str, Reproduction]) -> list[dict[str, Any]]:
 
 
 def _loss(rows: list[dict[str, Any]], name: str) -> float:
-    import math
-
     return sum(math.log(r[f"{name}_ratio"]) ** 2 for r in rows)
+
+
+def mean_abs_log(rows: list[dict[str, Any]], name: str) -> float:
+    """Mean |ln(twin / paper)| of twin ``name`` over the rows of :func:`twin_rows` (0: exact)."""
+    return sum(abs(math.log(r[f"{name}_ratio"])) for r in rows) / len(rows)
+
+
+def residual_rows(reps: Mapping[str, Reproduction]) -> list[dict[str, Any]]:
+    """:func:`twin_rows` with, per twin, ``<name>_ln_ratio`` = ln(twin / paper), for the CSV.
+
+    ``published`` is the paper's hardware value (quoted from its Tables II and III, not
+    computed); ``table`` names the paper's table and ``unit`` the metric's unit.
+    """
+    out = []
+    for row in twin_rows(reps):
+        new = {"test": row["test"], "table": TABLE_NAMES[row["test"]], "eps": row["eps"],
+               "metric": row["metric"], "unit": "rad" if row["metric"] == "rms_error" else "N·m",
+               "published": row["published"]}
+        for name in reps:
+            new[name] = row[name]
+            new[f"{name}_ln_ratio"] = math.log(row[f"{name}_ratio"])
+        out.append(new)
+    return out
+
+
+def write_twin_tables(reps: Mapping[str, Reproduction], out_dir: Any) -> list[Any]:
+    """Write ``twins.csv`` (:func:`residual_rows`) and ``twins.md`` (:func:`twins_markdown`)
+    into ``out_dir``; returns the written paths."""
+    import csv
+    import io
+    from pathlib import Path
+
+    out = Path(out_dir)
+    rows = residual_rows(reps)
+    columns = [*_CSV_HEAD, *(c for n in reps for c in (n, f"{n}_ln_ratio"))]
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
+    paths = [out / "twins.csv", out / "twins.md"]
+    paths[0].write_text(buf.getvalue(), encoding="utf-8")
+    paths[1].write_text("# The twins against the paper's hardware tables\n\n"
+                        + twins_markdown(reps), encoding="utf-8")
+    return paths
+
+
+def _residual_grid(rows: list[dict[str, Any]], name: str) -> tuple[list[str], list[list[str]]]:
+    """(column heads, two rows of ln(twin/paper)): RMS error and RMS control per test, ε."""
+    heads = [f"{TABLE_NAMES[t]} ε {e:g}" for t in PAPER_TABLES for e in EPS_SET]
+    grid = []
+    for metric, label in (("rms_error", "RMS error"), ("rms_u", "RMS control")):
+        cells = [f"{math.log(r[f'{name}_ratio']):+.2f}" for r in rows if r["metric"] == metric]
+        grid.append([label, *cells])
+    return heads, grid
+
+
+def _residual_html(rows: list[dict[str, Any]], names: list[str]) -> str:
+    if "paper" not in names:
+        return ""
+    heads, grid = _residual_grid(rows, "paper")
+    body = "".join("<tr>" + "".join(f"<td>{_e(c)}</td>" for c in r) + "</tr>" for r in grid)
+    means = ", ".join(f"{_e(n)} twin {mean_abs_log(rows, n):.3f}" for n in names)
+    within = sum(abs(math.log(r["paper_ratio"])) <= math.log(1.3) for r in rows)
+    return (f"<h3>Residuals of the calibrated (paper) twin</h3><p>ln(twin / paper) for each "
+            f"of the paper's twelve published values (positive: the twin's value is larger). "
+            f"Mean |ln(twin / paper)|: {means} (target {RESIDUAL_TARGET:g}: each value "
+            f"within about 30 %). {within} of the paper twin's twelve values are within 30 % "
+            f"of the paper's.</p><table><thead><tr><th></th>"
+            + "".join(f"<th>{_e(h)}</th>" for h in heads)
+            + f"</tr></thead><tbody>{body}</tbody></table>")
 
 
 def twins_section(reps: Mapping[str, Reproduction]) -> str:
     """HTML: both tables with ratios, the claims per twin, the calibrated values."""
     names = list(reps)
     rows = twin_rows(reps)
-    parts = ["<p>Each twin runs the paper's experiment set. The ratio is twin / paper; "
+    parts = ["<p>Each twin runs the paper's experiment set. The column "
+             f"<em>{_e(PUBLISHED)}</em> holds the paper's own numbers (its Tables II and III, "
+             "measured on their rig; quoted, not computed); every other column is esoarm's. "
+             "The ratio is twin / paper; "
              "the calibration loss is Σ ln(ratio)² over the twelve values (0 would be a "
              "perfect match; a factor 2 on every value gives 5.8).</p>"]
     for test, table_name in TABLE_NAMES.items():
@@ -174,10 +255,11 @@ def twins_section(reps: Mapping[str, Reproduction]) -> str:
             body += (f"<tr><td>{r['eps']:g}</td><td>{label} [{unit}]</td>"
                      f"<td>{r['published']:.4f}</td>{cells}</tr>")
         parts.append(f"<h3>{_e(table_name)} ({_e(test)})</h3><table><thead><tr><th>ε [s]</th>"
-                     f"<th>metric</th><th>paper</th>{head}</tr></thead><tbody>{body}</tbody>"
-                     "</table>")
+                     f"<th>metric</th><th>{_e(PUBLISHED)}</th>{head}</tr></thead><tbody>{body}"
+                     "</tbody></table>")
     losses = ", ".join(f"{_e(n)} twin {_loss(rows, n):.2f}" for n in names)
     parts.append(f"<p>Calibration loss on these runs: {losses}.</p>")
+    parts.append(_residual_html(rows, names))
     head = "".join(f"<th>{_e(n)} twin</th>" for n in names)
     body = ""
     claims = {n: reps[n].claims for n in names}
@@ -301,9 +383,16 @@ def twins_markdown(reps: Mapping[str, Reproduction]) -> str:
             body.append([f"{r['eps']:g}", label, f"{r['published']:.4f}"]
                         + [f"{r[n]:.4f} ({r[f'{n}_ratio']:.2f})" for n in names])
         out.append(f"**{table_name} — {test}** (twin value and, in brackets, twin / paper)\n\n"
-                   + _md(["ε [s]", "RMS", "paper"] + [f"{n} twin" for n in names], body))
+                   + _md(["ε [s]", "RMS", PUBLISHED] + [f"{n} twin" for n in names], body))
     out.append("Loss Σ ln(twin/paper)² on these runs: "
-               + ", ".join(f"{n} twin {_loss(rows, n):.2f}" for n in names) + ".\n")
+               + ", ".join(f"{n} twin {_loss(rows, n):.2f}" for n in names)
+               + "; mean |ln(twin/paper)|: "
+               + ", ".join(f"{n} twin {mean_abs_log(rows, n):.3f}" for n in names)
+               + f" (target {RESIDUAL_TARGET:g}).\n")
+    if "paper" in names:
+        heads, grid = _residual_grid(rows, "paper")
+        out.append("Residuals ln(twin/paper) of the calibrated (paper) twin:\n\n"
+                   + _md(["", *heads], grid))
     claims = {n: reps[n].claims for n in names}
     body = [[c.source, c.statement] + ["reproduced" if claims[n][i].reproduced
                                        else "**not reproduced**" for n in names]
