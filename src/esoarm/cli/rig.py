@@ -252,7 +252,7 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
         click.echo(json.dumps({"scenario": scn.name, **summary.to_dict(),
                                "wall_clock_s": round(wall, 3)}))
         return
-    _print_summary(scn.name, summary, wall, 1.0 / scn.sensor.rate_hz)
+    _print_summary(scn, summary, wall, 1.0 / scn.sensor.rate_hz)
 
 
 def _stream_notice(line: str) -> None:
@@ -323,11 +323,14 @@ class _status_display:  # noqa: N801 - used like a function
         self._live.stop()
 
 
-def _print_summary(name: str, s, wall: float, ts: float) -> None:  # type: ignore[no-untyped-def]
+def _print_summary(scn, s, wall: float, ts: float) -> None:  # type: ignore[no-untyped-def]
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"{name} on the rig ({_mode_title(s, wall, ts)})")
+    from esoarm.kinds import units
+
+    u = units(scn)
+    table = Table(title=f"{scn.name} on the rig ({_mode_title(s, wall, ts)})")
     table.add_column("metric")
     table.add_column("value", justify="right")
     table.add_column("unit")
@@ -335,10 +338,10 @@ def _print_summary(name: str, s, wall: float, ts: float) -> None:  # type: ignor
     def fmt(v: float, spec: str) -> str:
         return format(v, spec) if math.isfinite(v) else "—"
 
-    table.add_row("RMS tracking error (measured θ)", fmt(s.rms_error, ".5f"), "rad")
-    table.add_row("RMS control", fmt(s.rms_u, ".5f"), "N·m")
-    table.add_row("RMS control step |u_k − u_k−1|", fmt(s.rms_du, ".5f"), "N·m")
-    table.add_row("max |error|", fmt(s.max_abs_error, ".5f"), "rad")
+    table.add_row("RMS tracking error (measured θ)", fmt(s.rms_error, ".5f"), u.position)
+    table.add_row("RMS control", fmt(s.rms_u, ".5f"), u.force)
+    table.add_row("RMS control step |u_k − u_k−1|", fmt(s.rms_du, ".5f"), u.force)
+    table.add_row("max |error|", fmt(s.max_abs_error, ".5f"), u.position)
     if s.onboard:
         table.add_row("controller", f"on the chip (float32, {s.observer_sums} sums)", "")
         table.add_row("samples streamed", "every one" if s.stream_every == 1
@@ -361,11 +364,12 @@ def _print_summary(name: str, s, wall: float, ts: float) -> None:  # type: ignor
 @click.argument("log_file", metavar="LOG.csv")
 @click.option("--scenario", "scenario", default="test-1", show_default=True,
               metavar="NAME|PATH", help="Scenario whose observer (observer.eps [s], "
-              "observer.discretization, plant.inertia [kg·m²]) is replayed.")
+              "observer.discretization, plant.inertia [kg·m²] or an axis's plant.mass [kg]) "
+              "is replayed.")
 @set_option
 @click.option("--out", "out", metavar="FILE.csv",
               help="Write t [s], theta [rad], u [N·m], z1 [rad], z2 [rad/s], z3 [rad/s²] "
-              "(default: CSV on stdout).")
+              "(m, N, m/s, m/s² on a prismatic axis; default: CSV on stdout).")
 @click.option("--plot", "plot", metavar="FILE.png",
               help="Draw the measured angle with the estimates (.png, .pdf or .svg).")
 @bad_input_guard
@@ -375,7 +379,8 @@ def replay(log_file: str, scenario: str, overrides: tuple[str, ...], out: str | 
 
     LOG.csv needs columns t [s, uniform], the measured angle [rad] as y (used
     when present: a simulated series' theta is the true angle) or theta, and u
-    [N·m, applied from that row on]; logs from 'esoarm run' replay directly.
+    [N·m, applied from that row on] (on a prismatic axis: position [m],
+    force [N]); logs from 'esoarm run' replay directly.
     Row k of the output holds the estimate the controller would use at t_k
     (docs/semantics.md, the sampled-data loop); the sample period comes from
     the log.
