@@ -51,6 +51,7 @@ def result_text(res: IdentResult) -> str:
                      "limit, not an optimum, and its interval is clipped to the bounds):")
         for e in pinned:
             lines.append(f"  {e.key} = {_num(e.value)} {e.unit}, the {e.bound} bound"
+                         + (f" ({e.bound_why})" if e.bound_why else "")
                          + (f"; {e.advice}" if e.advice else ""))
     poor = [e for e in res.estimates.values()
             if e.fitted and not e.identifiable and not e.at_bound]
