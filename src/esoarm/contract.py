@@ -39,9 +39,9 @@ if TYPE_CHECKING:
     from esoarm._schema import Section
     from esoarm.scenario import Scenario
 
-__all__ = ["COMPONENTS", "OPTIONAL", "REQUIRED", "REQUIRED_IF_JIT", "ComponentDesign",
-           "ControllerKind", "Kind", "ObserverKind", "ObserverLinearization", "PlantDesign",
-           "PlantKind", "Vector", "read_only"]
+__all__ = ["COMPONENTS", "OPTIONAL", "PRISMATIC_UNITS", "REQUIRED", "REQUIRED_IF_JIT",
+           "ROTARY_UNITS", "ComponentDesign", "ControllerKind", "Kind", "ObserverKind",
+           "ObserverLinearization", "PlantDesign", "PlantKind", "Units", "Vector", "read_only"]
 
 #: A parameter vector as the step functions take it: a NumPy array, or a tuple of
 #: floats (the compiled engine hands vectors over as tuples, which live in registers).
@@ -403,6 +403,51 @@ REQUIRED_IF_JIT: dict[str, tuple[str, ...]] = {
     "controller": (),
 }
 
+@dataclass(frozen=True)
+class Units:
+    """The SI units (and the words) a command prints for a plant's joint quantities.
+
+    Every table, JSON ``"units"`` field, plot label and report line that names the unit of
+    a position, a rate or a drive reads it from here (:func:`esoarm.kinds.units`), so a
+    prismatic axis says m, m/s and N where a rotary joint says rad, rad/s and N·m.
+    """
+
+    #: joint position q (an angle θ on a rotary joint)
+    position: str
+    #: its rate q̇
+    velocity: str
+    #: its acceleration q̈, also the unit of the total perturbation f and of ẑ3
+    acceleration: str
+    #: the drive u: a torque or a force
+    force: str
+    #: the inertia seen by the drive: a moment of inertia or a mass
+    inertia: str
+    #: viscous friction, a rate gain (drive per velocity)
+    damping: str
+    #: a position gain (drive per position), e.g. noise → control
+    stiffness: str
+    #: a compliance (position per drive), e.g. disturbance → error; also the weight's unit
+    compliance: str
+    #: what the position is called in prose ("angle" or "position")
+    position_word: str
+    #: what the drive is called in prose ("torque" or "force")
+    force_word: str
+    #: format of a metric in a table: fixed decimals for radians (the paper's tables), four
+    #: significant digits for metres, whose errors are micrometres
+    number_format: str = ".5f"
+
+
+#: A rotary joint (the lever arm, a revolute URDF joint, a rotary axis): the default.
+ROTARY_UNITS = Units(position="rad", velocity="rad/s", acceleration="rad/s²", force="N·m",
+                     inertia="kg·m²", damping="N·m·s/rad", stiffness="N·m/rad",
+                     compliance="rad/(N·m)", position_word="angle", force_word="torque")
+
+#: A prismatic axis (plant kind ``"axis"`` with ``motion = "prismatic"``).
+PRISMATIC_UNITS = Units(position="m", velocity="m/s", acceleration="m/s²", force="N",
+                        inertia="kg", damping="N·s/m", stiffness="N/m", compliance="m/N",
+                        position_word="position", force_word="force", number_format=".4g")
+
+
 #: Names a kind may define, with their meaning when it does not (its default):
 #:
 #: ``MOTOR`` (plants; default False)
@@ -424,7 +469,10 @@ REQUIRED_IF_JIT: dict[str, tuple[str, ...]] = {
 #:     ``simulate``, used to explain a run that diverged; an "unstable" in a message
 #:     marks an observer that cannot work);
 #: ``linearization(params, ts, b0) -> ObserverLinearization`` (observers; default: not
-#:     modelled, ``analyze`` refuses the kind in one line).
+#:     modelled, ``analyze`` refuses the kind in one line);
+#: ``units_of(params) -> Units`` (plants; default :data:`ROTARY_UNITS`)
+#:     the units every command prints for the plant's position, rate and drive (read
+#:     through :func:`esoarm.kinds.units`).
 OPTIONAL: dict[str, Any] = {
     "FAST": False,
     "MOTOR": False,
@@ -434,4 +482,5 @@ OPTIONAL: dict[str, Any] = {
     "summary": None,
     "warnings": None,
     "linearization": None,
+    "units_of": None,
 }

@@ -39,9 +39,11 @@ from esoarm.contract import (
     OPTIONAL,
     REQUIRED,
     REQUIRED_IF_JIT,
+    ROTARY_UNITS,
     ControllerKind,
     ObserverKind,
     PlantKind,
+    Units,
 )
 from esoarm.controllers import computed_torque, flc, pid
 from esoarm.observers import cascade, linear, nonlinear
@@ -53,7 +55,7 @@ if TYPE_CHECKING:
 __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "check_kind", "hook",
            "kind_labels", "kinds_of", "observer_summary",
            "observer_warnings", "on_change", "register", "registry_stamp",
-           "tagged_union", "unregister"]
+           "tagged_union", "units", "unregister"]
 
 #: Registered kinds per component; the first is the default.  (mypy checks each module
 #: against its component's protocol, :class:`esoarm.contract.PlantKind` etc.)
@@ -267,6 +269,35 @@ def kinds_of(scn: Scenario) -> Kinds:
     """
     return Kinds(by_name(PLANTS, scn.plant.kind), by_name(OBSERVERS, scn.observer.kind),
                  by_name(CONTROLLERS, scn.controller.kind))
+
+
+def units(scn: Scenario | None) -> Units:
+    """The units every command prints for the plant of ``scn`` (its kind's ``units_of``).
+
+    The one place a table, a JSON ``"units"`` field, a plot label or a report line gets
+    the unit of a position, a rate or a drive: m, m/s, N on a prismatic axis; rad, rad/s,
+    N·m on every rotary joint (a kind without ``units_of``, and ``scn`` None).
+
+    Parameters
+    ----------
+    scn : Scenario or None
+        A validated scenario (None: the rotary units).
+
+    Returns
+    -------
+    Units
+        Its units (:class:`esoarm.contract.Units`).
+
+    Examples
+    --------
+    >>> from esoarm.scenario import load_scenario
+    >>> units(load_scenario("emps")).position, units(load_scenario("test-1")).position
+    ('m', 'rad')
+    """
+    if scn is None:
+        return ROTARY_UNITS
+    fn = hook(by_name(PLANTS, scn.plant.kind), "units_of")
+    return ROTARY_UNITS if fn is None else cast(Units, fn(scn.plant))
 
 
 def kind_labels(scn: Scenario) -> tuple[str, str]:

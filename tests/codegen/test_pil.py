@@ -119,3 +119,57 @@ def test_cascade_eso_on_avr_and_cortex_m4() -> None:
     exact = _pil("test-1", "--target", "cortex-m4", "--precision", "float64", "--steps", "300",
                  "--set", "observer.kind=cascade", "--set", "observer.levels=3")
     assert exact["max_abs_du"] == 0.0
+
+
+def test_instruction_proxy_matches_qemus_exec_trace(tmp_path) -> None:
+    """The proxy ticks · 40 / 2^shift against an independent count: QEMU's own trace of every
+    executed instruction (``-singlestep -d exec,nochain``), from esoarm_step's entry to the
+    return into the shell.  The proxy must exceed it by the same few instructions (the call
+    and the second SysTick read: measured 2) at every step, whatever the step's length; the
+    inverted conversion ticks · 2^shift / 40 would be 41 times too large at shift 8.
+    (A tick is 40 ns, an instruction 2^8 ns: the unrounded proxy is within ±0.16.)"""
+    import re
+    import struct
+
+    from esoarm.codegen.avr import symbols
+    from esoarm.codegen.cortex_m4 import CLOCK_HZ, m4_image
+    from esoarm.codegen.generate import generate
+    from esoarm.codegen.toolchain import tool
+
+    scn = load_scenario("test-1", {"observer.kind": "nonlinear"})  # fal: steps of two lengths
+    elf = m4_image(generate(scn, "cortex-m4", "float32"))
+    entry = symbols(elf, "arm-none-eabi-nm")["esoarm_step"] & ~1
+    dis = subprocess.run([tool("arm-none-eabi-objdump"), "-d", str(elf)], capture_output=True,
+                         text=True, check=True).stdout.splitlines()
+    calls = [i for i, line in enumerate(dis) if re.search(r"\sbl\s.*<esoarm_step>", line)]
+    assert len(calls) == 1
+    back = int(dis[calls[0] + 1].split(":")[0], 16)  # the instruction after the call
+    shift, log = 8, tmp_path / "exec.log"
+    proc = subprocess.Popen(
+        [tool("qemu-system-arm"), "-M", "mps2-an386", "-display", "none", "-monitor", "none",
+         "-serial", "stdio", "-icount", f"shift={shift}", "-singlestep", "-d", "exec,nochain",
+         "-D", str(log), "-kernel", str(elf)], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    assert proc.stdin is not None and proc.stdout is not None
+    proxy = []
+    try:
+        for y in (0.0, 0.01, 0.6, -0.6, 0.6, 0.002, -0.3, 0.0):  # in and out of fal's zone
+            proc.stdin.write(struct.pack("<f", y))
+            proc.stdin.flush()
+            (ticks,) = struct.unpack("<I", proc.stdout.read(16)[12:])
+            proxy.append(round(ticks * (1e9 / CLOCK_HZ) / 2 ** shift))  # as the chip
+    finally:
+        proc.kill()
+        proc.wait()
+    pcs = [int(m.group(1), 16) for m in
+           re.finditer(r"Trace \d+: 0x[0-9a-f]+ \[[0-9a-f]+/([0-9a-f]+)/", log.read_text())]
+    traced, i = [], 0
+    while i < len(pcs):
+        if pcs[i] == entry:
+            j = pcs.index(back, i)
+            traced.append(j - i)
+            i = j
+        i += 1
+    assert len(traced) == len(proxy)
+    assert len(set(traced)) > 1  # steps of different lengths
+    extra = {p - t for p, t in zip(proxy, traced, strict=True)}
+    assert len(extra) == 1 and 0 < extra.pop() <= 4, (proxy, traced)

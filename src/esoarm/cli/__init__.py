@@ -139,7 +139,8 @@ def cli() -> None:
 
     Runs the paper's experiments on a built-in digital twin of the rig
     (12 V DC motor, encoder at 50 Hz) and drives real rigs. Angles in rad,
-    torques in N·m, times in s unless a name says otherwise. Exit status: 0
+    torques in N·m, times in s unless a name says otherwise; a prismatic axis
+    (plant.kind = "axis", e.g. the scenario emps) in m and N. Exit status: 0
     success, 1 failure at run time, 2 bad input, 130 interrupted; every
     failure is one line on stderr. The sampled-data loop, the scenario format,
     the output columns and the error rules: docs/semantics.md.

@@ -221,6 +221,9 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
         raise BadInput(f"--max-delay {max_delay}: must be in 0 … 20 samples")
     scn = resolve_scenario(scenario, overrides)
     if scn.plant.kind == "axis":
+        if plot_path is not None:
+            raise BadInput(f"--plot {plot}: the axis fit (plant.kind = \"axis\") draws no "
+                           "figure; its residual and validation are in --json")
         _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_path, as_json)
         return
     lever_only(scn, "identify")
@@ -263,8 +266,11 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
 def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_path,  # type: ignore[no-untyped-def]
                    as_json) -> None:
     """``identify`` for plant.kind = "axis": IDIM-LS, output error beside it (SI units)."""
-    from esoarm.plants.axis import units
-    from esoarm.studies.identification.axis_identify import AxisFitRefused, identify_axis
+    from esoarm.studies.identification.axis_identify import (
+        AxisFitRefused,
+        identify_axis,
+        physical_names,
+    )
     from esoarm.studies.identification.data import read_ident_log
 
     if fix:
@@ -273,6 +279,9 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     limit = scn.actuator.torque_limit
     fit_logs = [read_ident_log(p, limit) for p in logs]
     val_logs = [read_ident_log(p, limit) for p in validate]
+    flat = constant_force_half(fit_logs, bool(val_logs), validate_fraction)
+    if flat is not None:
+        raise RunFailure(flat)
     try:
         res = identify_axis(scn, fit_logs, val_logs, segment, validate_fraction)
     except AxisFitRefused as exc:
@@ -290,15 +299,28 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     if as_json:
         click.echo(json.dumps(res.to_json()))
         return
-    u = units(scn.plant.motion)
-    lines = [f"axis '{scn.name}' ({scn.plant.motion}), IDIM-LS on {', '.join(res.fit_logs)}:"]
+    from esoarm.studies.identification.axis_identify import unit_of
+
+    motion = scn.plant.motion
+    lines = [f"axis '{scn.name}' ({motion}), IDIM-LS on {', '.join(res.fit_logs)}:"]
     oe = res.oe
-    for i, (name, e) in enumerate(res.physical.items()):
-        line = (f"  {name:17s} {e['value']:12.6g} {u[name]:10s} 95 % [{e['ci95'][0]:.6g}, "
-                f"{e['ci95'][1]:.6g}]")
-        if oe is not None and i < len(oe.values):
-            line += f"   output error {oe.values[i]:.6g} ± {oe.ci95_half[i]:.3g}"
+    oe_by_name = ({} if oe is None else
+                  {n: i for i, n in enumerate(physical_names(motion, oe.names))})
+    for name, e in res.physical.items():
+        line = (f"  {name:21s} {e['value']:12.6g} {unit_of(motion, name):10s} 95 % "
+                f"[{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}]")
+        if oe is not None and name in oe_by_name:
+            i = oe_by_name[name]
+            line += (f"   output error {oe.values[i]:.6g}" if res.oe_warning else
+                     f"   output error {oe.values[i]:.6g} ± {oe.ci95_half[i]:.3g}")
         lines.append(line)
+    a = res.asymmetry
+    if a:
+        verdict = "kept" if a["kept"] else "not significant: symmetric model kept"
+        lines.append(f"  viscous friction asymmetry Fv+ − Fv− = {a['difference']:.4g} "
+                     f"{a['unit']} (z = {a['z']:.3g}, {verdict})")
+    if res.oe_warning:
+        lines.append(f"  warning: {res.oe_warning}")
     v = res.validation
     lines.append(f"  relative force error {v['estimation_force_error_percent']:.3g} % "
                  "(estimation)" + (f", {v['cross_test_force_error_percent']:.3g} % (cross-test)"
@@ -310,6 +332,64 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     click.echo("\n".join(lines))
     if out_path is not None:
         click.echo(f"scenario: {out_path}")
+
+
+def constant_force_half(logs: list[Any], validation_given: bool,
+                        validate_fraction: float) -> str | None:
+    """Why an axis cannot be identified from ``logs``: a half with one force per direction.
+
+    IDIM-LS is checked between the two halves of the fitting data.  Where, over a half,
+    the force takes one value while the axis moves forward and one while it moves back
+    (a torque step held for the whole half, as a bare motor's step-response log has),
+    Coulomb friction and the offset reproduce it exactly, with no inertia and no viscous
+    friction: the motion under a constant force satisfies M q̈ + Fv q̇ = const for every
+    (M, Fv) on a line, so the half determines neither.  The fit would compare two
+    arbitrary points of that line; this names the cause instead.
+
+    Parameters
+    ----------
+    logs : list of IdentLog
+        The logs given to fit, before the validation part is taken (as identify does:
+        the last of several logs, or the last ``validate_fraction`` of a single one,
+        unless ``validation_given``).
+    validation_given : bool
+        Validation logs were given (--validate): every log is fitted.
+    validate_fraction : float
+        Share of a single log kept for validation.
+
+    Returns
+    -------
+    str or None
+        A one-line message naming the log, the half and the force levels, or None.
+    """
+    import numpy as np
+
+    fit = logs
+    if not validation_given and validate_fraction > 0:
+        if len(logs) > 1:
+            fit = logs[:-1]
+        else:
+            fit = [logs[0].part(0, int(round(logs[0].n * (1.0 - validate_fraction))))]
+    for half in ("first", "second"):
+        levels: dict[float, set[float]] = {1.0: set(), -1.0: set()}
+        for lg in fit:
+            mid = lg.n // 2
+            part = slice(0, mid) if half == "first" else slice(mid, lg.n)
+            y, u = lg.y[part], lg.u[part]
+            if len(y) < 3:
+                return None
+            direction = np.sign(np.gradient(y))
+            for sign in (1.0, -1.0):
+                levels[sign].update(np.unique(u[direction == sign]).tolist())
+        if any(len(v) > 1 for v in levels.values()):
+            continue
+        shown = ", ".join(f"{next(iter(v)):.6g} moving {'forward' if s > 0 else 'back'}"
+                          for s, v in levels.items() if v)
+        return (f"the {half} half of the fitting data has one force per direction of motion "
+                f"({shown}): inertia and viscous friction are not determined there (under a "
+                "constant force any inertia fits with a matching friction); log a force "
+                "that varies within each half (steps, a multisine: esoarm excite)")
+    return None
 
 
 class _progress:  # noqa: N801 - used like a function

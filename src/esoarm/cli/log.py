@@ -19,7 +19,12 @@ def log() -> None:
 @click.option("--map", "mapping", required=True, metavar="t=VAR,y=VAR,u=VAR",
               help="Which variable of FILE is each esoarm column: t time [s], y measured "
                    "position [rad or m], u applied torque or force [N·m or N]; optional "
-                   "theta_ref (reference), theta, duty. E.g. --map t=t,y=qm,u=vir,theta_ref=qg.")
+                   "theta_ref (reference), theta, duty. E.g. --map t=t,y=qm,u=vir,theta_ref=qg. "
+                   "A column of a .mat matrix: NAME:J (J from 1, MATLAB's NAME(:, J)), e.g. "
+                   "--map t=data:1,y=data:3,u=data:5.")
+@click.option("--rate", "rate_hz", type=float, default=None, metavar="HZ",
+              help="Sample rate [Hz] of a FILE without time stamps (then map no t): "
+                   "t = k / HZ.")
 @click.option("--scale", "scale", default="", metavar="COL=FACTOR,...",
               help="Multiply a column by a number or by a scalar variable of FILE, e.g. "
                    "--scale u=gtau (a drive gain [N/V] turning the logged voltage into a "
@@ -29,7 +34,8 @@ def log() -> None:
 @click.option("--json", "as_json", is_flag=True,
               help="Print rate, jitter, mapping and scales as one JSON object.")
 @bad_input_guard
-def import_(file: str, mapping: str, scale: str, out: str, as_json: bool) -> None:
+def import_(file: str, mapping: str, scale: str, rate_hz: float | None, out: str,
+            as_json: bool) -> None:
     """Turn FILE (MATLAB .mat or CSV) into an esoarm log LOG.csv.
 
     Reports the sample rate and the time-stamp jitter (the largest deviation of
@@ -45,7 +51,7 @@ def import_(file: str, mapping: str, scale: str, out: str, as_json: bool) -> Non
     assert path is not None
     pairs = parse_pairs(mapping, "--map")
     scales = parse_pairs(scale, "--scale")
-    imported = import_log(file, pairs, scales)
+    imported = import_log(file, pairs, scales, rate_hz)
     write_log(imported, path)
     if as_json:
         click.echo(json.dumps({"file": imported.source, "out": str(path), "samples": imported.n,

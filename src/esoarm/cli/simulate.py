@@ -24,14 +24,16 @@ from esoarm.cli._common import (
 @scenario_argument
 @set_option
 @click.option("--out", "out", metavar="FILE.csv",
-              help="Write the time series: t [s], theta (true angle), theta_ref, error [rad], "
-              "u [N·m], z1 [rad], z2 [rad/s], z3, f_true [rad/s²], then y (measured angle "
-              "[rad]) and saturated (0/1). See docs/semantics.md.")
+              help="Write the time series: t [s], theta (true angle or position), theta_ref, "
+              "error [rad], u [N·m], z1 [rad], z2 [rad/s], z3, f_true [rad/s²], then y "
+              "(measured angle [rad]) and saturated (0/1); on a prismatic axis m, N, m/s, "
+              "m/s². See docs/semantics.md.")
 @click.option("--plot", "plot", metavar="FILE.png",
               help="Draw angle, error, control and estimates (.png, .pdf or .svg).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object with rms_error [rad], rms_u [N·m], rms_du [N·m: RMS of "
-              "u_k − u_k−1], max_abs_error [rad], saturated_fraction and the other metrics.")
+              "u_k − u_k−1], max_abs_error [rad], saturated_fraction and the other metrics, "
+              "and \"units\": {metric: unit} (m and N on a prismatic axis).")
 @bad_input_guard
 def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: str | None,
              as_json: bool) -> None:
@@ -39,7 +41,8 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
 
     Follows the sampled-data semantics (docs/semantics.md) with the reference engine
     and prints the metrics: RMS tracking error [rad], RMS control [N·m] and
-    max |error| [rad]. A long run shows its progress on stderr; Ctrl-C stops it
+    max |error| [rad] (m and N on a prismatic axis).
+    A long run shows its progress on stderr; Ctrl-C stops it
     and writes the rows logged so far to --out.
     """
     from esoarm.engines.simulation import SimulationDiverged, SimulationInterrupted
@@ -67,9 +70,10 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
             kept = f"; the {len(exc.result.t)} rows logged are in {out_path}"
         raise RunFailure(f"{exc}{kept}") from None
     from esoarm.engines.diagnosis import saturation_warning
+    from esoarm.kinds import units
 
     saturated = saturation_warning(result.metrics.get("saturated_fraction", float("nan")),
-                                   scn.actuator.torque_limit)
+                                   scn.actuator.torque_limit, units(scn))
     if saturated:
         warn_line(saturated)
     if out_path is not None:
@@ -77,7 +81,12 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
     if plot_path is not None:
         result.plot(plot_path)
     if as_json:
-        click.echo(json.dumps(result.summary()))
+        from esoarm.engines.metrics import metric_units
+        from esoarm.kinds import units
+
+        summary = result.summary()
+        summary["units"] = {k: u for k, u in metric_units(units(scn)).items() if k in summary}
+        click.echo(json.dumps(summary))
         return
     _print_metrics(result)
     for label, path in (("time series", out_path), ("figure", plot_path)):
@@ -89,9 +98,10 @@ def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
     from rich.console import Console
     from rich.table import Table
 
-    from esoarm.kinds import kind_labels
+    from esoarm.kinds import kind_labels, units
 
     s = result.summary()
+    u = units(result.scenario)
     obs_text, ctl_text = kind_labels(result.scenario)
     eps = "" if "eps" not in s else (f"ε = {s['eps']} s, " if isinstance(s["eps"], list)
                                      else f"ε = {s['eps']:g} s, ")
@@ -99,14 +109,16 @@ def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]
     table.add_column("metric")
     table.add_column("value", justify="right")
     table.add_column("unit")
-    table.add_row("RMS tracking error", f"{s['rms_error']:.5f}", "rad")
-    table.add_row("RMS control", f"{s['rms_u']:.5f}", "N·m")
-    table.add_row("RMS control step u_k − u_k−1", f"{s['rms_du']:.5f}", "N·m")
-    table.add_row("max |error|", f"{s['max_abs_error']:.5f}", "rad")
+    fmt = u.number_format
+    table.add_row("RMS tracking error", format(s["rms_error"], fmt), u.position)
+    table.add_row("RMS control", format(s["rms_u"], fmt), u.force)
+    table.add_row("RMS control step u_k − u_k−1", format(s["rms_du"], fmt), u.force)
+    table.add_row("max |error|", format(s["max_abs_error"], fmt), u.position)
     table.add_row("samples", str(s["samples"]), "")
     for joint in s.get("joints", []) if len(s.get("joints", [])) > 1 else []:
-        table.add_row(f"  {joint['name']}: RMS error", f"{joint['rms_error']:.5f}", "rad")
-        table.add_row(f"  {joint['name']}: RMS control", f"{joint['rms_u']:.5f}", "N·m")
+        table.add_row(f"  {joint['name']}: RMS error", format(joint["rms_error"], fmt),
+                      u.position)
+        table.add_row(f"  {joint['name']}: RMS control", format(joint["rms_u"], fmt), u.force)
     Console().print(table)
 
 

@@ -154,13 +154,16 @@ def _fmt(value: Any) -> str:
 @click.option("--out", "out", metavar="FILE.csv",
               help="Write one row per run: the varied keys, seed, rms_error [rad], rms_u [N·m], "
               "max_abs_error [rad], max_abs_u [N·m], rms_f_error [rad/s²], rms_rate_error "
-              "[rad/s], rms_du [N·m], saturated_fraction, samples, diverged.")
+              "[rad/s], rms_du [N·m], saturated_fraction, samples, diverged (on a prismatic "
+              "axis m, N, m/s², m/s).")
 @click.option("--plot", "plot", metavar="FILE.png",
-              help="Draw RMS error [rad] and RMS control [N·m] against the varied key with the "
+              help="Draw RMS error [rad or m] and RMS control [N·m or N] against the varied key "
+              "with the "
               "spread over seeds, or heat maps for two varied keys (.png, .pdf or .svg). "
               "Keeps every row in memory.")
 @click.option("--json", "as_json", is_flag=True,
-              help="Print a JSON summary: runs, seconds, best grid points (seed means).")
+              help="Print a JSON summary: runs, seconds, best grid points (seed means), "
+              "\"units\" of their metrics.")
 @click.option("--engine", "engine", type=click.Choice(["exact", "fast"]), default="exact",
               show_default=True,
               help="exact: bit-identical to `esoarm simulate`. fast: vectorized C kernel built on "
@@ -308,6 +311,9 @@ def _keep_partial(writer: Any, out_path: Path | None) -> str:
 
 def _summary(result: Any, out_path: Path | None, plot_path: Path | None,
              diverged: int) -> dict[str, Any]:
+    from esoarm.engines.metrics import metric_units
+    from esoarm.kinds import units
+
     grid = result.grid
     return {
         "scenario": grid.base.name,
@@ -320,6 +326,7 @@ def _summary(result: Any, out_path: Path | None, plot_path: Path | None,
         "seconds": round(result.seconds, 4),
         "runs_per_second": round(grid.n_runs / result.seconds, 1) if result.seconds else None,
         "best": [_json_safe(row) for row in result.best(5)],
+        "units": metric_units(units(grid.base)),
         "out": str(out_path) if out_path else None,
         "plot": str(plot_path) if plot_path else None,
     }
@@ -343,12 +350,17 @@ def _print_sweep(result: Any, diverged: int) -> None:
                   f"seed{'s' if n_seeds > 1 else ''}")
     for key in grid.keys:
         table.add_column(key)
-    for label in ("RMS error [rad]", "RMS u [N·m]", "max |error| [rad]"):
+    from esoarm.kinds import units
+
+    u = units(grid.base)
+    for label in (f"RMS error [{u.position}]", f"RMS u [{u.force}]",
+                  f"max |error| [{u.position}]"):
         table.add_column(escape(label), justify="right")  # "[rad]" is not rich markup
     for row in result.best(5):
         mark = " (diverged)" if row["diverged"] > 0 else ""
         table.add_row(*(_fmt(row[k]) for k in grid.keys),
-                      *(f"{row[m]:.5f}{mark}" for m in ("rms_error", "rms_u", "max_abs_error")))
+                      *(f"{row[m]:{u.number_format}}{mark}"
+                        for m in ("rms_error", "rms_u", "max_abs_error")))
     Console().print(table)
 
 
@@ -366,19 +378,22 @@ def _print_sweep(result: Any, diverged: int) -> None:
 @click.option("--objective", "objective", default=None, metavar="EXPR",
               help="Expression to minimize over rms_error [rad], rms_u [N·m], max_abs_error "
               "[rad], max_abs_u [N·m], rms_f_error [rad/s²], rms_rate_error [rad/s], rms_du "
-              "[N·m], saturated_fraction and w, evaluated on the means over "
+              "[N·m] (m, N, m/s², m/s on a prismatic axis), saturated_fraction and w, "
+              "evaluated on the means over "
               "seeds and robust samples [default: rms_error + w*rms_u]. A candidate with a "
               "diverged run, or at which EXPR is inf or nan, scores 1e6 (a warning counts the "
               "latter); an EXPR that is finite nowhere (1/0, log(-rms_error)) is bad input.")
 @click.option("--weight", "weight", type=float, default=None, metavar="W",
               help="w in the objective [rad/(N·m)]: the price of 1 N·m of RMS control in "
-              "radians of RMS error [default: 1.0].")
+              "radians of RMS error (on a prismatic axis [m/N]: of 1 N in metres) "
+              "[default: 1.0].")
 @click.option("--seeds", "seeds", type=int, default=3, show_default=True, metavar="K",
               help="Noise seeds 0 … K−1 every candidate is run with.")
 @click.option("--robust", "robust", multiple=True, metavar="KEY=LOW:HIGH",
               help="Average over rig uncertainty: sample KEY uniformly in [LOW, HIGH] "
               "(Latin hypercube, --samples values, seeded), e.g. rig.inertia_scale=0.8:1.2, "
-              "rig.coulomb_friction=0:0.1 [N·m]. Repeatable.")
+              "rig.coulomb_friction=0:0.1 [N·m], plant.mass=90:100 [kg] (prismatic axis). "
+              "Repeatable.")
 @click.option("--samples", "samples", type=int, default=8, show_default=True, metavar="M",
               help="Robust samples (rig variants) per candidate.")
 @click.option("--seed", "seed", type=int, default=0, show_default=True,
@@ -397,7 +412,8 @@ def _print_sweep(result: Any, diverged: int) -> None:
 @click.option("--out", "out", metavar="FILE.csv",
               help="Write every candidate scored: its values, mean metrics, objective.")
 @click.option("--plot", "plot", default="tune-pareto.png", show_default=True, metavar="FILE.png",
-              help="The trade-off figure: RMS error [rad] against RMS control [N·m] of every "
+              help="The trade-off figure: RMS error [rad or m] against RMS control [N·m or N] "
+              "of every "
               "candidate, the Pareto front, the optimum (.png, .pdf or .svg).")
 @click.option("--no-plot", "no_plot", is_flag=True, help="Do not write the figure.")
 @click.option("--json", "as_json", is_flag=True,
@@ -438,8 +454,8 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
         raise BadInput(f"--seed {seed}: must be >= 0")
     w = DEFAULT_WEIGHT if weight is None else weight
     if not (math.isfinite(w) and w >= 0):
-        raise BadInput(f"--weight {weight}: must be a finite number >= 0 [rad/(N·m)] (the price "
-                       "of control effort; a negative one rewards it)")
+        raise BadInput(f"--weight {weight}: must be a finite number >= 0 [rad/(N·m), m/N on a "
+                       "prismatic axis] (the price of control effort; a negative one rewards it)")
     obj = Objective(objective or DEFAULT_OBJECTIVE, w)
     base = load_scenario(scenario, list(overrides))
     bounds = [parse_bound(item, base, "--vary") for item in vary]
@@ -465,8 +481,12 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
 
         header = list(res.evaluations[0]) if res.evaluations else list(res.keys)
         write_rows_atomic(out_path, header, iter([list(r.values()) for r in res.evaluations]))
+    from esoarm.engines.metrics import metric_units
+    from esoarm.kinds import units
+
+    u = units(base)
     if plot_path is not None:
-        _plot_tune(res, base.name, obj.text, w, plot_path)
+        _plot_tune(res, base.name, obj.text, w, plot_path, u)
     if as_json:
         click.echo(json.dumps(_json_safe({
             "scenario": base.name,
@@ -475,6 +495,7 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
             "best": res.best,
             "metrics": res.best_metrics,
             "baseline": res.baseline,
+            "units": {**metric_units(u), "w": u.compliance},
             "seeds": seeds,
             "robust_samples": len(res.robust_samples),
             "generations": res.generations,
@@ -485,13 +506,13 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
             "plot": str(plot_path) if plot_path else None,
         })))
         return
-    _print_tune(res, base.name, obj.text, w)
+    _print_tune(res, base.name, obj.text, w, u)
     for label, path in (("candidates", out_path), ("figure", plot_path)):
         if path is not None:
             click.echo(f"{label}: {path}")
 
 
-def _plot_tune(res: Any, name: str, objective: str, w: float, path: Path) -> None:
+def _plot_tune(res: Any, name: str, objective: str, w: float, path: Path, u: Any) -> None:
     from esoarm.studies.sweeps.plots import figure_pareto
 
     ev = [r for r in res.evaluations if r["diverged_runs"] == 0]
@@ -503,27 +524,30 @@ def _plot_tune(res: Any, name: str, objective: str, w: float, path: Path) -> Non
         marks={f"scenario as given ({own})": (res.baseline["rms_u"],
                                                res.baseline["rms_error"])},
         color=[r[first] for r in ev], color_label=first,
-        title=f"{name}: minimize {objective} (w = {w:g} rad/(N·m))",
-        path=path,
+        title=f"{name}: minimize {objective} (w = {w:g} {u.compliance})",
+        path=path, units=u,
     )
 
 
-def _print_tune(res: Any, name: str, objective: str, w: float) -> None:
+def _print_tune(res: Any, name: str, objective: str, w: float, u: Any) -> None:
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
-    table = Table(title=f"{name}: minimize {objective} (w = {w:g} rad/(N·m)); {res.runs} runs, "
+    table = Table(title=f"{name}: minimize {objective} (w = {w:g} {u.compliance}); "
+                  f"{res.runs} runs, "
                   f"{res.generations} generations, {res.seconds:.1f} s")
     table.add_column("")
     table.add_column("best found", justify="right")
     table.add_column("scenario as given", justify="right")
     for key in res.keys:
         table.add_row(key, _fmt(res.best[key]), _fmt(res.baseline[key]))
-    for metric, label in (("rms_error", "RMS error [rad]"), ("rms_u", "RMS control [N·m]"),
-                          ("max_abs_error", "max |error| [rad]"), ("objective", "objective")):
-        table.add_row(escape(label), f"{res.best_metrics[metric]:.5f}",
-                      f"{res.baseline[metric]:.5f}")
+    for metric, label in (("rms_error", f"RMS error [{u.position}]"),
+                          ("rms_u", f"RMS control [{u.force}]"),
+                          ("max_abs_error", f"max |error| [{u.position}]"),
+                          ("objective", "objective")):
+        table.add_row(escape(label), f"{res.best_metrics[metric]:{u.number_format}}",
+                      f"{res.baseline[metric]:{u.number_format}}")
     Console().print(table)
     if res.robust_samples:
         click.echo(f"averaged over {len(res.robust_samples)} rig variants × seeds")

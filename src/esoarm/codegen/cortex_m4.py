@@ -10,9 +10,12 @@ UART on its standard input and output; per sample the host writes y and reads
 Timing is an **instruction-count proxy**, not cycles: QEMU models no cycle
 counter (the DWT reads 0).  With ``-icount shift=N`` every instruction takes
 2^N ns of virtual time and SysTick counts the 25 MHz processor clock, so the
-ticks of a step give its executed instructions as ticks · 40 / 2^N, to within
-40 / 2^N instructions (N = 8: ±0.16, so the rounded count is exact; the same
-count for N = 8 and 10: checked in the tests).  A Cortex-M4 retires most
+ticks of a step give its executed instructions: n instructions last n·2^N ns,
+i.e. n·2^N / 40 ticks of 40 ns, so n = ticks · 40 / 2^N, to within 40 / 2^N
+instructions (N = 8: ±0.16, so the rounded count is exact).  Checked in the
+tests: the same count for N = 8 and 10, and the count of QEMU's own instruction
+trace (``-singlestep -d exec,nochain``) of the step plus the 2 instructions of
+the call and the SysTick read.  A Cortex-M4 retires most
 instructions in one cycle, but loads, branches, divisions (14 cycles) and
 double-precision library calls take more: real cycles are higher.
 """

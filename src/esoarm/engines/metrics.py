@@ -42,10 +42,10 @@ from esoarm.plants.noise import NoiseModel, draws
 from esoarm.plants.sensor import noise_sequence
 
 if TYPE_CHECKING:
-    pass
+    from esoarm.contract import Units
 
-__all__ = ["LOG_ROWS", "METRICS", "SERIES_COLUMNS", "MetricsTable", "NoiseCache", "combine_joints",
-           "log_metrics", "series_metrics"]
+__all__ = ["LOG_ROWS", "METRICS", "METRIC_QUANTITY", "SERIES_COLUMNS", "MetricsTable",
+           "NoiseCache", "combine_joints", "log_metrics", "metric_units", "series_metrics"]
 
 #: Rows of the engine log per joint (joint j occupies rows j·len(LOG_ROWS) …).
 LOG_ROWS: tuple[str, ...] = ("theta", "theta_ref", "error", "u", "z1", "z2", "z3", "f_true",
@@ -64,6 +64,37 @@ METRICS: tuple[str, ...] = (
     "rms_du", "saturated_fraction", "samples", "diverged",
 )
 NMETRIC = len(METRICS)
+
+#: The quantity (a field of :class:`esoarm.contract.Units`) each metric is measured in;
+#: "" for a plain number.
+METRIC_QUANTITY: dict[str, str] = {
+    "rms_error": "position", "rms_u": "force", "max_abs_error": "position",
+    "max_abs_u": "force", "rms_f_error": "acceleration", "rms_rate_error": "velocity",
+    "rms_du": "force", "saturated_fraction": "", "samples": "", "diverged": "",
+}
+
+
+def metric_units(units: Units) -> dict[str, str]:
+    """The unit of every metric of :data:`METRICS` for a plant's units ("" for a number).
+
+    Parameters
+    ----------
+    units : Units
+        The plant's units (:func:`esoarm.kinds.units`).
+
+    Returns
+    -------
+    dict of str to str
+        Metric name to unit, e.g. ``rms_error`` to "rad" (rotary) or "m" (prismatic).
+
+    Examples
+    --------
+    >>> from esoarm.contract import PRISMATIC_UNITS
+    >>> metric_units(PRISMATIC_UNITS)["rms_u"]
+    'N'
+    """
+    return {name: getattr(units, q) if q else "" for name, q in METRIC_QUANTITY.items()}
+
 # how :func:`combine_joints` combines each column over the joints (compiled twin: joints_metrics)
 _RMS_COLUMNS = tuple(i for i, name in enumerate(METRICS) if name.startswith("rms_"))
 _MAX_COLUMNS = tuple(i for i, name in enumerate(METRICS)

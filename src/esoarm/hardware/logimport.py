@@ -22,6 +22,17 @@ between two stamps larger than (1 + :data:`MAX_JITTER`)·Ts, or smaller than
 (1 − MAX_JITTER)·Ts, is a real gap (or a repeated sample): refused, naming the
 worst one (its row and its time).
 
+A file without time stamps (the Silverbox benchmark's CSV has only its input
+and output voltages) is imported with its sample rate given instead of a ``t``
+column (``rate_hz``): t_k = k/rate.
+
+Source variables
+----------------
+A CSV column by its header name (a trailing empty field on every line, as
+MATLAB's ``writematrix`` of a table leaves, is dropped).  A ``.mat`` variable
+by its name; a column of a 2-D matrix (a Simulink ``data`` array) as
+``NAME:J``, J counted from 1 as in MATLAB's ``data(:, J)``.
+
 Every problem is a :class:`~esoarm.scenario.ScenarioError`: one line naming
 the file and the variable.
 """
@@ -156,6 +167,9 @@ def _read_mat(p: Path, src: str) -> tuple[dict[str, np.ndarray], dict[str, float
             scalars[name] = float(value.ravel()[0])
         elif sum(d > 1 for d in value.shape) == 1:
             vectors[name] = value.astype(float).ravel()
+        elif value.ndim == 2:  # a matrix: its columns as NAME:1 … NAME:n (MATLAB's data(:, j))
+            for j in range(value.shape[1]):
+                vectors[f"{name}:{j + 1}"] = value[:, j].astype(float)
     return vectors, scalars
 
 
@@ -166,10 +180,15 @@ def _read_csv(p: Path, src: str) -> tuple[dict[str, np.ndarray], dict[str, float
             header = [h.strip() for h in next(reader, [])]
             if not any(header):
                 raise ScenarioError(f"{src}: empty file (expected a header line of names)")
+            trailing = len(header) > 1 and header[-1] == ""  # "V1","V2", (a trailing comma)
+            if trailing:
+                header = header[:-1]
             rows = []
             for row in reader:
                 if not row:
                     continue
+                if trailing and len(row) == len(header) + 1 and not row[-1].strip():
+                    row = row[:-1]
                 try:
                     rows.append([float(v) for v in row])
                 except ValueError:
@@ -187,7 +206,8 @@ def _read_csv(p: Path, src: str) -> tuple[dict[str, np.ndarray], dict[str, float
 
 
 def import_log(path: str | Path, mapping: Mapping[str, str],
-               scales: Mapping[str, str | float] | None = None) -> ImportedLog:
+               scales: Mapping[str, str | float] | None = None,
+               rate_hz: float | None = None) -> ImportedLog:
     """Read ``path`` and map, scale and check it into an esoarm log.
 
     Parameters
@@ -202,6 +222,9 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
         the file (EMPS: ``u=gtau``, the drive gain 35.15 N/V that turns the
         logged voltage into a force).  ``t`` may be scaled too (stamps in ms:
         ``t=0.001``).
+    rate_hz : float, optional
+        The sample rate [Hz] of a file without time stamps: then ``t`` is not
+        mapped and t_k = k/rate_hz (jitter 0).
 
     Returns
     -------
@@ -220,7 +243,13 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
         if col not in REQUIRED + OPTIONAL:
             raise ScenarioError(f"map {col}: not an esoarm log column (one of "
                                 f"{', '.join(REQUIRED + OPTIONAL)})")
-    missing = [c for c in REQUIRED if c not in mapping]
+    if rate_hz is not None:
+        if not (math.isfinite(rate_hz) and rate_hz > 0):
+            raise ScenarioError(f"rate {rate_hz:g}: must be a sample rate > 0 [Hz]")
+        if "t" in mapping:
+            raise ScenarioError(f"map t={mapping['t']} and a rate of {rate_hz:g} Hz: give one "
+                                "(the time stamps, or the rate of a file without them)")
+    missing = [c for c in REQUIRED if c not in mapping and not (c == "t" and rate_hz)]
     if missing:
         raise ScenarioError(f"map: give {', '.join(missing)} (t = time [s], y = measured "
                             "position, u = applied force or torque), e.g. --map t=t,y=qm,u=vir")
@@ -234,9 +263,16 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
     columns: dict[str, np.ndarray] = {}
     for col, var in mapping.items():
         if var not in vectors:
+            matrix = sorted(int(k.rsplit(":", 1)[1]) for k in vectors
+                            if k.rsplit(":", 1)[0] == var and ":" in k)
+            if matrix:
+                raise ScenarioError(f"{src}: {var} (for {col}) is a matrix of {len(matrix)} "
+                                    f"columns: name one as {var}:1 … {var}:{matrix[-1]} "
+                                    f"(MATLAB's {var}(:, j))")
             what = "a scalar, not a column" if var in scalars else "no such variable"
+            names = sorted({k.rsplit(":", 1)[0] + (":j" if ":" in k else "") for k in vectors})
             raise ScenarioError(f"{src}: {var} (for {col}): {what}; the file has "
-                                f"{', '.join(sorted(vectors)) or 'no columns'}")
+                                f"{', '.join(names) or 'no columns'}")
         values = vectors[var] * factors.get(col, 1.0)
         bad = ~np.isfinite(values)
         if bad.any():
@@ -248,10 +284,18 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
     if len(set(lengths.values())) > 1:
         raise ScenarioError(f"{src}: the mapped variables differ in length ("
                             + ", ".join(f"{mapping[c]} {n}" for c, n in lengths.items()) + ")")
-    t = columns["t"]
-    ts, jitter, jitter_rms = check_time(t, f"{src}: {mapping['t']} (for t)")
-    rate = _round_rate(t, ts)
-    grid = t[0] + np.arange(len(t)) / rate
+    if rate_hz is not None:
+        n = len(columns["y"])
+        columns = {"t": np.arange(n) / rate_hz, **columns}
+        if n < 2:
+            raise ScenarioError(f"{src}: needs at least 2 samples, has {n}")
+        rate, jitter, jitter_rms = float(rate_hz), 0.0, 0.0
+        grid = columns["t"]
+    else:
+        t = columns["t"]
+        ts, jitter, jitter_rms = check_time(t, f"{src}: {mapping['t']} (for t)")
+        rate = _round_rate(t, ts)
+        grid = t[0] + np.arange(len(t)) / rate
     order = [*REQUIRED, *(c for c in columns if c not in REQUIRED)]
     ordered = {c: grid if c == "t" else columns[c] for c in order}
     return ImportedLog(ordered, rate, jitter, jitter_rms, str(path), dict(mapping),

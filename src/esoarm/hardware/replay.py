@@ -1,7 +1,7 @@
 """Offline ESO over a logged run (``esoarm replay``).
 
 Given a log with ``t`` [s, uniform], ``theta`` [rad, measured] and ``u``
-[N·m, applied from that row on], the observer of the scenario (ε,
+[N·m, applied from that row on] (m and N on a prismatic axis), the observer of the scenario (ε,
 discretization, b0 = 1/I0) is run sample by sample exactly as in the loop
 (the sampled-data loop, step 5): row k holds ẑ_k, the estimate the controller would use at
 t_k, then the observer is updated with (y_k, u_k).  A row with ``theta = nan``
@@ -13,7 +13,7 @@ its own z1, z2, z3 columns.  The sample period is taken from the log.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -35,11 +35,13 @@ class ReplayResult:
     Attributes
     ----------
     t, theta, u : ndarray (N,)
-        From the log [s, rad, N·m].
+        From the log [s, rad, N·m] (m and N on a prismatic axis).
     z : ndarray (N, 3)
-        ẑ_k: angle [rad], rate [rad/s], total perturbation [rad/s²].
+        ẑ_k: angle [rad], rate [rad/s], total perturbation [rad/s²] (m, m/s, m/s²).
     ts : float
         Sample period taken from the log [s].
+    scenario : Scenario or None
+        The scenario replayed (its plant names the units: :func:`esoarm.kinds.units`).
     """
 
     t: np.ndarray
@@ -47,6 +49,7 @@ class ReplayResult:
     u: np.ndarray
     z: np.ndarray
     ts: float
+    scenario: Scenario | None = field(default=None, compare=False)
 
     def table(self) -> np.ndarray:
         """(N, 6) array in :data:`REPLAY_COLUMNS` order."""
@@ -70,7 +73,8 @@ def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, floa
     def pick(header: list[str]) -> list[str]:
         return ["t", "y" if "y" in header else "theta", "u"]
 
-    _, data = read_log_columns(path, pick, "need t [s], theta or y [rad, measured], u [N·m]",
+    _, data = read_log_columns(path, pick, "need t [s], theta or y [rad or m, measured], "
+                               "u [N·m or N]",
                                lost_ok=("theta", "y"))
     t, theta, u = data[:, 0], data[:, 1], data[:, 2]
     return t, theta, u, sample_period(t, path)
@@ -98,7 +102,7 @@ def replay(scn: Scenario, t: np.ndarray, theta: np.ndarray, u: np.ndarray,
         out[k] = zhat[:3]
         uk[0] = u[k]
         obs.advance(z, zhat, y, uk, p)
-    return ReplayResult(t, theta, u, out, ts)
+    return ReplayResult(t, theta, u, out, ts, scn)
 
 
 def plot_replay(result: ReplayResult, path: str | Path) -> None:

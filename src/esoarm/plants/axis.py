@@ -33,7 +33,7 @@ from pydantic import Field
 
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
-from esoarm.contract import PlantDesign, Vector, read_only
+from esoarm.contract import PRISMATIC_UNITS, ROTARY_UNITS, PlantDesign, Units, Vector, read_only
 from esoarm.plants.actuator import back_emf_damping
 from esoarm.plants.elementary import cos, tanh
 
@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 __all__ = ["CODE", "JIT", "KIND", "MOTOR", "Params",
            "acceleration", "advance", "advance_block",
            "axis_acceleration", "axis_rk4_step", "check", "design", "inverse_dynamics",
-           "observer_input", "units"]
+           "observer_input", "units", "units_of"]
 
 KIND = "axis"
 CODE = 2
@@ -113,6 +113,27 @@ def units(motion: str) -> dict[str, str]:
     return {"position": "rad", "velocity": "rad/s", "force": "N·m", "inertia": "kg·m²",
             "viscous_friction": "N·m·s/rad", "coulomb_friction": "N·m", "offset": "N·m",
             "gravity": "N·m"}
+
+
+def units_of(params: Params) -> Units:
+    """The units commands print for this axis: m, m/s, N when prismatic, else rad, N·m.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[plant]`` table.
+
+    Returns
+    -------
+    Units
+        :data:`esoarm.contract.PRISMATIC_UNITS` or :data:`esoarm.contract.ROTARY_UNITS`.
+
+    Examples
+    --------
+    >>> units_of(Params(motion="prismatic")).force
+    'N'
+    """
+    return PRISMATIC_UNITS if params.motion == "prismatic" else ROTARY_UNITS
 
 
 def check(scn: Scenario) -> str | None:

@@ -78,36 +78,37 @@ def plot_run(result: SimResult, path: str | Path | None = None) -> Figure:
         from esoarm.plotting.arms import plot_arm_run
 
         return plot_arm_run(result, path)
+    from esoarm.kinds import kind_labels, units
+
     scn = result.scenario
+    u = units(scn)
     fig = Figure(figsize=(8, 9), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
     eps = getattr(scn.observer, "eps", None)  # an observer kind may have no ε
     color = eps_color(eps) if isinstance(eps, float) else "C0"
     axes[0].plot(result.t, result.theta_ref, **REF_STYLE)
-    axes[0].plot(result.t, result.theta, color=color, label="angle θ")
-    axes[0].set_ylabel("angle [rad]")
+    axes[0].plot(result.t, result.theta, color=color, label=f"{u.position_word} θ")
+    axes[0].set_ylabel(f"{u.position_word} [{u.position}]")
     axes[0].legend(loc="best")
     axes[1].plot(result.t, result.error, color=color, label="θ − θd")
     axes[1].axhline(0.0, color="0.6", linewidth=0.8)
-    axes[1].set_ylabel("tracking error [rad]")
+    axes[1].set_ylabel(f"tracking error [{u.position}]")
     axes[2].plot(result.t, result.u, color=color, label="u")
-    axes[2].set_ylabel("control u [N·m]")
+    axes[2].set_ylabel(f"control u [{u.force}]")
     axes[3].plot(result.t, result.f_true, label="true f", **TRUE_STYLE)
     axes[3].plot(result.t, result.z[:, 2], color=color, label="estimate z3")
-    axes[3].set_ylabel("perturbation [rad/s²]")
+    axes[3].set_ylabel(f"perturbation [{u.acceleration}]")
     axes[3].set_xlabel("time t [s]")
     axes[3].legend(loc="best")
     for ax in axes:
         ax.grid(alpha=0.3)
-    from esoarm.kinds import kind_labels
-
     obs_text, ctl_text = kind_labels(scn)
     eps = getattr(scn.observer, "eps", None)
     fig.suptitle(
         f"{scn.name}: " + (f"ε = {eps:g} s, " if eps is not None else "")
         + (f"{obs_text} ESO" if scn.observer.kind == "linear" else obs_text)
-        + f", {ctl_text}\nRMS error {result.rms_error:.4f} rad, "
-        f"RMS u {result.rms_u:.4f} N·m",
+        + f", {ctl_text}\nRMS error {result.rms_error:.4g} {u.position}, "
+        f"RMS u {result.rms_u:.4g} {u.force}",
         fontsize=10,
     )
     return finish_figure(fig, path)
@@ -298,20 +299,24 @@ def figure_replay(result: Any, path: str | Path | None = None) -> Figure:
     """An offline ESO replay: measured angle with ẑ1, rate ẑ2, perturbation ẑ3 and u.
 
     ``result`` is an :class:`esoarm.hardware.replay.ReplayResult` (arrays
-    ``t``, ``theta``, ``u``, ``z``).
+    ``t``, ``theta``, ``u``, ``z``; its ``scenario`` names the units: m and N on a
+    prismatic axis).
     """
+    from esoarm.kinds import units
+
+    u = units(getattr(result, "scenario", None))
     fig = Figure(figsize=(8, 8), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
     axes[0].plot(result.t, result.theta, ".", ms=2, color="0.4", label="θ measured")
     axes[0].plot(result.t, result.z[:, 0], color="#0072B2", label="ẑ1")
-    axes[0].set_ylabel("angle [rad]")
+    axes[0].set_ylabel(f"{u.position_word} [{u.position}]")
     axes[0].legend(loc="best")
     axes[1].plot(result.t, result.z[:, 1], color="#0072B2")
-    axes[1].set_ylabel("ẑ2 rate [rad/s]")
+    axes[1].set_ylabel(f"ẑ2 rate [{u.velocity}]")
     axes[2].plot(result.t, result.z[:, 2], color="#0072B2")
-    axes[2].set_ylabel("ẑ3 perturbation [rad/s²]")
+    axes[2].set_ylabel(f"ẑ3 perturbation [{u.acceleration}]")
     axes[3].step(result.t, result.u, where="post", color="#D55E00")
-    axes[3].set_ylabel("u [N·m]")
+    axes[3].set_ylabel(f"u [{u.force}]")
     axes[3].set_xlabel("time t [s]")
     for ax in axes:
         ax.grid(True, alpha=0.3)

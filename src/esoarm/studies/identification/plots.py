@@ -52,13 +52,16 @@ def figure_identification(res: IdentResult, path: str | Path | None = None) -> F
         ax_c.axhline(0.0, color="0.3", lw=0.6, zorder=1)
         ax_c.set_title(f"residual autocorrelation (validation): "
                        f"{res.validation['whiteness']['outside']} of {len(lags)} lags outside")
-    ax_y.set_ylabel("θ [rad]")
+    from esoarm.kinds import units
+
+    unit = units(res.scenario).position
+    ax_y.set_ylabel(f"θ [{unit}]")
     low, high = ax_y.get_ylim()  # room above the traces for the legend
     ax_y.set_ylim(low, high + 0.35 * (high - low))
     ax_y.legend(loc="upper left", fontsize=8, ncol=2, framealpha=0.9)
     ax_y.set_title(f"identification of '{res.scenario.name}' "
                    f"(segments of {res.segment_seconds:g} s)")
-    ax_r.set_ylabel("residual y − ŷ [rad]")
+    ax_r.set_ylabel(f"residual y − ŷ [{unit}]")
     ax_r.set_xlabel("t [s]")
     ax_r.legend(loc="upper right", fontsize=8)
     ax_c.set_xlabel("lag [samples]")

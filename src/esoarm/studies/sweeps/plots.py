@@ -5,7 +5,8 @@ state); files are written with :func:`esoarm.plotting.run.save_figure` (PNG, PDF
 or SVG by suffix, atomic).
 
 * :func:`figure_sweep` -- one varied key: RMS tracking error [rad] and RMS
-  control [N·m] against it, the seed mean as a line and the spread over seeds
+  control [N·m] (m and N on a prismatic axis, :func:`esoarm.kinds.units`) against
+  it, the seed mean as a line and the spread over seeds
   (min…max) as a band; two varied keys: a heat map of each (seed mean).
 * :func:`figure_pareto` -- tuning: every evaluated candidate as (RMS control,
   RMS error), the non-dominated ones joined as the Pareto front, the optimum
@@ -22,6 +23,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
+from esoarm.contract import ROTARY_UNITS, Units
+from esoarm.kinds import units as units_of_scenario
 from esoarm.plotting.run import finish_figure
 
 if TYPE_CHECKING:
@@ -29,7 +32,7 @@ if TYPE_CHECKING:
 
 __all__ = ["figure_pareto", "figure_sweep", "pareto_mask"]
 
-_METRICS = (("rms_error", "RMS tracking error [rad]"), ("rms_u", "RMS control [N·m]"))
+_METRICS = (("rms_error", "RMS tracking error", "position"), ("rms_u", "RMS control", "force"))
 _UNITS = {
     "observer.eps": "s", "controller.k1": "1/s", "controller.k2": "1/s²",
     "actuator.lag": "s", "actuator.torque_limit": "N·m", "rig.step": "s", "duration": "s",
@@ -38,12 +41,25 @@ _UNITS = {
     "rig.friction_velocity": "rad/s", "rig.theta0": "rad", "actuator.delay_samples": "samples",
     "rig.disturbance.amplitude": "rad/s²", "rig.disturbance.frequency": "rad/s",
 }
+#: Keys whose unit is the plant's (:class:`esoarm.contract.Units` field): a prismatic axis's
+#: force limit is in N, its friction in N·s/m and N.
+_PLANT_UNITS = {
+    "actuator.torque_limit": "force", "plant.mass": "inertia",
+    "plant.viscous_friction": "damping", "plant.viscous_asymmetry": "damping",
+    "plant.coulomb_friction": "force", "plant.coulomb_asymmetry": "force",
+    "plant.offset": "force", "plant.friction_velocity": "velocity", "plant.q0": "position",
+}
 MAX_KEYS = 2
 
 
-def _label(key: str) -> str:
-    unit = _UNITS.get(key)
+def _label(key: str, units: Units = ROTARY_UNITS) -> str:
+    quantity = _PLANT_UNITS.get(key)
+    unit = getattr(units, quantity) if quantity else _UNITS.get(key)
     return f"{key} [{unit}]" if unit else key
+
+
+def _metric_label(name: str, quantity: str, units: Units) -> str:
+    return f"{name} [{getattr(units, quantity)}]"
 
 
 def figure_sweep(result: SweepResult, path: str | Path | None = None) -> Figure:
@@ -60,10 +76,11 @@ def figure_sweep(result: SweepResult, path: str | Path | None = None) -> Figure:
     n_seeds = max(len(grid.seeds), 1)
     title = f"{grid.base.name}: {grid.n_runs} runs ({n_seeds} seed{'s' if n_seeds > 1 else ''} " \
             "per point)"
+    units = units_of_scenario(grid.base)
     if len(grid.vary) == 1:
-        fig = _curves(result)
+        fig = _curves(result, units)
     else:
-        fig = _heatmaps(result)
+        fig = _heatmaps(result, units)
     fig.suptitle(title)
     return finish_figure(fig, path)
 
@@ -82,7 +99,7 @@ def _stats(result: SweepResult, metric: str) -> tuple[np.ndarray, np.ndarray, np
     return mean, lo, hi
 
 
-def _curves(result: SweepResult) -> Figure:
+def _curves(result: SweepResult, units: Units) -> Figure:
     spec = result.grid.vary[0]
     fig = Figure(figsize=(7.0, 5.6), layout="constrained")
     axes = fig.subplots(2, 1, sharex=True)
@@ -90,7 +107,8 @@ def _curves(result: SweepResult) -> Figure:
     x = np.array(spec.values, dtype=float) if numeric else np.arange(len(spec.values))
     diverged = result.point_metric("diverged")
     bad = np.nan_to_num(diverged, nan=0.0).max(axis=1) > 0
-    for ax, (metric, label) in zip(axes, _METRICS, strict=True):
+    for ax, (metric, name, quantity) in zip(axes, _METRICS, strict=True):
+        label = _metric_label(name, quantity, units)
         mean, lo, hi = _stats(result, metric)
         if len(result.grid.seeds) > 1:
             ax.fill_between(x, lo, hi, color="#56B4E9", alpha=0.35, linewidth=0,
@@ -110,15 +128,16 @@ def _curves(result: SweepResult) -> Figure:
         axes[-1].set_xscale("log")
     if not numeric:
         axes[-1].set_xticks(x, [str(v) for v in spec.values])
-    axes[-1].set_xlabel(_label(spec.key))
+    axes[-1].set_xlabel(_label(spec.key, units))
     return fig
 
 
-def _heatmaps(result: SweepResult) -> Figure:
+def _heatmaps(result: SweepResult, units: Units) -> Figure:
     sa, sb = result.grid.vary
     fig = Figure(figsize=(11.0, 4.6), layout="constrained")
     axes = fig.subplots(1, 2)
-    for ax, (metric, label) in zip(axes, _METRICS, strict=True):
+    for ax, (metric, name, quantity) in zip(axes, _METRICS, strict=True):
+        label = _metric_label(name, quantity, units)
         mean, _, _ = _stats(result, metric)
         img = mean.reshape(len(sa.values), len(sb.values))
         mesh = ax.imshow(img, origin="lower", aspect="auto", cmap="viridis",
@@ -127,8 +146,8 @@ def _heatmaps(result: SweepResult) -> Figure:
         for spec, setter, most in ((sa, ax.set_yticks, 16), (sb, ax.set_xticks, 10)):
             idx = _tick_index(len(spec.values), most)
             setter(idx, [_fmt(spec.values[i]) for i in idx])
-        ax.set_ylabel(_label(sa.key))
-        ax.set_xlabel(_label(sb.key))
+        ax.set_ylabel(_label(sa.key, units))
+        ax.set_xlabel(_label(sb.key, units))
         best = np.nanargmin(img) if np.isfinite(img).any() else None
         # the marker is named in the title: a legend inside would cover cells
         ax.set_title(f"{label} (★ lowest)" if best is not None else label)
@@ -180,6 +199,7 @@ def figure_pareto(
     color_label: str = "",
     title: str = "",
     path: str | Path | None = None,
+    units: Units = ROTARY_UNITS,
 ) -> Figure:
     """Trade-off of tracking error against control effort (tuning).
 
@@ -194,6 +214,19 @@ def figure_pareto(
         Further labelled points (e.g. the paper's setting).
     color : sequence of float, optional
         A value per candidate to colour the points by (e.g. ε [s]).
+    color_label : str, optional
+        The colour bar's label.
+    title : str, optional
+        The axes' title.
+    path : str or Path, optional
+        Save the figure there (.png, .pdf or .svg).
+    units : Units, optional
+        The plant's units for the axis labels (default rotary: N·m and rad).
+
+    Returns
+    -------
+    Figure
+        The figure.
     """
     u = np.asarray(rms_u, dtype=float)
     e = np.asarray(rms_error, dtype=float)
@@ -224,8 +257,8 @@ def figure_pareto(
             axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
             axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
             axis.set_minor_formatter(NullFormatter())
-    ax.set_xlabel("RMS control [N·m]")
-    ax.set_ylabel("RMS tracking error [rad]")
+    ax.set_xlabel(f"RMS control [{units.force}]")
+    ax.set_ylabel(f"RMS tracking error [{units.position}]")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
     if title:
