@@ -36,7 +36,14 @@ from esoarm._jit import jitable, jitable_as
 from esoarm._schema import Section, unit
 from esoarm.contract import ComponentDesign, PlantDesign, read_only
 from esoarm.controllers import flc as _flc
-from esoarm.plants.rigid_body import mass_and_bias, model_size, workspace_size
+from esoarm.plants.rigid_body import (
+    bias_offset,
+    dynamics_terms,
+    mass_offset,
+    model_size,
+    scratch_offset,
+    workspace_size,
+)
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
@@ -211,24 +218,22 @@ def control_compiled(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.nd
     n = u.shape[0]
     size = _flc.VECTOR_SIZE
     nominal = p[_UNIT + size * n:_UNIT + size * n + model_size(n)]
-    alpha = np.empty(n)
-    q_hat = np.empty(n)
-    v_hat = np.empty(n)
+    ws = np.empty(workspace_size(n))  # the one allocation: α in the caller's part
+    alpha = scratch_offset(n)
     for j in range(n):
         i = 3 * j
-        alpha[j] = tracking_acceleration(zhat[i], zhat[i + 1], refs[i, k], refs[i + 1, k],
-                                         refs[i + 2, k], p[_UNIT + size * j:_UNIT + size * (j + 1)])
-        q_hat[j] = zhat[i]
-        v_hat[j] = zhat[i + 1]
-    m_hat = np.empty((n, n))
-    n_hat = np.empty(n)
-    mass_and_bias(nominal, q_hat, v_hat, np.empty(workspace_size(n)), m_hat, n_hat)
+        ws[alpha + j] = tracking_acceleration(zhat[i], zhat[i + 1], refs[i, k], refs[i + 1, k],
+                                              refs[i + 2, k],
+                                              p[_UNIT + size * j:_UNIT + size * (j + 1)])
+    dynamics_terms(nominal, zhat[0:3 * n:3], zhat[1:3 * n:3], ws)  # M̂ and n̂ at (q̂, q̂̇)
+    mm, nb = mass_offset(n), bias_offset(n)
     model = p[_COMP] != 0.0
     for r in range(n):
         acc = 0.0
         for j in range(n):
-            acc += m_hat[r, j] * (alpha[j] if model else alpha[j] - zhat[3 * j + 2])
-        u[r] = acc + n_hat[r] if model or p[_FF] != 0.0 else acc
+            a = ws[alpha + j]
+            acc += ws[mm + n * r + j] * (a if model else a - zhat[3 * j + 2])
+        u[r] = acc + ws[nb + r] if model or p[_FF] != 0.0 else acc
 
 
 @jitable_as(control_compiled, array_arg=5)

@@ -40,8 +40,9 @@ import numpy as np
 
 from esoarm._jit import jitable
 
-__all__ = ["HEAD", "ROW", "bias", "cholesky_solve", "crba", "forward_dynamics",
-           "mass_and_bias", "model_size", "pack_model", "rnea", "workspace_size"]
+__all__ = ["HEAD", "ROW", "bias", "bias_offset", "cholesky_solve", "crba", "dynamics_terms",
+           "forward_dynamics", "mass_and_bias", "mass_offset", "model_size", "pack_model", "rnea",
+           "scratch_offset", "solve_mass", "workspace_size"]
 
 #: Values before the joints' rows, and per joint.
 HEAD, ROW = 4, 53
@@ -86,7 +87,7 @@ def workspace_size(n: int) -> int:
     int
         Number of float64 values.
     """
-    return n * (36 + 36 + 24) + n * n + 2 * n + 42
+    return n * (12 + 15 + 24) + n * n + 3 * n + 21
 
 
 def _spatial_inertia(mass: float, com: np.ndarray, inertia: np.ndarray) -> np.ndarray:
@@ -160,12 +161,39 @@ def pack_model(model: Any) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------
-# compiled helpers: all arrays are float64; ``m`` a packed model, ``ws`` scratch
+# compiled helpers: all arrays are float64; ``m`` a packed model, ``ws`` the flat
+# scratch (layout: :func:`_layout`), every quantity addressed by its offset in ``ws``.
+# No views are cut from ``ws`` (in compiled code each view costs a reshape or a
+# reference count, more than the arithmetic of a short chain).
 
 
 @jitable
-def _pose(m: np.ndarray, i: int, qi: float, x: np.ndarray) -> None:
-    """Joint i's frame in its parent's at angle qi: R into x[0:3, 0:3], p into x[3, 0:3].
+def _layout(n: int) -> tuple[int, int, int, int, int, int, int, int, int, int, int]:
+    """Offsets in the scratch of n joints.
+
+    Poses (12 per joint: R row-major, then p), compact inertias (15 per joint:
+    m, h (3) at 3..5, I_o (9) at 6..14, i.e. row r, column c at 3r + c),
+    velocities, accelerations, forces and subspaces (6 per joint), M (n·n,
+    row-major), a zero vector and the bias (n each), a 6-column, a 15-value
+    scratch, and n values left to the caller (:func:`scratch_offset`).
+    """
+    xs = 0
+    ic = xs + 12 * n
+    vel = ic + 15 * n
+    acc = vel + 6 * n
+    frc = acc + 6 * n
+    ss = frc + 6 * n
+    mm = ss + 6 * n
+    zero = mm + n * n
+    rhs = zero + n
+    col = rhs + n
+    tmp = col + 6
+    return xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp
+
+
+@jitable
+def _pose(m: np.ndarray, i: int, qi: float, ws: np.ndarray, xo: int) -> None:
+    """Joint i's frame in its parent's at angle qi: R into ws[xo:xo+9], p into ws[xo+9:xo+12].
 
     The fixed placement (R0, p0) then the joint motion: R = R0 · exp([a]× qi),
     p = p0 (revolute) or R = R0, p = p0 + R0 a qi (prismatic).
@@ -187,263 +215,258 @@ def _pose(m: np.ndarray, i: int, qi: float, x: np.ndarray) -> None:
         pz += qi * (m[r0 + 6] * ax + m[r0 + 7] * ay + m[r0 + 8] * az)
     for row in range(3):
         a0, a1, a2 = m[r0 + 3 * row], m[r0 + 3 * row + 1], m[r0 + 3 * row + 2]
-        x[row, 0] = a0 * j00 + a1 * j10 + a2 * j20
-        x[row, 1] = a0 * j01 + a1 * j11 + a2 * j21
-        x[row, 2] = a0 * j02 + a1 * j12 + a2 * j22
-    x[3, 0] = px
-    x[3, 1] = py
-    x[3, 2] = pz
+        ws[xo + 3 * row] = a0 * j00 + a1 * j10 + a2 * j20
+        ws[xo + 3 * row + 1] = a0 * j01 + a1 * j11 + a2 * j21
+        ws[xo + 3 * row + 2] = a0 * j02 + a1 * j12 + a2 * j22
+    ws[xo + 9] = px
+    ws[xo + 10] = py
+    ws[xo + 11] = pz
 
 
 @jitable
-def _subspace(m: np.ndarray, i: int, s: np.ndarray) -> None:
-    """Motion subspace S_i of joint i (6): (0, a) revolute, (a, 0) prismatic."""
+def _subspace(m: np.ndarray, i: int, ws: np.ndarray, so: int) -> None:
+    """Motion subspace S_i of joint i into ws[so:so+6]: (0, a) revolute, (a, 0) prismatic."""
     b = HEAD + ROW * i
     for k in range(6):
-        s[k] = 0.0
+        ws[so + k] = 0.0
     off = 3 if m[b + _KIND] == REVOLUTE else 0
     for k in range(3):
-        s[off + k] = m[b + _AXIS + k]
+        ws[so + off + k] = m[b + _AXIS + k]
 
 
 @jitable
-def _transforms(m: np.ndarray, q: np.ndarray, xs: np.ndarray, ss: np.ndarray) -> None:
-    """The pose ``xs[i]`` (:func:`_pose`) and subspace ``ss[i]`` (6) of every joint at q."""
+def _transforms(m: np.ndarray, q: np.ndarray, ws: np.ndarray) -> None:
+    """The pose (:func:`_pose`) and subspace (6) of every joint at q, into ``ws``."""
     n = int(m[0])
+    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _layout(n)
     for i in range(n):
-        _pose(m, i, q[i], xs[i])
-        _subspace(m, i, ss[i])
+        _pose(m, i, q[i], ws, xs + 12 * i)
+        _subspace(m, i, ws, ss + 6 * i)
 
 
 @jitable
-def _motion_in(x: np.ndarray, w: np.ndarray, out: np.ndarray) -> None:
-    """out = X w: a motion in the parent's frame seen in the child's (pose x).
+def _motion_in(ws: np.ndarray, xo: int, wo: int, oo: int) -> None:
+    """ws[oo:oo+6] = X w (w at wo): a motion in the parent's frame seen in the child's (pose at xo).
 
     ω' = Rᵀ ω, v' = Rᵀ (v − p × ω).
     """
-    px, py, pz = x[3, 0], x[3, 1], x[3, 2]
-    vx = w[0] - (py * w[5] - pz * w[4])
-    vy = w[1] - (pz * w[3] - px * w[5])
-    vz = w[2] - (px * w[4] - py * w[3])
+    px, py, pz = ws[xo + 9], ws[xo + 10], ws[xo + 11]
+    w3, w4, w5 = ws[wo + 3], ws[wo + 4], ws[wo + 5]
+    vx = ws[wo] - (py * w5 - pz * w4)
+    vy = ws[wo + 1] - (pz * w3 - px * w5)
+    vz = ws[wo + 2] - (px * w4 - py * w3)
     for c in range(3):
-        out[c] = x[0, c] * vx + x[1, c] * vy + x[2, c] * vz
-        out[3 + c] = x[0, c] * w[3] + x[1, c] * w[4] + x[2, c] * w[5]
+        ws[oo + c] = ws[xo + c] * vx + ws[xo + 3 + c] * vy + ws[xo + 6 + c] * vz
+        ws[oo + 3 + c] = ws[xo + c] * w3 + ws[xo + 3 + c] * w4 + ws[xo + 6 + c] * w5
 
 
 @jitable
-def _force_out(x: np.ndarray, f: np.ndarray, out: np.ndarray) -> None:
-    """out += Xᵀ f: a force in the child's frame (pose x) added in the parent's.
+def _force_out(ws: np.ndarray, xo: int, fo: int, oo: int) -> None:
+    """ws[oo:oo+6] += Xᵀ f (f at fo): a force in the child's frame (pose at xo) in the parent's.
 
     f' = R f, n' = R n + p × (R f).
     """
-    lx = x[0, 0] * f[0] + x[0, 1] * f[1] + x[0, 2] * f[2]
-    ly = x[1, 0] * f[0] + x[1, 1] * f[1] + x[1, 2] * f[2]
-    lz = x[2, 0] * f[0] + x[2, 1] * f[1] + x[2, 2] * f[2]
-    px, py, pz = x[3, 0], x[3, 1], x[3, 2]
-    out[0] += lx
-    out[1] += ly
-    out[2] += lz
-    out[3] += x[0, 0] * f[3] + x[0, 1] * f[4] + x[0, 2] * f[5] + py * lz - pz * ly
-    out[4] += x[1, 0] * f[3] + x[1, 1] * f[4] + x[1, 2] * f[5] + pz * lx - px * lz
-    out[5] += x[2, 0] * f[3] + x[2, 1] * f[4] + x[2, 2] * f[5] + px * ly - py * lx
+    f0, f1, f2, f3, f4, f5 = ws[fo], ws[fo + 1], ws[fo + 2], ws[fo + 3], ws[fo + 4], ws[fo + 5]
+    x00, x01, x02 = ws[xo], ws[xo + 1], ws[xo + 2]
+    x10, x11, x12 = ws[xo + 3], ws[xo + 4], ws[xo + 5]
+    x20, x21, x22 = ws[xo + 6], ws[xo + 7], ws[xo + 8]
+    lx = x00 * f0 + x01 * f1 + x02 * f2
+    ly = x10 * f0 + x11 * f1 + x12 * f2
+    lz = x20 * f0 + x21 * f1 + x22 * f2
+    px, py, pz = ws[xo + 9], ws[xo + 10], ws[xo + 11]
+    ws[oo] += lx
+    ws[oo + 1] += ly
+    ws[oo + 2] += lz
+    ws[oo + 3] += x00 * f3 + x01 * f4 + x02 * f5 + py * lz - pz * ly
+    ws[oo + 4] += x10 * f3 + x11 * f4 + x12 * f5 + pz * lx - px * lz
+    ws[oo + 5] += x20 * f3 + x21 * f4 + x22 * f5 + px * ly - py * lx
 
 
 @jitable
-def _load_inertia(m: np.ndarray, i: int, ci: np.ndarray) -> None:
-    """Body i's inertia in compact form: mass ci[0, 0], h = m·c in ci[1, 0:3], and the
-    rotational inertia about the frame origin in ci[2:5, 0:3]."""
+def _load_inertia(m: np.ndarray, i: int, ws: np.ndarray, co: int) -> None:
+    """Body i's inertia in compact form at co: mass, h = m·c (3..5), the rotational
+    inertia about the frame origin (6..14, row-major)."""
     b = HEAD + ROW * i + _INERTIA
-    ci[0, 0] = m[b]
-    ci[1, 0] = m[b + 6 * 5 + 1]  # [h]× is the lower-left block of the 6×6 inertia
-    ci[1, 1] = m[b + 6 * 3 + 2]
-    ci[1, 2] = m[b + 6 * 4 + 0]
+    ws[co] = m[b]
+    ws[co + 3] = m[b + 6 * 5 + 1]  # [h]× is the lower-left block of the 6×6 inertia
+    ws[co + 4] = m[b + 6 * 3 + 2]
+    ws[co + 5] = m[b + 6 * 4 + 0]
     for r in range(3):
         for c in range(3):
-            ci[2 + r, c] = m[b + 6 * (3 + r) + 3 + c]
+            ws[co + 6 + 3 * r + c] = m[b + 6 * (3 + r) + 3 + c]
 
 
 @jitable
-def _inertia_times(ci: np.ndarray, w: np.ndarray, out: np.ndarray) -> None:
-    """out = I w for a compact inertia ci: (m v − h × ω, I_o ω + h × v)."""
-    mass = ci[0, 0]
-    hx, hy, hz = ci[1, 0], ci[1, 1], ci[1, 2]
-    out[0] = mass * w[0] - (hy * w[5] - hz * w[4])
-    out[1] = mass * w[1] - (hz * w[3] - hx * w[5])
-    out[2] = mass * w[2] - (hx * w[4] - hy * w[3])
+def _inertia_times(ws: np.ndarray, co: int, wo: int, oo: int) -> None:
+    """ws[oo:oo+6] = I w for the compact inertia at co, w at wo: (m v − h × ω, I_o ω + h × v)."""
+    mass = ws[co]
+    hx, hy, hz = ws[co + 3], ws[co + 4], ws[co + 5]
+    w0, w1, w2, w3, w4, w5 = ws[wo], ws[wo + 1], ws[wo + 2], ws[wo + 3], ws[wo + 4], ws[wo + 5]
+    ws[oo] = mass * w0 - (hy * w5 - hz * w4)
+    ws[oo + 1] = mass * w1 - (hz * w3 - hx * w5)
+    ws[oo + 2] = mass * w2 - (hx * w4 - hy * w3)
     for r in range(3):
-        out[3 + r] = ci[2 + r, 0] * w[3] + ci[2 + r, 1] * w[4] + ci[2 + r, 2] * w[5]
-    out[3] += hy * w[2] - hz * w[1]
-    out[4] += hz * w[0] - hx * w[2]
-    out[5] += hx * w[1] - hy * w[0]
+        i = co + 6 + 3 * r
+        ws[oo + 3 + r] = ws[i] * w3 + ws[i + 1] * w4 + ws[i + 2] * w5
+    ws[oo + 3] += hy * w2 - hz * w1
+    ws[oo + 4] += hz * w0 - hx * w2
+    ws[oo + 5] += hx * w1 - hy * w0
 
 
 @jitable
-def _inertia_out(x: np.ndarray, ci: np.ndarray, cp: np.ndarray, tmp: np.ndarray) -> None:
-    """cp += the compact inertia ci (child frame, pose x) expressed in the parent's frame.
+def _inertia_out(ws: np.ndarray, xo: int, co: int, po: int, to: int) -> None:
+    """The compact inertia at co (child frame, pose at xo) added, in the parent's frame, at po.
 
     m' = m, h' = R h + m p, I' = R I Rᵀ − (p h_rᵀ + h_r pᵀ) + (2 h_r·p + m p·p) 1 − m p pᵀ
-    with h_r = R h (the parallel-axis theorem moved to the parent's origin).
+    with h_r = R h (the parallel-axis theorem moved to the parent's origin); ws[to:to+9]
+    is scratch.
     """
-    mass = ci[0, 0]
-    px, py, pz = x[3, 0], x[3, 1], x[3, 2]
-    hr0 = x[0, 0] * ci[1, 0] + x[0, 1] * ci[1, 1] + x[0, 2] * ci[1, 2]
-    hr1 = x[1, 0] * ci[1, 0] + x[1, 1] * ci[1, 1] + x[1, 2] * ci[1, 2]
-    hr2 = x[2, 0] * ci[1, 0] + x[2, 1] * ci[1, 1] + x[2, 2] * ci[1, 2]
-    cp[0, 0] += mass
-    cp[1, 0] += hr0 + mass * px
-    cp[1, 1] += hr1 + mass * py
-    cp[1, 2] += hr2 + mass * pz
+    mass = ws[co]
+    px, py, pz = ws[xo + 9], ws[xo + 10], ws[xo + 11]
+    h0, h1, h2 = ws[co + 3], ws[co + 4], ws[co + 5]
+    hr0 = ws[xo] * h0 + ws[xo + 1] * h1 + ws[xo + 2] * h2
+    hr1 = ws[xo + 3] * h0 + ws[xo + 4] * h1 + ws[xo + 5] * h2
+    hr2 = ws[xo + 6] * h0 + ws[xo + 7] * h1 + ws[xo + 8] * h2
+    ws[po] += mass
+    ws[po + 3] += hr0 + mass * px
+    ws[po + 4] += hr1 + mass * py
+    ws[po + 5] += hr2 + mass * pz
+    io = co + 6
     for r in range(3):  # tmp = R I
+        x0, x1, x2 = ws[xo + 3 * r], ws[xo + 3 * r + 1], ws[xo + 3 * r + 2]
         for c in range(3):
-            tmp[r, c] = x[r, 0] * ci[2, c] + x[r, 1] * ci[3, c] + x[r, 2] * ci[4, c]
+            ws[to + 3 * r + c] = x0 * ws[io + c] + x1 * ws[io + 3 + c] + x2 * ws[io + 6 + c]
     p = (px, py, pz)
     hr = (hr0, hr1, hr2)
     diag = 2.0 * (hr0 * px + hr1 * py + hr2 * pz) + mass * (px * px + py * py + pz * pz)
     for r in range(3):
         for c in range(3):
-            val = tmp[r, 0] * x[c, 0] + tmp[r, 1] * x[c, 1] + tmp[r, 2] * x[c, 2]
+            val = (ws[to + 3 * r] * ws[xo + 3 * c] + ws[to + 3 * r + 1] * ws[xo + 3 * c + 1]
+                   + ws[to + 3 * r + 2] * ws[xo + 3 * c + 2])
             val -= p[r] * hr[c] + hr[r] * p[c] + mass * p[r] * p[c]
             if r == c:
                 val += diag
-            cp[2 + r, c] += val
+            ws[po + 6 + 3 * r + c] += val
 
 
 @jitable
-def _rnea_pass(m: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool, xs: np.ndarray,
-               ss: np.ndarray, vel: np.ndarray, acc: np.ndarray, frc: np.ndarray,
-               tau: np.ndarray, ci: np.ndarray, col: np.ndarray) -> None:
-    """RNEA on precomputed poses: τ = M(q) a + C(q, v) v (+ g(q) with ``gravity``).
-
-    ``ci`` (≥ 5×3) and ``col`` (6) are scratch.
-    """
+def _rnea_pass(m: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool, ws: np.ndarray,
+               tau: np.ndarray) -> None:
+    """RNEA on the poses in ``ws``: τ = M(q) a + C(q, v) v (+ g(q) with ``gravity``)."""
     n = int(m[0])
+    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _layout(n)
     for i in range(n):
         parent = int(m[HEAD + ROW * i + _PARENT])
-        x = xs[i]
-        s = ss[i]
-        vi, ai = vel[i], acc[i]
+        x = xs + 12 * i
+        s = ss + 6 * i
+        vi, ai = vel + 6 * i, acc + 6 * i
         # v_i = X_i v_λ + S q̇_i ; a_i = X_i a_λ + S q̈_i + v_i ×ₘ (S q̇_i)
         if parent < 0:
             for r in range(6):
-                vi[r] = 0.0
-                ai[r] = 0.0
+                ws[vi + r] = 0.0
+                ws[ai + r] = 0.0
             if gravity:  # a_0 = −g (the base accelerates upwards): gravity on every body
                 for c in range(3):
-                    ai[c] = -(x[0, c] * m[1] + x[1, c] * m[2] + x[2, c] * m[3])
+                    ws[ai + c] = -(ws[x + c] * m[1] + ws[x + 3 + c] * m[2]
+                                   + ws[x + 6 + c] * m[3])
         else:
-            _motion_in(x, vel[parent], vi)
-            _motion_in(x, acc[parent], ai)
+            _motion_in(ws, x, vel + 6 * parent, vi)
+            _motion_in(ws, x, acc + 6 * parent, ai)
         qd, qdd = v[i], a[i]
         for r in range(6):
-            vi[r] += s[r] * qd
-            ai[r] += s[r] * qdd
+            ws[vi + r] += ws[s + r] * qd
+            ws[ai + r] += ws[s + r] * qdd
         # v_i ×ₘ (S q̇): (ω × wl + vl × ww, ω × ww), w = S q̇
-        wl0, wl1, wl2 = s[0] * qd, s[1] * qd, s[2] * qd
-        ww0, ww1, ww2 = s[3] * qd, s[4] * qd, s[5] * qd
-        vl0, vl1, vl2, om0, om1, om2 = vi[0], vi[1], vi[2], vi[3], vi[4], vi[5]
-        ai[0] += om1 * wl2 - om2 * wl1 + vl1 * ww2 - vl2 * ww1
-        ai[1] += om2 * wl0 - om0 * wl2 + vl2 * ww0 - vl0 * ww2
-        ai[2] += om0 * wl1 - om1 * wl0 + vl0 * ww1 - vl1 * ww0
-        ai[3] += om1 * ww2 - om2 * ww1
-        ai[4] += om2 * ww0 - om0 * ww2
-        ai[5] += om0 * ww1 - om1 * ww0
+        wl0, wl1, wl2 = ws[s] * qd, ws[s + 1] * qd, ws[s + 2] * qd
+        ww0, ww1, ww2 = ws[s + 3] * qd, ws[s + 4] * qd, ws[s + 5] * qd
+        vl0, vl1, vl2 = ws[vi], ws[vi + 1], ws[vi + 2]
+        om0, om1, om2 = ws[vi + 3], ws[vi + 4], ws[vi + 5]
+        ws[ai] += om1 * wl2 - om2 * wl1 + vl1 * ww2 - vl2 * ww1
+        ws[ai + 1] += om2 * wl0 - om0 * wl2 + vl2 * ww0 - vl0 * ww2
+        ws[ai + 2] += om0 * wl1 - om1 * wl0 + vl0 * ww1 - vl1 * ww0
+        ws[ai + 3] += om1 * ww2 - om2 * ww1
+        ws[ai + 4] += om2 * ww0 - om0 * ww2
+        ws[ai + 5] += om0 * ww1 - om1 * ww0
         # f_i = I a_i + v_i ×* (I v_i);  v ×* h = (ω × hl, ω × ha + vl × hl)
-        _load_inertia(m, i, ci)
-        f = frc[i]
-        _inertia_times(ci, ai, f)
-        _inertia_times(ci, vi, col)
-        hl0, hl1, hl2, ha0, ha1, ha2 = col[0], col[1], col[2], col[3], col[4], col[5]
-        f[0] += om1 * hl2 - om2 * hl1
-        f[1] += om2 * hl0 - om0 * hl2
-        f[2] += om0 * hl1 - om1 * hl0
-        f[3] += om1 * ha2 - om2 * ha1 + vl1 * hl2 - vl2 * hl1
-        f[4] += om2 * ha0 - om0 * ha2 + vl2 * hl0 - vl0 * hl2
-        f[5] += om0 * ha1 - om1 * ha0 + vl0 * hl1 - vl1 * hl0
+        _load_inertia(m, i, ws, tmp)
+        f = frc + 6 * i
+        _inertia_times(ws, tmp, ai, f)
+        _inertia_times(ws, tmp, vi, col)
+        hl0, hl1, hl2 = ws[col], ws[col + 1], ws[col + 2]
+        ha0, ha1, ha2 = ws[col + 3], ws[col + 4], ws[col + 5]
+        ws[f] += om1 * hl2 - om2 * hl1
+        ws[f + 1] += om2 * hl0 - om0 * hl2
+        ws[f + 2] += om0 * hl1 - om1 * hl0
+        ws[f + 3] += om1 * ha2 - om2 * ha1 + vl1 * hl2 - vl2 * hl1
+        ws[f + 4] += om2 * ha0 - om0 * ha2 + vl2 * hl0 - vl0 * hl2
+        ws[f + 5] += om0 * ha1 - om1 * ha0 + vl0 * hl1 - vl1 * hl0
     for i in range(n - 1, -1, -1):
-        f = frc[i]
-        s = ss[i]
+        f = frc + 6 * i
+        s = ss + 6 * i
         t = 0.0
         for r in range(6):
-            t += s[r] * f[r]
+            t += ws[s + r] * ws[f + r]
         tau[i] = t
         parent = int(m[HEAD + ROW * i + _PARENT])
         if parent >= 0:  # f_λ += X_iᵀ f_i
-            _force_out(xs[i], f, frc[parent])
+            _force_out(ws, xs + 12 * i, f, frc + 6 * parent)
 
 
 @jitable
-def _crba_pass(m: np.ndarray, xs: np.ndarray, ss: np.ndarray, ic: np.ndarray,
-               col: np.ndarray, tmp: np.ndarray, out: np.ndarray) -> None:
-    """CRBA on precomputed poses: the full symmetric M(q) into ``out`` (n, n)."""
+def _crba_pass(m: np.ndarray, ws: np.ndarray) -> None:
+    """CRBA on the poses in ``ws``: the full symmetric M(q) into ws's M (row-major)."""
     n = int(m[0])
+    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _layout(n)
     for i in range(n):
-        for r in range(5):
-            for c in range(3):
-                ic[i, r, c] = 0.0
-        _load_inertia(m, i, ic[i])
+        _load_inertia(m, i, ws, ic + 15 * i)
         for j in range(n):  # joints off each other's path to the base stay 0 (a tree)
-            out[i, j] = 0.0
+            ws[mm + n * i + j] = 0.0
     for i in range(n - 1, -1, -1):
         parent = int(m[HEAD + ROW * i + _PARENT])
         if parent >= 0:  # I^c_λ += X_iᵀ I^c_i X_i
-            _inertia_out(xs[i], ic[i], ic[parent], tmp)
+            _inertia_out(ws, xs + 12 * i, ic + 15 * i, ic + 15 * parent, tmp)
     for i in range(n):
-        s = ss[i]
-        _inertia_times(ic[i], s, col)  # F = I^c_i S_i
+        s = ss + 6 * i
+        _inertia_times(ws, ic + 15 * i, s, col)  # F = I^c_i S_i
         d = 0.0
         for r in range(6):
-            d += s[r] * col[r]
-        out[i, i] = d
+            d += ws[s + r] * ws[col + r]
+        ws[mm + n * i + i] = d
         j = i
         parent = int(m[HEAD + ROW * j + _PARENT])
         while parent >= 0:
             for r in range(6):
-                tmp[5, r] = 0.0
-            _force_out(xs[j], col, tmp[5])  # F = X_jᵀ F
+                ws[tmp + 9 + r] = 0.0
+            _force_out(ws, xs + 12 * j, col, tmp + 9)  # F = X_jᵀ F
             for r in range(6):
-                col[r] = tmp[5, r]
+                ws[col + r] = ws[tmp + 9 + r]
             j = parent
-            sj = ss[j]
+            sj = ss + 6 * j
             e = 0.0
             for r in range(6):
-                e += sj[r] * col[r]
-            out[i, j] = e
-            out[j, i] = e
+                e += ws[sj + r] * ws[col + r]
+            ws[mm + n * i + j] = e
+            ws[mm + n * j + i] = e
             parent = int(m[HEAD + ROW * j + _PARENT])
 
 
 @jitable
-def _views(m: np.ndarray, ws: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The scratch arrays of n joints as views of ``ws`` (no allocation).
+def _copy_mass(ws: np.ndarray, n: int, out: np.ndarray) -> None:
+    """ws's M into the (n, n) array ``out``."""
+    mm = _layout(n)[6]
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = ws[mm + n * i + j]
 
-    Transforms (n, 6, 6), composite inertias (n, 6, 6), velocities, accelerations,
-    forces and subspaces (n, 6) each, M (n, n), a zero vector and the bias (n),
-    a 6-column and a 6×6 scratch.
-    """
+
+@jitable
+def _bias_pass(m: np.ndarray, v: np.ndarray, ws: np.ndarray, out: np.ndarray) -> None:
+    """n(q, q̇) into ``out`` by RNEA with q̈ = 0, on the poses in ``ws``."""
     n = int(m[0])
-    o = 0
-    xs = ws[o:o + 36 * n].reshape((n, 6, 6))
-    o += 36 * n
-    ic = ws[o:o + 36 * n].reshape((n, 6, 6))
-    o += 36 * n
-    vel = ws[o:o + 6 * n].reshape((n, 6))
-    o += 6 * n
-    acc = ws[o:o + 6 * n].reshape((n, 6))
-    o += 6 * n
-    frc = ws[o:o + 6 * n].reshape((n, 6))
-    o += 6 * n
-    ss = ws[o:o + 6 * n].reshape((n, 6))
-    o += 6 * n
-    mm = ws[o:o + n * n].reshape((n, n))
-    o += n * n
-    zero = ws[o:o + n]
-    o += n
-    rhs = ws[o:o + n]
-    o += n
-    col = ws[o:o + 6]
-    o += 6
-    tmp = ws[o:o + 36].reshape((6, 6))
-    return xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp
+    zero = _layout(n)[7]
+    for i in range(n):
+        ws[zero + i] = 0.0
+    _rnea_pass(m, v, ws[zero:zero + n], True, ws, out)
 
 
 @jitable
@@ -462,9 +485,8 @@ def rnea(m: np.ndarray, q: np.ndarray, v: np.ndarray, a: np.ndarray, ws: np.ndar
     tau : ndarray, shape (n,)
         Output: the joint torques (forces for prismatic joints).
     """
-    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
-    _transforms(m, q, xs, ss)
-    _rnea_pass(m, v, a, True, xs, ss, vel, acc, frc, tau, tmp, col)
+    _transforms(m, q, ws)
+    _rnea_pass(m, v, a, True, ws, tau)
 
 
 @jitable
@@ -484,10 +506,8 @@ def bias(m: np.ndarray, q: np.ndarray, v: np.ndarray, ws: np.ndarray, out: np.nd
     out : ndarray, shape (n,)
         Output: n(q, q̇) [N·m, N for prismatic joints], the torque that holds q̈ = 0.
     """
-    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
-    _transforms(m, q, xs, ss)
-    zero[:] = 0.0
-    _rnea_pass(m, v, zero, True, xs, ss, vel, acc, frc, out, tmp, col)
+    _transforms(m, q, ws)
+    _bias_pass(m, v, ws, out)
 
 
 @jitable
@@ -505,9 +525,85 @@ def crba(m: np.ndarray, q: np.ndarray, ws: np.ndarray, out: np.ndarray) -> None:
     out : ndarray, shape (n, n)
         Output: M(q) [kg·m², kg for prismatic joints], symmetric.
     """
-    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
-    _transforms(m, q, xs, ss)
-    _crba_pass(m, xs, ss, ic, col, tmp, out)
+    _transforms(m, q, ws)
+    _crba_pass(m, ws)
+    _copy_mass(ws, int(m[0]), out)
+
+
+@jitable
+def dynamics_terms(m: np.ndarray, q: np.ndarray, v: np.ndarray, ws: np.ndarray) -> None:
+    """M(q) and n(q, q̇) left in the scratch ``ws`` (one transform pass, no copy).
+
+    M is read back as ``ws[mass_offset(n) + n·i + j]`` [kg·m²] and n(q, q̇) as
+    ``ws[bias_offset(n) + i]`` [N·m]; :func:`solve_mass` solves with that M.
+
+    Parameters
+    ----------
+    m : ndarray
+        Packed model (:func:`pack_model`).
+    q : ndarray, shape (n,)
+        Joint positions [rad or m].
+    v : ndarray, shape (n,)
+        Joint velocities [rad/s or m/s].
+    ws : ndarray
+        Scratch of length :func:`workspace_size` (n), overwritten.
+    """
+    n = int(m[0])
+    rhs = _layout(n)[8]
+    _transforms(m, q, ws)
+    _bias_pass(m, v, ws, ws[rhs:rhs + n])
+    _crba_pass(m, ws)
+
+
+@jitable
+def mass_offset(n: int) -> int:
+    """Where :func:`dynamics_terms` leaves M (n·n values, row-major) in the scratch.
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    int
+        Offset in the scratch.
+    """
+    return _layout(n)[6]
+
+
+@jitable
+def bias_offset(n: int) -> int:
+    """Where :func:`dynamics_terms` leaves n(q, q̇) (n values) in the scratch.
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    int
+        Offset in the scratch.
+    """
+    return _layout(n)[8]
+
+
+@jitable
+def scratch_offset(n: int) -> int:
+    """Start of the n values of the scratch no function of this module touches (the caller's).
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    int
+        Offset in the scratch.
+    """
+    return _layout(n)[10] + 15
 
 
 @jitable
@@ -530,11 +626,36 @@ def mass_and_bias(m: np.ndarray, q: np.ndarray, v: np.ndarray, ws: np.ndarray,
     out : ndarray, shape (n,)
         Output: n(q, q̇) (as :func:`bias`).
     """
-    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
-    _transforms(m, q, xs, ss)
-    zero[:] = 0.0
-    _rnea_pass(m, v, zero, True, xs, ss, vel, acc, frc, out, tmp, col)
-    _crba_pass(m, xs, ss, ic, col, tmp, mass)
+    _transforms(m, q, ws)
+    _bias_pass(m, v, ws, out)
+    _crba_pass(m, ws)
+    _copy_mass(ws, int(m[0]), mass)
+
+
+@jitable
+def _cholesky_flat(a: np.ndarray, ao: int, n: int, b: np.ndarray) -> None:
+    """:func:`cholesky_solve` on the n×n matrix stored row-major at a[ao:ao+n·n]."""
+    for j in range(n):
+        d = a[ao + n * j + j]
+        for k in range(j):
+            d -= a[ao + n * j + k] * a[ao + n * j + k]
+        d = math.sqrt(d)
+        a[ao + n * j + j] = d
+        for i in range(j + 1, n):
+            s = a[ao + n * i + j]
+            for k in range(j):
+                s -= a[ao + n * i + k] * a[ao + n * j + k]
+            a[ao + n * i + j] = s / d
+    for i in range(n):  # L y = b
+        s = b[i]
+        for k in range(i):
+            s -= a[ao + n * i + k] * b[k]
+        b[i] = s / a[ao + n * i + i]
+    for i in range(n - 1, -1, -1):  # Lᵀ x = y
+        s = b[i]
+        for k in range(i + 1, n):
+            s -= a[ao + n * k + i] * b[k]
+        b[i] = s / a[ao + n * i + i]
 
 
 @jitable
@@ -546,32 +667,30 @@ def cholesky_solve(a: np.ndarray, b: np.ndarray) -> None:
     Parameters
     ----------
     a : ndarray, shape (n, n)
-        A, symmetric positive definite (its lower triangle is read); overwritten.
+        A, symmetric positive definite (its lower triangle is read), C-contiguous;
+        overwritten.
     b : ndarray, shape (n,)
         The right-hand side b; overwritten by the solution x.
     """
-    n = b.shape[0]
-    for j in range(n):
-        d = a[j, j]
-        for k in range(j):
-            d -= a[j, k] * a[j, k]
-        d = math.sqrt(d)
-        a[j, j] = d
-        for i in range(j + 1, n):
-            s = a[i, j]
-            for k in range(j):
-                s -= a[i, k] * a[j, k]
-            a[i, j] = s / d
-    for i in range(n):  # L y = b
-        s = b[i]
-        for k in range(i):
-            s -= a[i, k] * b[k]
-        b[i] = s / a[i, i]
-    for i in range(n - 1, -1, -1):  # Lᵀ x = y
-        s = b[i]
-        for k in range(i + 1, n):
-            s -= a[k, i] * b[k]
-        b[i] = s / a[i, i]
+    _cholesky_flat(a.reshape(-1), 0, b.shape[0], b)
+
+
+@jitable
+def solve_mass(ws: np.ndarray, n: int, b: np.ndarray) -> None:
+    """Solve M x = b in place (x into ``b``) with the M :func:`dynamics_terms` left in ``ws``.
+
+    The M in ``ws`` is overwritten by its Cholesky factor.
+
+    Parameters
+    ----------
+    ws : ndarray
+        The scratch after :func:`dynamics_terms`.
+    n : int
+        Number of joints.
+    b : ndarray, shape (n,)
+        The right-hand side [N·m]; overwritten by the solution [rad/s²].
+    """
+    _cholesky_flat(ws, _layout(n)[6], n, b)
 
 
 @jitable
@@ -598,12 +717,8 @@ def forward_dynamics(m: np.ndarray, q: np.ndarray, v: np.ndarray, tau: np.ndarra
         Output: q̈ [rad/s² or m/s²].
     """
     n = int(m[0])
-    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _views(m, ws)
-    _transforms(m, q, xs, ss)
+    dynamics_terms(m, q, v, ws)
+    rhs = _layout(n)[8]
     for i in range(n):
-        zero[i] = 0.0
-    _rnea_pass(m, v, zero, True, xs, ss, vel, acc, frc, rhs, tmp, col)
-    _crba_pass(m, xs, ss, ic, col, tmp, mm)
-    for i in range(n):
-        out[i] = tau[i] - rhs[i]
-    cholesky_solve(mm, out)
+        out[i] = tau[i] - ws[rhs + i]
+    solve_mass(ws, n, out)

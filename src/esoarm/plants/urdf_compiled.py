@@ -27,10 +27,12 @@ import numpy as np
 
 from esoarm._jit import jitable
 from esoarm.plants.rigid_body import (
-    cholesky_solve,
+    bias_offset,
+    dynamics_terms,
     forward_dynamics,
-    mass_and_bias,
     model_size,
+    scratch_offset,
+    solve_mass,
     workspace_size,
 )
 from esoarm.plants.urdf_twin import joint_drive, rk4_begin, rk4_stage
@@ -186,12 +188,13 @@ def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
     n, tp, _, true = _parts(p)
     v = x[n:2 * n]
     lag = tp[tp.shape[0] - 1]
-    drive = np.empty(n)
+    ws = np.empty(workspace_size(n))  # the one allocation: the drive in the caller's part
+    free = scratch_offset(n)
+    drive = ws[free:free + n]
     joint_drive(v, x[2 * n:3 * n] if lag > 0.0 else u, tp, drive)
-    acc = np.empty(n)
-    forward_dynamics(true, x[:n], v, drive, np.empty(workspace_size(n)), acc)
+    forward_dynamics(true, x[:n], v, drive, ws, out)
     for i in range(n):  # q̈ = ABA output + d(t) (add_disturbance)
-        out[i] = acc[i] + tp[3 * n + i] * math.sin(tp[4 * n + i] * t)
+        out[i] = out[i] + tp[3 * n + i] * math.sin(tp[4 * n + i] * t)
 
 
 @jitable
@@ -210,15 +213,10 @@ def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray
         Output: v [rad/s²].
     """
     n, _, nominal, _ = _parts(p)
-    q_hat = np.empty(n)
-    v_hat = np.empty(n)
-    for i in range(n):
-        q_hat[i] = zhat[3 * i]
-        v_hat[i] = zhat[3 * i + 1]
-    mass = np.empty((n, n))
-    nb = np.empty(n)
-    mass_and_bias(nominal, q_hat, v_hat, np.empty(workspace_size(n)), mass, nb)
+    ws = np.empty(workspace_size(n))
+    dynamics_terms(nominal, zhat[0:3 * n:3], zhat[1:3 * n:3], ws)  # M̂ and n̂ at (q̂, q̂̇)
+    nb = bias_offset(n)
     c = p[2]
     for i in range(n):
-        v[i] = u[i] - nb[i] if c != 0.0 else u[i]
-    cholesky_solve(mass, v)
+        v[i] = u[i] - ws[nb + i] if c != 0.0 else u[i]
+    solve_mass(ws, n, v)
