@@ -210,3 +210,17 @@ def test_move_boundaries_are_the_python_references_samples() -> None:
         t = np.arange(200_001) * ts
         for bound in [0.0, ts, 1.0, 2.5, 3 * ts, *rng.uniform(0.0, t[-1], 50)]:
             assert _first_sample(ts, float(bound)) == int(np.argmax(t >= bound)), (ts, bound)
+
+
+@needs_gcc
+@pytest.mark.parametrize("extra", [
+    {"actuator.pwm_bits": 8},
+    {"actuator.pwm_bits": 4, "rig.backlash_deg": 1.5},
+    {"sensor.noise_ar": [0.7], "sensor.vibration_deg": 0.05},
+])
+def test_float64_repeats_python_with_the_drive_and_noise_models(extra: dict) -> None:
+    """The chip's actuator rounds to the PWM levels as esoarm.plants.actuator does; backlash
+    and coloured noise live on the twin's side of the link."""
+    run = _run(_scn(("linear", "euler"), ("flc", "eso"), **extra), "float64")
+    assert run.steps == 300
+    assert run.max_abs_du <= 1e-12, run.max_abs_du
