@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 
 from esoarm.studies.identification.idim import (
+    ASYMMETRY_Z,
     cross_test,
     filtered_derivatives,
     hac_covariance,
     idim_ls,
+    viscous_asymmetry,
 )
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -39,16 +41,18 @@ def _trajectory(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarra
     return q, v, a
 
 
-def _log(theta, n=20000, seed=0, rho=0.995, sigma=2.0, change=None):
+def _log(theta, n=20000, seed=0, rho=0.995, sigma=2.0, change=None, viscous_asymmetry=0.0):
     """(y, u): position and force of an axis following a smooth trajectory, the force with
-    AR(1) noise of correlation ``rho`` per sample (coloured: ripple, model error)."""
+    AR(1) noise of correlation ``rho`` per sample (coloured: ripple, model error);
+    Fv± = Fv ± ``viscous_asymmetry``/2."""
     rng = np.random.default_rng(seed)
     q, v, a = _trajectory(n, rng)
     m, fv, fc, off = theta
     mass = np.full(n, m)
     if change is not None:
         mass[n // 2:] = change
-    u = mass * a + fv * v + fc * np.sign(v) + off
+    fv_dir = np.where(v > 0, fv + 0.5 * viscous_asymmetry, fv - 0.5 * viscous_asymmetry)
+    u = mass * a + fv_dir * v + fc * np.sign(v) + off
     e = np.empty(n)
     e[0] = 0.0
     w = rng.normal(0, sigma * math.sqrt(1 - rho**2), n)
@@ -135,6 +139,90 @@ def test_emps_idim_ls_reproduces_the_published_values_and_force_error():
     assert np.all(est.se_hac > 1.5 * est.se_white)
 
 
+def test_viscous_asymmetry_is_kept_only_when_the_data_support_it():
+    """Issue 20, case 4 (asymmetric friction): the Wald test on the HAC covariance keeps
+    Fv+ ≠ Fv− on a twin that has it (and recovers both) and not on a symmetric twin."""
+    kept = 0
+    for seed in range(10):
+        est = idim_ls([_log(TRUE, n=12000, seed=seed)], TS, asymmetric=True)
+        kept += viscous_asymmetry(est)[2] > ASYMMETRY_Z
+    assert kept <= 1, kept
+    est = idim_ls([_log(TRUE, seed=1, sigma=0.5, viscous_asymmetry=20.0)], TS,
+                  asymmetric=True)
+    diff, se, z = viscous_asymmetry(est)
+    assert z > ASYMMETRY_Z and abs(diff - 20.0) <= 1.96 * se
+    assert est.value("viscous_friction_pos") == pytest.approx(40.0, rel=0.05)
+    assert est.value("viscous_friction_neg") == pytest.approx(20.0, rel=0.1)
+
+
+def test_coulomb_asymmetry_is_the_offset_on_a_log_that_keeps_moving():
+    """Why the Coulomb friction is not split: [q̇>0], [q̇<0] and the offset's ones are
+    collinear (the split regressor matrix is singular)."""
+    y, _u = _log(TRUE, n=12000, rho=0.0, sigma=0.1)
+    _q, dq, _ddq = filtered_derivatives(y, TS, 100.0)
+    pos, neg = (dq > 0).astype(float), (dq < 0).astype(float)
+    x = np.column_stack([pos, -neg, np.ones_like(dq)])
+    assert np.all(pos + neg == 1.0) and np.linalg.matrix_rank(x) == 2
+
+
+def test_emps_viscous_friction_is_asymmetric_and_the_fit_beats_the_published_one():
+    """EMPS: Fv+ and Fv− differ by 23 HAC standard errors; the split model's force error
+    is below the published parameters' on estimation and cross-test data, and M, the mean
+    Fv and Fc stay within 5 % of the published IDIM-LS values."""
+    est = idim_ls([_emps("estimation.csv")], TS, asymmetric=True)
+    diff, _se, z = viscous_asymmetry(est)
+    assert z > ASYMMETRY_Z and diff < 0
+    fv = 0.5 * (est.value("viscous_friction_pos") + est.value("viscous_friction_neg"))
+    assert fv == pytest.approx(PUBLISHED["viscous_friction"], rel=0.05)
+    for name in ("mass", "coulomb_friction"):
+        assert est.value(name) == pytest.approx(PUBLISHED[name], rel=0.05), name
+    pub = np.array(list(PUBLISHED.values()))
+    assert est.force_error < cross_test(*_emps("estimation.csv"), TS, pub, est.cutoff_hz)
+    ours = cross_test(*_emps("validation.csv"), TS, est.values, est.cutoff_hz,
+                      asymmetric=True)
+    assert ours < cross_test(*_emps("validation.csv"), TS, pub, est.cutoff_hz)
+
+
+@pytest.mark.slow
+def test_emps_segment_lengths_agree_or_the_output_error_fit_is_flagged(run_cli):
+    """Issue 20, case 4: --segment 0.5, 2 and 5 s.  The written estimate (physical) of each
+    lies within the others' intervals, M, Fv, Fc within 5 % of the published values.  The
+    output-error fit's estimates either lie within each other's intervals too, or each run
+    that disagrees says so in words and withholds its (noise-only) intervals."""
+    runs = {}
+    for seg in ("0.5", "2", "5"):
+        res = run_cli("identify", str(EMPS / "estimation.csv"), "--scenario", "emps",
+                      "--validate", str(EMPS / "validation.csv"), "--segment", seg, "--json")
+        assert res.exit_code == 0, res.output
+        runs[seg] = json.loads(res.stdout)
+    for a in runs.values():
+        for name in ("mass", "viscous_friction", "coulomb_friction"):
+            assert a["physical"][name]["value"] == pytest.approx(PUBLISHED[name], rel=0.05)
+        for b in runs.values():
+            for name, e in a["physical"].items():
+                lo, hi = e["ci95"]
+                assert lo <= b["physical"][name]["value"] <= hi, name
+    oe = {s: r["output_error"] for s, r in runs.items()}
+    consistent = all(
+        "ci95" in a["parameters"][n]
+        and a["parameters"][n]["ci95"][0] <= b["parameters"][n]["value"]
+        <= a["parameters"][n]["ci95"][1]
+        for a in oe.values() for b in oe.values() for n in a["parameters"])
+    if not consistent:
+        for o in oe.values():
+            if o["consistent_with_idim_ls"]:
+                continue
+            assert "model error" in o["warning"] and "withheld" in o["warning"]
+            assert all("ci95" not in e and "ci95_noise_only" in e
+                       for e in o["parameters"].values())
+        # a run that claims intervals must not be contradicted by another run
+        claimed = [s for s, o in oe.items() if o["consistent_with_idim_ls"]]
+        for s in claimed:
+            for b in oe.values():
+                for n, e in oe[s]["parameters"].items():
+                    assert e["ci95"][0] <= b["parameters"][n]["value"] <= e["ci95"][1], (s, n)
+
+
 @pytest.mark.slow
 def test_emps_cli_json_physical(run_cli):
     res = run_cli("identify", str(EMPS / "estimation.csv"), "--scenario", "emps", "--validate",
@@ -142,11 +230,16 @@ def test_emps_cli_json_physical(run_cli):
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
     phys = data["physical"]
-    assert set(phys) == {"mass", "viscous_friction", "coulomb_friction", "offset"}
+    assert set(phys) == {"mass", "viscous_friction", "viscous_friction_pos",
+                         "viscous_friction_neg", "coulomb_friction", "offset"}
+    assert phys["viscous_friction_pos"]["unit"] == "N·s/m"
+    assert data["parameters"]["plant.viscous_asymmetry"]["value"] < 0
+    assert data["friction_asymmetry"]["viscous"]["kept"] is True
     assert phys["mass"]["unit"] == "kg" and phys["viscous_friction"]["unit"] == "N·s/m"
     for name in ("mass", "viscous_friction", "coulomb_friction"):
         assert phys[name]["value"] == pytest.approx(PUBLISHED[name], rel=0.05)
         lo, hi = phys[name]["ci95"]
         assert lo < phys[name]["value"] < hi
-    assert data["validation"]["cross_test_force_error_percent"] < 6.1
+    # the published parameters give 6.00 % through the same filters
+    assert data["validation"]["cross_test_force_error_percent"] < 6.0
     assert data["output_error"]["converged"]

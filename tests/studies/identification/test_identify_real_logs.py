@@ -73,6 +73,26 @@ def test_a_template_disturbance_the_log_lacks_is_named(tmp_path):
 
 
 @pytest.mark.slow
+def test_case_6_a_template_disturbance_is_named_on_a_log_shorter_than_two_periods(tmp_path):
+    """Issue 20, case 6, on a 15 s log (two periods of the template's 0.5 rad/s sine take
+    25 s, so IDIM-LS cannot tell): the fit without d(t) wins the likelihood-ratio test and
+    the refusal names the key.  The code before accepted this log (exit 0) with a stiction
+    that is not there and 4× the sensor noise; and a log that has the disturbance is not
+    refused."""
+    path = tmp_path / "nod.csv"
+    excite_twin(load_scenario("test-1", ["rig.disturbance.amplitude=0"]),
+                ExcitationPlan(duration=15.0), path)
+    with pytest.raises(FitFailed, match=r"rig\.disturbance\.amplitude") as err:
+        identify(load_scenario("test-1"), [read_ident_log(path, 2.0)])
+    assert "shorter than two of its periods" in str(err.value)
+    assert "delay" not in str(err.value) and "blocked" not in str(err.value)
+    has = tmp_path / "has.csv"
+    excite_twin(load_scenario("test-1"), ExcitationPlan(duration=15.0), has)
+    res = identify(load_scenario("test-1"), [read_ident_log(has, 2.0)])
+    assert res.estimates["rig.inertia_scale"].value == pytest.approx(1.1, rel=0.1)
+
+
+@pytest.mark.slow
 def test_noise_is_written_only_when_the_residual_is_white(twin_log):
     scn = load_scenario("test-1")
     res = identify(scn, [read_ident_log(twin_log, 2.0)])

@@ -9,6 +9,7 @@ Jacobian, bounds and scales.  :func:`levenberg_marquardt` minimizes it.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -37,9 +38,12 @@ from esoarm.studies.identification.data import (
     simulate_segments,
 )
 
-__all__ = ["PARAMS", "Problem", "Solution", "levenberg_marquardt"]
+__all__ = ["PARAMS", "Limit", "Problem", "Solution", "levenberg_marquardt", "limits_from_data"]
 
 #: Parameters that can be fitted, in order: scenario key -> (label, unit, scale, bounds, advice).
+#: The scale and bounds are those of the built-in rigs (about 2 N·m of torque, 0.02 kg·m²)
+#: and serve only when no log is at hand; a fit takes both from its data
+#: (:func:`limits_from_data`), so that a log in other units fits the same physics.
 PARAMS: dict[str, tuple[str, str, float, tuple[float, float], str]] = {
     "rig.inertia_scale": ("true inertia / plant.inertia", "1", 1.0, (0.02, 50.0),
                           "more high-frequency torque (raise --f-max or --amplitude)"),
@@ -58,12 +62,91 @@ PARAMS: dict[str, tuple[str, str, float, tuple[float, float], str]] = {
 }
 
 
+@dataclass(frozen=True)
+class Limit:
+    """The scale and bounds of one fitted parameter, taken from the data."""
+
+    scale: float  #: a typical size (finite-difference steps, the identifiability floor)
+    lower: float  #: physical lower bound (0 for a friction, a mass, a lag)
+    upper: float  #: upper bound
+    why: str  #: how the upper bound was set, in words (named when a value ends there)
+
+
+#: Upper bounds as multiples of the data's own scales (see :func:`limits_from_data`).
+TORQUE_BOUND = 10.0
+INERTIA_RANGE = 50.0
+LAG_SAMPLES = 50.0
+KT_RANGE = 1000.0
+
+
+def limits_from_data(scn: Scenario, logs: list[IdentLog],
+                     inertia: float | None = None) -> dict[str, Limit]:
+    """Scale and bounds of every key of :data:`PARAMS`, from the logs and the scenario.
+
+    No absolute number: with U the largest torque in the fitting logs [N·m] (with a
+    ``[motor]`` table, the stall torque N·Kt·Vs/R), I the inertia (the IDIM-LS
+    estimate ``inertia`` when given, else plant.inertia × rig.inertia_scale)
+    [kg·m²] and fs the sample rate [Hz]:
+
+    * Coulomb friction and stiction: 0 … 10·U (a friction ten times every applied
+      torque would never let the arm move);
+    * viscous friction: 0 … 10·I·fs (a time constant I/b ten times shorter than a
+      sample is beyond what the log resolves);
+    * the gravity coefficient |G| ≤ 10·U, mapped onto plant.m2 (≥ 0);
+    * inertia_scale: (I / plant.inertia) / 50 … × 50;
+    * actuator lag: 0 … 50 samples; Kt: 1/1000 … 1000 × the scenario's.
+
+    A log in other units (torque ×100, inertia ×100) scales every bound with it.
+    """
+    ts = logs[0].ts
+    p = scn.plant
+    if scn.motor is not None:
+        m = scn.motor
+        torque = abs(m.gear_ratio * m.torque_constant * m.supply_voltage / m.resistance)
+    else:
+        torque = max(float(np.nanmax(np.abs(log.u))) if np.isfinite(log.u).any() else 0.0
+                     for log in logs)
+    if not torque > 0.0:
+        torque = scn.actuator.torque_limit
+    i_ref = inertia if inertia is not None and inertia > 0 else p.inertia * scn.rig.inertia_scale
+    ratio = i_ref / p.inertia
+    g_l2 = p.g * p.l2 if p.g * p.l2 > 0 else 1.0
+    g_max = TORQUE_BOUND * torque
+    m1l1 = p.m1 * p.l1
+    visc_max = TORQUE_BOUND * i_ref / ts
+    out = {
+        "rig.inertia_scale": Limit(ratio, ratio / INERTIA_RANGE, ratio * INERTIA_RANGE,
+                                   f"{INERTIA_RANGE:g}× the inertia the log's inverse dynamic "
+                                   "model gives" if inertia else
+                                   f"{INERTIA_RANGE:g}× the scenario's inertia"),
+        "plant.m2": Limit(0.035 * torque / g_l2, max(0.0, (m1l1 - g_max / p.g) / p.l2)
+                          if p.g > 0 and p.l2 > 0 else 0.0, (m1l1 + g_max / p.g) / p.l2
+                          if p.g > 0 and p.l2 > 0 else 1.0,
+                          f"a gravity torque of {TORQUE_BOUND:g}× the largest logged torque"),
+        "rig.coulomb_friction": Limit(0.025 * torque, 0.0, TORQUE_BOUND * torque,
+                                      f"{TORQUE_BOUND:g}× the largest logged torque"),
+        "rig.viscous_friction": Limit(0.01 * visc_max / TORQUE_BOUND, 0.0, visc_max,
+                                      f"{TORQUE_BOUND:g}× inertia × sample rate"),
+        "actuator.lag": Limit(0.5 * ts, 0.0, LAG_SAMPLES * ts, f"{LAG_SAMPLES:g} samples"),
+        "motor.torque_constant": (
+            Limit(0.1 * scn.motor.torque_constant, scn.motor.torque_constant / KT_RANGE,
+                  scn.motor.torque_constant * KT_RANGE,
+                  f"{KT_RANGE:g}× the scenario's motor.torque_constant")
+            if scn.motor is not None else Limit(1.0, 0.0, math.inf, "")),
+        "rig.stiction": Limit(0.025 * torque, 0.0, TORQUE_BOUND * torque,
+                              f"{TORQUE_BOUND:g}× the largest logged torque"),
+    }
+    return out
+
+
 class Problem:
     """Residuals and Jacobian of the segment output-error problem for one structure."""
 
     def __init__(self, scn: Scenario, logs: list[IdentLog], seg_samples: int, delay: int,
-                 start: int, free: list[str], fixed: dict[str, float]) -> None:
+                 start: int, free: list[str], fixed: dict[str, float],
+                 limits: dict[str, Limit] | None = None) -> None:
         self.scn, self.free, self.fixed = scn, free, fixed
+        self.limits = limits if limits is not None else limits_from_data(scn, logs)
         self.motor = scn.motor
         ts = logs[0].ts
         self.h = scn.rig.step
@@ -121,7 +204,7 @@ class Problem:
     def rig_and_source(self, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
         scn = self.scn
         p, r = scn.plant, scn.rig
-        rig = np.empty(VECTOR_SIZE)
+        rig = np.zeros(VECTOR_SIZE)  # entries not set here stay 0: no stiction, no backlash
         rig[INERTIA] = values["rig.inertia_scale"] * p.inertia
         rig[GCOEF] = gravity_coefficient(p.m1, values["plant.m2"], p.l1, p.l2, p.g)
         rig[FC] = values["rig.coulomb_friction"]
@@ -189,7 +272,7 @@ class Problem:
         scales = self.scales()
         for i in range(self.n_phys):
             step = 1e-6 * max(abs(x[i]), scales[i])
-            if x[i] + step > PARAMS[self.free[i]][3][1]:
+            if x[i] + step > self.limits[self.free[i]].upper:
                 step = -step
             xp = x.copy()
             xp[i] += step
@@ -217,12 +300,12 @@ class Problem:
         return np.where(np.isfinite(jac), jac, 0.0)
 
     def scales(self) -> np.ndarray:
-        phys = [PARAMS[k][2] for k in self.free]
+        phys = [self.limits[k].scale for k in self.free]
         return np.array(phys + [0.1, 1.0] * self.n_seg)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        lo = [PARAMS[k][3][0] for k in self.free] + [-np.inf] * (2 * self.n_seg)
-        hi = [PARAMS[k][3][1] for k in self.free] + [np.inf] * (2 * self.n_seg)
+        lo = [self.limits[k].lower for k in self.free] + [-np.inf] * (2 * self.n_seg)
+        hi = [self.limits[k].upper for k in self.free] + [np.inf] * (2 * self.n_seg)
         if "actuator.lag" in self.free:
             lo[self.free.index("actuator.lag")] = 2.0 * self.h  # RK4 needs T ≳ 2h
         return np.array(lo), np.array(hi)

@@ -26,7 +26,12 @@ Beside the fit, the inverse-dynamic-model least squares (IDIM-LS,
 :mod:`esoarm.studies.identification.lever_checks`) is computed from the same
 logs: it refuses angles that cannot be in rad, a scenario disturbance the log
 clearly lacks, and an output-error inertia grossly off its own.  The encoder
-noise goes into the fitted scenario only when the validation residual is white.
+noise goes into the fitted scenario only when the validation residual is white, or when it
+is coloured sensor noise: then with its AR spectrum as ``sensor.noise_ar``
+(:mod:`esoarm.studies.identification.noise_ar`: Yule-Walker, order by AIC, the AR innovation
+white and uncorrelated with the past input, and the validation residual's RMS at most
+:data:`NOISE_CARRY_OVER` times the fit's); otherwise the spectrum is reported as model
+error.
 
 Held at the scenario's values: ``rig.friction_velocity`` (the tanh smoothing
 is far below what 50 Hz data resolves), the disturbance d(t) (taken as known,
@@ -63,12 +68,17 @@ import numpy as np
 from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.identification.data import IdentLog, check_supported
-from esoarm.studies.identification.fit import PARAMS, Problem
+from esoarm.studies.identification.fit import PARAMS, Problem, limits_from_data
+from esoarm.studies.identification.noise_ar import noise_verdict
 
 __all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
 
 DELAY_KEY = "actuator.delay_samples"
 NOISE_KEY = "sensor.noise_deg"
+NOISE_AR_KEY = "sensor.noise_ar"
+#: Coloured noise is written only when the validation residual's RMS is at most this many
+#: times the fit's (sensor noise does not grow on new data; model error does).
+NOISE_CARRY_OVER = 1.25
 FREE_KEYS = (*PARAMS, DELAY_KEY)
 #: Why the inertia is held by default with a ``[motor]`` table.
 MOTOR_SCALE_NOTE = (
@@ -79,6 +89,9 @@ MOTOR_SCALE_NOTE = (
 CHI2_95 = 3.841458820694124
 #: A parameter is flagged poorly identifiable beyond this relative 95 % half-width.
 POOR_REL = 0.25
+#: A residual that is not white and larger than this many times the encoder's resolution
+#: or noise is model error, and the fit is refused (:meth:`IdentResult.implausible_residual`).
+NOISE_SANITY = 20.0
 #: Levenberg-Marquardt iterations of the first fit (the scenario's delay, from the
 #: scenario's values) before the other delays are tried from it, and of each try.
 FIRST_ITER = 6
@@ -116,6 +129,17 @@ class Estimate:
     bound: str = ""
     #: Whether the 95 % interval was clipped to the bounds of the fit.
     ci_clipped: bool = False
+    #: How the bound the value ended at was set ("" inside the bounds; see
+    #: :func:`esoarm.studies.identification.fit.limits_from_data`).
+    bound_why: str = ""
+
+    @property
+    def bound_text(self) -> str:
+        """"the upper bound 20 N·m (10× the largest logged torque)", or "" inside them."""
+        if not self.bound:
+            return ""
+        return (f"the {self.bound} bound {self.value:g} {self.unit}"
+                + (f" ({self.bound_why})" if self.bound_why else ""))
 
     @property
     def at_bound(self) -> bool:
@@ -128,6 +152,7 @@ class Estimate:
                 "fitted": self.fitted, "identifiable": self.identifiable,
                 "at_bound": self.at_bound, "ci95_clipped": self.ci_clipped,
                 **({"bound": self.bound} if self.bound else {}),
+                **({"bound_set_by": self.bound_why} if self.bound_why else {}),
                 **({"advice": self.advice} if self.advice else {})}
 
 
@@ -172,11 +197,26 @@ class IdentResult:
             "physical": self.physical(),
             "idim_ls": self.idim or None,
             "noise": ("written: the validation residual is white" if self.noise_is_sensor()
+                      else "written with sensor.noise_ar: the validation residual is coloured "
+                      "sensor noise (its AR innovation is white and uncorrelated with the past "
+                      "input)" if self.coloured_noise() is not None
                       else "not written: the validation residual is not white, so it is model "
                       "error, not sensor noise; sensor.noise_deg stays as given"),
             "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
             "at_bound": [k for k, e in self.estimates.items() if e.at_bound],
         }
+
+    def coloured_noise(self) -> list[float] | None:
+        """AR coefficients of the encoder noise when the validation residual is not white but
+        is coloured sensor noise (:mod:`esoarm.studies.identification.noise_ar`), else None."""
+        spec = self.validation.get("noise_spectrum")
+        if self.noise_is_sensor() or not spec or not spec["sensor_noise"] or not spec["order"]:
+            return None
+        # sensor noise has the same level on the validation logs as on the fit's: a
+        # validation residual well above the fit's is the model failing to carry over
+        if not self.validation["residual_rms_rad"] <= NOISE_CARRY_OVER * self.residual_rms:
+            return None
+        return [float(v) for v in spec["noise_ar"]]
 
     def noise_is_sensor(self) -> bool:
         """Whether the residual supports calling it sensor noise: the validation residual is
@@ -209,18 +249,44 @@ class IdentResult:
         answer, not a sign of a model that does not fit: it is reported but does not make the
         fit untrustworthy (the whiteness test alone flags a few per cent of white residuals,
         which refused exact fits of frictionless twins)."""
+        why = self.implausible_residual()
+        if why:
+            return why
         pinned = [e for e in self.estimates.values()
                   if e.at_bound and not (e.bound == "lower" and e.value == 0.0)]
         white = self.validation.get("whiteness", {}).get("white", True)
         if not pinned or white:
             return ""
         w = self.validation["whiteness"]
-        ends = ", ".join(f"{e.key} at the {e.bound} bound {e.value:g} {e.unit}" for e in pinned)
+        ends = ", ".join(f"{e.key} at {e.bound_text}" for e in pinned)
         return (f"the fit is not trustworthy: it ended with {ends}, and the validation residual "
                 f"is not white ({w['outside']} of {w['lags']} autocorrelation lags outside "
                 f"±{w['band']:.3g}): the model does not explain this log; check the rig and "
                 "the log (a blocked or unusual arm), hold that parameter (--fix, --set) or "
                 "record a richer experiment (esoarm excite)")
+
+    def implausible_residual(self) -> str:
+        """Why the residual cannot be the sensor's ("" if it can): not white and more than
+        :data:`NOISE_SANITY` times the encoder's resolution or noise.
+
+        A residual of that size is model error the fit did not remove (issue 20's case 7:
+        an open-loop motor log simulated over long segments drifts, and its "noise" came
+        out at 147° and 734° with the inertia 31× off); the fit is not trusted.
+        """
+        sensor = self.scenario.sensor
+        floor = max(sensor.resolution_deg, sensor.noise_deg)
+        rms = self.validation.get("residual_rms_rad", self.residual_rms)
+        whiteness = self.validation.get("whiteness", {})
+        if floor <= 0.0 or whiteness.get("white", False):
+            return ""
+        rms_deg = math.degrees(rms)
+        if rms_deg <= NOISE_SANITY * floor:
+            return ""
+        return (f"the fit is not trustworthy: its residual is {rms_deg:.3g}° RMS, "
+                f"{rms_deg / floor:.3g}× the encoder's {floor:g}° (sensor.resolution_deg, "
+                "sensor.noise_deg), and not white: the model does not follow this log over "
+                f"{self.segment_seconds:g} s segments (an open-loop log drifts: try a shorter "
+                "--segment), or the scenario does not describe the rig; nothing written")
 
     def fitted_scenario(self) -> Scenario:
         """The scenario with the fitted rig as the twin and the plant updated to the fit.
@@ -233,8 +299,11 @@ class IdentResult:
                                    "plant.inertia": self.value("rig.inertia_scale")
                                    * scn.plant.inertia,
                                    "rig.inertia_scale": 1.0}
+        coloured = self.coloured_noise()
+        if coloured is not None:
+            over[NOISE_AR_KEY] = coloured
         for key, est in self.estimates.items():
-            if key == NOISE_KEY and not self.noise_is_sensor():
+            if key == NOISE_KEY and not self.noise_is_sensor() and coloured is None:
                 continue  # model error, not sensor noise: the scenario's noise stays
             if key != "rig.inertia_scale" and (scn.motor is not None
                                                or not key.startswith("motor.")):
@@ -320,6 +389,14 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         why = check_log_against_scenario(scn, idim, fit_logs[0].path)
         if why:
             raise FitFailed(why)
+    # scales and bounds from the data (no absolute numbers: a log in other units fits the
+    # same physics), the inertia's from IDIM-LS when it is decisive
+    i_idim = None
+    if idim is not None:
+        k = idim.names.index("inertia")
+        if idim.values[k] > 0 and 1.96 * idim.se[k] < 0.5 * idim.values[k]:
+            i_idim = float(idim.values[k])
+    limits = limits_from_data(scn, fit_logs, i_idim)
     seg_samples = max(5, int(round(segment / ts)))
     if min(log.n for log in fit_logs) < max_delay + seg_samples:
         raise ScenarioError(f"log '{fit_logs[0].path}': the part used for fitting is shorter "
@@ -334,7 +411,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
 
     def fit(delay: int, names: list[str], fixed: dict[str, float], x_phys: list[float],
             x_states: np.ndarray | None, max_iter: int = 200):  # type: ignore[no-untyped-def]
-        prob = Problem(scn, fit_logs, seg_samples, delay, start, names, fixed)
+        prob = Problem(scn, fit_logs, seg_samples, delay, start, names, fixed, limits)
         states = prob.initial_states() if x_states is None else x_states
         return prob, prob.solve(np.concatenate([x_phys, states]), max_iter)
 
@@ -422,9 +499,22 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     if fit_stiction and sol.converged:
         prob, sol, stiction_rejected = _fit_stiction(prob, sol, m, fit, d_best, say)
         cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
+    # 5. the scenario's disturbance is taken as known: unless the log confirms it, a fit
+    # without it must not be significantly better (a template's sine that the log lacks)
+    why = _disturbance_lacking(scn, idim, prob, sol, m, fit_logs, (seg_samples, d_best, start),
+                               limits, say)
+    if why:
+        raise FitFailed(why)
     if not (sol.converged and np.isfinite(sol.cost)) or np.any(sol.fun >= 1e3):
+        lo_b, hi_b = prob.bounds()
+        at = [f"{k} at its {'lower' if sol.x[i] <= lo_b[i] else 'upper'} bound "
+              f"{sol.x[i]:g} {PARAMS[k][1]}"
+              + ("" if sol.x[i] <= lo_b[i] else f" ({limits[k].why})")
+              for i, k in enumerate(prob.free)
+              if sol.x[i] <= lo_b[i] and lo_b[i] != 0.0 or sol.x[i] >= hi_b[i]]
         raise FitFailed(f"the fit did not converge ({sol.message} after {sol.iterations} "
-                        "iterations); try other starting values (--set) or a longer, richer "
+                        "iterations" + (f"; it ran into {', '.join(at)}" if at else "")
+                        + "); try other starting values (--set) or a longer, richer "
                         "log (esoarm excite)")
     estimates, gravity, resid_s = _estimates(scn, prob, sol, m, cost, d_best, delays,
                                              lag_rejected)
@@ -475,6 +565,45 @@ def _methods_disagree(res: IdentResult, idim) -> str:  # type: ignore[no-untyped
                 "combined 95 % half-widths): the model does not describe this log (friction, "
                 "a delay, the units); check the rig and the log, or try another --segment")
     return ""
+
+
+def _disturbance_lacking(scn, idim, prob, sol, m, logs, layout, limits, say) -> str:  # type: ignore[no-untyped-def]
+    """Why the scenario's disturbance d(t) cannot be taken as known ("" if it can).
+
+    Skipped when IDIM-LS confirms d(t) on the log
+    (:func:`esoarm.studies.identification.lever_checks.disturbance_confirmed`).  Otherwise
+    the fit is run again (:data:`FIRST_ITER` iterations) with d(t) = 0 from the fitted
+    point; if that lowers the cost
+    significantly (likelihood ratio beyond χ²₁ 95 %), the log lacks the disturbance the
+    scenario assumes -- decided on the fit itself, so also on a log shorter than two of
+    its periods, where IDIM-LS cannot tell.
+    """
+    from esoarm.studies.identification.lever_checks import disturbance_confirmed
+
+    d = scn.rig.disturbance
+    if d.amplitude == 0.0 or d.frequency <= 0.0 or not np.isfinite(sol.cost) \
+            or disturbance_confirmed(scn, idim):
+        return ""
+    seg_samples, delay, start = layout
+    say("fitting without the scenario's disturbance")
+    scn0 = scn.with_overrides({"rig.disturbance.amplitude": 0.0})
+    p0 = Problem(scn0, logs, seg_samples, delay, start, prob.free, prob.fixed, limits)
+    # a few iterations: the cost they reach is an upper bound of the fit without d(t), so a
+    # significant drop is already decisive (and a log that has d(t) only gets worse)
+    s0 = p0.solve(sol.x.copy(), max_iter=FIRST_ITER)
+    if not np.isfinite(s0.cost) or s0.cost <= 0.0:
+        return ""
+    ratio = m * math.log(max(sol.cost, 1e-300) / s0.cost)
+    if ratio <= CHI2_95:
+        return ""
+    period = 2.0 * math.pi / d.frequency
+    seconds = sum(log.n for log in logs) * logs[0].ts
+    short = (f"; the log, {seconds:.3g} s, is shorter than two of its periods "
+             f"({2.0 * period:.3g} s)" if seconds < 2.0 * period else "")
+    return (f"the scenario's disturbance d(t) = {d.amplitude:g}·sin({d.frequency:g} t) rad/s² "
+            "is taken as known, but the log fits better without it (likelihood ratio "
+            f"{ratio:.3g} > {CHI2_95:.2f}{short}): the scenario does not describe this rig; "
+            "set rig.disturbance.amplitude (0 if it had none)")
 
 
 def _fit_stiction(prob: Problem, sol, m: int, fit, delay: int, say):  # type: ignore[no-untyped-def]
@@ -533,7 +662,8 @@ def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: 
     lower, upper = prob.bounds()
     out: dict[str, Estimate] = {}
     for i, key in enumerate(prob.free):
-        label, unit, scale, _b, advice = PARAMS[key]
+        label, unit, _scale, _b, advice = PARAMS[key]
+        scale = prob.limits[key].scale
         v = float(sol.x[i])
         half = 1.96 * float(se[i])
         others = [prob.free[j] for j in range(prob.n_phys) if j != i and abs(corr[i, j]) > 0.98]
@@ -549,7 +679,8 @@ def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: 
         bound = "lower" if v <= lo_b + tol else "upper" if v >= hi_b - tol else ""
         ci = (max(v - half, lo_b), min(v + half, hi_b))
         out[key] = Estimate(key, v, ci, unit, label, True, not poor, note if poor else "",
-                            bound, ci != (v - half, v + half))
+                            bound, ci != (v - half, v + half),
+                            prob.limits[key].why if bound == "upper" else "")
     for key in PARAMS:
         if key not in out and (scn.motor is not None or key != "motor.torque_constant"):
             label, unit, *_ = PARAMS[key]
@@ -597,7 +728,8 @@ def _validate(scn, values, logs, seg_samples, delay, start):  # type: ignore[no-
     Returns fit % of the measured angle, the residual RMS [rad] and a whiteness
     test: the residual's autocorrelation at lags 1 … 20 against ±1.96/√M.
     """
-    prob = Problem(scn, logs, seg_samples, delay, start, [], values)
+    prob = Problem(scn, logs, seg_samples, delay, start, [], values,
+                   limits_from_data(scn, logs))
     sol = prob.solve(prob.initial_states())
     yhat = prob.predict(sol.x)
     mask = prob.mask
@@ -610,6 +742,8 @@ def _validate(scn, values, logs, seg_samples, delay, start):  # type: ignore[no-
     outside = int(np.sum(np.abs(rho) > band))
     return {"fit_percent": _fit_percent(prob.y[mask], yhat[mask]),
             "residual_rms_rad": float(np.sqrt(np.mean(r**2))), "samples": m,
+            # the residual's spectrum as an AR model, and whether it is (coloured) sensor noise
+            "noise_spectrum": noise_verdict(r, prob.base[mask]).to_dict(),
             "whiteness": {"lags": len(lags), "band": band, "outside": outside,
                           "max_abs_autocorrelation": float(np.max(np.abs(rho))),
                           "white": outside <= 2},

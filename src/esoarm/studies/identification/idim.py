@@ -35,13 +35,14 @@ with a bandwidth read from the residual's own autocorrelation
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BORDER", "IdimResult", "cross_test", "decimation_factor", "filtered_derivatives",
-           "force_error",
-           "hac_bandwidth", "hac_covariance", "idim_ls", "idim_system", "regressors"]
+__all__ = ["ASYMMETRY_Z", "BORDER", "NAMES", "NAMES_ASYMMETRIC", "IdimResult", "cross_test",
+           "decimation_factor", "filtered_derivatives", "force_error", "hac_bandwidth",
+           "hac_covariance", "idim_ls", "idim_system", "regressors", "viscous_asymmetry"]
 
 #: Samples dropped at each end after the filters (their edge effects; EMPS: 50).
 BORDER = 50
@@ -49,6 +50,9 @@ BORDER = 50
 ORDER = 4
 #: Parameter names of the regressor columns, in order (the gravity column only when asked).
 NAMES = ("mass", "viscous_friction", "coulomb_friction", "offset", "gravity")
+#: The same with the viscous friction split by direction (:func:`regressors`, asymmetric).
+NAMES_ASYMMETRIC = ("mass", "viscous_friction_pos", "viscous_friction_neg", "coulomb_friction",
+                    "offset", "gravity")
 
 
 def _diffcent(y: np.ndarray, ts: float) -> np.ndarray:
@@ -81,9 +85,21 @@ def decimation_factor(ts: float, cutoff_hz: float) -> int:
 
 
 def regressors(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
-               gravity: bool = False) -> np.ndarray:
-    """The IDM's observation matrix φ: columns q̈, q̇, sign(q̇), 1 (and cos q with gravity)."""
-    cols = [ddq, dq, np.sign(dq), np.ones_like(q)]
+               gravity: bool = False, asymmetric: bool = False) -> np.ndarray:
+    """The IDM's observation matrix φ: columns q̈, q̇, sign(q̇), 1 (and cos q with gravity).
+
+    With ``asymmetric`` the viscous column is split by direction, q̇·[q̇ > 0] and
+    q̇·[q̇ < 0] (:data:`NAMES_ASYMMETRIC`).  The Coulomb friction is not split: on a
+    log that keeps moving, [q̇ > 0] and [q̇ < 0] add up to the offset's column of
+    ones, so Fc+ − Fc− and twice the offset enter the force the same way and
+    cannot be told apart (the split matrix is singular).
+    """
+    if asymmetric:
+        pos = dq > 0.0
+        cols = [ddq, np.where(pos, dq, 0.0), np.where(pos, 0.0, dq), np.sign(dq),
+                np.ones_like(q)]
+    else:
+        cols = [ddq, dq, np.sign(dq), np.ones_like(q)]
     if gravity:
         cols.append(np.cos(q))
     return np.column_stack(cols)
@@ -165,6 +181,8 @@ class IdimResult:
         The Butterworth cut-off [Hz].
     max_autocorrelation : float
         Largest |ρ| of the residual over lags 1 … 20 (1 would be white noise's ±2/√n).
+    cov_hac : ndarray or None
+        The Newey-West covariance of θ̂ (p×p), whose square-rooted diagonal is ``se_hac``.
     """
 
     names: tuple[str, ...]
@@ -178,6 +196,12 @@ class IdimResult:
     decimation: int
     cutoff_hz: float
     max_autocorrelation: float
+    cov_hac: np.ndarray | None = None
+
+    @property
+    def asymmetric(self) -> bool:
+        """Whether the viscous friction is split by direction."""
+        return "viscous_friction_pos" in self.names
 
     def value(self, name: str) -> float:
         """θ̂ of ``name``."""
@@ -191,26 +215,31 @@ class IdimResult:
 
 
 def idim_system(y: np.ndarray, u: np.ndarray, ts: float, cutoff_hz: float | None = None,
-                gravity: bool = False) -> tuple[np.ndarray, np.ndarray, int, float]:
+                gravity: bool = False,
+                asymmetric: bool = False) -> tuple[np.ndarray, np.ndarray, int, float]:
     """(Φ, y_F, nd, cutoff): the decimated observation matrix and force of one log.
 
-    ``y`` the measured position, ``u`` the force/torque [N or N·m], ``ts`` [s].
+    ``y`` the measured position, ``u`` the force/torque [N or N·m], ``ts`` [s];
+    ``asymmetric`` splits the viscous column by direction (:func:`regressors`).
     """
     cutoff = cutoff_hz if cutoff_hz is not None else 0.1 / ts
     q, dq, ddq = filtered_derivatives(y, ts, cutoff)
     keep = slice(BORDER - 1, len(y))  # as the EMPS script: samples n_border … N
-    x = regressors(q, dq, ddq, gravity)[keep]
+    x = regressors(q, dq, ddq, gravity, asymmetric)[keep]
     nd = decimation_factor(ts, cutoff)
     return _decimate(x, nd), _decimate(u[keep], nd), nd, cutoff
 
 
 def idim_ls(parts: list[tuple[np.ndarray, np.ndarray]], ts: float,
-            cutoff_hz: float | None = None, gravity: bool = False) -> IdimResult:
+            cutoff_hz: float | None = None, gravity: bool = False,
+            asymmetric: bool = False) -> IdimResult:
     """IDIM-LS over one or more logs (``parts``: (position, force) pairs), see the module.
 
-    The logs' observation matrices are stacked (each filtered on its own).
+    The logs' observation matrices are stacked (each filtered on its own);
+    ``asymmetric`` fits the viscous friction of each direction
+    (:data:`NAMES_ASYMMETRIC`).
     """
-    systems = [idim_system(y, u, ts, cutoff_hz, gravity) for y, u in parts]
+    systems = [idim_system(y, u, ts, cutoff_hz, gravity, asymmetric) for y, u in parts]
     x = np.vstack([s[0] for s in systems])
     f = np.concatenate([s[1] for s in systems])
     theta, *_ = np.linalg.lstsq(x, f, rcond=None)
@@ -219,19 +248,42 @@ def idim_ls(parts: list[tuple[np.ndarray, np.ndarray]], ts: float,
     s2 = float(r @ r) / max(len(f) - p, 1)
     se_white = np.sqrt(s2 * np.diag(np.linalg.pinv(x.T @ x)))
     lags = hac_bandwidth(r)
-    se_hac = np.sqrt(np.maximum(np.diag(hac_covariance(x, r, lags)), 0.0))
+    cov = hac_covariance(x, r, lags)
+    se_hac = np.sqrt(np.maximum(np.diag(cov), 0.0))
     rc = r - r.mean()
     denom = float(rc @ rc) or 1.0
     rho = max(abs(float(rc[:-k] @ rc[k:]) / denom) for k in range(1, 21))
-    return IdimResult(NAMES[:p], theta, se_white, se_hac, lags, force_error(f, x @ theta),
+    names = NAMES_ASYMMETRIC if asymmetric else NAMES
+    return IdimResult(names[:p], theta, se_white, se_hac, lags, force_error(f, x @ theta),
                       float(np.linalg.cond(x)), len(f), systems[0][2], systems[0][3],
-                      rho)
+                      rho, cov)
+
+
+#: |Fv+ − Fv−| beyond this many HAC standard errors keeps the asymmetric viscous friction
+#: (two-sided 99 %: a symmetric axis keeps it one time in a hundred, and the symmetric
+#: model is nested in it, so keeping it wrongly costs only width).
+ASYMMETRY_Z = 2.576
+
+
+def viscous_asymmetry(est: IdimResult) -> tuple[float, float, float]:
+    """(Fv+ − Fv−, its HAC standard error, z) of an asymmetric estimate (Wald test).
+
+    The test is on the HAC covariance, valid with a coloured residual (a likelihood
+    ratio would assume a white one).
+    """
+    i, j = est.names.index("viscous_friction_pos"), est.names.index("viscous_friction_neg")
+    diff = float(est.values[i] - est.values[j])
+    cov = est.cov_hac
+    var = (float(cov[i, i] + cov[j, j] - 2.0 * cov[i, j]) if cov is not None
+           else float(est.se_hac[i] ** 2 + est.se_hac[j] ** 2))
+    se = math.sqrt(max(var, 0.0))
+    return diff, se, (abs(diff) / se if se > 0 else math.inf)
 
 
 def cross_test(y: np.ndarray, u: np.ndarray, ts: float, values: np.ndarray,
-               cutoff_hz: float, gravity: bool = False) -> float:
+               cutoff_hz: float, gravity: bool = False, asymmetric: bool = False) -> float:
     """The relative force error [%] of parameters ``values`` on a log not used to estimate
     them (the benchmark's cross-test), with the same filters."""
-    x, f, _nd, _c = idim_system(y, u, ts, cutoff_hz, gravity)
+    x, f, _nd, _c = idim_system(y, u, ts, cutoff_hz, gravity, asymmetric)
     return force_error(f, x @ values)
 

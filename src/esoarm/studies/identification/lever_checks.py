@@ -41,7 +41,7 @@ from esoarm.studies.identification.idim import (
 )
 
 __all__ = ["DISTURBANCE_SLACK", "UNIT_RATIO", "LeverIdim", "check_log_against_scenario",
-           "lever_idim"]
+           "disturbance_confirmed", "lever_idim"]
 
 #: An IDIM-LS inertia below this share of plant.inertia (or above its inverse) is refused.
 UNIT_RATIO = 0.05
@@ -144,3 +144,22 @@ def check_log_against_scenario(scn: Scenario, est: LeverIdim | None, path: str) 
                     f"of {a_log:.3g} ± {half:.2g} rad/s²: the scenario does not describe this "
                     f"rig; set rig.disturbance.amplitude (0 if it had none)")
     return ""
+
+
+def disturbance_confirmed(scn: Scenario, est: LeverIdim | None) -> bool:
+    """Whether the log shows the scenario's disturbance: two periods of d(t) in the log and
+    an IDIM-LS amplitude whose 95 % interval excludes 0 and lies within
+    :data:`DISTURBANCE_SLACK` of the scenario's amplitude (a log that cannot tell --
+    too short, too noisy -- does not confirm it)."""
+    d = scn.rig.disturbance
+    if est is None or "disturbance" not in est.names or d.frequency <= 0:
+        return False
+    inertia = est.value("inertia")
+    if not inertia > 0:
+        return False
+    i = est.names.index("disturbance")
+    a_log = -est.values[i] / inertia
+    half = 1.96 * est.se[i] / abs(inertia)
+    period = 2.0 * math.pi / d.frequency
+    return bool(est.duration >= 2.0 * period and abs(a_log) > half
+                and abs(a_log - d.amplitude) <= half + DISTURBANCE_SLACK * abs(d.amplitude))
