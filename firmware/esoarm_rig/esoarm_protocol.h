@@ -16,12 +16,12 @@
 #include <stdint.h>
 #include <string.h>
 
-#define ESO_PROTOCOL_VERSION 1
+#define ESO_PROTOCOL_VERSION 2 /* 2: on-board mode (HEARTBEAT, CHIP_INFO, CHIP_SAMPLE) */
 #define ESO_SYNC0 0xA5u
 #define ESO_SYNC1 0x5Au
 #define ESO_HEADER_SIZE 5u
 #define ESO_CRC_SIZE 2u
-#define ESO_MAX_PAYLOAD 12u
+#define ESO_MAX_PAYLOAD 30u
 #define ESO_MAX_FRAME (ESO_HEADER_SIZE + ESO_MAX_PAYLOAD + ESO_CRC_SIZE)
 
 /* host -> device */
@@ -30,14 +30,21 @@
 #define ESO_DUTY 0x03u    /* k u32, duty i16 */
 #define ESO_TORQUE 0x04u  /* k u32, torque f64 (emulator only) */
 #define ESO_STOP 0x05u    /* - */
+#define ESO_HEARTBEAT 0x06u /* k u32 (on-board devices: the watchdog) */
 /* device -> host */
 #define ESO_INFO 0x81u    /* version u8, flags u8, counts_per_rev u32, pwm_max u16, period_us u32 */
 #define ESO_SAMPLE 0x82u  /* k u32, t_us u32, count i32 */
 #define ESO_STOPPED 0x85u /* - */
 #define ESO_FAULT 0x86u   /* code u8, detail u32 */
+/* device -> host, on-board devices only (INFO flags has ESO_FLAG_ONBOARD) */
+#define ESO_CHIP_INFO 0x87u   /* stream_every u16, sums u8, scenario hash 8 ASCII hex digits */
+#define ESO_CHIP_SAMPLE 0x88u /* k u32, t_us u32, count i32, u f32, z1 f32, z2 f32, z3 f32, duty i16 */
 
 #define ESO_FLAG_TORQUE 0x01u
 #define ESO_FLAG_LOCKSTEP 0x02u
+#define ESO_FLAG_ONBOARD 0x04u
+#define ESO_SUMS_PLAIN 0u
+#define ESO_SUMS_COMPENSATED 1u
 
 #define ESO_FAULT_WATCHDOG 1u
 #define ESO_FAULT_OVERRUN 2u
@@ -53,10 +60,13 @@ static inline int eso_payload_size(uint8_t type)
     case ESO_DUTY: return 6;
     case ESO_TORQUE: return 12;
     case ESO_STOP: return 0;
+    case ESO_HEARTBEAT: return 4;
     case ESO_INFO: return 12;
     case ESO_SAMPLE: return 12;
     case ESO_STOPPED: return 0;
     case ESO_FAULT: return 5;
+    case ESO_CHIP_INFO: return 11;
+    case ESO_CHIP_SAMPLE: return 30;
     default: return -1;
     }
 }
@@ -153,6 +163,40 @@ static inline uint8_t eso_encode_fault(uint8_t *out, uint8_t seq, uint8_t code, 
     p[0] = code;
     eso_put_u32(p + 1, detail);
     return eso_encode(out, ESO_FAULT, seq, p, 5);
+}
+
+/* IEEE 754 binary32 (float is binary32 on AVR, Cortex-M and the host compilers). */
+static inline void eso_put_f32(uint8_t *p, float v)
+{
+    uint32_t bits;
+    memcpy(&bits, &v, 4);
+    eso_put_u32(p, bits);
+}
+
+static inline uint8_t eso_encode_chip_info(uint8_t *out, uint8_t seq, uint16_t stream_every,
+                                           uint8_t sums, const char *hash8)
+{
+    uint8_t p[11];
+    eso_put_u16(p, stream_every);
+    p[2] = sums;
+    memcpy(p + 3, hash8, 8);
+    return eso_encode(out, ESO_CHIP_INFO, seq, p, 11);
+}
+
+static inline uint8_t eso_encode_chip_sample(uint8_t *out, uint8_t seq, uint32_t k, uint32_t t_us,
+                                             int32_t count, float u, float z1, float z2, float z3,
+                                             int16_t duty)
+{
+    uint8_t p[30];
+    eso_put_u32(p, k);
+    eso_put_u32(p + 4, t_us);
+    eso_put_u32(p + 8, (uint32_t)count);
+    eso_put_f32(p + 12, u);
+    eso_put_f32(p + 16, z1);
+    eso_put_f32(p + 20, z2);
+    eso_put_f32(p + 24, z3);
+    eso_put_u16(p + 28, (uint16_t)duty);
+    return eso_encode(out, ESO_CHIP_SAMPLE, seq, p, 30);
 }
 
 /* A received frame. */

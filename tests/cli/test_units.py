@@ -166,3 +166,16 @@ def test_identify_axis_refuses_plot_it_cannot_draw(run_cli, tmp_path):
     assert res.exit_code == 2
     assert "--plot" in res.stderr and "axis" in res.stderr
     assert not (tmp_path / "f.png").exists()
+
+
+def test_divergence_and_saturation_messages_name_the_units(run_cli):
+    from esoarm.engines.diagnosis import saturation_warning, what_left
+
+    assert what_left(2e6, 0.0, 0.0, 0.0, 0.0, 1e6) == "the angle θ = 2e+06 rad"
+    assert what_left(2e6, 0.0, 0.0, 0.0, 0.0, 1e6, PRISMATIC_UNITS) == "the position θ = 2e+06 m"
+    assert saturation_warning(0.9, 0.5).startswith("the command sat at the torque limit ±0.5 N·m")
+    assert saturation_warning(0.9, 35.0, PRISMATIC_UNITS).startswith(
+        "the command sat at the force limit ±35 N in 90 %")
+    res = run_cli("simulate", "emps", "--set", "duration=0.5", "--set",
+                  "actuator.torque_limit=1")
+    assert "force limit ±1 N in" in res.stderr and "N·m" not in res.stderr

@@ -58,33 +58,46 @@ def test_uno_rig_at_1khz_on_board() -> None:
     assert abs(rms_chip - rms_sim) <= 0.10 * rms_sim, (rms_chip, rms_sim)
 
 
-def test_hil_onboard_with_the_unchanged_host() -> None:
-    """`esoarm hil uno-rig --onboard` with `esoarm run` as the heartbeat: the chip's own
-    controller tracks like simulate (measured +1.4 % RMS over 5 s)."""
+def test_hil_onboard_with_the_python_host() -> None:
+    """`esoarm hil uno-rig --onboard` driven by `esoarm run --onboard --log`: the chip's own
+    controller tracks like simulate (measured +0.8 % RMS at 50 Hz), every sample is the chip's
+    (u and the estimates from CHIP_SAMPLE frames), the log says so in its first line."""
     import json
     import subprocess
     import sys
 
+    from esoarm.hardware.logfile import read_log_columns
+
     esoarm = [sys.executable, "-m", "esoarm"]
-    hil = subprocess.Popen([*esoarm, "hil", "uno-rig", "--onboard", "--once"],
+    hil = subprocess.Popen([*esoarm, "hil", "uno-rig", "--onboard", "--sums", "plain", "--once",
+                            "--set", "duration=5"],
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    log = Path(os.environ.get("TMPDIR", "/tmp")) / f"esoarm-onboard-{os.getpid()}.csv"
     try:
         assert hil.stdout is not None
         first = hil.stdout.readline()
         assert first.startswith("device: "), first
         device = first.split(": ", 1)[1].strip()
         run = subprocess.run([*esoarm, "run", "uno-rig", "--port", device, "--set", "duration=5",
-                              "--json", "--watchdog", "2"], capture_output=True, text=True,
-                             timeout=300)
+                              "--onboard", "--log", str(log), "--json", "--watchdog", "2"],
+                             capture_output=True, text=True, timeout=300)
         assert run.returncode == 0, run.stderr
         hil.wait(60)
+        got = json.loads(run.stdout)
+        assert log.read_text().startswith("# on board: logging the chip's samples")
+        _, data = read_log_columns(log, ("k", "u", "z2"), "test")  # skips the comment line
+        latency = np.genfromtxt(log, delimiter=",", names=True, skip_header=1)["latency"]
     finally:
         if hil.poll() is None:
             hil.terminate()
             hil.wait(10)
-    got = json.loads(run.stdout)
+        log.unlink(missing_ok=True)
     sim = json.loads(subprocess.run([*esoarm, "simulate", "uno-rig", "--set", "duration=5",
                                      "--json"], capture_output=True, text=True,
                                     timeout=300).stdout)
+    assert got["onboard"] and got["stream_every"] == 1 and got["observer_sums"] == "plain"
     assert got["samples"] == 250 and got["lost_samples"] == 0 and got["stop_acknowledged"]
+    assert np.array_equal(data[:, 0], np.arange(250))
+    assert np.isnan(latency).all()  # the host answered nothing: no latency
+    assert np.abs(data[:, 1]).max() > 0 and np.abs(data[:, 2]).max() > 0  # the chip's u, ẑ2
     assert abs(got["rms_error"] / sim["rms_error"] - 1) < 0.1, (got, sim)

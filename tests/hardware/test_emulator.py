@@ -49,7 +49,7 @@ def _wait_for(link, kind, timeout=1.0):
 def test_lockstep_device(device):
     emu, link, messages = device
     info = link.handshake()
-    assert info == P.Info(1, P.FLAG_TORQUE | P.FLAG_LOCKSTEP, 7200, 255, 20000)
+    assert info == P.Info(P.PROTOCOL_VERSION, P.FLAG_TORQUE | P.FLAG_LOCKSTEP, 7200, 255, 20000)
     link.send(P.START)
     assert _wait_for(link, P.SAMPLE).fields()[:2] == (0, 0)
     link.send(P.TORQUE, 5, 0.1)              # answers no sample the device sent: ignored

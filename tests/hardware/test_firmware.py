@@ -91,7 +91,7 @@ def test_handshake_sampling_duty_watchdog_stop(sim):
     steps = s.run(sim)
 
     (info,), motor = steps[0]
-    assert P.Info.from_frame(info) == P.Info(1, 0, 2400, 255, 20000)
+    assert P.Info.from_frame(info) == P.Info(P.PROTOCOL_VERSION, 0, 2400, 255, 20000)
     assert motor == (0, 0, 0)
     assert _samples(steps[1][0]) == [(0, 0, 0)]
     assert _samples(steps[2][0]) == [(1, 20000, 8)]

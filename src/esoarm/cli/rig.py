@@ -164,11 +164,18 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
 @click.option("--baud", type=int, default=115200, show_default=True, metavar="BITS/S",
               help="Serial line rate [bit/s]; must match the firmware (ignored by USB CDC "
               "boards and pseudo-terminals). 1 kHz sampling needs about 500000 or more.")
+@click.option("--onboard", is_flag=True,
+              help="The chip runs SCENARIO's generated controller itself (firmware built with "
+              "make -C firmware ONBOARD=DIR, or 'esoarm hil SCENARIO --onboard'): this host's "
+              "control law is off; it checks the chip's controller comes from the same scenario, "
+              "starts and stops it, feeds its watchdog, keeps the safety limits and logs the "
+              "chip's samples (y, u, z1..z3, duty) -- every sample where the link carries them, "
+              "else every n-th, said on screen and in the log's first line.")
 @scope_options
 @bad_input_guard
 def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, as_json: bool,
         angle_limit: float, max_jump: float, watchdog: float, max_error: float,
-        baud: int, scope: bool, scope_port: int, scope_window: float) -> None:
+        baud: int, onboard: bool, scope: bool, scope_port: int, scope_window: float) -> None:
     """Drive the rig on PORT through SCENARIO at its rate for its duration.
 
     The ESO + FLC of the scenario runs on this host, one sample at a time; the
@@ -220,7 +227,8 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
     started = time.monotonic()
     try:
         summary = run_rig(scn, link, log_path, limits, status=status,
-                          monitor=page.push if page is not None else None)
+                          monitor=page.push if page is not None else None, onboard=onboard,
+                          notice=_stream_notice)
     except RigFault as exc:
         raise RunFailure(str(exc)) from None
     except RigInterrupted as exc:
@@ -247,6 +255,14 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
     _print_summary(scn, summary, wall, 1.0 / scn.sensor.rate_hz)
 
 
+def _stream_notice(line: str) -> None:
+    """On board: what the chip streams (a warning when it is not every sample)."""
+    if "DECIMATED" in line:
+        warn_line(line)
+    else:
+        click.echo(line, err=True)
+
+
 #: A run whose wall-clock time differs from its samples' time by more than this share
 #: (plus :data:`PACE_SLACK_S`) was not paced by a real-time device.
 PACE_TOLERANCE = 0.1
@@ -256,9 +272,13 @@ PACE_SLACK_S = 1.0
 
 def _pace(s, wall: float, ts: float) -> str | None:  # type: ignore[no-untyped-def]
     """A warning when a 'real time' device delivered its samples faster or slower than Ts."""
-    sampled = s.samples * ts
+    sampled = s.samples * s.stream_every * ts
     if s.mode == "lockstep" or abs(wall - sampled) <= PACE_TOLERANCE * sampled + PACE_SLACK_S:
         return None
+    if s.onboard:
+        return (f"the chip's samples span {sampled:.1f} s but took {wall:.1f} s of wall clock: "
+                "the device is not real time (a simulator such as 'esoarm hil'); the chip's "
+                "own timing (its clock, t_device) is what the run measured")
     return (f"the device delivered {sampled:.1f} s of samples in {wall:.1f} s of wall clock: it "
             "is not paced in real time (a simulator paced by the host?), so the deadline misses "
             "and jitter describe that device, not a real-time rig")
@@ -266,12 +286,13 @@ def _pace(s, wall: float, ts: float) -> str | None:  # type: ignore[no-untyped-d
 
 def _mode_title(s, wall: float, ts: float) -> str:  # type: ignore[no-untyped-def]
     """What was measured: the device's mode and the time its samples took on the wall clock."""
-    sampled = s.samples * ts
+    sampled = s.samples * s.stream_every * ts
     if s.mode == "lockstep":
         return f"lockstep: {sampled:.1f} s of samples in {wall:.1f} s"
+    board = "on board, " if s.onboard else ""
     if _pace(s, wall, ts) is not None:
-        return f"not real time: {sampled:.1f} s of samples in {wall:.1f} s"
-    return f"real time: {sampled:.1f} s of samples in {wall:.1f} s"
+        return f"{board}not real time: {sampled:.1f} s of samples in {wall:.1f} s"
+    return f"{board}real time: {sampled:.1f} s of samples in {wall:.1f} s"
 
 
 def _tee_status(page, other):  # type: ignore[no-untyped-def]
@@ -321,9 +342,14 @@ def _print_summary(scn, s, wall: float, ts: float) -> None:  # type: ignore[no-u
     table.add_row("RMS control", fmt(s.rms_u, ".5f"), u.force)
     table.add_row("RMS control step |u_k − u_k−1|", fmt(s.rms_du, ".5f"), u.force)
     table.add_row("max |error|", fmt(s.max_abs_error, ".5f"), u.position)
+    if s.onboard:
+        table.add_row("controller", f"on the chip (float32, {s.observer_sums} sums)", "")
+        table.add_row("samples streamed", "every one" if s.stream_every == 1
+                      else f"every {s.stream_every}th (DECIMATED)", "")
     table.add_row("samples logged", str(s.samples), "")
     table.add_row("lost samples", str(s.lost_samples), "")
-    table.add_row("deadline misses", str(s.deadline_misses), "")
+    table.add_row("chip samples > Ts late" if s.onboard else "deadline misses",
+                  str(s.deadline_misses), "")
     table.add_row("period jitter p50 / p99",
                   f"{fmt(s.jitter_p50_us, '.0f')} / {fmt(s.jitter_p99_us, '.0f')}", "µs")
     table.add_row("host latency p50 / p99",

@@ -70,9 +70,10 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
             kept = f"; the {len(exc.result.t)} rows logged are in {out_path}"
         raise RunFailure(f"{exc}{kept}") from None
     from esoarm.engines.diagnosis import saturation_warning
+    from esoarm.kinds import units
 
     saturated = saturation_warning(result.metrics.get("saturated_fraction", float("nan")),
-                                   scn.actuator.torque_limit)
+                                   scn.actuator.torque_limit, units(scn))
     if saturated:
         warn_line(saturated)
     if out_path is not None:

@@ -2,13 +2,16 @@
 
 :func:`onboard_firmware` generates the scenario's controller for the AVR and
 builds the rig firmware with it (``make -C firmware l298n ONBOARD=DIR
-SAMPLE_PERIOD_US=… BAUD=…``): at every sample tick the firmware reads the
-encoder, steps the generated observer and controller on y = count·2π/counts
-and writes the duty; DUTY frames from the host are only a heartbeat for the
-firmware's watchdog.  :func:`onboard_run` runs that firmware in simavr with
-the twin on its pins (:class:`esoarm.hardware.hil.twin.PinTwin`, one RK4 step
-of ``rig.step`` at a time) and a scripted host that sends START, answers every
-tenth SAMPLE with a heartbeat and records every sample and fault the chip streams.
+SAMPLE_PERIOD_US=… BAUD=…``): at every sample the firmware's Timer2 interrupt
+reads the encoder, steps the generated observer and controller on
+y = count·2π/counts and writes the duty, and streams CHIP_SAMPLE frames (y as
+the count, u, the estimate, the duty; docs/protocol.md); HEARTBEAT frames from
+the host feed the firmware's watchdog.  :func:`onboard_run` runs that firmware
+in simavr with the twin on its pins (:class:`esoarm.hardware.hil.twin.PinTwin`,
+one RK4 step of ``rig.step`` at a time) and a scripted host that sends START, a
+HEARTBEAT every 20 ms of AVR time and records every sample and fault the chip
+streams.  The Python host proper is ``esoarm run SCENARIO --port PATH --onboard``
+(:func:`esoarm.hardware.realtime.run_rig`) against ``esoarm hil SCENARIO --onboard``.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm.codegen import CodegenError
 from esoarm.codegen.generate import generate, write_sources
 from esoarm.hardware import protocol as P
 from esoarm.hardware.hil.build import ToolchainMissing, _cache_dir, default_firmware_dir
@@ -27,15 +31,38 @@ from esoarm.scenario import Scenario
 
 __all__ = ["OnboardRun", "onboard_firmware", "onboard_run"]
 
-#: Baud rate of the on-board builds: a 19-byte SAMPLE frame every 1 ms needs 1 Mbit/s.
+#: Baud rate of the on-board builds: a 37-byte CHIP_SAMPLE frame (370 bits) every 1 ms
+#: needs 370 kbit/s; 115200 would carry one sample in four at 1 kHz.
 BAUD = 1_000_000
-#: The scripted host sends its heartbeat (a DUTY frame, ignored on board) every this many
-#: samples: parsing a frame per sample would cost the chip ~3k cycles of its 16k at 1 kHz.
-HEARTBEAT_EVERY = 10
+#: Bits on the wire of one CHIP_SAMPLE frame (7 bytes of framing + 30 of payload, 10 bits a byte)
+CHIP_FRAME_BITS = 10 * (P.HEADER_SIZE + P.PAYLOAD_SIZES[P.CHIP_SAMPLE] + P.CRC_SIZE)
+#: The host's heartbeat period [s] (the firmware's watchdog trips after 100 ms without one):
+#: parsing a frame per sample would cost the chip ~3k cycles of its 16k at 1 kHz.
+HEARTBEAT_S = 0.02
+
+
+def stream_every(rate_hz: float, baud: int = BAUD) -> int:
+    """Samples per streamed CHIP_SAMPLE frame: the firmware's STREAM_EVERY.
+
+    The frames may use at most 90 % of the line, so the firmware streams every n-th
+    sample with n = ceil(CHIP_FRAME_BITS · rate_hz / (0.9 · baud)) (the same integer
+    formula as ``firmware/esoarm_rig/esoarm_rig.ino``).
+
+    Parameters
+    ----------
+    rate_hz : float
+        Sample rate [Hz] (a whole number of µs per sample).
+    baud : int
+        Line rate [bit/s].
+    """
+    period_us = round(1e6 / rate_hz)
+    num = CHIP_FRAME_BITS * 1_000_000 * 10
+    den = 9 * baud * period_us
+    return max(1, -(-num // den))
 
 
 def onboard_firmware(scn: Scenario, firmware_dir: Path | None = None,
-                     compensated: bool | None = None) -> Path:
+                     compensated: bool | None = None, baud: int = BAUD) -> Path:
     """Generate ``scn``'s controller for the AVR and build the rig firmware with it.
 
     Parameters
@@ -47,6 +74,8 @@ def onboard_firmware(scn: Scenario, firmware_dir: Path | None = None,
         ``firmware/`` of the checkout (default: the one this package runs from).
     compensated : bool, optional
         Observer sums of the generated code (default: compensated).
+    baud : int
+        Line rate [bit/s] of the build (sets the stream decimation, :func:`stream_every`).
 
     Returns
     -------
@@ -60,13 +89,17 @@ def onboard_firmware(scn: Scenario, firmware_dir: Path | None = None,
     if shutil.which("make") is None:
         raise ToolchainMissing("make not found: apt-get install make")
     period_us = round(1e6 / scn.sensor.rate_hz)
+    if abs(period_us - 1e6 / scn.sensor.rate_hz) > 1e-6 or period_us % 4:
+        raise CodegenError(f"sensor.rate_hz = {scn.sensor.rate_hz:g}: on board the sample "
+                           "period must be a whole multiple of 4 µs (the firmware's Timer2 tick)")
     gen = generate(scn, "avr", "float32", compensated)
-    root = _cache_dir() / f"esoarm-onboard-{gen.digest}-{'c' if gen.compensated else 'p'}"
+    root = _cache_dir() / (f"esoarm-onboard-{gen.digest}-{'c' if gen.compensated else 'p'}"
+                           f"-{baud}")
     write_sources(gen, root / "controller")
     out_dir = root / "build"
     cmd = ["make", "-s", "--no-print-directory", "-C", str(fw), "l298n",
            f"VARIANT_DIR={out_dir}", f"ONBOARD={root / 'controller'}",
-           f"SAMPLE_PERIOD_US={period_us}", f"BAUD={BAUD}"]
+           f"SAMPLE_PERIOD_US={period_us}", f"BAUD={baud}"]
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
         lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
@@ -89,6 +122,12 @@ class OnboardRun:
         Measured angle q·count [rad].
     theta : ndarray
         The twin's true angle when each sample frame was complete [rad].
+    u : ndarray
+        Torque the chip's observer was updated with [N·m].
+    zhat : ndarray (N, 3)
+        The chip's estimate at each sample.
+    duty : ndarray
+        Duty the chip wrote [counts].
     faults : list of tuple
         FAULT frames (code, sample).
     expected : int
@@ -99,6 +138,9 @@ class OnboardRun:
     t_us: np.ndarray
     y: np.ndarray
     theta: np.ndarray
+    u: np.ndarray
+    zhat: np.ndarray
+    duty: np.ndarray
     faults: list[tuple] = field(default_factory=list)
     expected: int = 0
 
@@ -137,6 +179,7 @@ def onboard_run(scn: Scenario, elf: Path, seconds: float | None = None) -> Onboa
     ts: list[int] = []
     counts: list[int] = []
     thetas: list[float] = []
+    rows: list[P.ChipSample] = []
     faults: list[tuple] = []
     seq = 1
     try:
@@ -145,7 +188,10 @@ def onboard_run(scn: Scenario, elf: Path, seconds: float | None = None) -> Onboa
         board.send(P.encode(P.START, 0))
         started = False
         end = None
-        while end is None or board.cycle < end:
+        beat_every = round(HEARTBEAT_S * F_CPU)
+        next_beat = 0
+        give_up = board.cycle + F_CPU  # no sample within 1 s of START: the firmware is stuck
+        while (board.cycle < end) if end is not None else (board.cycle < give_up):
             c0 = board.cycle
             duty = board.motor().duty
             cycles, levels = twin.step(duty, c0) if started else (np.zeros(0, np.uint64),
@@ -153,22 +199,28 @@ def onboard_run(scn: Scenario, elf: Path, seconds: float | None = None) -> Onboa
             board.run(c0 + twin.step_cycles, cycles, levels)
             data, _ = board.take()
             for f in parser.feed(data):
-                if f.kind == P.SAMPLE:
-                    k, t_us, count = f.fields()
+                if f.kind == P.CHIP_SAMPLE:
+                    row = P.ChipSample.from_frame(f)
                     if not started:  # the first sample follows START: the twin starts
                         started = True
                         twin.start()
                         end = board.cycle + round(seconds * F_CPU)
-                    ks.append(k)
-                    ts.append(t_us)
-                    counts.append(count)
+                        next_beat = board.cycle
+                    ks.append(row.k)
+                    ts.append(row.t_us)
+                    counts.append(row.encoder_count)
                     thetas.append(twin.theta)
-                    if k % HEARTBEAT_EVERY == 0:  # the watchdog's heartbeat (100 ms)
-                        board.send(P.encode(P.DUTY, seq, k, 0))
+                    rows.append(row)
+                    if board.cycle >= next_beat:  # the watchdog's heartbeat (100 ms)
+                        board.send(P.encode(P.HEARTBEAT, seq, row.k))
                         seq = (seq + 1) & 0xFF
+                        next_beat = board.cycle + beat_every
                 elif f.kind == P.FAULT:
                     faults.append(tuple(f.fields()))
     finally:
         board.close()
+    table = np.array([(r.u, r.z1, r.z2, r.z3, r.duty) for r in rows],
+                     dtype=float).reshape(-1, 5)
     return OnboardRun(np.asarray(ks), np.asarray(ts), q * np.asarray(counts, dtype=float),
-                      np.asarray(thetas), faults, int(round(seconds * scn.sensor.rate_hz)))
+                      np.asarray(thetas), table[:, 0], table[:, 1:4], table[:, 4].astype(int),
+                      faults, int(round(seconds * scn.sensor.rate_hz)))

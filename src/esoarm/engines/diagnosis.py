@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from esoarm.contract import ROTARY_UNITS, Units
+
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
@@ -21,7 +23,8 @@ __all__ = ["SATURATION_WARNING", "divergence_causes", "saturation_warning", "wha
 SATURATION_WARNING = 0.5
 
 
-def what_left(theta: float, z1: float, z2: float, z3: float, u: float, limit: float) -> str:
+def what_left(theta: float, z1: float, z2: float, z3: float, u: float, limit: float,
+              units: Units = ROTARY_UNITS) -> str:
     """The first quantity of the last logged row that is out of range, with its value.
 
     Parameters
@@ -34,6 +37,8 @@ def what_left(theta: float, z1: float, z2: float, z3: float, u: float, limit: fl
         Command u [N·m].
     limit : float
         Divergence limit on |θ| and |ẑ1| [rad].
+    units : Units, optional
+        The plant's units (:func:`esoarm.kinds.units`; m, m/s, N on a prismatic axis).
 
     Returns
     -------
@@ -45,11 +50,13 @@ def what_left(theta: float, z1: float, z2: float, z3: float, u: float, limit: fl
     >>> what_left(0.1, float("nan"), 0.0, 0.0, 0.0, 1e6)
     'the angle estimate ẑ1 = nan rad'
     """
-    for name, value, unit, bounded in (("the angle θ", theta, "rad", True),
-                                       ("the angle estimate ẑ1", z1, "rad", True),
-                                       ("the rate estimate ẑ2", z2, "rad/s", False),
-                                       ("the perturbation estimate ẑ3", z3, "rad/s²", False),
-                                       ("the control u", u, "N·m", False)):
+    word = units.position_word
+    for name, value, unit, bounded in (
+            (f"the {word} θ", theta, units.position, True),
+            (f"the {word} estimate ẑ1", z1, units.position, True),
+            ("the rate estimate ẑ2", z2, units.velocity, False),
+            ("the perturbation estimate ẑ3", z3, units.acceleration, False),
+            ("the control u", u, units.force, False)):
         if not math.isfinite(value) or (bounded and abs(value) >= limit):
             return f"{name} = {value:.3g} {unit}"
     return "the state"
@@ -74,7 +81,7 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
         One phrase per plausible cause, most likely first.
     """
     from esoarm._schema import joint_values, show_joint_values
-    from esoarm.kinds import observer_warnings
+    from esoarm.kinds import observer_warnings, units
 
     causes: list[str] = []
     ts = scn.sample_time
@@ -117,11 +124,12 @@ def divergence_causes(scn: Scenario, limit: float) -> list[str]:
         amplitude = abs(getattr(ref, "offset", 0.0)) + sum(
             abs(a) for a in getattr(ref, "amplitudes", []))
     if amplitude >= limit / 10:
-        causes.append(f"a reference of {amplitude:g} rad")
+        causes.append(f"a reference of {amplitude:g} {units(scn).position}")
     return causes
 
 
-def saturation_warning(fraction: float, torque_limit: float) -> str | None:
+def saturation_warning(fraction: float, torque_limit: float,
+                       units: Units = ROTARY_UNITS) -> str | None:
     """A one-line warning when the command was saturated for most of a run, else None.
 
     Parameters
@@ -129,7 +137,9 @@ def saturation_warning(fraction: float, torque_limit: float) -> str | None:
     fraction : float
         Share of the samples with the command at ±torque_limit, in [0, 1] (NaN: none).
     torque_limit : float
-        The actuator's limit [N·m].
+        The actuator's limit [N·m] (a force [N] on a prismatic axis).
+    units : Units, optional
+        The plant's units (:func:`esoarm.kinds.units`).
 
     Returns
     -------
@@ -138,7 +148,7 @@ def saturation_warning(fraction: float, torque_limit: float) -> str | None:
     """
     if not fraction > SATURATION_WARNING:  # also None for NaN
         return None
-    return (f"the command sat at the torque limit ±{torque_limit:g} N·m in "
+    return (f"the command sat at the {units.force_word} limit ±{torque_limit:g} {units.force} in "
             f"{100 * fraction:.3g} % of the samples (saturated_fraction = {fraction:.3g}): the "
             "loop is not the linearized one the FLC assumes; raise actuator.torque_limit or ask "
             "for a gentler reference")

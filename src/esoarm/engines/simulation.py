@@ -380,7 +380,10 @@ def diverged_message(name: str, tk: float, k: int, result: SimResult | None = No
     True
     """
     head = f"simulation of '{name}' diverged at t = {tk:.4g} s (sample {k}): "
-    bound = f"|θ|, |ẑ1| < {DIVERGENCE_LIMIT:g} rad, all finite"
+    from esoarm.kinds import units
+
+    unit = units(result.scenario if result is not None else None).position
+    bound = f"|θ|, |ẑ1| < {DIVERGENCE_LIMIT:g} {unit}, all finite"
     if result is None or len(result.t) == 0:
         return (f"{head}the state left the finite range ({bound}); check observer.eps "
                 "against the sample rate")
@@ -388,7 +391,8 @@ def diverged_message(name: str, tk: float, k: int, result: SimResult | None = No
 
     z = np.asarray(result.z).reshape(len(result.t), -1)
     left = what_left(float(np.ravel(result.theta)[-1]), float(z[-1, 0]), float(z[-1, 1]),
-                     float(z[-1, 2]), float(np.ravel(result.u)[-1]), DIVERGENCE_LIMIT)
+                     float(z[-1, 2]), float(np.ravel(result.u)[-1]), DIVERGENCE_LIMIT,
+                     units(result.scenario))
     causes = divergence_causes(result.scenario, DIVERGENCE_LIMIT)
     if causes:
         why = "likely cause: " + causes[0] + (f" (also {'; '.join(causes[1:])})"

@@ -67,6 +67,7 @@ class SerialLink:
         self.seq = 0
         self.rx_lost = 0
         self._rx_seq: int | None = None
+        self._backlog: list[P.Frame] = []  # frames read with INFO, after it
 
     def send(self, kind: int, *fields: int | float) -> None:
         """Send one frame; raises :class:`LinkError` if the port is gone."""
@@ -79,6 +80,9 @@ class SerialLink:
 
     def receive(self, timeout: float) -> list[P.Frame]:
         """Frames that arrive within ``timeout`` [s] (empty list if none)."""
+        if self._backlog:
+            frames, self._backlog = self._backlog, []
+            return frames
         try:
             ready, _, _ = select.select([self._fd], [], [], max(0.0, timeout))
             if not ready:
@@ -99,8 +103,10 @@ class SerialLink:
             self.send(P.HELLO, P.PROTOCOL_VERSION)
             deadline = time.perf_counter() + timeout
             while (left := deadline - time.perf_counter()) > 0:
-                for frame in self.receive(left):
+                frames = self.receive(left)
+                for i, frame in enumerate(frames):
                     if frame.kind == P.INFO:
+                        self._backlog = frames[i + 1:]
                         info = P.Info.from_frame(frame)
                         if info.version != P.PROTOCOL_VERSION:
                             raise LinkError(
@@ -109,6 +115,16 @@ class SerialLink:
                         return info
         raise LinkError(f"no answer from a device on '{self.port}' "
                         f"({attempts} HELLO within {timeout:g} s each)")
+
+    def chip_info(self, timeout: float = 1.0) -> P.ChipInfo:
+        """The CHIP_INFO an on-board device sends after INFO (call after :meth:`handshake`)."""
+        deadline = time.perf_counter() + timeout
+        while (left := deadline - time.perf_counter()) > 0:
+            for frame in self.receive(left):
+                if frame.kind == P.CHIP_INFO:
+                    return P.ChipInfo.from_frame(frame)
+        raise LinkError(f"the on-board device on '{self.port}' sent no CHIP_INFO within "
+                        f"{timeout:g} s of INFO")
 
     def stop(self) -> None:
         """Best-effort STOP (never raises: used on the way out of a fault)."""

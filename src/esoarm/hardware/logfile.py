@@ -5,7 +5,8 @@ The logs of ``esoarm run``, ``esoarm emulate``, ``esoarm excite`` and
 sample.  :func:`read_log_columns` reads the columns a consumer needs (replay,
 arm replay, identification) and applies the checks they share; every problem
 is a :class:`~esoarm.scenario.ScenarioError` with one line naming the file
-and, where it applies, the line and the column:
+and, where it applies, the line and the column (lines starting with ``#`` before
+the header are comments: ``esoarm run --onboard`` says there what it logged):
 
 - the file is missing or unreadable, or has no header or no data rows;
 - a needed column is missing (the message says what the consumer needs), or
@@ -76,7 +77,10 @@ def read_log_columns(path: str | Path, pick: Pick, need: str,
     try:
         with open(path, encoding="utf-8-sig", newline="") as fh:
             reader = csv.reader(fh)
-            header = [h.strip() for h in next(reader, [])]
+            row0 = next(reader, [])
+            while row0 and row0[0].lstrip().startswith("#"):  # comment lines before the header
+                row0 = next(reader, [])
+            header = [h.strip() for h in row0]
             if not any(header):
                 raise ScenarioError(f"{src}: empty file (expected a header line, then one "
                                     "row per sample)")

@@ -27,7 +27,10 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 __all__ = [
+    "CHIP_INFO",
+    "CHIP_SAMPLE",
     "FAULT",
+    "HEARTBEAT",
     "HELLO",
     "INFO",
     "PROTOCOL_VERSION",
@@ -37,6 +40,8 @@ __all__ = [
     "STOPPED",
     "DUTY",
     "TORQUE",
+    "ChipInfo",
+    "ChipSample",
     "Frame",
     "Info",
     "Parser",
@@ -44,7 +49,8 @@ __all__ = [
     "encode",
 ]
 
-PROTOCOL_VERSION = 1
+#: 2: on-board mode (FLAG_ONBOARD, HEARTBEAT, CHIP_INFO, CHIP_SAMPLE)
+PROTOCOL_VERSION = 2
 SYNC = b"\xa5\x5a"
 HEADER_SIZE = 5  # sync (2) + type + seq + len
 CRC_SIZE = 2
@@ -55,15 +61,25 @@ START = 0x02  # payload: none; the device resets its clock and starts sampling
 DUTY = 0x03  # payload: k u32 (sample answered), duty i16 in [-pwm_max, pwm_max]
 TORQUE = 0x04  # payload: k u32, torque f64 [N·m]; only if INFO flags has FLAG_TORQUE
 STOP = 0x05  # payload: none; motor off, sampling stops
+HEARTBEAT = 0x06  # payload: k u32 (newest sample logged); on-board devices only: the watchdog
 # device -> host
 INFO = 0x81  # payload: version u8, flags u8, counts_per_rev u32, pwm_max u16, period_us u32
 SAMPLE = 0x82  # payload: k u32, t_us u32 (device clock), count i32 (encoder)
 STOPPED = 0x85  # payload: none; acknowledges STOP, motor is off
 FAULT = 0x86  # payload: code u8, detail u32
+# device -> host, on-board devices only (INFO flags has FLAG_ONBOARD)
+CHIP_INFO = 0x87  # payload: stream_every u16, sums u8, scenario hash 8 ASCII hex digits
+CHIP_SAMPLE = 0x88  # payload: k u32, t_us u32, count i32, u f32, z1 f32, z2 f32, z3 f32, duty i16
 
 #: INFO flags
 FLAG_TORQUE = 0x01  # device accepts TORQUE (ideal torque source: the emulator without [motor])
 FLAG_LOCKSTEP = 0x02  # device advances one sample per command (emulator --lockstep)
+FLAG_ONBOARD = 0x04  # the device runs its own (generated) controller: it sends CHIP_INFO after
+#                      INFO, streams CHIP_SAMPLE instead of SAMPLE and takes HEARTBEAT, not DUTY
+
+#: CHIP_INFO sums
+SUMS_PLAIN = 0
+SUMS_COMPENSATED = 1
 
 #: FAULT codes
 FAULT_WATCHDOG = 1  # no valid command within 100 ms; motor zeroed
@@ -78,14 +94,18 @@ FORMATS: dict[int, str] = {
     DUTY: "<Ih",
     TORQUE: "<Id",
     STOP: "<",
+    HEARTBEAT: "<I",
     INFO: "<BBIHI",
     SAMPLE: "<IIi",
     STOPPED: "<",
     FAULT: "<BI",
+    CHIP_INFO: "<HB8s",
+    CHIP_SAMPLE: "<IIiffffh",
 }
 NAMES: dict[int, str] = {
     HELLO: "HELLO", START: "START", DUTY: "DUTY", TORQUE: "TORQUE", STOP: "STOP",
-    INFO: "INFO", SAMPLE: "SAMPLE", STOPPED: "STOPPED", FAULT: "FAULT",
+    HEARTBEAT: "HEARTBEAT", INFO: "INFO", SAMPLE: "SAMPLE", STOPPED: "STOPPED",
+    FAULT: "FAULT", CHIP_INFO: "CHIP_INFO", CHIP_SAMPLE: "CHIP_SAMPLE",
 }
 STRUCTS: dict[int, struct.Struct] = {t: struct.Struct(f) for t, f in FORMATS.items()}
 PAYLOAD_SIZES: dict[int, int] = {t: s.size for t, s in STRUCTS.items()}
@@ -99,7 +119,7 @@ def crc16(data: bytes | bytearray | memoryview) -> int:
     return binascii.crc_hqx(data, 0xFFFF)
 
 
-def encode(kind: int, seq: int, *fields: int | float) -> bytes:
+def encode(kind: int, seq: int, *fields: int | float | bytes) -> bytes:
     """One complete frame of type ``kind`` with sequence number ``seq``.
 
     Parameters
@@ -166,6 +186,77 @@ class Info:
     def lockstep(self) -> bool:
         """The device advances one sample per command."""
         return bool(self.flags & FLAG_LOCKSTEP)
+
+    @property
+    def onboard(self) -> bool:
+        """The device runs its own controller (firmware built with ``ONBOARD=DIR``)."""
+        return bool(self.flags & FLAG_ONBOARD)
+
+
+@dataclass(frozen=True)
+class ChipInfo:
+    """What an on-board device says about its controller (CHIP_INFO, after INFO).
+
+    Attributes
+    ----------
+    stream_every : int
+        The device streams every this-many-th sample (1: every sample); more when the
+        link's baud cannot carry a CHIP_SAMPLE frame per sample.
+    sums : int
+        Observer sums of the generated code: :data:`SUMS_PLAIN` or :data:`SUMS_COMPENSATED`.
+    scenario_hash : str
+        The first 8 hex digits of the hash of the scenario the controller was generated
+        from (``esoarm.codegen.generate.scenario_hash``).
+    """
+
+    stream_every: int
+    sums: int
+    scenario_hash: str
+
+    @classmethod
+    def from_frame(cls, frame: Frame) -> ChipInfo:
+        """Decode a CHIP_INFO frame."""
+        every, sums, digest = frame.fields()
+        return cls(int(every), int(sums), bytes(digest).decode("ascii", errors="replace"))
+
+    @property
+    def sums_name(self) -> str:
+        """``"plain"`` or ``"compensated"``."""
+        return "compensated" if self.sums == SUMS_COMPENSATED else "plain"
+
+
+class ChipSample(NamedTuple):
+    """One sample of an on-board device (CHIP_SAMPLE): what its controller measured and did.
+
+    Attributes
+    ----------
+    k : int
+        Sample index since START.
+    t_us : int
+        Device time of the sample [µs since START, wraps at 2³²].
+    encoder_count : int
+        Encoder count ``count`` of the frame; y = q · count [rad].
+    u : float
+        Torque the observer was updated with [N·m] (float32 on the chip).
+    z1, z2, z3 : float
+        The estimate the controller used [rad, rad/s, rad/s²].
+    duty : int
+        PWM duty written to the driver [counts].
+    """
+
+    k: int
+    t_us: int
+    encoder_count: int
+    u: float
+    z1: float
+    z2: float
+    z3: float
+    duty: int
+
+    @classmethod
+    def from_frame(cls, frame: Frame) -> ChipSample:
+        """Decode a CHIP_SAMPLE frame."""
+        return cls(*frame.fields())
 
 
 class Parser:
@@ -259,6 +350,8 @@ def vector_messages() -> list[tuple[int, int, tuple]]:
         (TORQUE, 5, (1000, 2.0)),
         (TORQUE, 6, (9, 5e-324)),
         (STOP, 7, ()),
+        (HEARTBEAT, 8, (0,)),
+        (HEARTBEAT, 9, (0xFFFFFFFF,)),
         (INFO, 0, (PROTOCOL_VERSION, FLAG_TORQUE | FLAG_LOCKSTEP, 7200, 255, 20000)),
         (INFO, 1, (PROTOCOL_VERSION, 0, 2400, 1023, 1000)),
         (SAMPLE, 2, (0, 0, 0)),
@@ -268,6 +361,13 @@ def vector_messages() -> list[tuple[int, int, tuple]]:
         (STOPPED, 9, ()),
         (FAULT, 10, (FAULT_WATCHDOG, 57)),
         (FAULT, 11, (FAULT_BAD_COMMAND, 0xDEADBEEF)),
+        (INFO, 12, (PROTOCOL_VERSION, FLAG_ONBOARD, 2400, 255, 1000)),
+        (CHIP_INFO, 13, (1, SUMS_PLAIN, b"b956682a")),
+        (CHIP_INFO, 14, (65535, SUMS_COMPENSATED, b"0123abcd")),
+        (CHIP_SAMPLE, 15, (0, 0, 0, 0.0, 0.0, 0.0, 0.0, 0)),
+        (CHIP_SAMPLE, 16, (19999, 19999000, -1234, -1.5, 0.25, -3.0e-7, 1.0e6, -255)),
+        (CHIP_SAMPLE, 17, (0xFFFFFFFF, 0xFFFFFFFF, 2**31 - 1, float("inf"), 1e-45, -0.0,
+                           3.4028234663852886e38, 32767)),
     ]
 
 

@@ -20,6 +20,20 @@ device turns the motor off; its own 100 ms watchdog does so too if the link is
 dead), the log keeps every row written, and :class:`RigFault` or
 :class:`RigInterrupted` carries the summary of the rows logged.
 
+On-board mode (``onboard=True``, ``esoarm run --onboard``): the device runs the
+generated controller itself (firmware built with ``ONBOARD=DIR``; INFO has
+``FLAG_ONBOARD``).  The host switches its own control law off: it checks that
+the chip's controller was generated from this very scenario (CHIP_INFO's hash),
+sends START, feeds the chip's watchdog with a HEARTBEAT every
+:data:`HEARTBEAT_S`, and logs each CHIP_SAMPLE the chip streams -- y, the u and
+the estimate the chip used, its duty -- as a row of :data:`LOG_COLUMNS`
+(``latency`` nan: the host answers nothing).  Its supervisor stays: angle
+limit, encoder jump, following error, NaN guard on u and ẑ, torque limit, the
+watchdog on incoming samples, the chip's FAULT reports (overrun included).
+Where the link cannot carry a frame per sample the chip streams every n-th
+(CHIP_INFO ``stream_every``); the log's first line (a ``#`` comment) and the
+``notice`` callback say so.
+
 A sample that never arrives (a gap in the device's sample index) is bridged by
 an observer prediction with zero innovation; its row has ``theta = nan`` and
 is counted in ``lost_samples``.  Deadline: the command for sample k must leave
@@ -49,7 +63,7 @@ from esoarm.hardware.link import LinkError, SerialLink
 from esoarm.plants.actuator import actuate, actuator_vector, motor_of
 from esoarm.scenario import Scenario, ScenarioError
 
-__all__ = ["LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",
+__all__ = ["HEARTBEAT_S", "LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",
            "check_device", "run_rig"]
 
 #: Columns of the run log (docs/semantics.md, "Output files and columns"): the time-series
@@ -58,6 +72,8 @@ __all__ = ["LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLim
 #: under the name it has in every file (here equal to ``theta``).
 LOG_COLUMNS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3",
                "k", "t_device", "t_host", "latency", "late", "duty", "y")
+#: On board: the host's HEARTBEAT period [s] (the chip's watchdog trips after 100 ms).
+HEARTBEAT_S = 0.02
 
 
 @dataclass(frozen=True)
@@ -105,6 +121,9 @@ class RunSummary:
     mode: str = ""
     log: str = ""
     stop_acknowledged: bool = False
+    onboard: bool = False
+    stream_every: int = 1
+    observer_sums: str = ""
 
     def to_dict(self) -> dict:
         """JSON-ready (NaN as None)."""
@@ -156,7 +175,7 @@ class _LogWriter:
     """
 
     def __init__(self, path: Path | None, columns: tuple[str, ...] = LOG_COLUMNS,
-                 tee: Callable[[str], None] | None = None) -> None:
+                 tee: Callable[[str], None] | None = None, preamble: str = "") -> None:
         self.path = path
         self.tee = tee  # e.g. the live scope: gets every row as written
         self.rows = 0
@@ -168,6 +187,8 @@ class _LogWriter:
                 self._fh = open(path, "w", encoding="utf-8", newline="\n", buffering=1)  # noqa: SIM115
             except OSError as exc:
                 raise OutputError(path, describe_os_error(exc)) from None
+            if preamble:
+                self.write(f"# {preamble}\n", row=False)
             self.write(",".join(columns) + "\n", row=False)
 
     def write(self, line: str, row: bool = True) -> None:
@@ -239,7 +260,8 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             limits: SafetyLimits | None = None,
             status: Callable[[dict], None] | None = None,
             controller: SampleController | None = None,
-            monitor: Callable[[str], None] | None = None) -> RunSummary:
+            monitor: Callable[[str], None] | None = None, onboard: bool = False,
+            notice: Callable[[str], None] | None = None) -> RunSummary:
     """Drive the device on ``link`` through one run of ``scn``.
 
     Parameters
@@ -264,6 +286,12 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     monitor : callable, optional
         Receives every log row (the CSV line of :data:`LOG_COLUMNS`) as it is
         written, e.g. :meth:`esoarm.hardware.scope.Scope.push`; it must not block.
+    onboard : bool
+        On-board mode (see the module docstring): the device runs the controller, the
+        host supervises and logs the chip's samples.
+    notice : callable, optional
+        Receives one-line notices before the run starts (on board: what the chip
+        streams, and whether it is every sample).
 
     Returns
     -------
@@ -280,7 +308,18 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     """
     limits = limits or SafetyLimits()
     info = link.handshake()
+    if info.onboard and not onboard:
+        raise ScenarioError(
+            f"the device on '{link.port}' runs its own controller (firmware built with "
+            "ONBOARD=DIR): add --onboard, or flash the firmware without ONBOARD")
+    if onboard and not info.onboard:
+        raise ScenarioError(
+            f"--onboard: the device on '{link.port}' runs no controller of its own; build the "
+            "firmware with the scenario's controller (make -C firmware ONBOARD=DIR, or "
+            "'esoarm hil SCENARIO --onboard')")
     q = check_device(info, scn)
+    if onboard:
+        return _run_onboard(scn, link, info, q, log_path, limits, status, monitor, notice)
     motor = motor_of(scn)
     use_torque = info.accepts_torque and motor is None
     if not use_torque and motor is None:
@@ -334,6 +373,183 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             raise RigInterrupted(text, summary)
         raise RigFault(text, summary)
     return summary
+
+
+def _chip_check(scn: Scenario, link: SerialLink, info: P.Info) -> P.ChipInfo:
+    """CHIP_INFO of an on-board device, checked against ``scn`` (ScenarioError if not it)."""
+    from esoarm.codegen.generate import scenario_hash  # codegen sits beside hardware
+
+    chip = link.chip_info()
+    mine = scenario_hash(scn)[:8]
+    if chip.scenario_hash != mine:
+        raise ScenarioError(
+            f"the chip on '{link.port}' runs the controller generated from another scenario "
+            f"(hash {chip.scenario_hash}, this one {mine}): rebuild it from the same scenario "
+            "and --set values ('esoarm hil SCENARIO --onboard', or 'esoarm codegen SCENARIO "
+            "--target avr --out DIR' and make -C firmware ONBOARD=DIR)")
+    if motor_of(scn) is None or info.accepts_torque:
+        raise ScenarioError("--onboard: the scenario needs a [motor] table (the chip drives "
+                            "PWM duties)")
+    if chip.stream_every < 1:
+        raise LinkError(f"the chip on '{link.port}' reports stream_every = 0")
+    return chip
+
+
+def stream_notice(scn: Scenario, chip: P.ChipInfo) -> str:
+    """One line: what an on-board run logs, and whether it is every sample."""
+    rate = scn.sensor.rate_hz
+    what = (f"the chip's samples (y, u, z1..z3, duty; float32 {chip.sums_name} observer sums, "
+            f"scenario '{scn.name}' hash {chip.scenario_hash})")
+    if chip.stream_every == 1:
+        return f"on board: logging {what}, every sample ({rate:g} Hz)"
+    return (f"on board: logging {what}, DECIMATED: every {chip.stream_every}th sample "
+            f"({rate / chip.stream_every:g} Hz of {rate:g} Hz) -- the link's baud cannot carry "
+            "a frame per sample; the chip still controls at every sample")
+
+
+def _run_onboard(scn: Scenario, link: SerialLink, info: P.Info, q: float,  # noqa: PLR0913
+                 log_path: Path | None, limits: SafetyLimits,
+                 status: Callable[[dict], None] | None, monitor: Callable[[str], None] | None,
+                 notice: Callable[[str], None] | None) -> RunSummary:
+    """:func:`run_rig` on board: supervise the chip's controller and log what it streams."""
+    chip = _chip_check(scn, link, info)
+    line = stream_notice(scn, chip)
+    if notice is not None:
+        notice(line)
+    ctl = DeploymentController(scn)  # its reference and time grid only: no control law here
+    n, ts = ctl.n_samples, ctl.ts
+    log = _LogWriter(log_path, tee=monitor, preamble=line)
+    summary = RunSummary(mode="on board", log=str(log_path) if log_path else "", onboard=True,
+                         stream_every=chip.stream_every, observer_sums=chip.sums_name)
+    acc: dict[str, list[float]] = {"e": [], "u": []}
+    periods: list[float] = []
+    error_message = None
+    interrupted = False
+    last: list[Any] = [-1, math.nan, -1, math.nan, math.nan]  # k, y, k shown, e, u
+    with _SigintFlag() as sigint:
+        try:
+            _loop_onboard(link, ctl, q, chip.stream_every, limits, log, summary, acc, periods,
+                          sigint, status, n, ts, last)
+        except _Stop as exc:
+            error_message, interrupted = str(exc), exc.interrupted
+        except LinkError as exc:
+            error_message = str(exc)
+        finally:
+            link.stop()
+            summary.stop_acknowledged = _wait_stopped(link, 0.5)
+            log.close()
+    k_last, y_last, k_shown, e_last, u_last = last
+    if status is not None and k_last > k_shown:
+        status({"t": ctl.t[k_last], "theta": y_last, "error": e_last, "u": u_last,
+                "deadline_misses": summary.deadline_misses, "k": k_last, "n": n})
+    _finish(summary, acc, periods, [], log.rows, link, ts)
+    if error_message is not None:
+        kept = f"; {log.rows} rows in {log_path}" if log_path else ""
+        off = "stop sent, motor off" if summary.stop_acknowledged else \
+            "stop sent (not acknowledged; the chip's watchdog turns the motor off)"
+        text = f"{error_message}: {off}{kept}"
+        if interrupted:
+            raise RigInterrupted(text, summary)
+        raise RigFault(text, summary)
+    return summary
+
+
+def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # type: ignore[no-untyped-def]
+                  sigint, status, n, ts, last) -> None:
+    fmt = repr
+    isfinite = math.isfinite
+    perf = time.perf_counter
+    limit = ctl.torque_limit * (1 + 1e-6)  # the chip saturates in float32
+    k_next = 0
+    y_prev = math.nan
+    t_start = perf()
+    t_last_rx = t_start
+    next_beat = t_start
+    next_status = t_start
+    t_us_last, wraps = 0, 0
+    t_dev_prev = math.nan
+    link.send(P.START)
+    while k_next < n:
+        if sigint.hit:
+            raise _Stop(f"interrupted at sample {k_next}", interrupted=True)
+        now = perf()
+        if now >= next_beat:  # the chip's watchdog
+            link.send(P.HEARTBEAT, max(k_next - every, 0))
+            next_beat = now + HEARTBEAT_S
+        frames = link.receive(min(HEARTBEAT_S / 2, max(0.0, next_beat - now)))
+        now = perf()
+        if not frames:
+            if now - t_last_rx > limits.watchdog:
+                raise _Stop(f"watchdog: no sample from the chip for "
+                            f"{(now - t_last_rx) * 1e3:.0f} ms at sample {k_next} (link lost?)")
+            continue
+        for frame in frames:
+            kind = frame.kind
+            if kind == P.FAULT:
+                code, detail = frame.fields()
+                name = {P.FAULT_WATCHDOG: "heartbeat watchdog", P.FAULT_OVERRUN: "overrun",
+                        P.FAULT_BAD_COMMAND: "bad command",
+                        P.FAULT_ENCODER: "encoder"}.get(code, f"code {code}")
+                raise _Stop(f"the chip reported a fault: {name} at sample {detail}")
+            if kind == P.STOPPED:
+                raise _Stop(f"the chip stopped unexpectedly at sample {k_next}")
+            if kind != P.CHIP_SAMPLE:
+                continue
+            r = P.ChipSample.from_frame(frame)
+            if r.k < k_next:
+                continue  # stale
+            t_last_rx = now
+            if r.t_us < t_us_last:
+                wraps += 1
+            t_us_last = r.t_us
+            t_dev = (r.t_us + wraps * 4294967296) * 1e-6
+            while k_next < r.k and k_next < n:  # a frame lost on the link: a row of nan
+                log.write(f"{fmt(ctl.t[k_next])},nan,{fmt(ctl.reference(k_next))},nan,nan,nan,"
+                          f"nan,nan,{k_next},nan,nan,nan,0,nan,nan\n")
+                summary.lost_samples += 1
+                k_next += every
+            if r.k >= n:
+                k_next = r.k
+                break
+            k = r.k
+            y = q * r.encoder_count
+            ref = ctl.reference(k)
+            e = y - ref
+            # -- the supervisor: the chip controls, the host still watches
+            if abs(y - y_prev) > limits.max_jump:
+                raise _Stop(f"encoder jump: θ changed by {y - y_prev:.4g} rad between streamed "
+                            f"samples at sample {k} (limit {limits.max_jump:g} rad)")
+            if abs(y) > limits.angle_limit:
+                raise _Stop(f"angle limit: measured θ = {y:.4g} rad at sample {k} "
+                            f"(limit ±{limits.angle_limit:g} rad)")
+            if abs(e) > limits.max_error:
+                raise _Stop(f"following error: θ − θd = {e:.4g} rad at sample {k} "
+                            f"(limit {limits.max_error:g} rad)")
+            if not (isfinite(r.u) and isfinite(r.z1) and isfinite(r.z2) and isfinite(r.z3)):
+                raise _Stop(f"NaN guard: the chip's control or estimate is not finite at "
+                            f"sample {k}")
+            if abs(r.u) > limit:
+                raise _Stop(f"torque limit: the chip's u = {r.u:.4g} N·m at sample {k}")
+            # the chip's sample clock: late by more than a period is an overrun
+            late = 1 if t_dev - k * ts > ts else 0
+            summary.deadline_misses += late
+            if t_dev_prev == t_dev_prev:
+                periods.append((t_dev - t_dev_prev) / every)
+            t_dev_prev = t_dev
+            u = r.u
+            log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u)},{fmt(r.z1)},"
+                      f"{fmt(r.z2)},{fmt(r.z3)},{k},{fmt(t_dev)},{fmt(now - t_start)},nan,"
+                      f"{late},{r.duty},{fmt(y)}\n")
+            acc["e"].append(e)
+            acc["u"].append(u)
+            y_prev = y
+            k_next = k + every
+            last[0], last[1], last[3], last[4] = k, y, e, u
+            if status is not None and now >= next_status:
+                next_status = now + 0.1
+                last[2] = k
+                status({"t": ctl.t[k], "theta": y, "error": e, "u": u,
+                        "deadline_misses": summary.deadline_misses, "k": k, "n": n})
 
 
 def _wait_stopped(link: SerialLink, timeout: float) -> bool:
@@ -429,8 +645,8 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             # the actuator of every engine: with a motor, the duty and the torque it gives
             u_host, _, d = actuate(u, z2, act)
             u_applied = float(u_host)
-            if motor is None:
-                link.send(P.TORQUE, k, u)
+            if motor is None:  # the torque the drive applies (rounded with actuator.pwm_bits)
+                link.send(P.TORQUE, k, u_applied)
                 duty = "nan"
             else:
                 link.send(P.DUTY, k, int(d))

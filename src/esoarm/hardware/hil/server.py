@@ -210,16 +210,16 @@ class HilServer:
         if self.log.keep_frames:
             self.log.device_frames.append(rec)
         kind = rec.frame.kind
-        if kind == P.SAMPLE and self.twin.running:
+        if kind in (P.SAMPLE, P.CHIP_SAMPLE) and self.twin.running:
             # the device's count against the disc (the arm moves a count or two while
             # the frame is on the wire)
             count = rec.frame.fields()[2]
             self.count_error = count - (self.twin.position - self.twin.start_position)
             self.count_error_max = max(self.count_error_max, abs(self.count_error))
-        if kind in (P.SAMPLE, P.FAULT, P.INFO, P.STOPPED):
+        if kind in (P.SAMPLE, P.CHIP_SAMPLE, P.FAULT, P.INFO, P.CHIP_INFO, P.STOPPED):
             wall = time.perf_counter()
             self._awaiting = (wall, self.board.cycle)
-            if kind == P.SAMPLE and self.run_active and not self.realtime:
+            if kind in (P.SAMPLE, P.CHIP_SAMPLE) and self.run_active and not self.realtime:
                 self._track_lag(wall, rec.first_cycle)
         if kind == P.FAULT:
             code, detail = rec.frame.fields()
