@@ -196,3 +196,16 @@ def test_cascade_needs_the_compensated_sums() -> None:
     comp = _run(scn, "float32", compensated=True)
     assert comp.steps == plain.steps == scn.n_samples
     assert comp.max_rel_du <= AGREEMENT < plain.max_rel_du
+
+
+@pytest.mark.parametrize("extra", [
+    {"actuator.pwm_bits": 8},
+    {"actuator.pwm_bits": 4, "rig.backlash_deg": 1.5},
+    {"sensor.noise_ar": [0.7], "sensor.vibration_deg": 0.05},
+])
+def test_float64_repeats_python_with_the_drive_and_noise_models(extra: dict) -> None:
+    """The chip's actuator rounds to the PWM levels as esoarm.plants.actuator does; backlash
+    and coloured noise live on the twin's side of the link."""
+    run = _run(_scn(("linear", "euler"), ("flc", "eso"), **extra), "float64")
+    assert run.steps == 300
+    assert run.max_abs_du <= 1e-12, run.max_abs_du
