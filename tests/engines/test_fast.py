@@ -131,6 +131,10 @@ def test_scenario_that_needs_the_exact_engine() -> None:
     scn = load_scenario("test-1", {"rig.stiction": 0.1})
     with pytest.raises(ValueError, match=r"rig.stiction.*--engine exact"):
         fast.run_metrics([scn])
+    for key, value in (("rig.backlash_deg", 1.0), ("actuator.pwm_bits", 8)):
+        scn = load_scenario("test-1", {key: value})
+        with pytest.raises(ValueError, match=rf"{key} > 0.*--engine exact"):
+            fast.run_metrics([scn])
 
 
 def test_without_a_compiler_it_falls_back(monkeypatch: pytest.MonkeyPatch) -> None:

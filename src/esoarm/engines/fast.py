@@ -266,6 +266,10 @@ def unsupported(scn: Scenario) -> str | None:
         return f"rig.disturbance.kind = {kind!r}"
     if getattr(scn.rig, "stiction", 0.0) != 0.0:
         return "rig.stiction > 0 (Stribeck friction)"
+    if getattr(scn.rig, "backlash_deg", 0.0) != 0.0:
+        return "rig.backlash_deg > 0 (gear backlash)"
+    if getattr(scn.actuator, "pwm_bits", 0) != 0:
+        return "actuator.pwm_bits > 0 (a PWM drive's resolution)"
     return None
 
 

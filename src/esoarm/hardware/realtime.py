@@ -649,8 +649,8 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             # the actuator of every engine: with a motor, the duty and the torque it gives
             u_host, _, d = actuate(u, z2, act)
             u_applied = float(u_host)
-            if motor is None:
-                link.send(P.TORQUE, k, u)
+            if motor is None:  # the torque the drive applies (rounded with actuator.pwm_bits)
+                link.send(P.TORQUE, k, u_applied)
                 duty = "nan"
             else:
                 link.send(P.DUTY, k, int(d))
