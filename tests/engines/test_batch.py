@@ -222,7 +222,7 @@ def test_pairwise_sum_is_numpy_order(values: list[float]) -> None:
 
 def test_disk_cache_is_keyed_on_the_physics_sources() -> None:
     """Editing rig.py (or any physics module) must not reuse a stale compiled kernel."""
-    for kernel in (batch._metrics_kernel, batch._series_kernel, batch._run):
+    for kernel in (batch._metrics_kernel, batch._blocked_metrics_kernel, batch._run):
         locator = kernel._cache._impl.locator
         assert type(locator).__name__.startswith("EsoarmPhysics")
         assert locator.get_source_stamp().endswith(batch._physics_stamp())

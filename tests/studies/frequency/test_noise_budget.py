@@ -28,6 +28,10 @@ TWIN_CASES = {
                                     "sensor.noise_ar": [0.7]}),
     "test-1 AR(2) resonant": ("test-1", {"observer.eps": 0.05, "sensor.noise_deg": 0.5,
                                          "sensor.noise_ar": [1.2, -0.5]}),
+    "test-1 vibration 12 Hz": ("test-1", {"observer.eps": 0.05, "sensor.noise_deg": 0.2,
+                                          "sensor.vibration_deg": 0.3,
+                                          "sensor.vibration_hz": 12.0,
+                                          "sensor.vibration_damping": 0.1}),
 }
 
 
