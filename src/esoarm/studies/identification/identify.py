@@ -277,8 +277,8 @@ class IdentResult:
         floor = max(sensor.resolution_deg, sensor.noise_deg)
         rms = self.validation.get("residual_rms_rad", self.residual_rms)
         whiteness = self.validation.get("whiteness", {})
-        if floor <= 0.0 or whiteness.get("white", False):
-            return ""
+        if floor <= 0.0 or whiteness.get("white", False) or self.coloured_noise() is not None:
+            return ""  # white, or coloured sensor noise by its spectrum (noise_ar)
         rms_deg = math.degrees(rms)
         if rms_deg <= NOISE_SANITY * floor:
             return ""
