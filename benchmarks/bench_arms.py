@@ -1,4 +1,9 @@
-"""Benchmarks of URDF arms (issue 14), in one command; writes its section of docs/benchmarks.md.
+"""Benchmarks of URDF arms on the reference engine (issue 14), in one command; prints its table.
+
+The arms' section of docs/benchmarks.md (the compiled engine, against the lever
+arm at the same rate) is written by ``python benchmarks/run.py --only-arms``;
+this script keeps the reference engine's numbers and the plain Pinocchio loop
+(``plain_params``, ``_plain_run``) that run.py reuses.
 
     python benchmarks/bench_arms.py                 # one 20 s run + a 1,000-run sweep
     python benchmarks/bench_arms.py --sweep-duration 20   # the sweep's runs at full length
@@ -25,7 +30,6 @@ import argparse
 import importlib.util
 import os
 import platform
-import re
 import subprocess
 import sys
 import tempfile
@@ -37,8 +41,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-DOC = ROOT / "docs" / "benchmarks.md"
-BEGIN, END = "<!-- begin:arms -->", "<!-- end:arms -->"
+BEGIN, END = "<!-- begin:arms-reference -->", "<!-- end:arms-reference -->"
 SWEEP = ["--vary", "observer.eps=geom:0.005:0.1:100", "--seeds", "10"]
 
 
@@ -94,7 +97,6 @@ def main() -> None:
                     "of 400 samples; 20 for full-length runs)")
     ap.add_argument("--plain-subset", type=int, default=8,
                     help="plain-loop sweep runs actually timed (then extrapolated)")
-    ap.add_argument("--no-write", action="store_true", help="print, do not touch the docs")
     args = ap.parse_args()
 
     import pinocchio
@@ -154,14 +156,10 @@ def main() -> None:
         BEGIN,
         "## URDF arms",
         "",
-        "Measured by `python benchmarks/bench_arms.py` (rerun it to refresh this section; it "
-        "rewrites only this section). The compiled batch engine cannot call Pinocchio, so "
-        "URDF runs use the reference engine; `sweep` and `tune` run them in worker processes, "
-        "one per core. The baseline is the computed-torque loop a Pinocchio user writes in "
-        "plain Python (`tests/reference_arm.py`, `dynamics = \"aba\"`): the same twin, "
-        "controller, per-joint Euler ESOs, noise and RK4 step, one `pinocchio.aba` per RK4 "
-        "stage with NumPy for the rest. esoarm also calls `pinocchio.aba` once per stage and "
-        "does the rest of the stage's arithmetic in one compiled (numba) call.",
+        "Measured by `python benchmarks/bench_arms.py` (printed, not written to the docs). "
+        "`esoarm simulate` runs an arm on the reference engine (Pinocchio); `sweep` runs it "
+        "on the compiled engine. The baseline is the computed-torque loop a Pinocchio user "
+        "writes in plain Python (`tests/reference_arm.py`, `dynamics = \"aba\"`).",
         "",
         f"- when: {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; machine: "
         f"{platform.processor() or platform.machine()}, {cores} cores; load average before / "
@@ -185,17 +183,8 @@ def main() -> None:
         "wall time including start-up.",
         END,
     ]
-    section = "\n".join(lines) + "\n"
-    print(section)
-    if args.no_write:
-        return
-    text = DOC.read_text(encoding="utf-8") if DOC.exists() else "# Benchmarks\n"
-    pattern = re.compile(re.escape(BEGIN) + ".*?" + re.escape(END) + "\n?", re.S)
-    text = pattern.sub(lambda _: section, text) if pattern.search(text) else (
-        text.rstrip("\n") + "\n\n" + section)
-    DOC.write_text(text, encoding="utf-8")
-    print(f"wrote {DOC}")
-
+    print("\n".join(lines[1:-1]))  # printed only: docs/benchmarks.md's arms section is
+    # written by `python benchmarks/run.py --only-arms` (the compiled engine's arms)
 
 if __name__ == "__main__":
     main()

@@ -74,6 +74,21 @@ def kept_sections() -> str:
     return "".join("\n" + b if b.endswith("\n") else "\n" + b + "\n" for b in blocks)
 
 
+def replace_section(text: str, section: str) -> str:
+    """``text`` with its ``<!-- begin:NAME -->`` … ``<!-- end:NAME -->`` block replaced by
+    ``section`` (a block of the same NAME), or with ``section`` appended."""
+    import re
+
+    found = re.match(r"<!-- begin:([\w-]+) -->", section)
+    if found is None:
+        raise ValueError("a section starts with its begin marker")
+    name = found.group(1)
+    pattern = re.compile(rf"<!-- begin:{name} -->.*?<!-- end:{name} -->\n?", re.S)
+    if pattern.search(text):
+        return pattern.sub(lambda _: section, text, count=1)
+    return text.rstrip("\n") + "\n\n" + section
+
+
 def load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
@@ -214,7 +229,8 @@ def bench_inprocess(grid, c: CLoop, quick: bool) -> dict:  # type: ignore[type-a
     from esoarm.engines import batch, fast
 
     pts, seeds = list(grid.points), grid.seeds
-    batch.run_metrics(pts[:1], seeds=[0])
+    batch.run_metrics(pts[:1], seeds=[0])  # every kernel timed below loaded (or compiled)
+    batch.run_metrics(pts[:1], seeds=[0], blocked=False)  # first, not inside the timing
     fast.run_metrics(pts[:1], seeds=[0])
     out: dict = {}  # type: ignore[type-arg]
     t0 = time.perf_counter()
@@ -392,20 +408,26 @@ def bench_arms(work: Path, rounds: int, quick: bool) -> dict:  # type: ignore[ty
     lever_cmd = [*esoarm_cmd(), *lever]
     run_proc(arm_cmd)  # compile / load the kernels of both once
     run_proc(lever_cmd)
-    out: dict = {"arm": [], "lever": [], "ratio": [], "load_before": load(),  # type: ignore[type-arg]
+    out: dict = {"arm": [], "lever": [], "ratio": [], "arm_cpu": [],  # type: ignore[type-arg]
+                 "lever_cpu": [], "cpu_ratio": [], "load_before": load(),
                  "arm_cmd": " ".join(["esoarm", "sweep", "two-link", *vary]),
                  "lever_cmd": " ".join(["esoarm", *lever])}
     for _ in range(rounds):
-        a = run_proc(arm_cmd)[0]
-        b = run_proc(lever_cmd)[0]
+        a = run_proc(arm_cmd, cpu=out["arm_cpu"])[0]
+        b = run_proc(lever_cmd, cpu=out["lever_cpu"])[0]
         out["arm"].append(a)
         out["lever"].append(b)
         out["ratio"].append(a / b)
+        out["cpu_ratio"].append(out["arm_cpu"][-1] / out["lever_cpu"][-1])
+        print(f"  round: two-link {a:.2f} s ({out['arm_cpu'][-1]:.2f} s CPU), lever {b:.2f} s "
+              f"({out['lever_cpu'][-1]:.2f} s CPU): {a / b:.2f}x, load {load()}", flush=True)
     ur5 = _ur5_scenario(work)
     if ur5 is not None:
         ur5_cmd = [*esoarm_cmd(), "sweep", str(ur5), *vary]
         run_proc(ur5_cmd)
-        out["ur5"] = run_proc(ur5_cmd)[0]
+        cpu: list[float] = []
+        out["ur5"] = run_proc(ur5_cmd, cpu=cpu)[0]
+        out["ur5_cpu"] = cpu[0]
         out["ur5_cmd"] = " ".join(["esoarm", "sweep", "ur5.toml", *vary])
     scn = load_scenario("two-link", [vary[-1]])
     one = _plain_run(plain_params(scn))
@@ -478,10 +500,20 @@ def machine_info() -> dict[str, str]:
     import control
     import numba
 
+    lscpu = sh(["lscpu"])
+    cpu = next((line.split(":", 1)[1].strip() for line in lscpu.splitlines()
+                if line.startswith("Model name")), platform.machine())
+    try:
+        import pinocchio
+        pin_version = str(pinocchio.__version__)
+    except ImportError:
+        pin_version = "not installed"
     return {
         "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+        "cpu": cpu,
+        "pinocchio": pin_version,
         "load_before": load(),
-        "lscpu": sh(["lscpu"]),
+        "lscpu": lscpu,
         "nproc": sh(["nproc"]),
         "free": sh(["free", "-h"]),
         "gcc": sh(["gcc", "--version"]).splitlines()[0],
@@ -506,17 +538,26 @@ def main() -> None:
     parser.add_argument("--big", type=int, default=1_000_000,
                         help="runs of the large metrics-only sweep (memory)")
     parser.add_argument("--only-arms", action="store_true",
-                        help="only the arms' sweeps (printed; the page is not written)")
+                        help="only the arms' sweeps: rewrites only their section of the page")
     args = parser.parse_args()
+    from bench_doc import arms_section, plot_scaling, write_doc
+
+    command = " ".join(["python benchmarks/run.py", *sys.argv[1:]])
     if args.only_arms:
+        machine = machine_info()
         with tempfile.TemporaryDirectory(prefix="esoarm-bench-") as tmp:
             print(f"load {load()}", flush=True)
-            print(bench_arms(Path(tmp), 1 if args.quick else args.rounds, args.quick))
+            arms = bench_arms(Path(tmp), 1 if args.quick else args.rounds, args.quick)
+        print(arms)
+        section = arms_section(arms, machine, command)
+        print(section)
+        if not args.no_doc:
+            old = DOC.read_text(encoding="utf-8") if DOC.exists() else "# Benchmarks\n"
+            DOC.write_text(replace_section(old, section), encoding="utf-8")
+            print(f"wrote the arms section of {DOC}")
         return
-    from bench_doc import plot_scaling, write_doc
 
     machine = machine_info()
-    command = " ".join(["python benchmarks/run.py", *sys.argv[1:]])
     m: dict = {"quick": args.quick, "command": command}  # type: ignore[type-arg]
     grid = canonical_grid()
     top = 100 if args.quick else args.max_runs
@@ -553,7 +594,8 @@ def main() -> None:
         print(text)
         return
     plot_scaling(m["scaling"], PLOT)
-    DOC.write_text(text + kept_sections(), encoding="utf-8")
+    DOC.write_text(replace_section(text + kept_sections(),
+                                   arms_section(m["arms"], machine, command)), encoding="utf-8")
     print(f"wrote {DOC} and {PLOT}")
 
 

@@ -155,10 +155,13 @@ static int32_t read_encoder()
 }
 #endif
 
+static int16_t applied_duty = 0;  /* the duty on the pins (written by one side at a time) */
+
 static void motor_write(int16_t duty)
 {
     if (duty > PWM_MAX) duty = PWM_MAX;
     if (duty < -PWM_MAX) duty = -PWM_MAX;
+    applied_duty = duty;
 #ifdef ESOARM_DRIVER_BTS7960
     analogWrite(PIN_RPWM, duty > 0 ? duty : 0);
     analogWrite(PIN_LPWM, duty < 0 ? -duty : 0);
@@ -211,7 +214,7 @@ ISR(TIMER2_COMPA_vect)
     int16_t duty = (int16_t)ctl.duty;
     cli();
     if (running && !halted) {
-        motor_write(duty);
+        if (duty != applied_duty) motor_write(duty);  /* the pins cost ~300 cycles */
         if (k % STREAM_EVERY == 0) {
             uint8_t next = (uint8_t)((ring_head + 1u) % RING);
             if (next == ring_tail) {

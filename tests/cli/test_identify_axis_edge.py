@@ -9,6 +9,7 @@ instead of blaming a change of the axis during the log.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from esoarm.cli.identify import constant_force_half
 from esoarm.studies.identification.data import IdentLog
@@ -73,3 +74,51 @@ def test_cli_refuses_with_exit_1_and_writes_nothing(run_cli, tmp_path):
     assert "one force per direction of motion" in res.stderr
     assert "changed during the log" not in res.stderr
     assert not out.exists()
+
+
+def _spring_logs(tmp_path):
+    """A mass-spring-damper (resonance 5 Hz, cubic spring: a mechanical Silverbox) driven by
+    a multisine [N], 1 kHz: a plant the axis kind cannot describe (it has no spring)."""
+    m, d, k, k3 = 95.0, 200.0, 9.4e4, 2.0e7  # kg, N·s/m, N/m, N/m³
+    n = 17000
+    rng = np.random.default_rng(1)
+    t = np.arange(n) * TS
+    freqs = np.arange(1, 200) * 0.1
+    phases = rng.uniform(0.0, 2.0 * np.pi, len(freqs))
+    u = np.cos(2.0 * np.pi * freqs[:, None] * t[None, :] + phases[:, None]).sum(axis=0)
+    u *= 150.0 / u.std()
+    x, v, y = 0.0, 0.0, np.empty(n)
+
+    def acc(x, v, uk):
+        return (uk - d * v - k * x - k3 * x**3) / m
+
+    h = TS / 4
+    for i in range(n):
+        y[i] = x
+        for _ in range(4):  # RK4, four substeps per sample, u held
+            a1 = acc(x, v, u[i])
+            a2 = acc(x + h / 2 * v, v + h / 2 * a1, u[i])
+            a3 = acc(x + h / 2 * (v + h / 2 * a1), v + h / 2 * a2, u[i])
+            a4 = acc(x + h * (v + h / 2 * a2), v + h * a3, u[i])
+            x, v = (x + h * (v + h / 6 * (a1 + a2 + a3)),
+                    v + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4))
+    y += rng.normal(0.0, 1e-6, n)
+    paths = []
+    for name, part in (("est.csv", slice(0, 12000)), ("val.csv", slice(12000, n))):
+        path = tmp_path / name
+        np.savetxt(path, np.column_stack([t[part] - t[part][0], y[part], u[part]]),
+                   delimiter=",", header="t,y,u", comments="", fmt="%.17g")
+        paths.append(str(path))
+    return paths
+
+
+@pytest.mark.slow  # IDIM-LS, the output-error fit and the simulated validation: a minute
+def test_a_spring_the_axis_does_not_have_is_refused(run_cli, tmp_path):
+    # before: exit 0, mass 13 kg (truth 95), Fv− = −21 N·s/m, force error 92 %, simulated
+    # validation fit −6.4e4 % (and with --out: exit 2 blaming --scenario 'emps')
+    est, val = _spring_logs(tmp_path)
+    out = tmp_path / "fitted.toml"
+    res = run_cli("identify", est, "--validate", val, "--scenario", "emps", "--out", str(out))
+    assert res.exit_code == 1, (res.stdout, res.stderr)
+    assert not out.exists()
+    assert "--scenario" not in res.stderr

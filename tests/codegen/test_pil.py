@@ -145,9 +145,16 @@ def test_instruction_proxy_matches_qemus_exec_trace(tmp_path) -> None:
     assert len(calls) == 1
     back = int(dis[calls[0] + 1].split(":")[0], 16)  # the instruction after the call
     shift, log = 8, tmp_path / "exec.log"
+    qemu = tool("qemu-system-arm")
+    version = re.search(r"version (\d+)\.(\d+)", subprocess.run(
+        [qemu, "--version"], capture_output=True, text=True, check=True).stdout)
+    assert version is not None
+    # one instruction per translation block: -singlestep until QEMU 8.1 renamed it
+    one_insn = (["-accel", "tcg,one-insn-per-tb=on"]
+                if (int(version[1]), int(version[2])) >= (8, 1) else ["-singlestep"])
     proc = subprocess.Popen(
-        [tool("qemu-system-arm"), "-M", "mps2-an386", "-display", "none", "-monitor", "none",
-         "-serial", "stdio", "-icount", f"shift={shift}", "-singlestep", "-d", "exec,nochain",
+        [qemu, "-M", "mps2-an386", "-display", "none", "-monitor", "none",
+         "-serial", "stdio", "-icount", f"shift={shift}", *one_insn, "-d", "exec,nochain",
          "-D", str(log), "-kernel", str(elf)], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
     assert proc.stdin is not None and proc.stdout is not None
     proxy = []

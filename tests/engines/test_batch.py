@@ -45,11 +45,18 @@ CASES = {
     "vibration": {"sensor.vibration_deg": 0.1, "sensor.vibration_hz": 7.0},
     "ar+vibration": {"sensor.noise_ar": [0.5], "sensor.vibration_deg": 0.05,
                      "sensor.vibration_damping": 0.02},
+    "backlash": {"rig.backlash_deg": 2.0},
+    "backlash+lag+stiction": {"rig.backlash_deg": 1.0, "actuator.lag": 0.02,
+                              "rig.stiction": 0.1, "rig.gear_damping": 0.0},
+    "pwm": {"actuator.pwm_bits": 8},
+    "pwm+delay": {"actuator.pwm_bits": 6, "actuator.delay_samples": 2},
 }
 DISCRETIZATIONS = ("euler", "zoh", "current")
 
 
 def _scenario(name: str, disc: str, extra: dict) -> object:
+    if load_scenario(name).motor is not None:  # a motor's pwm_max is its PWM resolution
+        extra = {k: v for k, v in extra.items() if k != "actuator.pwm_bits"}
     return load_scenario(name, {**SHORT, "observer.discretization": disc, **extra})
 
 
@@ -215,7 +222,7 @@ def test_pairwise_sum_is_numpy_order(values: list[float]) -> None:
 
 def test_disk_cache_is_keyed_on_the_physics_sources() -> None:
     """Editing rig.py (or any physics module) must not reuse a stale compiled kernel."""
-    for kernel in (batch._metrics_kernel, batch._series_kernel, batch._run):
+    for kernel in (batch._metrics_kernel, batch._blocked_metrics_kernel, batch._run):
         locator = kernel._cache._impl.locator
         assert type(locator).__name__.startswith("EsoarmPhysics")
         assert locator.get_source_stamp().endswith(batch._physics_stamp())

@@ -37,6 +37,9 @@ SETTINGS = {
     "no-disturbance": {"rig.disturbance.amplitude": 0.0},
     "ar-noise": {"sensor.noise_ar": [0.7, 0.1], "sensor.noise_deg": 0.3},
     "vibration": {"sensor.vibration_deg": 0.1, "sensor.vibration_hz": 7.0},
+    "pwm": {"actuator.pwm_bits": 8},
+    "pwm+delay+saturation": {"actuator.pwm_bits": 5, "actuator.delay_samples": 2,
+                             "actuator.torque_limit": 0.3},
 }
 DISCRETIZATIONS = ("euler", "zoh", "current")
 
@@ -131,6 +134,10 @@ def test_scenario_that_needs_the_exact_engine() -> None:
     scn = load_scenario("test-1", {"rig.stiction": 0.1})
     with pytest.raises(ValueError, match=r"rig.stiction.*--engine exact"):
         fast.run_metrics([scn])
+    for key, value in (("rig.backlash_deg", 1.0),):
+        scn = load_scenario("test-1", {key: value})
+        with pytest.raises(ValueError, match=rf"{key} > 0.*--engine exact"):
+            fast.run_metrics([scn])
 
 
 def test_without_a_compiler_it_falls_back(monkeypatch: pytest.MonkeyPatch) -> None:

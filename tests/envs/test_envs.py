@@ -24,6 +24,7 @@ SIMULATED = [
     ("test-1", {"actuator.torque_limit": 0.3, "duration": 6.0}),  # saturating
     ("test-2", {"rig.stiction": 0.05, "duration": 8.0}),  # Stribeck friction
     ("test-1", {"sensor.noise_ar": [0.8], "sensor.vibration_deg": 0.05}),  # coloured noise
+    ("test-1", {"rig.backlash_deg": 1.5, "actuator.pwm_bits": 8}),  # gear play, PWM drive
 ]
 
 

@@ -46,13 +46,15 @@ def _say(line: str) -> None:
 @click.option("--onboard", is_flag=True,
               help="On-board mode: build the firmware with SCENARIO's generated observer and "
               "controller (esoarm codegen ... --target avr; make -C firmware ONBOARD=DIR at the "
-              "scenario's rate, 1 Mbit/s), which step at every sample tick and drive the motor "
-              "themselves; the host's DUTY frames are then only the watchdog's heartbeat.")
-@click.option("--sums", type=click.Choice(["plain", "compensated"]), default="compensated",
+              "scenario's rate, 1 Mbit/s), which step in the chip's timer interrupt and drive "
+              "the motor themselves; drive it with 'esoarm run SCENARIO --port PATH --onboard'.")
+@click.option("--sums", type=click.Choice(["auto", "plain", "compensated"]), default="auto",
               show_default=True,
-              help="With --onboard: the generated observer's float32 sums, plain or compensated "
-              "(Kahan: more accurate at high rates, about 1.9k more cycles a step on the "
-              "ATmega328P; 'esoarm pil SCENARIO --target avr [--plain-sums]' measures both).")
+              help="With --onboard: the generated observer's float32 sums. compensated (Kahan) "
+              "is more accurate at high rates and costs about 1.9k more cycles a step on the "
+              "ATmega328P; auto times both with PIL (esoarm pil SCENARIO --target avr, cached) "
+              "and takes compensated where it fits the period on board, else plain, and says "
+              "which and why.")
 @click.option("--once", is_flag=True,
               help="Exit after the first run: once the motor pins are off and the host has "
               "sent STOP (or the link is unplugged, or the host is silent for 5 s).")
@@ -87,12 +89,18 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
 
             if elf is not None:
                 raise BadInput("--onboard builds its own firmware: drop --elf")
+            from esoarm.codegen.onboard import choose_sums
+
             try:
+                why = ""
+                if sums == "auto":
+                    choice = choose_sums(scn)
+                    sums, why = choice.name, f" (auto: {choice.reason})"
                 elf_path = onboard_firmware(scn, compensated=sums == "compensated")
             except CodegenError as exc:
                 raise BadInput(str(exc)) from None
             board_note = (f"on board: {scn.name}'s controller, float32 {sums} observer sums, "
-                          f"at {scn.sensor.rate_hz:g} Hz")
+                          f"at {scn.sensor.rate_hz:g} Hz{why}")
         else:
             elf_path = Path(elf) if elf else firmware_elf(driver)
         server = HilServer(scn, elf_path, faults=specs, realtime=realtime, echo=_say)
@@ -150,8 +158,11 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
     if server.lags:
         warn_line(f"the simulated AVR fell more than {SLIP_S * 1e3:.0f} ms behind the wall "
              f"clock at {server.lags} of {server.samples_tracked} samples (worst "
-             f"{server.worst_lag * 1e3:.0f} ms; the machine is busy): the deadline misses and "
-             "period jitter 'run' reports measure the simulator, not the host")
+             f"{server.worst_lag * 1e3:.0f} ms; the machine is busy): "
+             + ("on board the chip's own timing is unaffected (its samples carry the AVR's "
+                "clock); only the wall-clock time of the run grows" if onboard else
+                "the deadline misses and period jitter 'run' reports measure the simulator, "
+                "not the host"))
     if interrupted:  # Ctrl-C: the summary above, then exit status 130
         raise Interrupted("simulated board stopped, port closed")
     _say("stopped: port closed")

@@ -266,6 +266,7 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
 def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_path,  # type: ignore[no-untyped-def]
                    as_json) -> None:
     """``identify`` for plant.kind = "axis": IDIM-LS, output error beside it (SI units)."""
+    from esoarm.scenario import ScenarioError
     from esoarm.studies.identification.axis_identify import (
         AxisFitRefused,
         identify_axis,
@@ -286,6 +287,18 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
         res = identify_axis(scn, fit_logs, val_logs, segment, validate_fraction)
     except AxisFitRefused as exc:
         raise RunFailure(str(exc)) from None
+    try:  # the estimate must make a valid axis (friction ≥ 0 each way, mass > 0)
+        fitted = res.fitted_scenario()
+    except ScenarioError as exc:  # not bad input: the fit's result is not a physical axis
+        raise RunFailure(f"the estimate is not a physical axis: {exc} (fitted from "
+                         f"{', '.join(res.fit_logs)}); nothing written") from None
+    sim_fit = res.validation.get("simulated_fit_percent")
+    if sim_fit is not None and not sim_fit > 0.0:  # also nan
+        raise RunFailure(
+            f"validation failed: the fitted axis simulated over the validation log fits "
+            f"{sim_fit:.4g} % of its motion (0 % is its mean: the model predicts nothing; "
+            f"relative force error {res.validation['estimation_force_error_percent']:.3g} % "
+            "on the fitting data); nothing written")
     if out_path is not None:
         from esoarm._io import atomic_path
 
@@ -294,7 +307,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
         head += [f"#   {name} = {e['value']:.6g} [{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}] "
                  f"{e['unit']}" for name, e in res.physical.items()]
         with atomic_path(out_path) as tmp:
-            tmp.write_text("\n".join(head) + "\n\n" + res.fitted_scenario().to_toml(),
+            tmp.write_text("\n".join(head) + "\n\n" + fitted.to_toml(),
                            encoding="utf-8")
     if as_json:
         click.echo(json.dumps(res.to_json()))

@@ -1,7 +1,8 @@
 /* The actuator on the chip: saturation and, with a [motor] table, the torque ->
  * PWM duty map with back-EMF compensation and deadband pre-compensation; the C
  * twin of esoarm.plants.actuator.actuate and esoarm.plants.motor.
- * ACT_P = (torque limit, motor flag, stall gain, damping, pwm_max, deadband).
+ * ACT_P = (torque limit, motor flag, stall gain, damping, pwm_max, deadband, PWM levels
+ * 2^pwm_bits - 1 of a drive without a motor model, 0 for none).
  * DIV(a, b): a / b (float64), a · (1/b) with 1/b folded by the compiler (float32).
  */
 static esoarm_real act_saturate(esoarm_real u, esoarm_real limit)
@@ -41,6 +42,12 @@ static void act_actuate(esoarm_real u, esoarm_real rate, esoarm_real *applied,
                         esoarm_real *drive, esoarm_real *duty)
 {
     if (ACT_P[1] == R(0.0)) {
+        if (ACT_P[6] > R(0.0)) {   /* actuator.pwm_bits: M = ACT_P[6] levels per sign */
+            *duty = RINT(DIV(u, ACT_P[0]) * ACT_P[6]);
+            *drive = DIV(ACT_P[0] * *duty, ACT_P[6]);
+            *applied = *drive;
+            return;
+        }
         *applied = u; *drive = u; *duty = R(0.0);
         return;
     }

@@ -29,7 +29,8 @@ from esoarm.hardware import protocol as P
 from esoarm.hardware.hil.build import ToolchainMissing, _cache_dir, default_firmware_dir
 from esoarm.scenario import Scenario
 
-__all__ = ["OnboardRun", "onboard_firmware", "onboard_run"]
+__all__ = ["OVERHEAD_CYCLES", "OnboardRun", "SumsChoice", "choose_sums", "onboard_firmware",
+           "onboard_run", "stream_every"]
 
 #: Baud rate of the on-board builds: a 37-byte CHIP_SAMPLE frame (370 bits) every 1 ms
 #: needs 370 kbit/s; 115200 would carry one sample in four at 1 kHz.
@@ -39,6 +40,108 @@ CHIP_FRAME_BITS = 10 * (P.HEADER_SIZE + P.PAYLOAD_SIZES[P.CHIP_SAMPLE] + P.CRC_S
 #: The host's heartbeat period [s] (the firmware's watchdog trips after 100 ms without one):
 #: parsing a frame per sample would cost the chip ~3k cycles of its 16k at 1 kHz.
 HEARTBEAT_S = 0.02
+
+
+#: Cycles a sample of the on-board firmware costs on the ATmega328P beyond the controller
+#: step as PIL times it, streaming every sample at 1 Mbit/s: measured with
+#: ``python benchmarks/bench_onboard.py`` (uno-rig, 1 kHz, plain sums, 3 s with the first move):
+#: busy cycles per 1 ms, median 14 974, less PIL's median step, 5698 (``esoarm pil uno-rig
+#: --target avr --set sensor.rate_hz=1000 --plain-sums``).  It holds the interrupt's entry,
+#: the encoder, the motor pins, the CHIP_SAMPLE frame (CRC, queue, 37 UART interrupts) and the
+#: step running slower inside the interrupt than alone in PIL (the UART interrupts it).
+OVERHEAD_CYCLES = 9300
+#: The share of the period the predicted median load may use (the rest: bursts, heartbeats).
+LOAD_LIMIT = 0.97
+
+
+@dataclass(frozen=True)
+class SumsChoice:
+    """The observer sums chosen for an on-board build, and why.
+
+    Attributes
+    ----------
+    compensated : bool
+        Compensated (Kahan) float32 sums, else plain.
+    reason : str
+        One line with the PIL numbers the choice rests on.
+    """
+
+    compensated: bool
+    reason: str
+
+    @property
+    def name(self) -> str:
+        """``"compensated"`` or ``"plain"``."""
+        return "compensated" if self.compensated else "plain"
+
+
+def _pil_cycles(scn: Scenario, compensated: bool) -> dict:
+    """PIL on the AVR for ``scn`` (cycles, agreement), cached by the generated C."""
+    import hashlib
+    import json
+
+    from esoarm.codegen.pil import run_pil
+
+    gen = generate(scn, "avr", "float32", compensated)
+    code = hashlib.sha256((gen.header + gen.source).encode()).hexdigest()[:16]
+    path = _cache_dir() / f"esoarm-pil-{code}.json"  # the C itself: a new generator re-times
+    try:
+        return dict(json.loads(path.read_text()))
+    except (OSError, ValueError):
+        pass
+    rep = run_pil(scn, "avr", "float32", compensated)
+    out = {"cycles": rep.cycles, "agrees": rep.agrees, "max_rel_du": rep.run.max_rel_du,
+           "budget": rep.budget_cycles}
+    try:
+        path.write_text(json.dumps(out))
+    except OSError:
+        pass
+    return out
+
+
+def choose_sums(scn: Scenario) -> SumsChoice:
+    """Compensated sums where they fit the ATmega328P's period on board, else plain.
+
+    Each variant is timed by PIL (``esoarm pil SCENARIO --target avr [--plain-sums]``,
+    cached).  A variant fits when it agrees with the float64 reference, its worst step
+    fits the period, and its median step plus :data:`OVERHEAD_CYCLES` stays within
+    :data:`LOAD_LIMIT` of the period.  Measured at 1 kHz on uno-rig: compensated
+    7553 + 9300 > 0.97 · 16 000 (and on board it overran when the first move began), plain
+    5698 + 9300 fits (and held over the 20 s run).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario to build (its ``sensor.rate_hz`` sets the period).
+
+    Returns
+    -------
+    SumsChoice
+
+    Raises
+    ------
+    CodegenError
+        Neither variant fits: the rate is too high for this chip on board.
+    """
+    from esoarm.hardware.hil.board import F_CPU
+
+    budget = round(F_CPU * scn.sample_time)
+    notes = []
+    for compensated in (True, False):
+        r = _pil_cycles(scn, compensated)
+        c = r["cycles"]
+        load = c["median"] + OVERHEAD_CYCLES
+        name = "compensated" if compensated else "plain"
+        fits = bool(r["agrees"]) and c["max"] <= budget and load <= LOAD_LIMIT * budget
+        notes.append(f"{name}: PIL median {c['median']} + {OVERHEAD_CYCLES} on-board = {load}"
+                     f" {'≤' if load <= LOAD_LIMIT * budget else '>'} {LOAD_LIMIT:g} × "
+                     f"{budget} cycles, worst step {c['max']}"
+                     + ("" if r["agrees"] else f", max_rel_du {r['max_rel_du']:.2g} too large"))
+        if fits:
+            return SumsChoice(compensated, "; ".join(notes))
+    raise CodegenError(f"at {scn.sensor.rate_hz:g} Hz neither observer sum fits the "
+                       f"ATmega328P's period on board ({'; '.join(notes)}): lower "
+                       "sensor.rate_hz")
 
 
 def stream_every(rate_hz: float, baud: int = BAUD) -> int:

@@ -12,7 +12,8 @@
  * and re-associated arithmetic differ from libm in the last bits.
  *
  * Semantics per sample k and run (see esoarm.engines.simulation.run_reference):
- *   y = Q(theta + sigma n_k); zhat from the ESO; u = sat(FLC(zhat, ref_k));
+ *   y = Q(theta + sigma n_k); zhat from the ESO; u = sat(FLC(zhat, ref_k)), rounded to the
+ *   PWM levels with actuator.pwm_bits;
  *   metrics of e = theta - ref, u, zhat3 - f; ESO update; rig RK4 over Ts with
  *   u_{k-delay} held, d(t) = damp sin(dfreq t) at each stage time.
  * Everything that is shared by the block (N, substeps, step, Ts, delay,
@@ -35,7 +36,7 @@ enum {
     P_INERTIA, P_GCOEF, P_FC, P_VS, P_VISC, P_LAG,
     P_BETA1, P_BETA2, P_BETA3,
     P_PHI, P_GAMMA = P_PHI + 9, P_GAIN = P_GAMMA + 3,
-    P_K1 = P_GAIN + 3, P_K2, P_I0, P_CGCOEF, P_LIMIT,
+    P_K1 = P_GAIN + 3, P_K2, P_I0, P_CGCOEF, P_LIMIT, P_PWM,
     NPAR
 };
 enum { KIND_EULER, KIND_ZOH, KIND_CURRENT };
@@ -96,7 +97,7 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
     const double *visc = P(P_VISC), *lag = P(P_LAG);
     const double *beta1 = P(P_BETA1), *beta2 = P(P_BETA2), *beta3 = P(P_BETA3);
     const double *k1 = P(P_K1), *k2 = P(P_K2), *i0 = P(P_I0), *cg = P(P_CGCOEF);
-    const double *lim = P(P_LIMIT);
+    const double *lim = P(P_LIMIT), *pwm = P(P_PWM);
     const double *phi[9], *gam[3], *gain[3];
     for (int i = 0; i < 9; i++) phi[i] = P(P_PHI + i);
     for (int i = 0; i < 3; i++) { gam[i] = P(P_GAMMA + i); gain[i] = P(P_GAIN + i); }
@@ -141,6 +142,9 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
             double raw = i0[l] * (alpha - bh);
             double sat = raw > lim[l] || raw < -lim[l] ? 1.0 : 0.0;
             double u = raw > lim[l] ? lim[l] : (raw < -lim[l] ? -lim[l] : raw);
+            /* actuator.pwm_bits: the torque rounded to pwm = 2^bits - 1 levels per sign
+               (esoarm.plants.actuator.actuate); pwm = 0: an ideal torque source */
+            if (pwm[l] > 0.0) { double d = rint(u / lim[l] * pwm[l]); u = lim[l] * d / pwm[l]; }
             double uap;
             if (delay > 0) {
                 urow[l] = u;

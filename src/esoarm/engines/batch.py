@@ -42,7 +42,7 @@ from __future__ import annotations
 import hashlib
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -74,7 +74,7 @@ from esoarm.engines.packing import (  # packing needs no numba (the fast engine 
     _SIGMA,
     _TS,
     VECTOR_WIDTH,  # noqa: F401 - re-exported
-    _Pack,  # noqa: F401 - re-exported
+    _Pack,
     _pack,
     _stack,  # noqa: F401 - re-exported
 )
@@ -321,7 +321,7 @@ def _metrics_kernel_wide(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, a
 @njit(cache=True, parallel=True, error_model="numpy")
 def _series_kernel_wide(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
                         logs, rows_out):  # pragma: no cover - compiled
-    """:func:`_series_kernel` with the vectors as arrays."""
+    """:func:`_series_runs` for the vectors as arrays (a parallel kernel over the runs)."""
     for r in prange(run_point.shape[0]):
         p = run_point[r]
         nj = ipar[p, _NJ]
@@ -330,9 +330,12 @@ def _series_kernel_wide(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap
                                 cp[p], ap[p])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _run(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp, ap):  # pragma: no cover - compiled
-    """One run of :func:`closed_loop` with the registry's dispatch functions."""
+    """One run of :func:`closed_loop` with the registry's dispatch functions.
+
+    Without the GIL: :func:`simulate_many` calls it from several threads.
+    """
     x = x0.copy()
     sg, d, s = _records(n, fpar, ipar, b0, pp, op, cp, ap)
     return closed_loop(log, x, noise, ref, sg, d, s)
@@ -405,14 +408,29 @@ def _blocks(run_point: np.ndarray, ipar: np.ndarray) -> tuple[np.ndarray, ...]:
             np.array(lens, dtype=np.int64))
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def _series_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises, logs,
-                   rows_out):  # pragma: no cover - compiled
-    for r in prange(run_point.shape[0]):
-        p = run_point[r]
-        nj = ipar[p, _NJ]
-        rows_out[r] = _run(logs[r], ipar[p, _N], x0[p], noises[run_noise[r]], fpar[p], ipar[p],
-                           refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p], cp[p], ap[p])
+def _series_runs(pack: _Pack, logs: np.ndarray, rows: np.ndarray, workers: int | None) -> None:
+    """Each run of ``pack`` through :func:`_run` into ``logs[r]``, ``rows[r]``, on threads.
+
+    Not a parallel (``prange``) kernel: that would be a second compiled copy of the
+    whole sample loop, which a first ``esoarm reproduce`` after installation compiled
+    on top of :func:`_run` (63 s of its 231 s of compiling, load 14); ``_run``
+    releases the GIL, so the threads share the cores the same way.
+    """
+    def one(r: int) -> None:
+        p = pack.run_point[r]
+        nj = pack.ipar[p, _NJ]
+        rows[r] = _run(logs[r], pack.ipar[p, _N], pack.x0[p], pack.noises[pack.run_noise[r]],
+                       pack.fpar[p], pack.ipar[p], pack.refs[pack.ipar[p, _REFIDX]],
+                       pack.b0[p, :nj], pack.pp[p], pack.op[p], pack.cp[p], pack.ap[p])
+
+    runs = len(pack.run_point)
+    threads = min(workers or numba.get_num_threads(), runs)
+    if threads <= 1:
+        for r in range(runs):
+            one(r)
+        return
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        list(pool.map(one, range(runs)))
 
 
 class _threads:
@@ -572,7 +590,10 @@ def simulate_many(
             nmax = pack.refs.shape[2]
             logs = np.empty((len(part), NROW * int(pack.ipar[:, _NJ].max()), nmax))
             rows = np.empty(len(part), dtype=np.int64)  # rows logged, < 0: diverged
-            (_series_kernel_wide if pack.wide else _series_kernel)(*pack.args(), logs, rows)  # type: ignore[call-arg]
+            if pack.wide:
+                _series_kernel_wide(*pack.args(), logs, rows)  # type: ignore[call-arg]
+            else:
+                _series_runs(pack, logs, rows, workers)
             for i, scn in enumerate(part):
                 n = scn.n_samples
                 k = abs(int(rows[i]))

@@ -21,7 +21,8 @@ Agreement with the exact engine
 What it supports
     Every scenario the exact engine runs except those :func:`unsupported`
     names (a run that needs the exact engine is reported, never silently
-    approximated): the lever arm with the linear ESO and the FLC, no motor.
+    approximated): the lever arm with the linear ESO and the FLC, no motor, no gear
+    backlash (``actuator.pwm_bits`` and coloured noise are modelled).
     It computes every metric of :data:`esoarm.engines.metrics.METRICS`.
 
 Without a working C compiler the fast engine is unavailable: :func:`run_metrics`
@@ -51,6 +52,7 @@ from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache
 from esoarm.engines.simulation import DIVERGENCE_LIMIT
 from esoarm.kinds import hook, kinds_of
 from esoarm.observers import linear as _obs
+from esoarm.plants import actuator as _act
 from esoarm.plants import lever_arm as _rig
 from esoarm.scenario import Scenario
 
@@ -71,7 +73,7 @@ DEFAULT_CHUNK = 2048
 _PAR_NAMES = (
     "theta0", "sigma", "q", "b0", "inertia", "gcoef", "fc", "vs", "visc", "lag",
     "beta1", "beta2", "beta3", *(f"phi{i}" for i in range(9)), *(f"gamma{i}" for i in range(3)),
-    *(f"gain{i}" for i in range(3)), "k1", "k2", "i0", "cgcoef", "limit",
+    *(f"gain{i}" for i in range(3)), "k1", "k2", "i0", "cgcoef", "limit", "pwm",
 )
 _NPAR = len(_PAR_NAMES)
 _NOUT = 10
@@ -266,6 +268,8 @@ def unsupported(scn: Scenario) -> str | None:
         return f"rig.disturbance.kind = {kind!r}"
     if getattr(scn.rig, "stiction", 0.0) != 0.0:
         return "rig.stiction > 0 (Stribeck friction)"
+    if getattr(scn.rig, "backlash_deg", 0.0) != 0.0:
+        return "rig.backlash_deg > 0 (gear backlash)"
     return None
 
 
@@ -279,7 +283,8 @@ def _point_rows(pack: _packing._Pack) -> np.ndarray:
             ob[:, _obs.BETA1], ob[:, _obs.BETA2], ob[:, _obs.BETA3],
             *(ob[:, _obs.PHI + i] for i in range(9)), *(ob[:, _obs.GAMMA + i] for i in range(3)),
             *(ob[:, _obs.GAIN + i] for i in range(3)),
-            ct[:, _ctl.K1], ct[:, _ctl.K2], ct[:, _ctl.I0], ct[:, _ctl.GCOEF], ct[:, _ctl.LIMIT]]
+            ct[:, _ctl.K1], ct[:, _ctl.K2], ct[:, _ctl.I0], ct[:, _ctl.GCOEF], ct[:, _ctl.LIMIT],
+            pack.ap[:, _act.PWM_LEVELS]]
     out = np.column_stack(cols)
     assert out.shape[1] == _NPAR
     return out

@@ -25,8 +25,8 @@ generated controller itself (firmware built with ``ONBOARD=DIR``; INFO has
 ``FLAG_ONBOARD``).  The host switches its own control law off: it checks that
 the chip's controller was generated from this very scenario (CHIP_INFO's hash),
 sends START, feeds the chip's watchdog with a HEARTBEAT every
-:data:`HEARTBEAT_S`, and logs each CHIP_SAMPLE the chip streams -- y, the u and
-the estimate the chip used, its duty -- as a row of :data:`LOG_COLUMNS`
+:data:`HEARTBEAT_S` of the chip's samples, and logs each CHIP_SAMPLE the
+chip streams -- y, the u and the estimate the chip used, its duty -- as a row of :data:`LOG_COLUMNS`
 (``latency`` nan: the host answers nothing).  Its supervisor stays: angle
 limit, encoder jump, following error, NaN guard on u and ẑ, torque limit, the
 watchdog on incoming samples, the chip's FAULT reports (overrun included).
@@ -72,7 +72,8 @@ __all__ = ["HEARTBEAT_S", "LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSumma
 #: under the name it has in every file (here equal to ``theta``).
 LOG_COLUMNS = ("t", "theta", "theta_ref", "error", "u", "z1", "z2", "z3",
                "k", "t_device", "t_host", "latency", "late", "duty", "y")
-#: On board: the host's HEARTBEAT period [s] (the chip's watchdog trips after 100 ms).
+#: On board: the host's HEARTBEAT period [s of the chip's samples] (its watchdog trips after
+#: 100 ms without one).
 HEARTBEAT_S = 0.02
 
 
@@ -464,7 +465,11 @@ def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # ty
     y_prev = math.nan
     t_start = perf()
     t_last_rx = t_start
-    next_beat = t_start
+    # Heartbeats follow the chip's samples, not the wall clock: a chip that streams nothing
+    # gets none (its watchdog then stops the motor), and a simulated chip slower than real
+    # time is not flooded (each frame costs it ~1k cycles to take in).
+    beat_samples = max(1, round(HEARTBEAT_S / ts))
+    k_beat = 0
     next_status = t_start
     t_us_last, wraps = 0, 0
     t_dev_prev = math.nan
@@ -472,11 +477,10 @@ def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # ty
     while k_next < n:
         if sigint.hit:
             raise _Stop(f"interrupted at sample {k_next}", interrupted=True)
-        now = perf()
-        if now >= next_beat:  # the chip's watchdog
+        if k_next >= k_beat:  # the chip's watchdog, every HEARTBEAT_S of the chip's time
             link.send(P.HEARTBEAT, max(k_next - every, 0))
-            next_beat = now + HEARTBEAT_S
-        frames = link.receive(min(HEARTBEAT_S / 2, max(0.0, next_beat - now)))
+            k_beat = k_next + beat_samples
+        frames = link.receive(HEARTBEAT_S / 2)
         now = perf()
         if not frames:
             if now - t_last_rx > limits.watchdog:
@@ -645,8 +649,8 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             # the actuator of every engine: with a motor, the duty and the torque it gives
             u_host, _, d = actuate(u, z2, act)
             u_applied = float(u_host)
-            if motor is None:
-                link.send(P.TORQUE, k, u)
+            if motor is None:  # the torque the drive applies (rounded with actuator.pwm_bits)
+                link.send(P.TORQUE, k, u_applied)
                 duty = "nan"
             else:
                 link.send(P.DUTY, k, int(d))

@@ -16,12 +16,17 @@ device and the real-time loop), so "what reaches the plant" is written once:
    and that kind's design adds to its viscous friction.  A plant kind without
    ``MOTOR = True`` refuses a ``[motor]`` table (:func:`motor_refused`, from its
    ``check``);
+   Without a motor, ``actuator.pwm_bits`` = b > 0 is a PWM drive of b bits, sign and
+   magnitude (a direction pin and a duty, e.g. Arduino ``analogWrite``, b = 8): the torque
+   is rounded to the nearest of the M = 2^b − 1 levels per sign, u_drive = L·rint(M·u/L)/M
+   (L = torque_limit, round half to even, as the motor's duty); the host knows its duty, so
+   the rounded torque is also what is logged and observed;
 3. the drive is delayed by ``delay_samples`` (0 before the first command) and
    held over [t_k, t_{k+1}) (:func:`delayed_input`); the actuator lag, a plant
    state, is integrated by the plant kind.
 
 The actuator vector ``a`` is (torque_limit, motor flag, motor block of
-:class:`esoarm.plants.motor.MotorParams`).
+:class:`esoarm.plants.motor.MotorParams`, PWM levels M).
 """
 
 from __future__ import annotations
@@ -41,7 +46,9 @@ __all__ = ["actuate", "actuator_vector", "back_emf_damping", "delayed_input", "m
            "motor_refused", "saturate"]
 
 LIMIT, MOTOR, MOTOR_BLOCK = 0, 1, 2
-VECTOR_SIZE = 6
+#: PWM levels per sign, 2^pwm_bits − 1 (0: an ideal torque source), after the motor block.
+PWM_LEVELS = 6
+VECTOR_SIZE = 7
 
 
 def motor_of(scn: Scenario) -> MotorParams | None:
@@ -108,7 +115,7 @@ def motor_refused(scn: Scenario, kind: str) -> str | None:
 
 
 def actuator_vector(scn: Scenario) -> np.ndarray:
-    """(torque_limit, 1.0 with a motor else 0.0, motor block or zeros), read-only.
+    """(torque_limit, 1.0 with a motor else 0.0, motor block or zeros, PWM levels), read-only.
 
     Parameters
     ----------
@@ -125,7 +132,10 @@ def actuator_vector(scn: Scenario) -> np.ndarray:
     motor = motor_of(scn)
     if motor is not None:
         vec[MOTOR] = 1.0
-        vec[MOTOR_BLOCK:] = motor.block
+        vec[MOTOR_BLOCK:PWM_LEVELS] = motor.block
+    bits = getattr(scn.actuator, "pwm_bits", 0)
+    if bits > 0:
+        vec[PWM_LEVELS] = float(2**bits - 1)
     return read_only(vec)
 
 
@@ -175,9 +185,14 @@ def actuate(u: float, rate: float, a: Vector) -> tuple[float, float, float]:
     (u_host, drive, duty) : (float, float, float)
         The torque the host applies as far as it knows [N·m] (logged, fed to
         the observer), the torque driving the plant [N·m], and the PWM duty
-        [counts] (NaN without a motor).
+        [counts] (NaN without a motor or a PWM resolution).
     """
     if a[MOTOR] == 0.0:
+        if len(a) > PWM_LEVELS and a[PWM_LEVELS] > 0.0:  # a PWM drive without a motor model
+            levels = a[PWM_LEVELS]
+            duty = float(np.rint(u / a[LIMIT] * levels))
+            torque = a[LIMIT] * duty / levels
+            return torque, torque, duty
         return u, u, np.nan
     m = a[MOTOR_BLOCK:]
     duty = torque_to_duty(u, rate, m)

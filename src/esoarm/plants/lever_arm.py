@@ -36,14 +36,15 @@ from esoarm._jit import jitable
 from esoarm._schema import Section, unit
 from esoarm.contract import PlantDesign, Vector, read_only
 from esoarm.plants.actuator import back_emf_damping
+from esoarm.plants.backlash import gear_torque
 from esoarm.plants.elementary import exp_neg, tanh
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "FAST", "JIT", "KIND", "MOTOR", "Params", "RigParams", "acceleration",
-           "advance",
+__all__ = ["BACKLASH_MODEL", "CODE", "FAST", "JIT", "KIND", "MOTOR", "Params", "RigParams",
+           "acceleration", "advance", "geared_advance", "geared_derivative_at",
            "advance_block", "design", "observer_input", "rig_acceleration", "rig_advance",
            "rig_derivative", "rig_rk4_step"]
 
@@ -55,6 +56,8 @@ FAST = True
 #: Driven by the actuator's motor when the scenario has a ``[motor]`` table (its back-EMF
 #: damping, :func:`esoarm.plants.actuator.back_emf_damping`, joins the viscous friction).
 MOTOR = True
+#: Models gear backlash (``rig.backlash_deg``, :mod:`esoarm.plants.backlash`).
+BACKLASH_MODEL = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "lever_arm.c"
 
@@ -74,7 +77,10 @@ class Params(Section):
     g: float = Field(9.81, ge=0, description="gravity", json_schema_extra=unit("m/s²"))
 
 INERTIA, GCOEF, FC, VS, VISC, DAMP, DFREQ, LAG, FST, VST = range(10)
-VECTOR_SIZE = 10
+#: Gear backlash (:mod:`esoarm.plants.backlash`): half-play α [rad], motor-side inertia Jm
+#: [kg·m²], contact stiffness k [N·m/rad] and damping c [N·m·s/rad]; α = 0: a rigid gear.
+BACKLASH, JM, KGEAR, CGEAR = range(10, 14)
+VECTOR_SIZE = 14
 
 #: Runs per vector in :func:`advance_block` (8 doubles: AVX-512; a multiple of AVX2's 4).
 LANES = 8
@@ -376,6 +382,99 @@ def applied_torque(tau: float, u: float, rig: Vector) -> float:
     return u
 
 
+@jitable
+def geared_derivative_at(theta: float, omega: float, tau: float, theta_m: float,
+                         omega_m: float, u: float, d: float,
+                         rig: Vector) -> tuple[float, float, float, float, float]:
+    """Time derivative of (θ, θ̇, τ, θm, θ̇m) with gear backlash (:mod:`esoarm.plants.backlash`).
+
+    I θ̈ = τs − G(θ) − F(θ̇) + I d,  Jm θ̈m = τa − τs, τs the gear's dead-zone torque and τa
+    the actuator's torque (the lag state τ when T > 0, else u).
+
+    Parameters
+    ----------
+    theta, omega : float
+        Arm angle θ [rad] and rate θ̇ [rad/s].
+    tau : float
+        Actuator lag state τ [N·m].
+    theta_m, omega_m : float
+        Motor-side angle θm [rad] and rate θ̇m [rad/s], at the arm.
+    u : float
+        Applied input [N·m].
+    d : float
+        Disturbance d(t) [rad/s²].
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (all 14 entries).
+
+    Returns
+    -------
+    tuple of float
+        θ̇ [rad/s], θ̈ [rad/s²], τ̇ [N·m/s], θ̇m [rad/s], θ̈m [rad/s²].
+    """
+    lag = rig[LAG]
+    lagged = lag > 0.0
+    torque = tau if lagged else u
+    dtau = (u - tau) / lag if lagged else 0.0
+    ts = gear_torque(theta_m - theta, omega_m - omega, rig[BACKLASH], rig[KGEAR], rig[CGEAR])
+    return (omega, rig_acceleration_at(theta, omega, ts, d, rig), dtau, omega_m,
+            (torque - ts) / rig[JM])
+
+
+@jitable
+def geared_advance(theta: float, omega: float, tau: float, theta_m: float, omega_m: float,
+                   u: float, t0: float, h: float, nsub: int,
+                   rig: Vector) -> tuple[float, float, float, float, float]:
+    """``nsub`` classical RK4 steps of h [s] of :func:`geared_derivative_at`, u held.
+
+    Parameters
+    ----------
+    theta, omega : float
+        Arm angle θ [rad] and rate θ̇ [rad/s].
+    tau : float
+        Actuator lag state τ [N·m].
+    theta_m, omega_m : float
+        Motor-side angle θm [rad] and rate θ̇m [rad/s].
+    u : float
+        Applied input [N·m], held over [t0, t0 + nsub·h).
+    t0 : float
+        Start of the sample [s].
+    h : float
+        RK4 step [s].
+    nsub : int
+        Number of RK4 steps.
+    rig : ndarray or tuple of float
+        The rig vector :attr:`RigParams.vector` (all 14 entries).
+
+    Returns
+    -------
+    tuple of float
+        (θ, θ̇, τ, θm, θ̇m) after the steps.
+    """
+    half = 0.5 * h
+    sixth = h / 6.0
+    x0, x1, x2, x3, x4 = theta, omega, tau, theta_m, omega_m
+    for j in range(nsub):
+        t = t0 + j * h
+        d0 = disturbance(t, rig)
+        dh = disturbance(t + half, rig)
+        d1 = disturbance(t + h, rig)
+        a0, a1, a2, a3, a4 = geared_derivative_at(x0, x1, x2, x3, x4, u, d0, rig)
+        b0, b1, b2, b3, b4 = geared_derivative_at(x0 + half * a0, x1 + half * a1,
+                                                  x2 + half * a2, x3 + half * a3,
+                                                  x4 + half * a4, u, dh, rig)
+        c0, c1, c2, c3, c4 = geared_derivative_at(x0 + half * b0, x1 + half * b1,
+                                                  x2 + half * b2, x3 + half * b3,
+                                                  x4 + half * b4, u, dh, rig)
+        e0, e1, e2, e3, e4 = geared_derivative_at(x0 + h * c0, x1 + h * c1, x2 + h * c2,
+                                                  x3 + h * c3, x4 + h * c4, u, d1, rig)
+        x0 = x0 + sixth * (a0 + 2.0 * b0 + 2.0 * c0 + e0)
+        x1 = x1 + sixth * (a1 + 2.0 * b1 + 2.0 * c1 + e1)
+        x2 = x2 + sixth * (a2 + 2.0 * b2 + 2.0 * c2 + e2)
+        x3 = x3 + sixth * (a3 + 2.0 * b3 + 2.0 * c3 + e3)
+        x4 = x4 + sixth * (a4 + 2.0 * b4 + 2.0 * c4 + e4)
+    return x0, x1, x2, x3, x4
+
+
 @dataclass(frozen=True)
 class RigParams:
     """Parameters of the true rig.
@@ -402,6 +501,14 @@ class RigParams:
         Breakaway torque above Coulomb friction Fst [N·m]; 0 for none.
     stribeck_velocity : float
         Stribeck velocity vst [rad/s] over which the stiction decays.
+    backlash : float
+        Half the gear's play α [rad]; 0 for a rigid gear (:mod:`esoarm.plants.backlash`).
+    motor_inertia : float
+        Motor-side inertia Jm reflected to the arm [kg·m²] (with backlash).
+    gear_stiffness : float
+        Contact stiffness k [N·m/rad] (with backlash).
+    gear_damping : float
+        Contact damping c [N·m·s/rad] (with backlash).
     """
 
     inertia: float
@@ -414,6 +521,10 @@ class RigParams:
     lag: float
     stiction: float = 0.0
     stribeck_velocity: float = 0.1
+    backlash: float = 0.0
+    motor_inertia: float = 1e-3
+    gear_stiffness: float = 50.0
+    gear_damping: float = 0.05
 
     @classmethod
     def from_scenario(cls, scn: Scenario) -> RigParams:
@@ -441,6 +552,10 @@ class RigParams:
             lag=scn.actuator.lag,
             stiction=r.stiction,
             stribeck_velocity=r.stribeck_velocity,
+            backlash=0.5 * math.radians(r.backlash_deg),
+            motor_inertia=r.motor_inertia,
+            gear_stiffness=r.gear_stiffness,
+            gear_damping=r.gear_damping,
         )
 
     @cached_property
@@ -449,9 +564,10 @@ class RigParams:
 
         Returns
         -------
-        ndarray, shape (10,)
+        ndarray, shape (14,)
             Read-only (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s], b [N·m·s/rad],
-            amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s]).
+            amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s],
+            α [rad], Jm [kg·m²], k [N·m/rad], c [N·m·s/rad]).
         """
         vec = np.array(
             [
@@ -465,6 +581,10 @@ class RigParams:
                 self.lag,
                 self.stiction,
                 self.stribeck_velocity,
+                self.backlash,
+                self.motor_inertia,
+                self.gear_stiffness,
+                self.gear_damping,
             ]
         )
         vec.setflags(write=False)
@@ -486,7 +606,8 @@ def design(scn: Scenario) -> PlantDesign:
     Returns
     -------
     PlantDesign
-        vector = (CODE, rig vector), x0 = (θ0 [rad], 0, 0), n_joints = 1,
+        vector = (CODE, rig vector), x0 = (θ0 [rad], 0, 0) — with backlash
+        (θ0, 0, 0, θ0, 0), the motor side's angle and rate appended —, n_joints = 1,
         b0 = 1/I0 [1/(kg·m²)] (the nominal inertia, not the rig's).
 
     ``vector`` = (CODE, :attr:`RigParams.vector`); with a ``[motor]`` table the
@@ -501,7 +622,8 @@ def design(scn: Scenario) -> PlantDesign:
         rig[VISC] += damping
     return PlantDesign(
         vector=read_only(np.concatenate([[float(CODE)], rig])),
-        x0=read_only(np.array([scn.rig.theta0, 0.0, 0.0])),
+        x0=read_only(np.array([scn.rig.theta0, 0.0, 0.0]
+                              + ([scn.rig.theta0, 0.0] if scn.rig.backlash_deg > 0 else []))),
         n_joints=1,
         b0=read_only(np.array([input_gain(scn.plant.inertia)])),
     )
@@ -517,8 +639,9 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
 
     Parameters
     ----------
-    x : ndarray, shape (3,)
-        State (θ [rad], θ̇ [rad/s], τ [N·m]), updated in place.
+    x : ndarray, shape (3,) or (5,)
+        State (θ [rad], θ̇ [rad/s], τ [N·m]), with backlash then (θm [rad], θ̇m [rad/s]),
+        updated in place.
     u : ndarray, shape (1,)
         Applied torque [N·m], held over [t0, t0 + nsub·h).
     t0 : float
@@ -535,7 +658,13 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
     # float(): in the interpreter (reference engine), Python floats are several times
     # quicker than NumPy scalars for the same IEEE operations; compiled, a no-op.
     th, om, ta, u0 = float(x[0]), float(x[1]), float(x[2]), float(u[0])
-    if p[1 + FST] == 0.0:
+    if len(p) > 1 + BACKLASH and p[1 + BACKLASH] > 0.0:  # the two-mass drive train
+        rig14 = (float(p[1]), float(p[2]), float(p[3]), float(p[4]), float(p[5]),
+                 float(p[6]), float(p[7]), float(p[8]), float(p[9]), float(p[10]),
+                 float(p[11]), float(p[12]), float(p[13]), float(p[14]))
+        x[0], x[1], x[2], x[3], x[4] = geared_advance(th, om, ta, float(x[3]), float(x[4]),
+                                                      u0, t0, h, nsub, rig14)
+    elif p[1 + FST] == 0.0:
         rig8 = (float(p[1]), float(p[2]), float(p[3]), float(p[4]), float(p[5]),
                 float(p[6]), float(p[7]), float(p[8]))
         x[0], x[1], x[2] = rig_advance(th, om, ta, u0, t0, h, nsub, rig8)
@@ -571,7 +700,11 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
     p : ndarray
         The design vector shared by the block, p[0] = CODE.
     """
-    if p[1 + FST] == 0.0:  # no Stribeck term: the rig without its entries skips e^(−x²)
+    if len(p) > 1 + BACKLASH and p[1 + BACKLASH] > 0.0:  # two masses: run by run
+        for i in range(xs.shape[0]):
+            if live[i]:
+                advance(xs[i], us[i], t0, h, nsub, p)
+    elif p[1 + FST] == 0.0:  # no Stribeck term: the rig without its entries skips e^(−x²)
         _advance_block(xs, us, live, t0, h, nsub, (p[1], p[2], p[3], p[4], p[5], p[6], p[7],
                                                    p[8]))
     else:
@@ -614,8 +747,8 @@ def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
 
     Parameters
     ----------
-    x : ndarray, shape (3,)
-        State (θ [rad], θ̇ [rad/s], τ [N·m]).
+    x : ndarray, shape (3,) or (5,)
+        State (θ [rad], θ̇ [rad/s], τ [N·m]), with backlash then (θm [rad], θ̇m [rad/s]).
     u : ndarray, shape (1,)
         Applied torque [N·m] (acts directly when T = 0).
     t : float
@@ -626,6 +759,10 @@ def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
         Output: θ̈ [rad/s²].
     """
     rig = p[1:]
+    if len(rig) > BACKLASH and rig[BACKLASH] > 0.0:  # the gear's torque, not the actuator's
+        ts = gear_torque(x[3] - x[0], x[4] - x[1], rig[BACKLASH], rig[KGEAR], rig[CGEAR])
+        out[0] = rig_acceleration(x[0], x[1], ts, t, rig)
+        return
     out[0] = rig_acceleration(x[0], x[1], applied_torque(x[2], u[0], rig), t, rig)
 
 

@@ -16,6 +16,7 @@ import numpy as np
 from esoarm import kinds as _kinds
 from esoarm._limits import MAX_SAMPLES
 from esoarm._schema import PER_JOINT_KEYS
+from esoarm.plants.backlash import contact_frequency, step_limit
 from esoarm.plants.noise import check_noise
 from esoarm.reference import Multisine, PerJoint, QuinticSteps, RangeMoves
 from esoarm.scenario.errors import ScenarioError
@@ -63,6 +64,7 @@ def check_consistency(scn: Scenario, source: str,
     bad_noise = check_noise(scn)
     if bad_noise is not None:
         fail(*bad_noise)
+    _check_drive(scn, fail)
     samples = scn.duration * scn.sensor.rate_hz
     if not samples <= MAX_SAMPLES:  # also catches an overflow to inf
         fail("duration", f"{scn.duration:g} s at {scn.sensor.rate_hz:g} Hz is {samples:.3g} "
@@ -101,6 +103,28 @@ def check_consistency(scn: Scenario, source: str,
                 if isinstance(value, list) and len(value) != 1:
                     fail(f"{section}.{key}", f"{len(value)} entries, but plant kind "
                          f"'{scn.plant.kind}' has one joint (give one number)")
+
+
+def _check_drive(scn: Scenario, fail: Callable[[str, str], None]) -> None:
+    """Gear backlash only on a plant kind that models it, with a step that resolves it;
+    a PWM resolution only without a motor (whose pwm_max is the resolution)."""
+    rig = scn.rig
+    if rig.backlash_deg > 0.0:
+        plant = _kinds.kinds_of(scn).plant
+        if not getattr(plant, "BACKLASH_MODEL", False):
+            fail("rig.backlash_deg", f"plant.kind = '{scn.plant.kind}' does not model gear "
+                 "backlash (plant kinds that do: 'lever-arm'); set it to 0")
+        arm = rig.inertia_scale * scn.plant.inertia
+        h_max = step_limit(rig.gear_stiffness, rig.motor_inertia, arm)
+        if rig.step > h_max:
+            wn = contact_frequency(rig.gear_stiffness, rig.motor_inertia, arm)
+            fail("rig.step", f"{rig.step:g} s does not resolve the gear's contact frequency "
+                 f"√(k(1/Jm + 1/I)) = {wn:.4g} rad/s with backlash: use a step ≤ {h_max:.3g} s "
+                 "that divides Ts, or a "
+                 "softer rig.gear_stiffness / heavier rig.motor_inertia")
+    if scn.actuator.pwm_bits > 0 and scn.motor is not None:
+        fail("actuator.pwm_bits", "a [motor] table sets the PWM resolution itself "
+             "(motor.pwm_max = 2^bits − 1); set actuator.pwm_bits = 0")
 
 
 def _check_moves(ref: QuinticSteps | RangeMoves, where: str, fail: Any) -> None:

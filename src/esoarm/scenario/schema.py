@@ -87,6 +87,24 @@ class Rig(_Section):
         0.1, gt=0, description="Stribeck velocity vst over which the stiction decays",
         json_schema_extra=_unit("rad/s"),
     )
+    backlash_deg: float = Field(
+        0.0, ge=0, description="total play 2α of the gear between motor and arm, a two-mass "
+        "dead-zone model (0: rigid gear); plausible 0.5 … 3 for small spur/planetary "
+        "gearmotors, < 0.25 for precision gearheads (docs/noise-model.md)",
+        json_schema_extra=_unit("deg"),
+    )
+    motor_inertia: float = Field(
+        1e-3, gt=0, description="motor-side inertia Jm reflected to the arm, N²·J_rotor (with "
+        "backlash); plausible 1e-4 … 1e-2", json_schema_extra=_unit("kg·m²"),
+    )
+    gear_stiffness: float = Field(
+        50.0, gt=0, description="contact stiffness k of the gear (with backlash); rig.step "
+        "must resolve √(k(1/Jm + 1/I))", json_schema_extra=_unit("N·m/rad"),
+    )
+    gear_damping: float = Field(
+        0.05, ge=0, description="contact damping c of the gear (with backlash)",
+        json_schema_extra=_unit("N·m·s/rad"),
+    )
     step: float = Field(0.001, gt=0, description="RK4 step h", json_schema_extra=_unit("s"))
     theta0: float = Field(0.0, description="initial angle θ(0)", json_schema_extra=_unit("rad"))
     disturbance: Disturbance = Field(default_factory=Disturbance)
@@ -133,7 +151,7 @@ class Sensor(_Section):
 
 
 class Actuator(_Section):
-    """Torque saturation, first-order lag and transport delay."""
+    """Torque saturation, PWM resolution, first-order lag and transport delay."""
 
     torque_limit: float = Field(
         2.0, gt=0, description="saturation |u| ≤ torque_limit", json_schema_extra=_unit("N·m")
@@ -144,6 +162,12 @@ class Actuator(_Section):
     )
     delay_samples: int = Field(
         0, ge=0, description="transport delay in samples", json_schema_extra=_unit("samples")
+    )
+    pwm_bits: int = Field(
+        0, ge=0, le=16, description="resolution of the PWM drive (0: an ideal torque source): "
+        "the torque is rounded to torque_limit·m/(2^bits − 1), sign and magnitude, e.g. 8 for "
+        "Arduino analogWrite; with a [motor] table use motor.pwm_max instead",
+        json_schema_extra=_unit("bits"),
     )
 
 

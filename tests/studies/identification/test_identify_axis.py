@@ -94,6 +94,7 @@ def test_idim_ls_recovers_the_axis_and_does_not_depend_on_units():
 
 
 def test_hac_intervals_cover_with_coloured_noise_where_white_ones_do_not():
+    """Issue 20, case 4: intervals that stay valid when the residual is coloured."""
     hac = white = 0
     runs = 40
     for seed in range(runs):
@@ -104,6 +105,33 @@ def test_hac_intervals_cover_with_coloured_noise_where_white_ones_do_not():
         white += err <= 1.96 * est.se_white[i]
     assert hac / runs >= 0.85, (hac, white)
     assert white / runs < 0.7, (hac, white)
+
+
+def test_case_1_float32_stamps_are_imported_and_fitted(tmp_path, run_cli):
+    """Issue 20, case 1: a time column stored in float32 (the EMPS files: stamps off the
+    1 kHz grid by up to 2e-5 relative) is refused by the log reader (tolerance 1e-6),
+    `esoarm log import` accepts it onto the uniform grid, and IDIM-LS fits the result."""
+    import scipy.io
+
+    from esoarm.scenario import ScenarioError
+    from esoarm.studies.identification.data import read_ident_log
+
+    y, u = _log(TRUE, n=12000, rho=0.0, sigma=0.1)
+    t32 = (np.arange(len(y)) * TS).astype(np.float32).astype(float)
+    raw = tmp_path / "raw.csv"
+    np.savetxt(raw, np.column_stack([t32, y, u]), delimiter=",", header="t,y,u",
+               comments="", fmt="%.17g")
+    with pytest.raises(ScenarioError, match="uniformly spaced"):
+        read_ident_log(raw, 1e3)
+    mat = tmp_path / "rec.mat"
+    scipy.io.savemat(mat, {"time": t32.reshape(-1, 1), "pos": y.reshape(-1, 1),
+                           "force": u.reshape(-1, 1)})
+    out = tmp_path / "log.csv"
+    res = run_cli("log", "import", str(mat), "--map", "t=time,y=pos,u=force", "--out", str(out))
+    assert res.exit_code == 0, res.output
+    log = read_ident_log(out, 1e3)
+    est = idim_ls([(log.y, log.u)], log.ts)
+    np.testing.assert_allclose(est.values, TRUE, rtol=0.02, atol=0.02)
 
 
 def test_cli_refuses_an_axis_that_changed_half_way(tmp_path, run_cli):
@@ -225,6 +253,8 @@ def test_emps_segment_lengths_agree_or_the_output_error_fit_is_flagged(run_cli):
 
 @pytest.mark.slow
 def test_emps_cli_json_physical(run_cli):
+    """Issue 20, case 3: a prismatic axis in SI units (mass, N·s/m, N), no mapping by hand,
+    the offset fitted as an offset (not a gravity term)."""
     res = run_cli("identify", str(EMPS / "estimation.csv"), "--scenario", "emps", "--validate",
                   str(EMPS / "validation.csv"), "--json")
     assert res.exit_code == 0, res.output

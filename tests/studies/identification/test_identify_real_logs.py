@@ -51,6 +51,7 @@ def test_idim_ls_of_the_twin_finds_its_inertia_and_disturbance(twin_log):
 
 
 def test_a_log_in_degrees_is_refused_as_bad_input(twin_log, tmp_path):
+    """Issue 20, case 9: angles in degrees (was exit 0, fit 35 %, a scenario written)."""
     deg = _rewrite(twin_log, tmp_path / "deg.csv", ("y", "theta"), 180.0 / math.pi)
     scn = load_scenario("test-1")
     with pytest.raises(ScenarioError, match=r"units look wrong: .* 0\.01\d+× .*degrees"):
@@ -65,6 +66,7 @@ def test_cli_degrees_exit_2_nothing_written(twin_log, tmp_path, run_cli):
 
 
 def test_a_template_disturbance_the_log_lacks_is_named(tmp_path):
+    """Issue 20, case 6, on a log of two periods and more (IDIM-LS decides)."""
     path = tmp_path / "nod.csv"
     excite_twin(load_scenario("test-1", ["rig.disturbance.amplitude=0"]),
                 ExcitationPlan(duration=60.0), path)
@@ -94,6 +96,8 @@ def test_case_6_a_template_disturbance_is_named_on_a_log_shorter_than_two_period
 
 @pytest.mark.slow
 def test_noise_is_written_only_when_the_residual_is_white(twin_log):
+    """Issue 20, case 5: sensor.noise_deg is written only when the residual is white (the
+    model error of a fit is not sensor noise)."""
     scn = load_scenario("test-1")
     res = identify(scn, [read_ident_log(twin_log, 2.0)])
     white = res.validation["whiteness"]["white"]
@@ -114,8 +118,8 @@ def test_noise_is_written_only_when_the_residual_is_white(twin_log):
 
 @pytest.mark.slow
 def test_stick_slip_is_recovered(tmp_path):
-    """Coulomb friction half the excitation's RMS torque plus breakaway friction (the issue's
-    eighth case: the fit used to settle on a wrong delay and exclude the truth)."""
+    """Issue 20, case 8: Coulomb friction half the excitation's RMS torque plus breakaway
+    friction (the fit used to settle on a wrong delay and exclude the truth)."""
     truth = load_scenario("test-1", ["rig.coulomb_friction=0.1", "rig.stiction=0.05",
                                      "rig.inertia_scale=1.25", "sensor.seed=19"])
     path = tmp_path / "stick.csv"

@@ -1,4 +1,4 @@
-"""Noise budget of the linearized loop: what white encoder noise costs in control and error.
+"""Noise budget of the linearized loop: what encoder noise costs in control and error.
 
 The loop of :mod:`esoarm.studies.frequency.linearization` (plant P sampled with the
 zero-order hold, controller K = observer + FLC) is closed with the measurement
@@ -19,7 +19,19 @@ the discrete Lyapunov equation X = A X Aᵀ + σ² B Bᵀ
 (same seed otherwise), in RMS, is what they predict (the loop is linear about the
 operating point; friction, saturation and quantization are outside).
 
-The noise model is the scenario's ``sensor.noise_deg`` (white, σ in degrees).
+The noise model is the scenario's: ``sensor.noise_deg`` white (σ in degrees), or coloured
+(:mod:`esoarm.plants.noise`: an AR encoder noise ``sensor.noise_ar`` and an arm vibration
+``sensor.vibration_*``).  A coloured noise is the output of its own linear state space
+driven by unit white innovations ε (one per process)::
+
+    s⁺ = F s + E ε,     n = H s + J ε
+
+(each AR(p) in companion form, its output scaled to its stationary RMS), and the budget
+is that of the loop augmented with s: z = (x, s),
+
+    z⁺ = [[A, B H], [0, F]] z + [[B J], [E]] ε,   u = [Cu, Du H] z + Du J ε,   e = [Ce, 0] z
+
+with the same three formulas (σ² B Bᵀ becoming Bz Bzᵀ, σ² Du² becoming ‖Du J‖²).
 The encoder's quantization (``sensor.resolution_deg``) is left out of σ: the twin
 quantizes with and without noise, so the difference holds the noise only.
 """
@@ -32,11 +44,12 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.linalg import solve_discrete_lyapunov
 
+from esoarm.plants.noise import NoiseModel, noise_model, stationary_covariance
 from esoarm.scenario import Scenario
 from esoarm.studies.frequency.linearization import linearize, motor_damping
 
-__all__ = ["NoiseBudget", "Recommendation", "noise_budget", "perturbation_bandwidth",
-           "recommend_eps"]
+__all__ = ["NoiseBudget", "Recommendation", "noise_budget", "noise_state_space",
+           "perturbation_bandwidth", "recommend_eps"]
 
 
 @dataclass(frozen=True)
@@ -46,7 +59,7 @@ class NoiseBudget:
     Attributes
     ----------
     noise_rms : float
-        σ of the white encoder noise [rad].
+        RMS of the encoder noise [rad] (σ white; the stationary RMS of w when coloured).
     rms_u, rms_du : float
         Noise-driven RMS of u_k and of u_k − u_{k−1} [N·m].
     rms_error : float
@@ -84,7 +97,8 @@ def noise_budget(scn: Scenario, *, theta0: float | None = None, friction: str = 
     friction : {"viscous", "slope", "none"}
         Friction in the linear plant (:mod:`esoarm.studies.frequency.linearization`).
     noise_rms : float, optional
-        σ [rad]; default the scenario's ``sensor.noise_deg`` in radians.
+        σ [rad] of a white noise; default the scenario's noise model (``sensor.noise_deg``
+        in radians, coloured with ``sensor.noise_ar`` / ``sensor.vibration_deg``).
 
     Raises
     ------
@@ -95,6 +109,8 @@ def noise_budget(scn: Scenario, *, theta0: float | None = None, friction: str = 
         raise ValueError("the noise budget does not model the motor's back-EMF compensation "
                          "(remove [motor] to budget the torque loop)")
     sigma = math.radians(scn.sensor.noise_deg) if noise_rms is None else float(noise_rms)
+    model = noise_model(scn)
+    coloured = noise_rms is None and not model.white
     lin = linearize(scn, theta0=theta0, friction=friction)
     ap, bp, cp, _ = lin.plant
     ak, bk, ck, dk = lin.controller  # y -> -u
@@ -110,7 +126,9 @@ def noise_budget(scn: Scenario, *, theta0: float | None = None, friction: str = 
     ce = np.hstack([cp, np.zeros((1, n_k))])
     if np.max(np.abs(np.linalg.eigvals(a))) >= 1.0:
         inf = math.inf
-        return NoiseBudget(sigma, inf, inf, inf, inf, False)
+        return NoiseBudget(_rms(model) if coloured else sigma, inf, inf, inf, inf, False)
+    if coloured:
+        return _coloured_budget(a, b, cu, du, ce, model)
     x = solve_discrete_lyapunov(a, sigma**2 * (b @ b.T))
     var_u = (cu @ x @ cu.T).item() + sigma**2 * du**2
     var_e = (ce @ x @ ce.T).item()
@@ -120,6 +138,77 @@ def noise_budget(scn: Scenario, *, theta0: float | None = None, friction: str = 
     rms_u = math.sqrt(max(var_u, 0.0))
     return NoiseBudget(sigma, rms_u, math.sqrt(max(var_du, 0.0)), math.sqrt(max(var_e, 0.0)),
                        rms_u / sigma if sigma > 0 else math.nan, True)
+
+
+def noise_state_space(model: NoiseModel) -> tuple[np.ndarray, ...]:
+    """(F, E, H, J) of a coloured noise: s⁺ = F s + E ε, n = H s + J ε, ε unit white.
+
+    One block per process (the AR encoder noise, the vibration): state (a_{k−1}, …,
+    a_{k−p}), a_k = φᵀ s_k + ε_k, output g·a_k with g = RMS/√γ(0) (a white encoder noise
+    has no state: n = σ ε).
+
+    Parameters
+    ----------
+    model : NoiseModel
+        The measurement disturbance (:func:`esoarm.plants.noise.noise_model`).
+
+    Returns
+    -------
+    tuple of ndarray
+        F (q, q), E (q, m), H (1, q), J (1, m).
+    """
+    blocks = []
+    if model.sigma > 0.0:
+        blocks.append((model.ar, model.sigma))
+    if model.vibration > 0.0:
+        blocks.append((model.vibration_coefficients, model.vibration))
+    q = sum(len(phi) for phi, _ in blocks)
+    m = len(blocks)
+    f, e = np.zeros((q, q)), np.zeros((q, m))
+    h, j = np.zeros((1, q)), np.zeros((1, m))
+    i = 0
+    for col, (phi, rms) in enumerate(blocks):
+        p = len(phi)
+        if p == 0:
+            j[0, col] = rms
+            continue
+        g = rms / math.sqrt(float(stationary_covariance(phi)[0, 0]))
+        f[i, i:i + p] = phi
+        f[i + 1:i + p, i:i + p - 1] = np.eye(p - 1)
+        e[i, col] = 1.0
+        h[0, i:i + p] = g * np.asarray(phi)
+        j[0, col] = g
+        i += p
+    return f, e, h, j
+
+
+def _rms(model: NoiseModel) -> float:
+    return math.hypot(model.sigma, model.vibration)
+
+
+def _coloured_budget(a: np.ndarray, b: np.ndarray, cu: np.ndarray, du: float, ce: np.ndarray,
+                     model: NoiseModel) -> NoiseBudget:
+    """The budget of the loop (a, b, cu, du, ce) augmented with the noise's states."""
+    f, e, h, j = noise_state_space(model)
+    n, q = a.shape[0], f.shape[0]
+    az = np.zeros((n + q, n + q))
+    az[:n, :n] = a
+    az[:n, n:] = b @ h
+    az[n:, n:] = f
+    bz = np.vstack([b @ j, e])
+    cuz = np.hstack([cu, du * h])
+    duz = du * j
+    cez = np.hstack([ce, np.zeros((1, q))])
+    x = solve_discrete_lyapunov(az, bz @ bz.T)
+    var_u = (cuz @ x @ cuz.T).item() + float(np.sum(duz**2))
+    var_e = (cez @ x @ cez.T).item()
+    am = az - np.eye(n + q)
+    var_du = ((cuz @ am @ x @ am.T @ cuz.T).item() + float(np.sum((cuz @ bz - duz) ** 2))
+              + float(np.sum(duz**2)))
+    rms = _rms(model)
+    rms_u = math.sqrt(max(var_u, 0.0))
+    return NoiseBudget(rms, rms_u, math.sqrt(max(var_du, 0.0)), math.sqrt(max(var_e, 0.0)),
+                       rms_u / rms if rms > 0 else math.nan, True)
 
 
 def perturbation_bandwidth(scn: Scenario) -> float:

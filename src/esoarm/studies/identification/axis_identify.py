@@ -301,8 +301,9 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
         if not oe_warning and not _agree(est, oe, i):
             oe_warning = (
                 f"output error over {oe.segment_s:g} s segments gives {name} "
-                f"{oe.values[i]:.5g} ± {oe.ci95_half[i]:.3g}, IDIM-LS {est.values[j]:.5g} "
-                f"± {1.96 * est.se_hac[j]:.3g} {unit_of(motion, name)}: the output-error "
+                f"{oe.values[i]:.5g}, IDIM-LS {est.values[j]:.5g} ± "
+                f"{1.96 * est.se_hac[j]:.3g} {unit_of(motion, name)}, outside their combined "
+                "95 % intervals: the output-error "
                 "fit has model error that depends on the segment length, which its intervals "
                 "(noise only) do not cover, so they are withheld; the written estimate is "
                 "IDIM-LS, which does not depend on --segment")

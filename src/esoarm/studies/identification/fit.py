@@ -204,7 +204,7 @@ class Problem:
     def rig_and_source(self, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
         scn = self.scn
         p, r = scn.plant, scn.rig
-        rig = np.empty(VECTOR_SIZE)
+        rig = np.zeros(VECTOR_SIZE)  # entries not set here stay 0: no stiction, no backlash
         rig[INERTIA] = values["rig.inertia_scale"] * p.inertia
         rig[GCOEF] = gravity_coefficient(p.m1, values["plant.m2"], p.l1, p.l2, p.g)
         rig[FC] = values["rig.coulomb_friction"]

@@ -26,7 +26,12 @@ Beside the fit, the inverse-dynamic-model least squares (IDIM-LS,
 :mod:`esoarm.studies.identification.lever_checks`) is computed from the same
 logs: it refuses angles that cannot be in rad, a scenario disturbance the log
 clearly lacks, and an output-error inertia grossly off its own.  The encoder
-noise goes into the fitted scenario only when the validation residual is white.
+noise goes into the fitted scenario only when the validation residual is white, or when it
+is coloured sensor noise: then with its AR spectrum as ``sensor.noise_ar``
+(:mod:`esoarm.studies.identification.noise_ar`: Yule-Walker, order by AIC, the AR innovation
+white and uncorrelated with the past input, and the validation residual's RMS at most
+:data:`NOISE_CARRY_OVER` times the fit's); otherwise the spectrum is reported as model
+error.
 
 Held at the scenario's values: ``rig.friction_velocity`` (the tanh smoothing
 is far below what 50 Hz data resolves), the disturbance d(t) (taken as known,
@@ -64,11 +69,16 @@ from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.identification.data import IdentLog, check_supported
 from esoarm.studies.identification.fit import PARAMS, Problem, limits_from_data
+from esoarm.studies.identification.noise_ar import noise_verdict
 
 __all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
 
 DELAY_KEY = "actuator.delay_samples"
 NOISE_KEY = "sensor.noise_deg"
+NOISE_AR_KEY = "sensor.noise_ar"
+#: Coloured noise is written only when the validation residual's RMS is at most this many
+#: times the fit's (sensor noise does not grow on new data; model error does).
+NOISE_CARRY_OVER = 1.25
 FREE_KEYS = (*PARAMS, DELAY_KEY)
 #: Why the inertia is held by default with a ``[motor]`` table.
 MOTOR_SCALE_NOTE = (
@@ -187,11 +197,26 @@ class IdentResult:
             "physical": self.physical(),
             "idim_ls": self.idim or None,
             "noise": ("written: the validation residual is white" if self.noise_is_sensor()
+                      else "written with sensor.noise_ar: the validation residual is coloured "
+                      "sensor noise (its AR innovation is white and uncorrelated with the past "
+                      "input)" if self.coloured_noise() is not None
                       else "not written: the validation residual is not white, so it is model "
                       "error, not sensor noise; sensor.noise_deg stays as given"),
             "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
             "at_bound": [k for k, e in self.estimates.items() if e.at_bound],
         }
+
+    def coloured_noise(self) -> list[float] | None:
+        """AR coefficients of the encoder noise when the validation residual is not white but
+        is coloured sensor noise (:mod:`esoarm.studies.identification.noise_ar`), else None."""
+        spec = self.validation.get("noise_spectrum")
+        if self.noise_is_sensor() or not spec or not spec["sensor_noise"] or not spec["order"]:
+            return None
+        # sensor noise has the same level on the validation logs as on the fit's: a
+        # validation residual well above the fit's is the model failing to carry over
+        if not self.validation["residual_rms_rad"] <= NOISE_CARRY_OVER * self.residual_rms:
+            return None
+        return [float(v) for v in spec["noise_ar"]]
 
     def noise_is_sensor(self) -> bool:
         """Whether the residual supports calling it sensor noise: the validation residual is
@@ -252,8 +277,8 @@ class IdentResult:
         floor = max(sensor.resolution_deg, sensor.noise_deg)
         rms = self.validation.get("residual_rms_rad", self.residual_rms)
         whiteness = self.validation.get("whiteness", {})
-        if floor <= 0.0 or whiteness.get("white", False):
-            return ""
+        if floor <= 0.0 or whiteness.get("white", False) or self.coloured_noise() is not None:
+            return ""  # white, or coloured sensor noise by its spectrum (noise_ar)
         rms_deg = math.degrees(rms)
         if rms_deg <= NOISE_SANITY * floor:
             return ""
@@ -274,8 +299,11 @@ class IdentResult:
                                    "plant.inertia": self.value("rig.inertia_scale")
                                    * scn.plant.inertia,
                                    "rig.inertia_scale": 1.0}
+        coloured = self.coloured_noise()
+        if coloured is not None:
+            over[NOISE_AR_KEY] = coloured
         for key, est in self.estimates.items():
-            if key == NOISE_KEY and not self.noise_is_sensor():
+            if key == NOISE_KEY and not self.noise_is_sensor() and coloured is None:
                 continue  # model error, not sensor noise: the scenario's noise stays
             if key != "rig.inertia_scale" and (scn.motor is not None
                                                or not key.startswith("motor.")):
@@ -714,6 +742,8 @@ def _validate(scn, values, logs, seg_samples, delay, start):  # type: ignore[no-
     outside = int(np.sum(np.abs(rho) > band))
     return {"fit_percent": _fit_percent(prob.y[mask], yhat[mask]),
             "residual_rms_rad": float(np.sqrt(np.mean(r**2))), "samples": m,
+            # the residual's spectrum as an AR model, and whether it is (coloured) sensor noise
+            "noise_spectrum": noise_verdict(r, prob.base[mask]).to_dict(),
             "whiteness": {"lags": len(lags), "band": band, "outside": outside,
                           "max_abs_autocorrelation": float(np.max(np.abs(rho))),
                           "white": outside <= 2},

@@ -75,6 +75,18 @@ def result_text(res: IdentResult) -> str:
         lines.append(f"residual whiteness: {w['outside']} of {w['lags']} autocorrelation lags "
                      f"outside ±{w['band']:.3g} (max |ρ| {w['max_abs_autocorrelation']:.3g}): "
                      f"{verdict}")
+        spec = v.get("noise_spectrum")
+        if spec:
+            what = ("sensor noise, written to the fitted scenario" if res.coloured_noise()
+                    else "sensor noise (white)" if w["white"]
+                    else "model error: the validation residual is well above the fit's"
+                    if spec["sensor_noise"] and spec["order"]
+                    else spec["meaning"])
+            lines.append(f"residual spectrum: AR({spec['order']}) "
+                         f"{[round(c, 4) for c in spec['noise_ar']]} by AIC, innovation "
+                         f"{spec['innovation_autocorrelation_outside']} and input cross-"
+                         f"correlation {spec['input_cross_correlation_outside']} of "
+                         f"{spec['lags']} lags outside the band: {what}")
     else:
         lines.append("validation: none (--validate-fraction 0 and a single log)")
     return "\n".join(lines)
