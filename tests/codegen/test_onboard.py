@@ -129,7 +129,9 @@ def test_uno_rig_1khz_on_board_with_the_python_host() -> None:
         run = subprocess.run([*esoarm, "run", "uno-rig", "--port", device, *rate, "--onboard",
                               "--log", str(log), "--json", "--watchdog", "5"],
                              capture_output=True, text=True, timeout=1800)
-        assert run.returncode == 0, run.stderr
+        if run.returncode != 0:
+            hil.wait(60)
+            raise AssertionError(f"{run.stderr}\nhil: {hil.stdout.read()}")
         assert "every sample (1000 Hz)" in run.stderr
         hil.wait(60)
         got = json.loads(run.stdout)
@@ -147,3 +149,45 @@ def test_uno_rig_1khz_on_board_with_the_python_host() -> None:
     assert ((rows["t_device"] - 1e-3 * rows["k"]) < 1e-3).all()  # no sample a period late
     assert np.isfinite(rows["u"]).all() and np.isnan(rows["latency"]).all()
     assert abs(got["rms_error"] / sim["rms_error"] - 1) < 0.1, (got, sim)
+
+
+def test_host_killed_the_chip_stops_the_motor() -> None:
+    """The host quits without a word (SIGKILL) mid-run: the chip's watchdog turns the motor
+    off within its 100 ms plus a sample period and reports FAULT(watchdog); the rows the
+    host logged stay."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    esoarm = [sys.executable, "-m", "esoarm"]
+    hil = subprocess.Popen([*esoarm, "hil", "uno-rig", "--onboard", "--sums", "plain", "--once"],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    log = Path(os.environ.get("TMPDIR", "/tmp")) / f"esoarm-onboard-kill-{os.getpid()}.csv"
+    try:
+        assert hil.stdout is not None
+        device = hil.stdout.readline().split(": ", 1)[1].strip()
+        run = subprocess.Popen([*esoarm, "run", "uno-rig", "--port", device, "--onboard",
+                                "--log", str(log), "--watchdog", "5"],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and (
+                not log.exists() or len(log.read_text().splitlines()) < 102):
+            time.sleep(0.2)
+        run.send_signal(signal.SIGKILL)
+        run.wait(10)
+        rows = len(log.read_text().splitlines()) - 2  # the comment and the header
+        out, _ = hil.communicate(timeout=120)
+    finally:
+        for p in (hil,):
+            if p.poll() is None:
+                p.terminate()
+                p.wait(10)
+        log.unlink(missing_ok=True)
+    assert rows >= 100
+    assert "device fault: watchdog" in out, out
+    assert "motor off at" in out, out
+    off = [ln for ln in out.splitlines() if ln.startswith("motor off at")][-1]
+    ms = float(off.split("(")[1].split(" ms")[0])
+    # the chip's 100 ms watchdog, checked at each 20 ms sample tick (AVR time): measured 119 ms
+    assert 100 <= ms <= 100 + 20 + 2, off

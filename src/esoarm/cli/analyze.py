@@ -53,7 +53,8 @@ THETA0_LIMIT = 2 * math.pi
               help="Print one JSON object: gain_margin [ratio], phase_margin [deg], "
               "delay_margin [s], ms, mt, bandwidths [rad/s], ..., noise_budget {rms_u, rms_du "
               "[N·m], "
-              "rms_error [rad]: noise-driven, from the scenario's sensor.noise_deg} (with "
+              "rms_error [rad]: noise-driven, from the scenario's noise model: "
+              "sensor.noise_deg, coloured with sensor.noise_ar / sensor.vibration_deg} (with "
               "--vary: 'points', one object per value).")
 @click.option("--bandwidth", "target_bw", type=float, default=None, metavar="RAD/S",
               help="Recommend an observer kind and ε for this disturbance-rejection bandwidth "

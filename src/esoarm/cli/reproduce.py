@@ -40,9 +40,10 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
     three ESO discretizations (euler, zoh, current), sweeps ε on test-1, checks
     Theorem 1 and 2, and writes everything into one self-contained
     DIR/report.html (open it in a browser; no network needed). --twin paper runs
-    everything on the twin whose friction [N·m], noise [deg] and lag [s] were
-    calibrated to the paper's twelve RMS values; the report shows both twins'
-    tables, ratios to the paper and claims.
+    everything on the twin whose rig, encoder and drive keys were calibrated to
+    the paper's twelve RMS values within physically plausible ranges; the report
+    (and DIR/twins.csv, DIR/twins.md) shows both twins' tables, ln(twin/paper)
+    per value, claims, and which of the paper's numbers no plausible twin reaches.
     """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -57,6 +58,7 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
         write_outputs,
     )
     from esoarm.studies.reproduction.twins import (
+        EVIDENCE_NAMES,
         NOISE_SCAN,
         compared_twins,
         twins_section,
@@ -65,7 +67,8 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
 
     out = output_dir(out_dir, "--out")
     overrides = twin_overrides(twin)
-    n_runs = len(plan_runs(overrides)) + (2 + len(NOISE_SCAN)) * len(plan_runs(compare=False))
+    n_runs = len(plan_runs(overrides)) + ((1 + len(EVIDENCE_NAMES) + len(NOISE_SCAN))
+                                          * len(plan_runs(compare=False)))
     console = Console(stderr=True)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())

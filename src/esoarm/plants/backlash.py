@@ -65,7 +65,7 @@ def gear_torque(delta: float, ddelta: float, alpha: float, k: float, c: float) -
 
     Examples
     --------
-    >>> gear_torque(0.01, 5.0, 0.02, 50.0, 0.1), gear_torque(0.03, 0.0, 0.02, 50.0, 0.1)
+    >>> gear_torque(0.01, 5.0, 0.02, 50.0, 0.1), round(gear_torque(0.03, 0.0, 0.02, 50.0, 0.1), 12)
     (0.0, 0.5)
     >>> gear_torque(0.021, -1.0, 0.02, 50.0, 0.1)   # parting: the damper does not pull
     0.0

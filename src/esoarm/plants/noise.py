@@ -151,7 +151,7 @@ def vibration_ar(f0: float, zeta: float, ts: float) -> tuple[float, float]:
     --------
     >>> p1, p2 = vibration_ar(10.0, 0.05, 0.02)
     >>> round(p1, 6), round(p2, 6)
-    (0.591768, -0.882497)
+    (0.583203, -0.881911)
     """
     w0 = 2.0 * math.pi * f0
     r = math.exp(-zeta * w0 * ts)

@@ -28,7 +28,9 @@ Layout of a packed model (:func:`pack_model`): ``[n, g_x, g_y, g_z]`` (the
 gravity vector of the model [m/s²]), then per joint :data:`ROW` values:
 parent (−1: the base), kind (0 revolute, 1 prismatic), axis (3), the fixed
 placement's rotation (9, row-major) and translation (3) [m], and the body's
-6×6 spatial inertia about the joint frame (36) [kg, kg·m, kg·m²].
+spatial inertia about the joint frame in compact form (15): mass [kg], two
+zeros, h = m·c (3) [kg·m] and the rotational inertia about the frame origin
+(9, row-major) [kg·m²].
 """
 
 from __future__ import annotations
@@ -45,7 +47,7 @@ __all__ = ["HEAD", "ROW", "bias", "bias_offset", "cholesky_solve", "crba", "dyna
            "scratch_offset", "solve_mass", "workspace_size"]
 
 #: Values before the joints' rows, and per joint.
-HEAD, ROW = 4, 53
+HEAD, ROW = 4, 32
 _PARENT, _KIND, _AXIS, _ROT, _POS, _INERTIA = 0, 1, 2, 5, 14, 17
 REVOLUTE, PRISMATIC = 0, 1
 
@@ -67,7 +69,7 @@ def model_size(n: int) -> int:
     Examples
     --------
     >>> model_size(2)
-    110
+    68
     """
     return HEAD + ROW * n
 
@@ -90,18 +92,18 @@ def workspace_size(n: int) -> int:
     return n * (12 + 15 + 24) + n * n + 3 * n + 21
 
 
-def _spatial_inertia(mass: float, com: np.ndarray, inertia: np.ndarray) -> np.ndarray:
-    """6×6 spatial inertia about the frame origin, (linear, angular) order.
+def _compact_inertia(mass: float, com: np.ndarray, inertia: np.ndarray) -> np.ndarray:
+    """The spatial inertia about the frame origin in compact form (15 values).
 
-    [[m 1, −m [c]×], [m [c]×, I_c − m [c]×²]] with I_c the rotational inertia
-    about the centre of mass c.
+    (m, 0, 0, h = m c, I_c − m [c]×² row-major): the blocks of the 6×6
+    [[m 1, −m [c]×], [m [c]×, I_c − m [c]×²]], (linear, angular) order, with I_c
+    the rotational inertia about the centre of mass c.
     """
     cx = np.array([[0.0, -com[2], com[1]], [com[2], 0.0, -com[0]], [-com[1], com[0], 0.0]])
-    out = np.zeros((6, 6))
-    out[:3, :3] = mass * np.eye(3)
-    out[:3, 3:] = -mass * cx
-    out[3:, :3] = mass * cx
-    out[3:, 3:] = inertia - mass * cx @ cx
+    out = np.zeros(15)
+    out[0] = mass
+    out[3:6] = mass * com
+    out[6:] = (inertia - mass * cx @ cx).reshape(9)
     return out
 
 
@@ -153,9 +155,9 @@ def pack_model(model: Any) -> np.ndarray:
         row[_ROT:_ROT + 9] = np.asarray(placement.rotation, dtype=float).reshape(9)
         row[_POS:_POS + 3] = np.asarray(placement.translation, dtype=float)
         body = model.inertias[jid]
-        row[_INERTIA:_INERTIA + 36] = _spatial_inertia(
+        row[_INERTIA:_INERTIA + 15] = _compact_inertia(
             float(body.mass), np.asarray(body.lever, dtype=float),
-            np.asarray(body.inertia, dtype=float)).reshape(36)
+            np.asarray(body.inertia, dtype=float))
     out.setflags(write=False)
     return out
 
@@ -284,30 +286,25 @@ def _force_out(ws: np.ndarray, xo: int, fo: int, oo: int) -> None:
 
 @jitable
 def _load_inertia(m: np.ndarray, i: int, ws: np.ndarray, co: int) -> None:
-    """Body i's inertia in compact form at co: mass, h = m·c (3..5), the rotational
-    inertia about the frame origin (6..14, row-major)."""
+    """Body i's compact inertia (15 values, :func:`_compact_inertia`) copied to ws[co:co+15]."""
     b = HEAD + ROW * i + _INERTIA
-    ws[co] = m[b]
-    ws[co + 3] = m[b + 6 * 5 + 1]  # [h]× is the lower-left block of the 6×6 inertia
-    ws[co + 4] = m[b + 6 * 3 + 2]
-    ws[co + 5] = m[b + 6 * 4 + 0]
-    for r in range(3):
-        for c in range(3):
-            ws[co + 6 + 3 * r + c] = m[b + 6 * (3 + r) + 3 + c]
+    for k in range(15):
+        ws[co + k] = m[b + k]
 
 
 @jitable
-def _inertia_times(ws: np.ndarray, co: int, wo: int, oo: int) -> None:
-    """ws[oo:oo+6] = I w for the compact inertia at co, w at wo: (m v − h × ω, I_o ω + h × v)."""
-    mass = ws[co]
-    hx, hy, hz = ws[co + 3], ws[co + 4], ws[co + 5]
+def _inertia_times(src: np.ndarray, co: int, ws: np.ndarray, wo: int, oo: int) -> None:
+    """ws[oo:oo+6] = I w for the compact inertia at src[co:co+15], w at ws[wo:wo+6]:
+    (m v − h × ω, I_o ω + h × v)."""
+    mass = src[co]
+    hx, hy, hz = src[co + 3], src[co + 4], src[co + 5]
     w0, w1, w2, w3, w4, w5 = ws[wo], ws[wo + 1], ws[wo + 2], ws[wo + 3], ws[wo + 4], ws[wo + 5]
     ws[oo] = mass * w0 - (hy * w5 - hz * w4)
     ws[oo + 1] = mass * w1 - (hz * w3 - hx * w5)
     ws[oo + 2] = mass * w2 - (hx * w4 - hy * w3)
     for r in range(3):
         i = co + 6 + 3 * r
-        ws[oo + 3 + r] = ws[i] * w3 + ws[i + 1] * w4 + ws[i + 2] * w5
+        ws[oo + 3 + r] = src[i] * w3 + src[i + 1] * w4 + src[i + 2] * w5
     ws[oo + 3] += hy * w2 - hz * w1
     ws[oo + 4] += hz * w0 - hx * w2
     ws[oo + 5] += hx * w1 - hy * w0
@@ -388,10 +385,10 @@ def _rnea_pass(m: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool, ws: n
         ws[ai + 4] += om2 * ww0 - om0 * ww2
         ws[ai + 5] += om0 * ww1 - om1 * ww0
         # f_i = I a_i + v_i ×* (I v_i);  v ×* h = (ω × hl, ω × ha + vl × hl)
-        _load_inertia(m, i, ws, tmp)
+        inertia = HEAD + ROW * i + _INERTIA
         f = frc + 6 * i
-        _inertia_times(ws, tmp, ai, f)
-        _inertia_times(ws, tmp, vi, col)
+        _inertia_times(m, inertia, ws, ai, f)
+        _inertia_times(m, inertia, ws, vi, col)
         hl0, hl1, hl2 = ws[col], ws[col + 1], ws[col + 2]
         ha0, ha1, ha2 = ws[col + 3], ws[col + 4], ws[col + 5]
         ws[f] += om1 * hl2 - om2 * hl1
@@ -427,7 +424,7 @@ def _crba_pass(m: np.ndarray, ws: np.ndarray) -> None:
             _inertia_out(ws, xs + 12 * i, ic + 15 * i, ic + 15 * parent, tmp)
     for i in range(n):
         s = ss + 6 * i
-        _inertia_times(ws, ic + 15 * i, s, col)  # F = I^c_i S_i
+        _inertia_times(ws, ic + 15 * i, ws, s, col)  # F = I^c_i S_i
         d = 0.0
         for r in range(6):
             d += ws[s + r] * ws[col + r]
