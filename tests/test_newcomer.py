@@ -257,7 +257,8 @@ def test_hil_ctrl_c_exits_130_with_prefixed_warnings(run_cli, monkeypatch, tmp_p
 def test_run_title_says_what_was_measured():
     from esoarm.cli.rig import _mode_title, _pace
 
-    fast = SimpleNamespace(samples=1000, mode="real time", stream_every=1, onboard=False)  # 20 s at 50 Hz
+    # 1000 samples = 20 s at 50 Hz
+    fast = SimpleNamespace(samples=1000, mode="real time", stream_every=1, onboard=False)
     assert _pace(fast, 8.3, 0.02) is not None
     assert _mode_title(fast, 8.3, 0.02) == "not real time: 20.0 s of samples in 8.3 s"
     assert _pace(fast, 20.4, 0.02) is None
