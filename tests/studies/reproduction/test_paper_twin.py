@@ -172,6 +172,7 @@ def test_paper_twin_page_states_the_computed_numbers():
     mech = {name: (u1, u2) for name, u1, u2 in mechanisms()}
     none = mech[next(iter(MECHANISMS))]
     sensing = [n for n in MECHANISMS if any(k.startswith("sensor.") for k in MECHANISMS[n])]
+    nominal_row = "white encoder noise 0.2° (the nominal twin)"
     added = max(max(mech[n][0] - none[0], mech[n][1] - none[1]) for n in sensing[1:])
     coulomb = mech["Coulomb friction 0.45 N·m, breakaway 0.9 N·m"]
     t2 = PAPER_TABLES["test-2"]
@@ -187,6 +188,9 @@ def test_paper_twin_page_states_the_computed_numbers():
         f"adds at most {added:.2f} N·m on the measurement side",
         f"of the paper's order ({coulomb[0]:.2f} and {coulomb[1]:.2f} N·m)",
         f"by {t2[0.05][1] / t2[0.09][1]:.1f}× as test-2's does",
+        f"from the nominal twin's {mech[nominal_row][0]:.3f} and {mech[nominal_row][1]:.3f} N·m "
+        f"to at most {max(mech[n][0] for n in MECHANISMS if 'backlash' in n):.3f} and "
+        f"{max(mech[n][1] for n in MECHANISMS if 'backlash' in n):.3f} N·m",
     ]
     for key, name in EVIDENCE_NAMES.items():
         entry = record[key]
