@@ -50,6 +50,8 @@ def test_urdf_kinds_compile():
     ("two-link", {"controller.compensation": "model"}),
     ("two-link", {"controller.feedforward": True, "actuator.lag": 0.005}),
     ("test-1-urdf", {}),
+    ("two-link", {"observer.kind": "nonlinear"}),
+    ("two-link", {"observer.kind": "cascade"}),
 ])
 def test_compiled_rows_match_the_reference_engine(name, over):
     points = _points(name, **over)

@@ -148,7 +148,8 @@ def fal(e: float, alpha: float, delta: float) -> float:
 def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     """(CODE, the linear ESO's vector for ε and the discretization at Ts, α2, α3, δ).
 
-    One joint: b0 from the plant's nominal model.  State: 3 per joint.
+    One design for every joint (a URDF arm's joints all have b0 = 1: its observers' input is
+    already an acceleration), b0 from the plant's nominal model.  State: 3 per joint.
 
     Parameters
     ----------
@@ -162,21 +163,23 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     Returns
     -------
     ComponentDesign
-        (CODE, the 21-float linear vector, α2, α3, δ [rad]), 3 states.
+        (CODE, the 21-float linear vector, α2, α3, δ [rad]), 3 states per joint.
 
     Raises
     ------
     ValueError
-        If the plant has more than one joint.
+        If the joints' b0 differ (one design serves every joint).
     """
     obs = scn.observer
     if not isinstance(obs, Params):  # pragma: no cover - the registry dispatches by kind
         raise TypeError("not a nonlinear observer table")
-    if plant.n_joints != 1:
-        raise ValueError("the nonlinear ESO kind is designed for one joint")
-    lin = design_observer(obs.eps, ts, float(plant.b0[0]), obs.discretization)
+    b0 = np.asarray(plant.b0, dtype=float)
+    if np.any(b0 != b0[0]):
+        raise ValueError("the nonlinear ESO kind uses one b0 for every joint, and the joints' "
+                         f"b0 differ ({', '.join(f'{b:g}' for b in b0)})")
+    lin = design_observer(obs.eps, ts, float(b0[0]), obs.discretization)
     vec = np.concatenate([[float(CODE)], lin.vector, [obs.alpha[0], obs.alpha[1], obs.delta]])
-    return ComponentDesign(read_only(vec), 3)
+    return ComponentDesign(read_only(vec), 3 * plant.n_joints)
 
 
 @jitable

@@ -49,7 +49,10 @@ if TYPE_CHECKING:
 
 __all__ = ["CODE", "JIT", "KIND", "MOTOR", "Params", "acceleration", "advance", "advance_block",
            "arm_of", "check", "design", "joint_limits", "joint_names", "observer_input",
-           "packed_models", "scenario_arm"]
+           "packed_models", "scenario_arm", "PER_JOINT_OBSERVERS"]
+
+#: Observer kinds that run one ESO per joint (the others are designed for one joint).
+PER_JOINT_OBSERVERS = ("linear", "nonlinear", "cascade")
 
 KIND = "urdf"
 CODE = 1
@@ -206,10 +209,10 @@ def check(scn: Scenario) -> str | None:
     if scn.controller.kind != "computed-torque":
         return (f"key 'controller.kind': '{scn.controller.kind}' is the lever arm's; a URDF arm "
                 "uses 'computed-torque'")
-    if scn.observer.kind != "linear" and n > 1:
+    if scn.observer.kind not in PER_JOINT_OBSERVERS and n > 1:
         return (f"key 'observer.kind': '{scn.observer.kind}' is designed for one joint, and "
-                f"'{Path(scn.plant.file).name}' has {_joint_list(arm)}; use 'linear' (one ESO "
-                "per joint)")
+                f"'{Path(scn.plant.file).name}' has {_joint_list(arm)}; use one of "
+                f"{', '.join(repr(k) for k in PER_JOINT_OBSERVERS)} (one ESO per joint)")
     if scn.rig.stiction != 0.0:
         return ("key 'rig.stiction': the URDF twin's friction is Coulomb and viscous per joint "
                 "(no Stribeck term); leave it 0")
@@ -430,8 +433,9 @@ def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray
         Output: v [rad/s²].
     """
     arm = arm_of(p)
-    q_hat = zhat[0::3]
+    n = len(u)
+    q_hat = zhat[0:3 * n:3]  # the estimate's first 3n values (an observer's state may be longer)
     drive = u
     if p[_FEEDFORWARD] != 0.0:
-        drive = u - arm.bias(q_hat, zhat[1::3])
+        drive = u - arm.bias(q_hat, zhat[1:3 * n:3])
     v[:] = np.linalg.solve(arm.mass_matrix(q_hat), drive)
