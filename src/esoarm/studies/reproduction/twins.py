@@ -365,7 +365,8 @@ def _evidence_html(reps: Mapping[str, Reproduction]) -> str:
         n = reach_rows()[0]["twins"]
         reach = ("<h3>Which of the paper's numbers no plausible twin reaches</h3><p>The lowest "
                  f"and highest value of each over the {n} plausible twins measured (the shipped "
-                 "one and a Sobol sample of the box; measured, not a bound):</p>" + _html_table(*_reach_table()))
+                 "one and a Sobol sample of the box; measured, not a bound):</p>"
+                 + _html_table(*_reach_table()))
     mech = ("<h3>Why: the control effort at ε = 0.05 s, one mechanism at a time</h3><p>Each "
             "on the nominal twin at the end of its plausible range, seeds 0-1:</p>"
             + _html_table(*_mechanism_table()))
@@ -472,8 +473,8 @@ def twins_markdown(reps: Mapping[str, Reproduction]) -> str:
     out.append(standing_in_the_way(reps) + "\n")
     if reach_rows():
         out.append("Which of the paper's numbers no plausible twin reaches (lowest and highest "
-                   f"over the {reach_rows()[0]['twins']} plausible twins measured: the shipped one and a "
-                   "Sobol sample of the box):\n")
+                   f"over the {reach_rows()[0]['twins']} plausible twins measured: the shipped "
+                   "one and a Sobol sample of the box):\n")
         out.append(_md(*_reach_table()))
     out.append("The control effort at ε = 0.05 s, one mechanism at a time at the end of its "
                "plausible range (nominal twin otherwise, seeds 0-1):\n")
