@@ -200,14 +200,17 @@ def canonical_grid(extra: tuple[str, ...] = ()):  # type: ignore[no-untyped-def]
     return build_grid(load_scenario("test-1", list(extra)), [VARY], seeds=20)
 
 
-def bench_canonical(c: CLoop, work: Path, rounds: int) -> dict:  # type: ignore[type-arg]
+def bench_canonical(c: CLoop, work: Path, rounds: int,
+                    cold: bool = True) -> dict:  # type: ignore[type-arg]
     """Rounds of (C loop, exact command, fast command), back to back; cold runs first."""
     out = work / "sweep.csv"
-    cold_env = dict(os.environ, NUMBA_CACHE_DIR=str(work / "cold-numba"),
-                    ESOARM_CACHE_DIR=str(work / "cold-esoarm"))
-    cold_exact, _ = run_proc(sweep_cmd(100, 20, "exact", out), cold_env)
-    shutil.rmtree(work / "cold-numba", ignore_errors=True)
-    cold_fast, _ = run_proc(sweep_cmd(100, 20, "fast", out), cold_env)
+    cold_exact = cold_fast = float("nan")
+    if cold:
+        cold_env = dict(os.environ, NUMBA_CACHE_DIR=str(work / "cold-numba"),
+                        ESOARM_CACHE_DIR=str(work / "cold-esoarm"))
+        cold_exact, _ = run_proc(sweep_cmd(100, 20, "exact", out), cold_env)
+        shutil.rmtree(work / "cold-numba", ignore_errors=True)
+        cold_fast, _ = run_proc(sweep_cmd(100, 20, "fast", out), cold_env)
     res: dict = {"c": [], "exact": [], "fast": [], "cold_exact": cold_exact,  # type: ignore[type-arg]
                  "cold_fast": cold_fast, "load": []}
     run_proc(sweep_cmd(100, 20, "exact", out))  # warm both caches: the numba kernels
@@ -539,7 +542,18 @@ def main() -> None:
                         help="runs of the large metrics-only sweep (memory)")
     parser.add_argument("--only-arms", action="store_true",
                         help="only the arms' sweeps: rewrites only their section of the page")
+    parser.add_argument("--only-side-by-side", action="store_true",
+                        help="only start-up and warm rounds of C, exact and fast on the "
+                             "canonical sweep (printed; the page is not written)")
     args = parser.parse_args()
+    if args.only_side_by_side:
+        with tempfile.TemporaryDirectory(prefix="esoarm-bench-") as tmp:
+            print(f"load {load()}", flush=True)
+            print(bench_startup(2 if args.quick else 3), flush=True)
+            print(bench_canonical(CLoop(canonical_grid(), Path(tmp)), Path(tmp),
+                                  1 if args.quick else args.rounds, cold=False))
+            print(f"load {load()}", flush=True)
+        return
     from bench_doc import arms_section, plot_scaling, write_doc
 
     command = " ".join(["python benchmarks/run.py", *sys.argv[1:]])

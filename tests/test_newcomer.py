@@ -257,12 +257,13 @@ def test_hil_ctrl_c_exits_130_with_prefixed_warnings(run_cli, monkeypatch, tmp_p
 def test_run_title_says_what_was_measured():
     from esoarm.cli.rig import _mode_title, _pace
 
-    fast = SimpleNamespace(samples=1000, mode="real time")  # 20 s at 50 Hz
+    # 1000 samples = 20 s at 50 Hz
+    fast = SimpleNamespace(samples=1000, mode="real time", stream_every=1, onboard=False)
     assert _pace(fast, 8.3, 0.02) is not None
     assert _mode_title(fast, 8.3, 0.02) == "not real time: 20.0 s of samples in 8.3 s"
     assert _pace(fast, 20.4, 0.02) is None
     assert _mode_title(fast, 20.4, 0.02).startswith("real time: 20.0 s")
-    lock = SimpleNamespace(samples=1000, mode="lockstep")
+    lock = SimpleNamespace(samples=1000, mode="lockstep", stream_every=1, onboard=False)
     assert _pace(lock, 1.0, 0.02) is None and _mode_title(lock, 1.0, 0.02).startswith("lockstep")
 
 
@@ -433,12 +434,13 @@ def test_long_run_warning_does_not_suggest_the_step_in_use(run_cli):
 def test_fit_figure_shows_the_measured_trace_beside_the_fit():
     import numpy as np
 
+    from esoarm.scenario import load_scenario
     from esoarm.studies.identification.plots import figure_identification
 
     t = np.arange(200) * 0.02
     y = np.sin(t)
     res = SimpleNamespace(curves={"fit": (t, y, y + 1e-4)}, fit_percent=99.9,
-                          scenario=SimpleNamespace(name="x"), segment_seconds=2.0,
+                          scenario=load_scenario("test-1"), segment_seconds=2.0,
                           validation={})
     fig = figure_identification(res)
     ax = fig.axes[0]

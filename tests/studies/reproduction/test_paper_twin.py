@@ -172,6 +172,7 @@ def test_paper_twin_page_states_the_computed_numbers():
     mech = {name: (u1, u2) for name, u1, u2 in mechanisms()}
     none = mech[next(iter(MECHANISMS))]
     sensing = [n for n in MECHANISMS if any(k.startswith("sensor.") for k in MECHANISMS[n])]
+    nominal_row = "white encoder noise 0.2° (the nominal twin)"
     added = max(max(mech[n][0] - none[0], mech[n][1] - none[1]) for n in sensing[1:])
     coulomb = mech["Coulomb friction 0.45 N·m, breakaway 0.9 N·m"]
     t2 = PAPER_TABLES["test-2"]
@@ -187,6 +188,9 @@ def test_paper_twin_page_states_the_computed_numbers():
         f"adds at most {added:.2f} N·m on the measurement side",
         f"of the paper's order ({coulomb[0]:.2f} and {coulomb[1]:.2f} N·m)",
         f"by {t2[0.05][1] / t2[0.09][1]:.1f}× as test-2's does",
+        f"from the nominal twin's {mech[nominal_row][0]:.3f} and {mech[nominal_row][1]:.3f} N·m "
+        f"to at most {max(mech[n][0] for n in MECHANISMS if 'backlash' in n):.3f} and "
+        f"{max(mech[n][1] for n in MECHANISMS if 'backlash' in n):.3f} N·m",
     ]
     for key, name in EVIDENCE_NAMES.items():
         entry = record[key]
@@ -227,3 +231,47 @@ def test_report_names_what_stands_in_the_way_of_each_unreproduced_claim():
         assert "assumption in the way" in html and "assumption in the way" in twins_markdown(reps)
     for o in found:
         assert o.assumption.replace("'", "&#x27;") in html
+
+
+def test_residual_table_and_twin_files(tmp_path):
+    """twins.csv holds, per published value, each twin's value and ln(twin/paper), recomputed
+    here from the runs; the report and twins.md show the calibrated twin's residuals and
+    label the paper's numbers as the paper's."""
+    import csv
+
+    from esoarm.studies.reproduction.run import PAPER_TABLES
+    from esoarm.studies.reproduction.twins import (
+        PUBLISHED,
+        RESIDUAL_TARGET,
+        mean_abs_log,
+        twins_markdown,
+        write_twin_tables,
+    )
+
+    reps = compared_twins({})
+    paths = write_twin_tables(reps, tmp_path)
+    assert [p.name for p in paths] == ["twins.csv", "twins.md"]
+    rows = list(csv.DictReader((tmp_path / "twins.csv").open(encoding="utf-8")))
+    assert len(rows) == 12
+    total = 0.0
+    for row in rows:
+        test, eps, metric = row["test"], float(row["eps"]), row["metric"]
+        published = PAPER_TABLES[test][eps][0 if metric == "rms_error" else 1]
+        assert float(row["published"]) == published
+        for name in ("nominal", "paper"):
+            value = reps[name].metric(test, eps, metric)
+            assert float(row[name]) == value
+            assert float(row[f"{name}_ln_ratio"]) == pytest.approx(
+                math.log(value / published), rel=1e-12)
+        total += abs(float(row["paper_ln_ratio"]))
+    rows_twin = twin_rows(reps)
+    assert mean_abs_log(rows_twin, "paper") == pytest.approx(total / 12, rel=1e-12)
+    html = twins_section(reps)
+    md = (tmp_path / "twins.md").read_text(encoding="utf-8")
+    assert md.endswith(twins_markdown(reps))
+    for text in (html, md):
+        assert PUBLISHED in text and "Residuals" in text and f"target {RESIDUAL_TARGET:g}" in text
+        assert f"paper twin {total / 12:.3f}" in text
+        one = math.log(reps["paper"].metric("test-2", 0.2, "rms_u")
+                       / PAPER_TABLES["test-2"][0.2][1])
+        assert f"{one:+.2f}" in text

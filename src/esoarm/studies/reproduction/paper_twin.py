@@ -450,6 +450,10 @@ MECHANISMS: dict[str, dict[str, Any]] = {
     "Coulomb friction 0.45 N·m, breakaway 0.9 N·m": {"rig.coulomb_friction": 0.45,
                                                     "rig.stiction": 0.45},
     "back-EMF damping 0.3 N·m·s/rad": {"rig.viscous_friction": 0.3},
+    "gear backlash 3° (motor side 1e-3 kg·m²)": {"rig.backlash_deg": 3.0},
+    "gear backlash 3° (motor side 1e-2 kg·m²)": {"rig.backlash_deg": 3.0,
+                                                 "rig.motor_inertia": 1e-2},
+    "PWM drive 8 bits": {"actuator.pwm_bits": 8},
 }
 #: Vibration frequencies [Hz] scanned for the worst one (below the 25 Hz Nyquist frequency).
 VIBRATION_HZ = (2.0, 5.0, 8.0, 12.0, 18.0)

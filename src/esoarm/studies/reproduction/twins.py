@@ -287,7 +287,7 @@ def standing_in_the_way(reps: Mapping[str, Reproduction]) -> str:
     text = [f"Within the plausible ranges the best twin found has mean |ln(twin/paper)| "
             f"{mean_abs_log(rows, 'paper'):.2f} (target {RESIDUAL_TARGET:g}); "
             f"{len(unreached())} of the paper's twelve values lie outside what any of the "
-            "plausible twins evaluated reached."]
+            "plausible twins measured reached."]
     for key, name in EVIDENCE_NAMES.items():
         if name in reps:
             text.append(f"With {EVIDENCE[key][1]}, {mean_abs_log(rows, name):.2f} "
@@ -364,8 +364,9 @@ def _evidence_html(reps: Mapping[str, Reproduction]) -> str:
     if reach_rows():
         n = reach_rows()[0]["twins"]
         reach = ("<h3>Which of the paper's numbers no plausible twin reaches</h3><p>The lowest "
-                 f"and highest value of each over the {n} plausible twins the calibration "
-                 "evaluated (measured, not a bound):</p>" + _html_table(*_reach_table()))
+                 f"and highest value of each over the {n} plausible twins measured (the shipped "
+                 "one and a Sobol sample of the box; measured, not a bound):</p>"
+                 + _html_table(*_reach_table()))
     mech = ("<h3>Why: the control effort at ε = 0.05 s, one mechanism at a time</h3><p>Each "
             "on the nominal twin at the end of its plausible range, seeds 0-1:</p>"
             + _html_table(*_mechanism_table()))
@@ -472,8 +473,8 @@ def twins_markdown(reps: Mapping[str, Reproduction]) -> str:
     out.append(standing_in_the_way(reps) + "\n")
     if reach_rows():
         out.append("Which of the paper's numbers no plausible twin reaches (lowest and highest "
-                   f"over the {reach_rows()[0]['twins']} plausible twins the calibration "
-                   "evaluated):\n")
+                   f"over the {reach_rows()[0]['twins']} plausible twins measured: the shipped "
+                   "one and a Sobol sample of the box):\n")
         out.append(_md(*_reach_table()))
     out.append("The control effort at ε = 0.05 s, one mechanism at a time at the end of its "
                "plausible range (nominal twin otherwise, seeds 0-1):\n")
