@@ -15,7 +15,9 @@
  *   y = Q(theta + sigma n_k); zhat from the ESO; u = sat(FLC(zhat, ref_k)), rounded to the
  *   PWM levels with actuator.pwm_bits;
  *   metrics of e = theta - ref, u, zhat3 - f; ESO update; rig RK4 over Ts with
- *   u_{k-delay} held, d(t) = damp sin(dfreq t) at each stage time.
+ *   u_{k-delay} held, d(t) = damp sin(dfreq t) at each stage time.  With gear backlash
+ *   the rig's state grows by the motor side (thm, omm) and the arm is driven by the
+ *   gear's dead-zone torque (esoarm.plants.lever_arm.geared_advance).
  * Everything that is shared by the block (N, substeps, step, Ts, delay,
  * discretization, compensation, lag on/off, disturbance) is a scalar argument;
  * everything else is one value per lane in par[NPAR][LANES].
@@ -37,6 +39,7 @@ enum {
     P_BETA1, P_BETA2, P_BETA3,
     P_PHI, P_GAMMA = P_PHI + 9, P_GAIN = P_GAMMA + 3,
     P_K1 = P_GAIN + 3, P_K2, P_I0, P_CGCOEF, P_LIMIT, P_PWM,
+    P_ALPHA, P_JM, P_KGEAR, P_CGEAR,
     NPAR
 };
 enum { KIND_EULER, KIND_ZOH, KIND_CURRENT };
@@ -44,6 +47,17 @@ enum { M_SE, M_SU, M_ME, M_MU, M_SF, M_SR, M_SD, M_SAT, M_ROWS, M_DIV, NOUT };
 
 int esoarm_fast_lanes(void) { return LANES; }
 int esoarm_fast_npar(void) { return NPAR; }
+
+/* esoarm.plants.backlash.gear_torque: the torque a gear with play +-alpha transmits
+   (0 in the gap, else the spring-damper torque clamped to the side of contact), written
+   with selects so that the lane loops stay vector loops */
+static inline double gear_torque(double dl, double dd, double al, double k, double c) {
+    double tp = k * (dl - al) + c * dd;
+    double tn = k * (dl + al) + c * dd;
+    tp = tp > 0.0 ? tp : 0.0;
+    tn = tn < 0.0 ? tn : 0.0;
+    return dl > al ? tp : (dl < -al ? tn : 0.0);
+}
 
 static inline int finite_bits(double x) {
     uint64_t b;
@@ -67,6 +81,9 @@ static inline double lt_limit(double x, double lim) {
  *   n, nsub, delay       samples, RK4 steps per sample, transport delay [samples]
  *   kind, comp, lag_on   discretization (0 euler, 1 zoh, 2 current), compensation
  *                        (0 eso, 1 model), actuator lag present (0/1)
+ *   gear_on              gear backlash present (0/1): the plant is the two-mass drive
+ *                        train of esoarm.plants.backlash, with the motor-side state
+ *                        (thm, omm) starting at (theta0, 0); 0 is the rigid gear
  *   h, ts, damp, dfreq   RK4 step [s], sample period [s], disturbance amplitude and
  *                        frequency
  *   limit                divergence limit on |theta|, |z1|
@@ -80,7 +97,7 @@ static inline double lt_limit(double x, double lim) {
  *                        rows, diverged
  */
 void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp, int lag_on,
-                       double h, double ts, double damp, double dfreq, double limit,
+                       int gear_on, double h, double ts, double damp, double dfreq, double limit,
                        const double *restrict par, const double *restrict refs,
                        long stride, const int64_t *restrict ref_off,
                        const double *restrict noise, const int64_t *restrict noise_off,
@@ -91,6 +108,7 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
     double sr[LANES], sd[LANES], ssat[LANES], uprev[LANES];
     double ref[LANES], dref[LANES], ddref[LANES], nz[LANES];
     double ivs[LANES], iin[LANES], ilag[LANES], iq[LANES];
+    double thm[LANES], omm[LANES]; /* motor side with gear backlash (gear_on) */
 #define P(i) (par + (i) * LANES)
     const double *theta0 = P(P_THETA0), *sigma = P(P_SIGMA), *q = P(P_Q), *b0 = P(P_B0);
     const double *inertia = P(P_INERTIA), *gcoef = P(P_GCOEF), *fc = P(P_FC), *vs = P(P_VS);
@@ -98,6 +116,7 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
     const double *beta1 = P(P_BETA1), *beta2 = P(P_BETA2), *beta3 = P(P_BETA3);
     const double *k1 = P(P_K1), *k2 = P(P_K2), *i0 = P(P_I0), *cg = P(P_CGCOEF);
     const double *lim = P(P_LIMIT), *pwm = P(P_PWM);
+    const double *galpha = P(P_ALPHA), *jm = P(P_JM), *kgear = P(P_KGEAR), *cgear = P(P_CGEAR);
     const double *phi[9], *gam[3], *gain[3];
     for (int i = 0; i < 9; i++) phi[i] = P(P_PHI + i);
     for (int i = 0; i < 3; i++) { gam[i] = P(P_GAMMA + i); gain[i] = P(P_GAIN + i); }
@@ -105,6 +124,7 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
     const int nv = nl >= LANES ? LANES : ((nl + 7) / 8) * 8;
     for (int l = 0; l < LANES; l++) {
         th[l] = theta0[l]; om[l] = 0.0; ta[l] = 0.0;
+        thm[l] = theta0[l]; omm[l] = 0.0; /* the gear centred in its play */
         double x = theta0[l] + sigma[l] * noise[noise_off[l]];
         z1[l] = q[l] > 0.0 ? q[l] * floor(x / q[l] + 0.5) : x;
         z2[l] = 0.0; z3[l] = 0.0;
@@ -153,7 +173,9 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
                 uap = u;
             }
             ua[l] = uap;
-            double tq = lag_on ? ta[l] : uap;
+            double tq = gear_on ? gear_torque(thm[l] - th[l], omm[l] - om[l], galpha[l],
+                                              kgear[l], cgear[l])
+                                : (lag_on ? ta[l] : uap);
             double acc = (tq - gcoef[l] * cos(th[l]) - (fc[l] * tanh(om[l] * ivs[l]) +
                           visc[l] * om[l])) * iin[l] + dk;
             double f = acc - b0[l] * u;
@@ -196,6 +218,8 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
             th[l] = na != 0.0 ? th[l] : 0.0;
             om[l] = na != 0.0 ? om[l] : 0.0;
             ta[l] = na != 0.0 ? ta[l] : 0.0;
+            thm[l] = na != 0.0 ? thm[l] : 0.0;
+            omm[l] = na != 0.0 ? omm[l] : 0.0;
             ua[l] = na != 0.0 ? uap : 0.0;
         }
         (void)any_dead;
@@ -205,7 +229,44 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
             const double d1 = j == 0 ? dk : damp * sin(dfreq * t);
             const double d2 = damp * sin(dfreq * (t + half));
             const double d4 = damp * sin(dfreq * (t + h));
-            if (lag_on) {
+            if (gear_on) {
+                /* the two-mass drive train (esoarm.plants.lever_arm.geared_advance):
+                   I th'' = ts - G(th) - F(th') + I d, Jm thm'' = tau_a - ts */
+#pragma omp simd
+                for (int l = 0; l < nv; l++) {
+                    double x0 = th[l], v0 = om[l], q0 = ta[l], m0 = thm[l], w0 = omm[l];
+                    double uu = ua[l];
+                    double gc = gcoef[l], f0 = fc[l], iv = ivs[l], vi = visc[l], ii = iin[l];
+                    double il = ilag[l], al = galpha[l], kg = kgear[l], cgr = cgear[l];
+                    double jj = jm[l];
+#define GEAR_DERIV(X, V, Q, M, W, D, DX, DV, DQ, DM, DW)                                  \
+                    do {                                                                  \
+                        double tsg = gear_torque((M) - (X), (W) - (V), al, kg, cgr);      \
+                        double tqa = lag_on ? (Q) : uu;                                   \
+                        DX = (V);                                                         \
+                        DV = (tsg - gc * cos(X) - (f0 * tanh((V) * iv) + vi * (V))) * ii  \
+                             + (D);                                                       \
+                        DQ = lag_on ? (uu - (Q)) * il : 0.0;                              \
+                        DM = (W);                                                         \
+                        DW = (tqa - tsg) / jj;                                            \
+                    } while (0)
+                    double a1, b1, c1, e1, g1, a2, b2, c2, e2, g2;
+                    double a3, b3, c3, e3, g3, a4, b4, c4, e4, g4;
+                    GEAR_DERIV(x0, v0, q0, m0, w0, d1, a1, b1, c1, e1, g1);
+                    GEAR_DERIV(x0 + half * a1, v0 + half * b1, q0 + half * c1,
+                               m0 + half * e1, w0 + half * g1, d2, a2, b2, c2, e2, g2);
+                    GEAR_DERIV(x0 + half * a2, v0 + half * b2, q0 + half * c2,
+                               m0 + half * e2, w0 + half * g2, d2, a3, b3, c3, e3, g3);
+                    GEAR_DERIV(x0 + h * a3, v0 + h * b3, q0 + h * c3,
+                               m0 + h * e3, w0 + h * g3, d4, a4, b4, c4, e4, g4);
+#undef GEAR_DERIV
+                    th[l] = x0 + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+                    om[l] = v0 + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
+                    ta[l] = q0 + sixth * (c1 + 2.0 * c2 + 2.0 * c3 + c4);
+                    thm[l] = m0 + sixth * (e1 + 2.0 * e2 + 2.0 * e3 + e4);
+                    omm[l] = w0 + sixth * (g1 + 2.0 * g2 + 2.0 * g3 + g4);
+                }
+            } else if (lag_on) {
 #pragma omp simd
                 for (int l = 0; l < nv; l++) {
                     double x0 = th[l], v0 = om[l], q0 = ta[l], uu = ua[l];

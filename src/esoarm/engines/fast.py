@@ -15,14 +15,19 @@ Agreement with the exact engine
     quantizing encoder a round-off difference in θ can, rarely, put a
     measurement on the other side of a quantization step; that run then
     differs by about what one encoder count changes (tested and documented in
-    the benchmarks page).  Runs that diverge are re-run on the exact engine,
-    so their partial metrics are the exact engine's.
+    the benchmarks page).  Gear backlash is a switch of the same sort: with a
+    high-gain observer the loop can chatter in the gap and the metrics become
+    round-off-sensitive (the exact engine itself moves by up to ~8 % when θ0
+    moves by 1e-15 rad); the fast engine then differs by as much.  Runs that
+    diverge are re-run on the exact engine, so their partial metrics are the
+    exact engine's.
 
 What it supports
     Every scenario the exact engine runs except those :func:`unsupported`
     names (a run that needs the exact engine is reported, never silently
-    approximated): the lever arm with the linear ESO and the FLC, no motor, no gear
-    backlash (``actuator.pwm_bits`` and coloured noise are modelled).
+    approximated): the lever arm with the linear ESO and the FLC, no motor
+    (``actuator.pwm_bits``, coloured noise and gear backlash, ``rig.backlash_deg``, are
+    modelled).
     It computes every metric of :data:`esoarm.engines.metrics.METRICS`.
 
 Without a working C compiler the fast engine is unavailable: :func:`run_metrics`
@@ -74,6 +79,7 @@ _PAR_NAMES = (
     "theta0", "sigma", "q", "b0", "inertia", "gcoef", "fc", "vs", "visc", "lag",
     "beta1", "beta2", "beta3", *(f"phi{i}" for i in range(9)), *(f"gamma{i}" for i in range(3)),
     *(f"gain{i}" for i in range(3)), "k1", "k2", "i0", "cgcoef", "limit", "pwm",
+    "alpha", "jm", "kgear", "cgear",
 )
 _NPAR = len(_PAR_NAMES)
 _NOUT = 10
@@ -183,7 +189,7 @@ def _bind(lib: ctypes.CDLL) -> ctypes.CDLL:
     fn = lib.esoarm_fast_block
     fn.restype = None
     i, n, d, p = ctypes.c_int, ctypes.c_long, ctypes.c_double, ctypes.c_void_p
-    fn.argtypes = [i, n, n, n, i, i, i,  # lanes, N, substeps, delay, kind, comp, lag on
+    fn.argtypes = [i, n, n, n, i, i, i, i,  # lanes, N, substeps, delay, kind, comp, lag, gear
                    d, d, d, d, d,  # h, Ts, disturbance amplitude and frequency, limit
                    p, p, n, p, p, p, p, p]  # par, refs, stride, offsets, noise, ..., out
     return lib
@@ -268,8 +274,6 @@ def unsupported(scn: Scenario) -> str | None:
         return f"rig.disturbance.kind = {kind!r}"
     if getattr(scn.rig, "stiction", 0.0) != 0.0:
         return "rig.stiction > 0 (Stribeck friction)"
-    if getattr(scn.rig, "backlash_deg", 0.0) != 0.0:
-        return "rig.backlash_deg > 0 (gear backlash)"
     return None
 
 
@@ -284,18 +288,21 @@ def _point_rows(pack: _packing._Pack) -> np.ndarray:
             *(ob[:, _obs.PHI + i] for i in range(9)), *(ob[:, _obs.GAMMA + i] for i in range(3)),
             *(ob[:, _obs.GAIN + i] for i in range(3)),
             ct[:, _ctl.K1], ct[:, _ctl.K2], ct[:, _ctl.I0], ct[:, _ctl.GCOEF], ct[:, _ctl.LIMIT],
-            pack.ap[:, _act.PWM_LEVELS]]
+            pack.ap[:, _act.PWM_LEVELS],
+            rg[:, _rig.BACKLASH], rg[:, _rig.JM], rg[:, _rig.KGEAR], rg[:, _rig.CGEAR]]
     out = np.column_stack(cols)
     assert out.shape[1] == _NPAR
     return out
 
 
 def _structure(pack: _packing._Pack, p: int) -> tuple:  # type: ignore[type-arg]
-    """What a block must share: sizes, steps, discretization, flags, disturbance."""
+    """What a block must share: sizes, steps, discretization, flags (lag, gear backlash),
+    disturbance."""
     ip, f, rg, ob, ct = (pack.ipar[p], pack.fpar[p], pack.pp[p, 1:], pack.op[p, 1:],
                          pack.cp[p, 1:])
     return (int(ip[_packing._N]), int(ip[_packing._NSUB]), int(ip[_packing._DELAY]),
             int(ob[_obs.DISC]), int(ct[_ctl.COMP]), int(rg[_rig.LAG] > 0.0),
+            int(rg[_rig.BACKLASH] > 0.0),
             float(f[_packing._H]), float(f[_packing._TS]), float(rg[_rig.DAMP]),
             float(rg[_rig.DFREQ]))
 
@@ -318,7 +325,7 @@ def _run_pack(lib: ctypes.CDLL, pack: _packing._Pack, workers: int) -> np.ndarra
     raw = np.empty((nruns, _NOUT))
 
     def work(item: tuple) -> None:  # type: ignore[type-arg]
-        (n, nsub, delay, kind, comp, lag_on, h, ts, damp, dfreq), runs = item
+        (n, nsub, delay, kind, comp, lag_on, gear_on, h, ts, damp, dfreq), runs = item
         lanes = np.resize(runs, _LANES)  # pad with repeats; their outputs are dropped
         pts = pack.run_point[lanes]
         par = np.ascontiguousarray(rows[pts].T)
@@ -326,7 +333,8 @@ def _run_pack(lib: ctypes.CDLL, pack: _packing._Pack, workers: int) -> np.ndarra
         noise_off = (pack.run_noise[lanes] * nmax).astype(np.int64)
         uhist = np.zeros((delay + 1) * _LANES)
         out = np.empty((_NOUT, _LANES))
-        lib.esoarm_fast_block(len(runs), n, nsub, delay, kind, comp, lag_on, h, ts, damp, dfreq,
+        lib.esoarm_fast_block(len(runs), n, nsub, delay, kind, comp, lag_on, gear_on, h, ts,
+                              damp, dfreq,
                               DIVERGENCE_LIMIT, par.ctypes.data, refs.ctypes.data, nmax,
                               ref_off.ctypes.data, noises.ctypes.data, noise_off.ctypes.data,
                               uhist.ctypes.data, out.ctypes.data)
