@@ -252,6 +252,13 @@ class _SigintFlag:
             signal.signal(signal.SIGINT, self._old)
 
 
+def _fault_name(code: int, watchdog: str) -> str:
+    """A FAULT frame's code in words (``watchdog``: what that board's watchdog waits for)."""
+    return {P.FAULT_WATCHDOG: watchdog, P.FAULT_OVERRUN: "overrun",
+            P.FAULT_BAD_COMMAND: "bad command",
+            P.FAULT_ENCODER: "encoder"}.get(code, f"code {code}")
+
+
 class _Stop(Exception):
     def __init__(self, message: str, interrupted: bool = False) -> None:
         super().__init__(message)
@@ -492,9 +499,7 @@ def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # ty
             kind = frame.kind
             if kind == P.FAULT:
                 code, detail = frame.fields()
-                name = {P.FAULT_WATCHDOG: "heartbeat watchdog", P.FAULT_OVERRUN: "overrun",
-                        P.FAULT_BAD_COMMAND: "bad command",
-                        P.FAULT_ENCODER: "encoder"}.get(code, f"code {code}")
+                name = _fault_name(code, "heartbeat watchdog")
                 raise _Stop(f"the chip reported a fault: {name} at sample {detail}")
             if kind == P.STOPPED:
                 raise _Stop(f"the chip stopped unexpectedly at sample {k_next}")
@@ -600,9 +605,7 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             kind = frame.kind
             if kind == P.FAULT:
                 code, detail = frame.fields()
-                name = {P.FAULT_WATCHDOG: "command watchdog", P.FAULT_OVERRUN: "overrun",
-                        P.FAULT_BAD_COMMAND: "bad command",
-                    P.FAULT_ENCODER: "encoder"}.get(code, f"code {code}")
+                name = _fault_name(code, "command watchdog")
                 raise _Stop(f"device reported a fault: {name} (detail {detail})")
             if kind == P.STOPPED:
                 raise _Stop(f"device stopped unexpectedly at sample {k_next}")
