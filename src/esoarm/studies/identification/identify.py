@@ -69,7 +69,7 @@ from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.identification.data import IdentLog, check_supported
 from esoarm.studies.identification.fit import PARAMS, Problem, limits_from_data
-from esoarm.studies.identification.noise_ar import noise_verdict
+from esoarm.studies.identification.noise_ar import SegmentResidual, segment_verdict
 
 __all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
 
@@ -207,10 +207,11 @@ class IdentResult:
         }
 
     def coloured_noise(self) -> list[float] | None:
-        """AR coefficients of the encoder noise when the validation residual is not white but
-        is coloured sensor noise (:mod:`esoarm.studies.identification.noise_ar`), else None."""
+        """AR coefficients of the encoder noise (``[]``: white) when the validation residual
+        fails the plain whiteness test but the residual is sensor noise by its spectrum
+        (:mod:`esoarm.studies.identification.noise_ar`), else None."""
         spec = self.validation.get("noise_spectrum")
-        if self.noise_is_sensor() or not spec or not spec["sensor_noise"] or not spec["order"]:
+        if self.noise_is_sensor() or not spec or not spec["sensor_noise"]:
             return None
         # sensor noise has the same level on the validation logs as on the fit's: a
         # validation residual well above the fit's is the model failing to carry over
@@ -302,6 +303,8 @@ class IdentResult:
         coloured = self.coloured_noise()
         if coloured is not None:
             over[NOISE_AR_KEY] = coloured
+        elif self.noise_is_sensor():
+            over[NOISE_AR_KEY] = []  # the residual is white: so is the encoder's noise
         for key, est in self.estimates.items():
             if key == NOISE_KEY and not self.noise_is_sensor() and coloured is None:
                 continue  # model error, not sensor noise: the scenario's noise stays
@@ -523,6 +526,21 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
             "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m", PARAMS["rig.stiction"][0],
             True, True, "")
     val = _validate(scn, prob.phys(sol.x), val_logs, seg_samples, d_best, start) if val_logs else {}
+    if val:
+        # the residual's spectrum from the fit's and the validation's segments together, the
+        # part of it each segment's initial-state fit removed accounted for
+        segs = _segment_residuals(prob, sol) + val.pop("_segments")
+        q = math.radians(scn.sensor.resolution_deg)
+        verdict = segment_verdict(segs, q * q / 12.0)
+        val["noise_spectrum"] = verdict.to_dict()
+        if verdict.is_sensor_noise and \
+                val["residual_rms_rad"] <= NOISE_CARRY_OVER * resid_s and not \
+                val["whiteness"]["white"]:
+            f = verdict.fit
+            estimates[NOISE_KEY] = Estimate(
+                NOISE_KEY, math.degrees(f.std), (math.degrees(f.std_ci[0]),
+                                                 math.degrees(f.std_ci[1])), "deg",
+                "encoder noise σ (stationary std of the AR noise, quantization apart)")
     y_fit = prob.predict(sol.x)
     mask = prob.mask
     fit_pct = _fit_percent(prob.y[mask], y_fit[mask])
@@ -742,9 +760,26 @@ def _validate(scn, values, logs, seg_samples, delay, start):  # type: ignore[no-
     outside = int(np.sum(np.abs(rho) > band))
     return {"fit_percent": _fit_percent(prob.y[mask], yhat[mask]),
             "residual_rms_rad": float(np.sqrt(np.mean(r**2))), "samples": m,
-            # the residual's spectrum as an AR model, and whether it is (coloured) sensor noise
-            "noise_spectrum": noise_verdict(r, prob.base[mask]).to_dict(),
+            "_segments": _segment_residuals(prob, sol),
             "whiteness": {"lags": len(lags), "band": band, "outside": outside,
                           "max_abs_autocorrelation": float(np.max(np.abs(rho))),
                           "white": outside <= 2},
             "_curves": (prob.t, prob.y, np.where(mask, yhat, np.nan), lags, rho, band)}
+
+
+def _segment_residuals(prob: Problem, sol) -> list[SegmentResidual]:  # type: ignore[no-untyped-def]
+    """Each segment's residual y − ŷ, the prediction's sensitivities to its initial angle and
+    rate (the columns of the Jacobian the fit used), the input, and the sample indices."""
+    jac = sol.jac
+    pos = np.cumsum(prob.mask) - 1  # row of each log sample in the masked arrays
+    resid = -sol.fun
+    out = []
+    for s, (k0, n) in enumerate(zip(prob.seg_start, prob.seg_len, strict=True)):
+        rows = np.arange(k0, k0 + n)
+        rows = rows[prob.mask[rows]]
+        if len(rows) < 3:
+            continue
+        at = pos[rows]
+        cols = slice(prob.n_phys + 2 * s, prob.n_phys + 2 * s + 2)
+        out.append(SegmentResidual(resid[at], jac[at][:, cols], prob.base[rows], rows - k0))
+    return out
