@@ -403,6 +403,23 @@ class RemlFit:
         """p."""
         return len(self.phi)
 
+    def covariance(self, k: np.ndarray) -> np.ndarray:
+        """Covariance of the noise at sample indices k: σw² ρ(|ki − kj|) + q²/12 δij [rad²].
+
+        Parameters
+        ----------
+        k : ndarray of int
+            Sample indices.
+
+        Returns
+        -------
+        ndarray, shape (len(k), len(k))
+        """
+        k = np.asarray(k, dtype=np.int64)
+        lag = np.abs(k[:, None] - k[None, :])
+        rho = _ar_correlation(_phi_to_kappa(np.array(self.phi)), int(lag.max(initial=0)))
+        return self.std**2 * rho[lag] + self.quant_var * np.eye(len(k))
+
     @property
     def innovation_var(self) -> float:
         """σε² = σw² · Π(1 − κi²) [rad²]."""
