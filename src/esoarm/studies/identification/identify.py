@@ -197,6 +197,9 @@ class IdentResult:
             "physical": self.physical(),
             "idim_ls": self.idim or None,
             "noise": ("written: the validation residual is white" if self.noise_is_sensor()
+                      else "written white (sensor.noise_ar = []): the residual's spectrum, with "
+                      "the segments' initial-state fit accounted for, is white sensor noise"
+                      if self.coloured_noise() == []
                       else "written with sensor.noise_ar: the validation residual is coloured "
                       "sensor noise (its AR innovation is white and uncorrelated with the past "
                       "input)" if self.coloured_noise() is not None
