@@ -197,6 +197,9 @@ class IdentResult:
             "physical": self.physical(),
             "idim_ls": self.idim or None,
             "noise": ("written: the validation residual is white" if self.noise_is_sensor()
+                      else "written white (sensor.noise_ar = []): the residual's spectrum, with "
+                      "the segments' initial-state fit accounted for, is white sensor noise"
+                      if self.coloured_noise() == []
                       else "written with sensor.noise_ar: the validation residual is coloured "
                       "sensor noise (its AR innovation is white and uncorrelated with the past "
                       "input)" if self.coloured_noise() is not None
@@ -537,6 +540,17 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
                 val["residual_rms_rad"] <= NOISE_CARRY_OVER * resid_s and not \
                 val["whiteness"]["white"]:
             f = verdict.fit
+            # coloured noise: the intervals of the rig parameters from the sandwich
+            # (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹ with Σ the AR noise's covariance on each segment (the
+            # white-noise intervals would be too narrow by up to √((1 + φ)/(1 − φ)))
+            estimates, gravity, _s = _estimates(scn, prob, sol, m, cost, d_best, delays,
+                                                lag_rejected, _sandwich(prob, sol, f))
+            if stiction_rejected is not None:
+                estimates["rig.stiction"] = Estimate(
+                    "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m",
+                    PARAMS["rig.stiction"][0], True, True, "")
+            val["noise_spectrum"]["parameter_intervals"] = (
+                "with the AR noise's covariance: (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹")
             estimates[NOISE_KEY] = Estimate(
                 NOISE_KEY, math.degrees(f.std), (math.degrees(f.std_ci[0]),
                                                  math.degrees(f.std_ci[1])), "deg",
@@ -669,12 +683,15 @@ def _fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:
     return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / np.linalg.norm(y - np.mean(y))))
 
 
-def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: ignore[no-untyped-def]
+def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected,  # type: ignore[no-untyped-def]
+               cov=None):
+    """The estimates with 95 % intervals from ``cov`` (default σ̂² (JᵀJ)⁻¹: white noise)."""
     jac = sol.jac
     p = jac.shape[1]
     dof = max(m - p, 1)
     s2 = 2.0 * sol.cost / dof
-    cov = s2 * np.linalg.pinv(jac.T @ jac)
+    if cov is None:
+        cov = s2 * np.linalg.pinv(jac.T @ jac)
     se = np.sqrt(np.maximum(np.diag(cov)[: prob.n_phys], 0.0))
     corr = cov[: prob.n_phys, : prob.n_phys] / np.maximum(np.outer(se, se), 1e-300)
     lower, upper = prob.bounds()
@@ -783,3 +800,19 @@ def _segment_residuals(prob: Problem, sol) -> list[SegmentResidual]:  # type: ig
         cols = slice(prob.n_phys + 2 * s, prob.n_phys + 2 * s + 2)
         out.append(SegmentResidual(resid[at], jac[at][:, cols], prob.base[rows], rows - k0))
     return out
+
+
+def _sandwich(prob: Problem, sol, noise) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Covariance of the least-squares estimate under correlated noise [parameter units²]:
+    (JᵀJ)⁻¹ (Σ_s J_sᵀ Σ_s J_s) (JᵀJ)⁻¹, with Σ_s the noise model's covariance
+    (:meth:`esoarm.studies.identification.noise_ar.RemlFit.covariance`) on segment s."""
+    jac = sol.jac
+    a_inv = np.linalg.pinv(jac.T @ jac)
+    pos = np.cumsum(prob.mask) - 1
+    b = np.zeros_like(a_inv)
+    for k0, n in zip(prob.seg_start, prob.seg_len, strict=True):
+        rows = np.arange(k0, k0 + n)
+        rows = rows[prob.mask[rows]]
+        js = jac[pos[rows]]
+        b += js.T @ noise.covariance(rows - k0) @ js
+    return a_inv @ b @ a_inv
