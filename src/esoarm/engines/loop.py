@@ -25,14 +25,13 @@ from esoarm.engines.sample import (
     Designs,
     Sampling,
     Steps,
-    Work,
-    advance_plant,
-    command,
+    advance_plant_into,
+    command_into,
     log_sample,
     new_work,
-    respond,
-    sense,
-    start,
+    respond_into,
+    sense_into,
+    start_into,
     within_limits,
 )
 
@@ -68,15 +67,18 @@ def closed_loop(log: np.ndarray, x: np.ndarray, noise: np.ndarray, refs: np.ndar
         N, or −(k+1) if the run diverged at sample k (row k is logged).
     """
     n = sg.n
-    w = new_work(n, len(d.b0), d.n_observer, d.n_controller)
-    sense(w, x, noise, 0, sg)
-    start(w, d, s)
+    # the run's arrays, unpacked once (compiled, a record handed on costs reference counts)
+    y, u, drive, applied, duty, sat, acc, v, z, zhat, c, hist = new_work(
+        n, len(d.b0), d.n_observer, d.n_controller)
+    sense_into(y, x, noise, 0, sg)
+    start_into(z, c, y, d, s)
     for k in range(n):
-        sense(w, x, noise, k, sg)
-        command(w, k, refs, d, s)
-        if not respond(log, w, x, k, refs, sg, d, s):
+        sense_into(y, x, noise, k, sg)
+        command_into(y, u, drive, duty, sat, z, zhat, c, k, refs, d, s)
+        if not respond_into(log, x, k, refs, y, u, sat, drive, applied, hist, z, zhat, acc, v,
+                            sg, d, s):
             return -(k + 1)
-        advance_plant(x, w, k, sg, d.plant, s.plant_advance)
+        advance_plant_into(x, applied, k, sg, d.plant, s.plant_advance)
     return n
 
 
@@ -135,20 +137,17 @@ def closed_loop_block(logs: np.ndarray, rows: np.ndarray, xs: np.ndarray, noises
     alive = np.ones(m, dtype=np.bool_)
     for i in range(m):
         rows[i] = n
-        w = Work(y[i], u[i], drive, applied[i], duty, sat[i], acc, v, z[i], zhat[i], c[i],
-                 hist[i])
-        sense(w, xs[i], noises[i], 0, sg)
-        start(w, d, s)
+        sense_into(y[i], xs[i], noises[i], 0, sg)
+        start_into(z[i], c[i], y[i], d, s)
     for k in range(n):
         for i in range(m):
             if not alive[i]:
                 continue
-            x = xs[i]
-            w = Work(y[i], u[i], drive, applied[i], duty, sat[i], acc, v, z[i], zhat[i], c[i],
-                     hist[i])
-            sense(w, x, noises[i], k, sg)
-            command(w, k, refs, d, s)
-            if not respond(logs[i], w, x, k, refs, sg, d, s):
+            x, yi, ui, si, zi, zhi = xs[i], y[i], u[i], sat[i], z[i], zhat[i]
+            sense_into(yi, x, noises[i], k, sg)
+            command_into(yi, ui, drive, duty, si, zi, zhi, c[i], k, refs, d, s)
+            if not respond_into(logs[i], x, k, refs, yi, ui, si, drive, applied[i], hist[i],
+                                zi, zhi, acc, v, sg, d, s):
                 alive[i] = False
                 rows[i] = -(k + 1)
         # the plant step of every live run to t_{k+1} (the plant kind's block step)
