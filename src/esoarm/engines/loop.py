@@ -17,6 +17,8 @@ A run ends early, as diverged, when a joint's |θ| or |ẑ1| exceeds
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from esoarm._jit import jitable
@@ -35,7 +37,62 @@ from esoarm.engines.sample import (
     within_limits,
 )
 
-__all__ = ["DIVERGENCE_LIMIT", "closed_loop", "closed_loop_block", "log_sample", "within_limits"]
+__all__ = ["DIVERGENCE_LIMIT", "borrowed", "borrowed_designs", "closed_loop", "closed_loop_block",
+           "keep_alive", "log_sample", "within_limits"]
+
+
+def borrowed(a: Any) -> Any:
+    """``a`` itself; compiled, an array that holds no reference to its memory.
+
+    Compiled (numba), every function an array reaches takes a reference on its memory
+    on entry and drops it on exit -- an atomic increment and decrement -- and so does
+    every view ``a[i]``; in the sample loops that came to 56-76 of each per run and sample,
+    a quarter of the compiled engine's time.  The batch engine
+    (:mod:`esoarm.engines.batch`) compiles this function to a copy of the array
+    without its reference count (no atomic operations follow it).  Its memory must stay
+    owned elsewhere for as long as the copy is used: by the caller for an argument, by
+    a variable kept alive (:func:`keep_alive`) for an array the loop allocates.  Other
+    values (tuples, numbers) pass unchanged.
+
+    Parameters
+    ----------
+    a : ndarray or any
+        The array (or value).
+
+    Returns
+    -------
+    ndarray or any
+        ``a`` (compiled: the same array, holding no reference).
+    """
+    return a
+
+
+def keep_alive(owner: Any) -> None:
+    """Nothing; a use of ``owner`` that keeps its arrays alive up to this point when compiled.
+
+    Parameters
+    ----------
+    owner : any
+        The arrays (or a tuple of them) whose :func:`borrowed` copies were used before.
+    """
+
+
+@jitable
+def borrowed_designs(d: Designs) -> Designs:
+    """``d`` with its arrays :func:`borrowed` (the caller owns them).
+
+    Parameters
+    ----------
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+
+    Returns
+    -------
+    Designs
+        The same vectors; compiled, the arrays among them hold no reference.
+    """
+    return Designs(borrowed(d.b0), borrowed(d.plant), borrowed(d.observer),
+                   borrowed(d.controller), borrowed(d.actuator), d.n_observer, d.n_controller)
 
 
 @jitable
@@ -68,8 +125,14 @@ def closed_loop(log: np.ndarray, x: np.ndarray, noise: np.ndarray, refs: np.ndar
     """
     n = sg.n
     # the run's arrays, unpacked once (compiled, a record handed on costs reference counts)
-    y, u, drive, applied, duty, sat, acc, v, z, zhat, c, hist = new_work(
-        n, len(d.b0), d.n_observer, d.n_controller)
+    # and borrowed: ``work`` owns them until keep_alive below
+    work = new_work(n, len(d.b0), d.n_observer, d.n_controller)
+    y, u, drive, applied, duty, sat, acc, v, z, zhat, c, hist = (
+        borrowed(work.y), borrowed(work.u), borrowed(work.drive), borrowed(work.applied),
+        borrowed(work.duty), borrowed(work.sat), borrowed(work.acc), borrowed(work.v),
+        borrowed(work.z), borrowed(work.zhat), borrowed(work.c), borrowed(work.hist))
+    log, x, noise, refs, d = borrowed(log), borrowed(x), borrowed(noise), borrowed(refs), \
+        borrowed_designs(d)
     sense_into(y, x, noise, 0, sg)
     start_into(z, c, y, d, s)
     for k in range(n):
@@ -77,8 +140,10 @@ def closed_loop(log: np.ndarray, x: np.ndarray, noise: np.ndarray, refs: np.ndar
         command_into(y, u, drive, duty, sat, z, zhat, c, k, refs, d, s)
         if not respond_into(log, x, k, refs, y, u, sat, drive, applied, hist, z, zhat, acc, v,
                             sg, d, s):
+            keep_alive(work)
             return -(k + 1)
         advance_plant_into(x, applied, k, sg, d.plant, s.plant_advance)
+    keep_alive(work)
     return n
 
 
@@ -121,19 +186,20 @@ def closed_loop_block(logs: np.ndarray, rows: np.ndarray, xs: np.ndarray, noises
     n = sg.n
     nj = len(d.b0)
     nz, nc = max(d.n_observer, 1), max(d.n_controller, 1)
-    # per run: the arrays that carry state from one sample to the next; shared: scratch
-    y = np.empty((m, nj))
-    u = np.empty((m, nj))
-    sat = np.empty((m, nj))
-    applied = np.empty((m, nj))
-    z = np.zeros((m, nz))
-    zhat = np.zeros((m, nz))
-    c = np.zeros((m, nc))
-    hist = np.zeros((m, max(n, 1) * nj))
-    drive = np.empty(nj)
-    duty = np.empty(nj)
-    acc = np.empty(nj)
-    v = np.empty(nj)
+    # per run: the arrays that carry state from one sample to the next; shared: scratch.
+    # ``owned`` keeps them alive (keep_alive below); the loop uses them borrowed, so that
+    # a view of a run's row costs no reference count
+    owned = (np.empty((m, nj)), np.empty((m, nj)), np.empty((m, nj)), np.empty((m, nj)),
+             np.zeros((m, nz)), np.zeros((m, nz)), np.zeros((m, nc)),
+             np.zeros((m, max(n, 1) * nj)))
+    y, u, sat, applied, z, zhat, c, hist = (
+        borrowed(owned[0]), borrowed(owned[1]), borrowed(owned[2]), borrowed(owned[3]),
+        borrowed(owned[4]), borrowed(owned[5]), borrowed(owned[6]), borrowed(owned[7]))
+    scratch = new_work(0, nj, 0, 0)
+    drive, duty, acc, v = (borrowed(scratch.drive), borrowed(scratch.duty),
+                           borrowed(scratch.acc), borrowed(scratch.v))
+    logs, xs, noises, refs, d = borrowed(logs), borrowed(xs), borrowed(noises), \
+        borrowed(refs), borrowed_designs(d)
     alive = np.ones(m, dtype=np.bool_)
     for i in range(m):
         rows[i] = n
@@ -152,3 +218,4 @@ def closed_loop_block(logs: np.ndarray, rows: np.ndarray, xs: np.ndarray, noises
                 rows[i] = -(k + 1)
         # the plant step of every live run to t_{k+1} (the plant kind's block step)
         s.plant_advance_block(xs, applied, alive, k * sg.ts, sg.h, sg.nsub, d.plant)
+    keep_alive((owned, scratch))
