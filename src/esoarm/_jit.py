@@ -31,6 +31,8 @@ _pending: list[tuple[Callable[..., object], Callable[..., object] | None, int | 
 _registered = False
 #: Every function marked :func:`jitable` or :func:`jitable_as` (by id).
 _marked: set[int] = set()
+#: (module, qualified name) of every function handed to numba by :func:`register_all`.
+_helper_names: set[tuple[str, str]] = set()
 
 
 def _noop_like(func: Callable[..., object]) -> Callable[..., object]:
@@ -48,6 +50,7 @@ def _noop_like(func: Callable[..., object]) -> Callable[..., object]:
 
 def _register(func: Callable[..., object], compiled: Callable[..., object] | None,
               array_arg: int | None = None) -> None:
+    _helper_names.add((func.__module__, func.__qualname__))
     try:
         from numba import types
         from numba.extending import overload, register_jitable
@@ -123,6 +126,7 @@ def register_all() -> None:
         _tolerate_cache_write_errors()
         _inline_physics()
         _defer_blas_probe()
+        _link_only_physics()
     _registered = True
     while _pending:
         _register(*_pending.pop(0))
@@ -180,6 +184,60 @@ def _defer_blas_probe() -> None:
             raise ImportError("scipy 0.16+ is required for linear algebra")
 
     linalg.ensure_blas = ensure_blas
+
+
+def _link_only_physics() -> None:
+    """Compile the physics functions for linking into the kernels only: no machine code.
+
+    numba compiles every function a kernel calls as a library of its own, links
+    it into its callers and, as for a kernel, turns it into machine code for the
+    interpreter to call (each library with everything it calls linked in, so
+    the sample loop's functions were translated again at every level of calls:
+    4.6 s of the 22 s of CPU a first compile of :func:`esoarm.engines.batch._run`
+    takes, load 3).  The interpreter never calls these compiled copies: a
+    :func:`jitable` function stays the plain Python function there.  So for
+    the functions recorded here, numba's library is optimized and linked into
+    its callers as before, but not handed to the code generator; the kernels'
+    machine code, and so every number, is unchanged.  Falls back to numba's own
+    behaviour if its (internal) layout is not the expected one.
+    """
+    try:
+        from numba.core import codegen, cpu
+    except ImportError:  # pragma: no cover - the reference engine needs no numba
+        return
+    context = getattr(cpu, "CPUContext", None)
+    library = getattr(codegen, "CPUCodeLibrary", None)
+    get_executable = getattr(context, "get_executable", None)
+    finalize_module = getattr(library, "_finalize_final_module", None)
+    if (get_executable is None or finalize_module is None
+            or not all(hasattr(library, n) for n in ("_finalize_dynamic_globals",
+                                                     "_verify_declare_only_symbols"))
+            or getattr(get_executable, "_esoarm_link_only", False)):
+        return  # pragma: no cover - numba's layout changed, or already done
+    try:
+        from numba import _dynfunc
+    except ImportError:  # pragma: no cover
+        return
+
+    def executable(self, lib, fndesc, env):  # type: ignore[no-untyped-def]
+        if (fndesc.modname, fndesc.qualname) not in _helper_names:
+            return get_executable(self, lib, fndesc, env)
+        lib._esoarm_link_only = True
+        # a function object without machine code: never called (see above)
+        return _dynfunc.make_function(fndesc.lookup_module(), fndesc.qualname.split(".")[-1],
+                                      f"link-only {fndesc.qualname!r}", 0, env, (lib,))
+
+    def finalize(self):  # type: ignore[no-untyped-def]
+        if not getattr(self, "_esoarm_link_only", False):
+            return finalize_module(self)
+        self._finalize_dynamic_globals()
+        self._verify_declare_only_symbols()
+        self._finalized = True
+        return None
+
+    executable._esoarm_link_only = True  # type: ignore[attr-defined]
+    context.get_executable = executable  # type: ignore[union-attr]
+    library._finalize_final_module = finalize  # type: ignore[union-attr]
 
 
 def _tolerate_cache_write_errors() -> None:

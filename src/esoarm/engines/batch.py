@@ -104,6 +104,13 @@ BLOCK = 64
 BLOCK_BYTES = 32 * 2**20
 #: Runs per chunk in metrics mode (bounds memory; one progress tick per chunk).
 DEFAULT_CHUNK = 2048
+#: Up to this many compiled runs, :func:`run_metrics` runs them through the time-series
+#: kernel (:func:`_run`, the one :func:`simulate_many` uses) and takes the metrics from
+#: the logs with NumPy (:func:`esoarm.engines.metrics.series_metrics`, the same bits):
+#: a handful of runs gains little from the blocked kernel, which is a second compiled copy
+#: of the sample loop (39 s of CPU to compile, load 3; ``esoarm reproduce`` then compiles
+#: only :func:`_run`).
+SERIES_RUNS = 64
 
 
 # ---------------------------------------------------------------------------
@@ -464,6 +471,7 @@ def run_metrics(
     progress: Callable[[int], None] | None = None,
     _noise_cache: NoiseCache | None = None,
     blocked: bool = True,
+    series: bool | None = None,
 ) -> MetricsTable:
     """Run every point (× every seed) and keep only the metrics of each run.
 
@@ -484,6 +492,11 @@ def run_metrics(
         Advance the runs of a grid point together, in blocks of up to :data:`BLOCK`
         (:func:`~esoarm.engines.loop.closed_loop_block`: the same numbers, faster);
         False runs them one at a time (kept for comparison in the benchmarks).
+    series : bool, optional
+        Run through the time-series kernel and take the metrics with NumPy (the same
+        numbers; no second compiled copy of the sample loop to build or load).  Default:
+        for calls of at most :data:`SERIES_RUNS` runs, with ``blocked``.  Points whose
+        parameter vectors are arrays (URDF arms) always use the metrics kernels.
     _noise_cache : NoiseCache, optional
         Internal: the noise sequences already drawn, shared with a caller that runs the
         same seeds again (a fresh cache by default).
@@ -501,6 +514,8 @@ def run_metrics(
     out = np.empty((len(runs), NMETRIC))
     noise_cache = _noise_cache or NoiseCache()
     compiled = [_kinds.kinds_of(scn).jit for scn in points]
+    if series is None:
+        series = blocked and len(runs) <= SERIES_RUNS
     with _threads(workers):
         for start in range(0, len(runs), chunk):
             part = runs[start : start + chunk]
@@ -512,7 +527,9 @@ def run_metrics(
                 pack = _pack([points[pi] for pi in used],
                              [(local[part[i][0]], part[i][1]) for i in jit_idx], noise_cache)
                 res = np.empty((len(jit_idx), NMETRIC))
-                if blocked:
+                if series and not pack.wide:
+                    _series_metrics(pack, [points[part[i][0]] for i in jit_idx], res, workers)
+                elif blocked:
                     blk = _blocks(pack.run_point, pack.ipar)
                     kernel = _blocked_metrics_kernel_wide if pack.wide else _blocked_metrics_kernel
                     kernel(*blk, *pack.args()[1:], res)  # type: ignore[call-arg]
@@ -526,6 +543,23 @@ def run_metrics(
             if progress is not None:
                 progress(len(part))
     return MetricsTable(out)
+
+
+def _series_metrics(pack: _Pack, scenarios: list[Scenario], out: np.ndarray,
+                    workers: int | None) -> None:
+    """Metrics of the runs of ``pack`` (run r of ``scenarios[r]``) into ``out``, through
+    :func:`_run` and :meth:`esoarm.result.SimResult.from_log` (see :data:`SERIES_RUNS`)."""
+    nmax = pack.refs.shape[2]
+    runs = len(pack.run_point)
+    logs = np.empty((runs, NROW * int(pack.ipar[:, _NJ].max()), nmax))
+    rows = np.empty(runs, dtype=np.int64)  # rows logged, < 0: diverged
+    _series_runs(pack, logs, rows, workers)
+    for r, scn in enumerate(scenarios):
+        k = abs(int(rows[r]))
+        t = np.arange(k) * scn.sample_time
+        nj = NROW * int(pack.ipar[pack.run_point[r], _NJ])
+        result = SimResult.from_log(scn, t, logs[r, :nj, :k], diverged=bool(rows[r] < 0))
+        out[r] = [result.metrics[name] for name in METRICS]
 
 
 def _reference_metrics(scn: Scenario) -> np.ndarray:
