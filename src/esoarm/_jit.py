@@ -215,7 +215,7 @@ def _link_only_physics() -> None:
             or getattr(get_executable, "_esoarm_link_only", False)):
         return  # pragma: no cover - numba's layout changed, or already done
     try:
-        from numba import _dynfunc
+        from numba import _dynfunc  # type: ignore[attr-defined]
     except ImportError:  # pragma: no cover
         return
 
