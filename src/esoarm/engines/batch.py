@@ -181,13 +181,18 @@ def _install_cache_locator() -> None:
         class Locator(base):  # type: ignore[misc]
             def get_source_stamp(self) -> str:
                 extra = _kinds.registry_stamp()  # '' for the package's own kinds
-                return f"{super().get_source_stamp()}-{stamp}" + (f"-{extra}" if extra else "")
+                only = _kinds.compiled_selection()  # '' for every compiled kind
+                return (f"{super().get_source_stamp()}-{stamp}" + (f"-{extra}" if extra else "")
+                        + (f"-only-{only}" if only else ""))
 
             def get_cache_path(self) -> str:
-                # kinds registered at run time: their kernels apart from the package's own
+                # kinds registered at run time: their kernels apart from the package's own;
+                # kernels compiled for some kinds only (esoarm.kinds.compile_only) apart too
                 extra = _kinds.registry_stamp()
+                only = _kinds.compiled_selection()
                 path = super().get_cache_path()
-                return os.path.join(path, f"kinds-{extra}") if extra else path
+                path = os.path.join(path, f"kinds-{extra}") if extra else path
+                return os.path.join(path, f"only-{only}") if only else path
 
             @classmethod
             def from_function(cls, py_func: Any, py_file: str) -> Any:
@@ -207,7 +212,8 @@ _install_cache_locator()
 
 
 def _drop_compiled_kernels() -> None:
-    """After a kind is (un)registered: recompile every kernel with the new dispatch.
+    """After the dispatch changed (a kind (un)registered, :func:`esoarm.kinds.compile_only`):
+    recompile every kernel with the new dispatch.
 
     Each kernel's on-disk cache is looked up again (a registry with kinds added at
     run time has its own cache directory, :func:`esoarm.kinds.registry_stamp`).
@@ -219,7 +225,14 @@ def _drop_compiled_kernels() -> None:
                 value.enable_caching()
 
 
-_kinds.on_change(_drop_compiled_kernels)
+_kinds.on_dispatch_change(_drop_compiled_kernels)
+
+
+def _cover(points: Sequence[Scenario]) -> None:
+    """Widen the compiled kinds to every kind if a compiled point's kinds are not among them
+    (:func:`esoarm.kinds.compile_only`; the dispatch would refuse its CODE)."""
+    if not all(_kinds.covers(k) for k in map(_kinds.kinds_of, points) if k.jit):
+        _kinds.compile_only(None)
 
 
 # ---------------------------------------------------------------------------
@@ -514,6 +527,7 @@ def run_metrics(
     out = np.empty((len(runs), NMETRIC))
     noise_cache = _noise_cache or NoiseCache()
     compiled = [_kinds.kinds_of(scn).jit for scn in points]
+    _cover(points)
     if series is None:
         series = blocked and len(runs) <= SERIES_RUNS
     with _threads(workers):
@@ -614,6 +628,7 @@ def simulate_many(
     results: list[SimResult] = []
     noise_cache = NoiseCache()
     scenarios = list(scenarios)
+    _cover(scenarios)
     with _threads(workers):
         for start in range(0, len(scenarios), chunk):
             part = scenarios[start : start + chunk]
