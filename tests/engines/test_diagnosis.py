@@ -100,3 +100,12 @@ def test_saturation_warning_does_not_round_up_to_all_samples():
     assert "in 99.5 % of the samples" in saturation_warning(0.995, 0.001)
     assert "in 100 % of the samples" in saturation_warning(1.0, 0.001)
     assert saturation_warning(0.2, 1.0) is None
+
+
+def test_saturation_warning_names_no_particular_controller():
+    """The warning serves every controller kind (PID too), so it does not say "FLC"."""
+    from esoarm.engines.diagnosis import saturation_warning
+
+    text = saturation_warning(0.9, 0.5)
+    assert text is not None and "FLC" not in text
+    assert "the controller was designed for" in text

@@ -150,5 +150,5 @@ def saturation_warning(fraction: float, torque_limit: float,
         return None
     return (f"the command sat at the {units.force_word} limit ±{torque_limit:g} {units.force} in "
             f"{100 * fraction:.3g} % of the samples (saturated_fraction = {fraction:.3g}): the "
-            "loop is not the linearized one the FLC assumes; raise actuator.torque_limit or ask "
-            "for a gentler reference")
+            "loop is not the unsaturated one the controller was designed for; raise "
+            "actuator.torque_limit or ask for a gentler reference")
