@@ -207,9 +207,12 @@ def _link_only_physics() -> None:
         return
     context = getattr(cpu, "CPUContext", None)
     library = getattr(codegen, "CPUCodeLibrary", None)
+    jit_library = getattr(codegen, "JITCodeLibrary", None)
     get_executable = getattr(context, "get_executable", None)
     finalize_module = getattr(library, "_finalize_final_module", None)
-    if (get_executable is None or finalize_module is None
+    get_pointer = getattr(jit_library, "get_pointer_to_function", None)
+    if (get_executable is None or finalize_module is None or get_pointer is None
+            or not hasattr(jit_library, "_finalize_specific")
             or not all(hasattr(library, n) for n in ("_finalize_dynamic_globals",
                                                      "_verify_declare_only_symbols"))
             or getattr(get_executable, "_esoarm_link_only", False)):
@@ -233,11 +236,21 @@ def _link_only_physics() -> None:
         self._finalize_dynamic_globals()
         self._verify_declare_only_symbols()
         self._finalized = True
+        self._esoarm_link_only = "pending"  # machine code made if an address is asked for
         return None
+
+    def pointer(self, name):  # type: ignore[no-untyped-def]
+        self._ensure_finalized()
+        if getattr(self, "_esoarm_link_only", False) == "pending":
+            self._esoarm_link_only = "built"
+            self._codegen._add_module(self._final_module)
+            self._finalize_specific()
+        return get_pointer(self, name)
 
     executable._esoarm_link_only = True  # type: ignore[attr-defined]
     context.get_executable = executable  # type: ignore[union-attr]
     library._finalize_final_module = finalize  # type: ignore[union-attr]
+    jit_library.get_pointer_to_function = pointer  # type: ignore[union-attr]
 
 
 def _tolerate_cache_write_errors() -> None:
