@@ -23,7 +23,7 @@ import importlib.util
 import pickle
 import sys
 from collections.abc import Callable
-from typing import TypeVar
+from typing import Any, TypeVar
 
 F = TypeVar("F", bound=Callable[..., object])
 
@@ -31,8 +31,6 @@ _pending: list[tuple[Callable[..., object], Callable[..., object] | None, int | 
 _registered = False
 #: Every function marked :func:`jitable` or :func:`jitable_as` (by id).
 _marked: set[int] = set()
-#: (module, qualified name) of every function handed to numba by :func:`register_all`.
-_helper_names: set[tuple[str, str]] = set()
 
 
 def _noop_like(func: Callable[..., object]) -> Callable[..., object]:
@@ -48,16 +46,21 @@ def _noop_like(func: Callable[..., object]) -> Callable[..., object]:
     return noop  # type: ignore[return-value]
 
 
+#: numba's options for the compiled copies of the physics: called only from kernels.
+_LINK_ONLY: dict[str, Any] = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+
+
 def _register(func: Callable[..., object], compiled: Callable[..., object] | None,
               array_arg: int | None = None) -> None:
-    _helper_names.add((func.__module__, func.__qualname__))
     try:
         from numba import types
         from numba.extending import overload, register_jitable
     except ImportError:  # pragma: no cover - the reference engine needs no numba
         return
     if compiled is None:
-        register_jitable(func)  # returns func itself: the interpreter keeps calling it
+        # returns func itself: the interpreter keeps calling it (numba's compiled copy needs
+        # no wrapper for the interpreter; see _link_only_physics)
+        register_jitable(**_LINK_ONLY)(func)
     else:
         noop = _noop_like(func) if array_arg is not None else None
 
@@ -67,7 +70,7 @@ def _register(func: Callable[..., object], compiled: Callable[..., object] | Non
                 return noop
             return compiled
 
-        overload(func)(typer)
+        overload(func, jit_options=_LINK_ONLY)(typer)  # type: ignore[arg-type]
 
 
 def jitable(func: F) -> F:
@@ -195,11 +198,14 @@ def _link_only_physics() -> None:
     the sample loop's functions were translated again at every level of calls:
     4.6 s of the 22 s of CPU a first compile of :func:`esoarm.engines.batch._run`
     takes, load 3).  The interpreter never calls these compiled copies: a
-    :func:`jitable` function stays the plain Python function there.  So for
-    the functions recorded here, numba's library is optimized and linked into
-    its callers as before, but not handed to the code generator; the kernels'
-    machine code, and so every number, is unchanged.  Falls back to numba's own
-    behaviour if its (internal) layout is not the expected one.
+    :func:`jitable` function stays the plain Python function there, and numba
+    compiles them without a wrapper for the interpreter (:data:`_LINK_ONLY`).
+    So a library without that wrapper is optimized and linked into its callers
+    as before, but not handed to the code generator unless its address is
+    asked for; the kernels' machine code, and so every number, is unchanged.
+    (An ``njit`` of a jitable function, called from the interpreter, has the
+    wrapper and is compiled as usual.)  Falls back to numba's own behaviour if
+    its (internal) layout is not the expected one.
     """
     try:
         from numba.core import codegen, cpu
@@ -223,10 +229,14 @@ def _link_only_physics() -> None:
         return
 
     def executable(self, lib, fndesc, env):  # type: ignore[no-untyped-def]
-        if (fndesc.modname, fndesc.qualname) not in _helper_names:
+        try:  # compiled without a wrapper for the interpreter (_LINK_ONLY)?
+            lib._final_module.get_function(fndesc.llvm_cpython_wrapper_name)
+        except (NameError, AttributeError):
+            pass
+        else:  # the interpreter may call it (an njit of a jitable function): as numba does
             return get_executable(self, lib, fndesc, env)
         lib._esoarm_link_only = True
-        # a function object without machine code: never called (see above)
+        # the interpreter cannot call it (no wrapper): no address needed
         return _dynfunc.make_function(fndesc.lookup_module(), fndesc.qualname.split(".")[-1],
                                       f"link-only {fndesc.qualname!r}", 0, env, (lib,))
 
