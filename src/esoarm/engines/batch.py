@@ -508,8 +508,9 @@ def run_metrics(
     series : bool, optional
         Run through the time-series kernel and take the metrics with NumPy (the same
         numbers; no second compiled copy of the sample loop to build or load).  Default:
-        for calls of at most :data:`SERIES_RUNS` runs, with ``blocked``.  Points whose
-        parameter vectors are arrays (URDF arms) always use the metrics kernels.
+        for calls of at most :data:`SERIES_RUNS` runs, with ``blocked``, unless this process
+        has the blocked kernel loaded already.  Points whose parameter vectors are arrays
+        (URDF arms) always use the metrics kernels.
     _noise_cache : NoiseCache, optional
         Internal: the noise sequences already drawn, shared with a caller that runs the
         same seeds again (a fresh cache by default).
@@ -528,8 +529,8 @@ def run_metrics(
     noise_cache = _noise_cache or NoiseCache()
     compiled = [_kinds.kinds_of(scn).jit for scn in points]
     _cover(points)
-    if series is None:
-        series = blocked and len(runs) <= SERIES_RUNS
+    if series is None:  # (a sweep's last, small chunk: the blocked kernel is loaded already)
+        series = blocked and len(runs) <= SERIES_RUNS and not _blocked_metrics_kernel.overloads
     with _threads(workers):
         for start in range(0, len(runs), chunk):
             part = runs[start : start + chunk]
