@@ -43,8 +43,8 @@ import numpy as np
 from esoarm._jit import jitable
 
 __all__ = ["HEAD", "ROW", "bias", "bias_offset", "cholesky_solve", "crba", "dynamics_terms",
-           "forward_dynamics", "mass_and_bias", "mass_offset", "model_size", "pack_model", "rnea",
-           "scratch_offset", "solve_mass", "workspace_size"]
+           "forward_dynamics", "forward_dynamics_block", "mass_and_bias", "mass_offset",
+           "model_size", "pack_model", "rnea", "scratch_offset", "solve_mass", "workspace_size"]
 
 #: Values before the joints' rows, and per joint.
 HEAD, ROW = 4, 32
@@ -719,3 +719,382 @@ def forward_dynamics(m: np.ndarray, q: np.ndarray, v: np.ndarray, tau: np.ndarra
     for i in range(n):
         out[i] = tau[i] - ws[rhs + i]
     solve_mass(ws, n, out)
+
+
+# ---------------------------------------------------------------------------
+# a block of runs: the functions above for m runs at once, runs innermost.
+#
+# ``wb`` is the scratch of the block, shape (workspace_size(n), m): row k holds value k
+# of the one-run scratch for every run, so every offset of :func:`_layout` is a row.
+# Each run takes exactly the floating-point operations, in the same order, that the
+# one-run functions take (the same bits: the tests hold them equal); with the runs
+# innermost the compiler vectorises the arithmetic across runs.  Values that depend on
+# the model only (the subspaces, the bodies' inertias, the fixed placements) are read
+# once per call as scalars.
+
+
+@jitable
+def _subspace_values(m: np.ndarray, i: int) -> tuple[float, float, float, float, float, float]:
+    """Joint i's motion subspace S_i as six scalars (the values :func:`_subspace` stores)."""
+    b = HEAD + ROW * i
+    a0, a1, a2 = m[b + _AXIS], m[b + _AXIS + 1], m[b + _AXIS + 2]
+    if m[b + _KIND] == REVOLUTE:
+        return 0.0, 0.0, 0.0, a0, a1, a2
+    return a0, a1, a2, 0.0, 0.0, 0.0
+
+
+@jitable
+def _pose_block(m: np.ndarray, i: int, q: np.ndarray, wb: np.ndarray, xo: int) -> None:
+    """:func:`_pose` of joint i for every run (q: (n, runs)) into rows xo … xo+11 of ``wb``."""
+    runs = q.shape[1]
+    b = HEAD + ROW * i
+    ax, ay, az = m[b + _AXIS], m[b + _AXIS + 1], m[b + _AXIS + 2]
+    r0 = b + _ROT
+    a00, a01, a02 = m[r0], m[r0 + 1], m[r0 + 2]
+    a10, a11, a12 = m[r0 + 3], m[r0 + 4], m[r0 + 5]
+    a20, a21, a22 = m[r0 + 6], m[r0 + 7], m[r0 + 8]
+    px0, py0, pz0 = m[b + _POS], m[b + _POS + 1], m[b + _POS + 2]
+    if m[b + _KIND] == REVOLUTE:
+        for r in range(runs):  # the sines and cosines first (library calls, one run at a time)
+            qi = q[i, r]
+            wb[xo + 9, r] = math.cos(qi)
+            wb[xo + 10, r] = math.sin(qi)
+        for r in range(runs):
+            c, s = wb[xo + 9, r], wb[xo + 10, r]
+            k = 1.0 - c
+            j00, j01, j02 = c + k * ax * ax, k * ax * ay - s * az, k * ax * az + s * ay
+            j10, j11, j12 = k * ax * ay + s * az, c + k * ay * ay, k * ay * az - s * ax
+            j20, j21, j22 = k * ax * az - s * ay, k * ay * az + s * ax, c + k * az * az
+            wb[xo, r] = a00 * j00 + a01 * j10 + a02 * j20
+            wb[xo + 1, r] = a00 * j01 + a01 * j11 + a02 * j21
+            wb[xo + 2, r] = a00 * j02 + a01 * j12 + a02 * j22
+            wb[xo + 3, r] = a10 * j00 + a11 * j10 + a12 * j20
+            wb[xo + 4, r] = a10 * j01 + a11 * j11 + a12 * j21
+            wb[xo + 5, r] = a10 * j02 + a11 * j12 + a12 * j22
+            wb[xo + 6, r] = a20 * j00 + a21 * j10 + a22 * j20
+            wb[xo + 7, r] = a20 * j01 + a21 * j11 + a22 * j21
+            wb[xo + 8, r] = a20 * j02 + a21 * j12 + a22 * j22
+            wb[xo + 9, r] = px0
+            wb[xo + 10, r] = py0
+            wb[xo + 11, r] = pz0
+    else:
+        # R = R0 · 1 (the same products as the one-run pose, on constants)
+        rot = (a00 * 1.0 + a01 * 0.0 + a02 * 0.0, a00 * 0.0 + a01 * 1.0 + a02 * 0.0,
+               a00 * 0.0 + a01 * 0.0 + a02 * 1.0, a10 * 1.0 + a11 * 0.0 + a12 * 0.0,
+               a10 * 0.0 + a11 * 1.0 + a12 * 0.0, a10 * 0.0 + a11 * 0.0 + a12 * 1.0,
+               a20 * 1.0 + a21 * 0.0 + a22 * 0.0, a20 * 0.0 + a21 * 1.0 + a22 * 0.0,
+               a20 * 0.0 + a21 * 0.0 + a22 * 1.0)
+        dx = a00 * ax + a01 * ay + a02 * az
+        dy = a10 * ax + a11 * ay + a12 * az
+        dz = a20 * ax + a21 * ay + a22 * az
+        for r in range(runs):
+            qi = q[i, r]
+            for k in range(9):
+                wb[xo + k, r] = rot[k]
+            wb[xo + 9, r] = px0 + qi * dx
+            wb[xo + 10, r] = py0 + qi * dy
+            wb[xo + 11, r] = pz0 + qi * dz
+
+
+@jitable
+def _motion_in_block(wb: np.ndarray, xo: int, wo: int, oo: int) -> None:
+    """:func:`_motion_in` for every run (rows of ``wb``)."""
+    for r in range(wb.shape[1]):
+        px, py, pz = wb[xo + 9, r], wb[xo + 10, r], wb[xo + 11, r]
+        w3, w4, w5 = wb[wo + 3, r], wb[wo + 4, r], wb[wo + 5, r]
+        vx = wb[wo, r] - (py * w5 - pz * w4)
+        vy = wb[wo + 1, r] - (pz * w3 - px * w5)
+        vz = wb[wo + 2, r] - (px * w4 - py * w3)
+        for c in range(3):
+            wb[oo + c, r] = wb[xo + c, r] * vx + wb[xo + 3 + c, r] * vy + wb[xo + 6 + c, r] * vz
+            wb[oo + 3 + c, r] = (wb[xo + c, r] * w3 + wb[xo + 3 + c, r] * w4
+                                 + wb[xo + 6 + c, r] * w5)
+
+
+@jitable
+def _force_out_block(wb: np.ndarray, xo: int, fo: int, oo: int) -> None:
+    """:func:`_force_out` for every run (rows of ``wb``): rows oo … oo+5 += Xᵀ f."""
+    for r in range(wb.shape[1]):
+        f0, f1, f2 = wb[fo, r], wb[fo + 1, r], wb[fo + 2, r]
+        f3, f4, f5 = wb[fo + 3, r], wb[fo + 4, r], wb[fo + 5, r]
+        x00, x01, x02 = wb[xo, r], wb[xo + 1, r], wb[xo + 2, r]
+        x10, x11, x12 = wb[xo + 3, r], wb[xo + 4, r], wb[xo + 5, r]
+        x20, x21, x22 = wb[xo + 6, r], wb[xo + 7, r], wb[xo + 8, r]
+        lx = x00 * f0 + x01 * f1 + x02 * f2
+        ly = x10 * f0 + x11 * f1 + x12 * f2
+        lz = x20 * f0 + x21 * f1 + x22 * f2
+        px, py, pz = wb[xo + 9, r], wb[xo + 10, r], wb[xo + 11, r]
+        wb[oo, r] += lx
+        wb[oo + 1, r] += ly
+        wb[oo + 2, r] += lz
+        wb[oo + 3, r] += x00 * f3 + x01 * f4 + x02 * f5 + py * lz - pz * ly
+        wb[oo + 4, r] += x10 * f3 + x11 * f4 + x12 * f5 + pz * lx - px * lz
+        wb[oo + 5, r] += x20 * f3 + x21 * f4 + x22 * f5 + px * ly - py * lx
+
+
+@jitable
+def _inertia_out_block(wb: np.ndarray, xo: int, co: int, po: int) -> None:
+    """:func:`_inertia_out` for every run (rows of ``wb``; its 9 scratch values kept local)."""
+    io = co + 6
+    for r in range(wb.shape[1]):
+        mass = wb[co, r]
+        px, py, pz = wb[xo + 9, r], wb[xo + 10, r], wb[xo + 11, r]
+        h0, h1, h2 = wb[co + 3, r], wb[co + 4, r], wb[co + 5, r]
+        x00, x01, x02 = wb[xo, r], wb[xo + 1, r], wb[xo + 2, r]
+        x10, x11, x12 = wb[xo + 3, r], wb[xo + 4, r], wb[xo + 5, r]
+        x20, x21, x22 = wb[xo + 6, r], wb[xo + 7, r], wb[xo + 8, r]
+        hr0 = x00 * h0 + x01 * h1 + x02 * h2
+        hr1 = x10 * h0 + x11 * h1 + x12 * h2
+        hr2 = x20 * h0 + x21 * h1 + x22 * h2
+        wb[po, r] += mass
+        wb[po + 3, r] += hr0 + mass * px
+        wb[po + 4, r] += hr1 + mass * py
+        wb[po + 5, r] += hr2 + mass * pz
+        i00, i01, i02 = wb[io, r], wb[io + 1, r], wb[io + 2, r]
+        i10, i11, i12 = wb[io + 3, r], wb[io + 4, r], wb[io + 5, r]
+        i20, i21, i22 = wb[io + 6, r], wb[io + 7, r], wb[io + 8, r]
+        t00 = x00 * i00 + x01 * i10 + x02 * i20  # tmp = R I
+        t01 = x00 * i01 + x01 * i11 + x02 * i21
+        t02 = x00 * i02 + x01 * i12 + x02 * i22
+        t10 = x10 * i00 + x11 * i10 + x12 * i20
+        t11 = x10 * i01 + x11 * i11 + x12 * i21
+        t12 = x10 * i02 + x11 * i12 + x12 * i22
+        t20 = x20 * i00 + x21 * i10 + x22 * i20
+        t21 = x20 * i01 + x21 * i11 + x22 * i21
+        t22 = x20 * i02 + x21 * i12 + x22 * i22
+        diag = 2.0 * (hr0 * px + hr1 * py + hr2 * pz) + mass * (px * px + py * py + pz * pz)
+        tr = ((t00, t01, t02), (t10, t11, t12), (t20, t21, t22))
+        xr = ((x00, x01, x02), (x10, x11, x12), (x20, x21, x22))
+        p = (px, py, pz)
+        hr = (hr0, hr1, hr2)
+        for a in range(3):
+            for c in range(3):
+                val = tr[a][0] * xr[c][0] + tr[a][1] * xr[c][1] + tr[a][2] * xr[c][2]
+                val -= p[a] * hr[c] + hr[a] * p[c] + mass * p[a] * p[c]
+                if a == c:
+                    val += diag
+                wb[po + 6 + 3 * a + c, r] += val
+
+
+@jitable
+def _bias_block(m: np.ndarray, v: np.ndarray, wb: np.ndarray) -> None:
+    """:func:`_bias_pass` (RNEA, q̈ = 0, gravity) for every run: n(q, q̇) into the rhs rows."""
+    n = int(m[0])
+    runs = wb.shape[1]
+    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _layout(n)
+    g0, g1, g2 = m[1], m[2], m[3]
+    for i in range(n):
+        parent = int(m[HEAD + ROW * i + _PARENT])
+        x = xs + 12 * i
+        vi, ai = vel + 6 * i, acc + 6 * i
+        if parent < 0:
+            for r in range(runs):
+                for k in range(6):
+                    wb[vi + k, r] = 0.0
+                    wb[ai + k, r] = 0.0
+                for c in range(3):
+                    wb[ai + c, r] = -(wb[x + c, r] * g0 + wb[x + 3 + c, r] * g1
+                                      + wb[x + 6 + c, r] * g2)
+        else:
+            _motion_in_block(wb, x, vel + 6 * parent, vi)
+            _motion_in_block(wb, x, acc + 6 * parent, ai)
+        s0, s1, s2, s3, s4, s5 = _subspace_values(m, i)
+        sv = (s0, s1, s2, s3, s4, s5)
+        b = HEAD + ROW * i + _INERTIA
+        mass, hx, hy, hz = m[b], m[b + 3], m[b + 4], m[b + 5]
+        i00, i01, i02 = m[b + 6], m[b + 7], m[b + 8]
+        i10, i11, i12 = m[b + 9], m[b + 10], m[b + 11]
+        i20, i21, i22 = m[b + 12], m[b + 13], m[b + 14]
+        f = frc + 6 * i
+        qdd = 0.0
+        for r in range(runs):
+            qd = v[i, r]
+            for k in range(6):
+                wb[vi + k, r] += sv[k] * qd
+                wb[ai + k, r] += sv[k] * qdd
+            wl0, wl1, wl2 = s0 * qd, s1 * qd, s2 * qd
+            ww0, ww1, ww2 = s3 * qd, s4 * qd, s5 * qd
+            vl0, vl1, vl2 = wb[vi, r], wb[vi + 1, r], wb[vi + 2, r]
+            om0, om1, om2 = wb[vi + 3, r], wb[vi + 4, r], wb[vi + 5, r]
+            a0 = wb[ai, r] + (om1 * wl2 - om2 * wl1 + vl1 * ww2 - vl2 * ww1)
+            a1 = wb[ai + 1, r] + (om2 * wl0 - om0 * wl2 + vl2 * ww0 - vl0 * ww2)
+            a2 = wb[ai + 2, r] + (om0 * wl1 - om1 * wl0 + vl0 * ww1 - vl1 * ww0)
+            a3 = wb[ai + 3, r] + (om1 * ww2 - om2 * ww1)
+            a4 = wb[ai + 4, r] + (om2 * ww0 - om0 * ww2)
+            a5 = wb[ai + 5, r] + (om0 * ww1 - om1 * ww0)
+            wb[ai, r], wb[ai + 1, r], wb[ai + 2, r] = a0, a1, a2
+            wb[ai + 3, r], wb[ai + 4, r], wb[ai + 5, r] = a3, a4, a5
+            # f = I a (:func:`_inertia_times` on the body's inertia)
+            fa0 = mass * a0 - (hy * a5 - hz * a4)
+            fa1 = mass * a1 - (hz * a3 - hx * a5)
+            fa2 = mass * a2 - (hx * a4 - hy * a3)
+            fa3 = i00 * a3 + i01 * a4 + i02 * a5
+            fa4 = i10 * a3 + i11 * a4 + i12 * a5
+            fa5 = i20 * a3 + i21 * a4 + i22 * a5
+            fa3 += hy * a2 - hz * a1
+            fa4 += hz * a0 - hx * a2
+            fa5 += hx * a1 - hy * a0
+            # I v
+            hl0 = mass * vl0 - (hy * om2 - hz * om1)
+            hl1 = mass * vl1 - (hz * om0 - hx * om2)
+            hl2 = mass * vl2 - (hx * om1 - hy * om0)
+            ha0 = i00 * om0 + i01 * om1 + i02 * om2
+            ha1 = i10 * om0 + i11 * om1 + i12 * om2
+            ha2 = i20 * om0 + i21 * om1 + i22 * om2
+            ha0 += hy * vl2 - hz * vl1
+            ha1 += hz * vl0 - hx * vl2
+            ha2 += hx * vl1 - hy * vl0
+            wb[f, r] = fa0 + (om1 * hl2 - om2 * hl1)
+            wb[f + 1, r] = fa1 + (om2 * hl0 - om0 * hl2)
+            wb[f + 2, r] = fa2 + (om0 * hl1 - om1 * hl0)
+            wb[f + 3, r] = fa3 + (om1 * ha2 - om2 * ha1 + vl1 * hl2 - vl2 * hl1)
+            wb[f + 4, r] = fa4 + (om2 * ha0 - om0 * ha2 + vl2 * hl0 - vl0 * hl2)
+            wb[f + 5, r] = fa5 + (om0 * ha1 - om1 * ha0 + vl0 * hl1 - vl1 * hl0)
+    for i in range(n - 1, -1, -1):
+        f = frc + 6 * i
+        s0, s1, s2, s3, s4, s5 = _subspace_values(m, i)
+        for r in range(runs):
+            t = 0.0
+            t += s0 * wb[f, r]
+            t += s1 * wb[f + 1, r]
+            t += s2 * wb[f + 2, r]
+            t += s3 * wb[f + 3, r]
+            t += s4 * wb[f + 4, r]
+            t += s5 * wb[f + 5, r]
+            wb[rhs + i, r] = t
+        parent = int(m[HEAD + ROW * i + _PARENT])
+        if parent >= 0:
+            _force_out_block(wb, xs + 12 * i, f, frc + 6 * parent)
+
+
+@jitable
+def _crba_block(m: np.ndarray, wb: np.ndarray) -> None:
+    """:func:`_crba_pass` for every run: M(q) into the M rows of ``wb``."""
+    n = int(m[0])
+    runs = wb.shape[1]
+    xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _layout(n)
+    for i in range(n):
+        b = HEAD + ROW * i + _INERTIA
+        co = ic + 15 * i
+        for k in range(15):
+            value = m[b + k]
+            for r in range(runs):
+                wb[co + k, r] = value
+        for j in range(n):
+            for r in range(runs):
+                wb[mm + n * i + j, r] = 0.0
+    for i in range(n - 1, -1, -1):
+        parent = int(m[HEAD + ROW * i + _PARENT])
+        if parent >= 0:  # I^c_λ += X_iᵀ I^c_i X_i
+            _inertia_out_block(wb, xs + 12 * i, ic + 15 * i, ic + 15 * parent)
+    for i in range(n):
+        s0, s1, s2, s3, s4, s5 = _subspace_values(m, i)
+        co = ic + 15 * i
+        for r in range(runs):  # F = I^c_i S_i (:func:`_inertia_times`), d = S_iᵀ F
+            mass = wb[co, r]
+            hx, hy, hz = wb[co + 3, r], wb[co + 4, r], wb[co + 5, r]
+            c0 = mass * s0 - (hy * s5 - hz * s4)
+            c1 = mass * s1 - (hz * s3 - hx * s5)
+            c2 = mass * s2 - (hx * s4 - hy * s3)
+            c3 = wb[co + 6, r] * s3 + wb[co + 7, r] * s4 + wb[co + 8, r] * s5
+            c4 = wb[co + 9, r] * s3 + wb[co + 10, r] * s4 + wb[co + 11, r] * s5
+            c5 = wb[co + 12, r] * s3 + wb[co + 13, r] * s4 + wb[co + 14, r] * s5
+            c3 += hy * s2 - hz * s1
+            c4 += hz * s0 - hx * s2
+            c5 += hx * s1 - hy * s0
+            wb[col, r], wb[col + 1, r], wb[col + 2, r] = c0, c1, c2
+            wb[col + 3, r], wb[col + 4, r], wb[col + 5, r] = c3, c4, c5
+            d = 0.0
+            d += s0 * c0
+            d += s1 * c1
+            d += s2 * c2
+            d += s3 * c3
+            d += s4 * c4
+            d += s5 * c5
+            wb[mm + n * i + i, r] = d
+        j = i
+        parent = int(m[HEAD + ROW * j + _PARENT])
+        while parent >= 0:
+            for r in range(runs):
+                for k in range(6):
+                    wb[tmp + 9 + k, r] = 0.0
+            _force_out_block(wb, xs + 12 * j, col, tmp + 9)  # F = X_jᵀ F
+            j = parent
+            t0, t1, t2, t3, t4, t5 = _subspace_values(m, j)
+            for r in range(runs):
+                for k in range(6):
+                    wb[col + k, r] = wb[tmp + 9 + k, r]
+                e = 0.0
+                e += t0 * wb[col, r]
+                e += t1 * wb[col + 1, r]
+                e += t2 * wb[col + 2, r]
+                e += t3 * wb[col + 3, r]
+                e += t4 * wb[col + 4, r]
+                e += t5 * wb[col + 5, r]
+                wb[mm + n * i + j, r] = e
+                wb[mm + n * j + i, r] = e
+            parent = int(m[HEAD + ROW * j + _PARENT])
+
+
+@jitable
+def _cholesky_block(wb: np.ndarray, ao: int, n: int, b: np.ndarray) -> None:
+    """:func:`_cholesky_flat` for every run: M in rows ao … of ``wb``, b (n, runs) solved."""
+    runs = wb.shape[1]
+    for j in range(n):
+        jj = ao + n * j + j
+        for r in range(runs):
+            d = wb[jj, r]
+            for k in range(j):
+                d -= wb[ao + n * j + k, r] * wb[ao + n * j + k, r]
+            wb[jj, r] = math.sqrt(d)
+        for i in range(j + 1, n):
+            ij = ao + n * i + j
+            for r in range(runs):
+                s = wb[ij, r]
+                for k in range(j):
+                    s -= wb[ao + n * i + k, r] * wb[ao + n * j + k, r]
+                wb[ij, r] = s / wb[jj, r]
+    for i in range(n):  # L y = b
+        for r in range(runs):
+            s = b[i, r]
+            for k in range(i):
+                s -= wb[ao + n * i + k, r] * b[k, r]
+            b[i, r] = s / wb[ao + n * i + i, r]
+    for i in range(n - 1, -1, -1):  # Lᵀ x = y
+        for r in range(runs):
+            s = b[i, r]
+            for k in range(i + 1, n):
+                s -= wb[ao + n * k + i, r] * b[k, r]
+            b[i, r] = s / wb[ao + n * i + i, r]
+
+
+@jitable
+def forward_dynamics_block(m: np.ndarray, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
+                           wb: np.ndarray, out: np.ndarray) -> None:
+    """:func:`forward_dynamics` for a block of runs (column r is run r): the same bits.
+
+    Parameters
+    ----------
+    m : ndarray
+        Packed model (:func:`pack_model`).
+    q, v : ndarray, shape (n, runs)
+        Joint positions [rad or m] and velocities [rad/s or m/s] of each run.
+    tau : ndarray, shape (n, runs)
+        Joint torques [N·m] (forces [N] for prismatic joints).
+    wb : ndarray, shape (workspace_size(n), runs)
+        Scratch, overwritten.
+    out : ndarray, shape (n, runs)
+        Output: q̈ [rad/s² or m/s²] of each run (may not be ``tau``).
+    """
+    n = int(m[0])
+    runs = wb.shape[1]
+    xs = _layout(n)[0]
+    for i in range(n):
+        _pose_block(m, i, q, wb, xs + 12 * i)
+    _bias_block(m, v, wb)
+    _crba_block(m, wb)
+    rhs = _layout(n)[8]
+    for i in range(n):
+        for r in range(runs):
+            out[i, r] = tau[i, r] - wb[rhs + i, r]
+    _cholesky_block(wb, _layout(n)[6], n, out)

@@ -30,12 +30,13 @@ from esoarm.plants.rigid_body import (
     bias_offset,
     dynamics_terms,
     forward_dynamics,
+    forward_dynamics_block,
     model_size,
     scratch_offset,
     solve_mass,
     workspace_size,
 )
-from esoarm.plants.urdf_twin import joint_drive, rk4_begin, rk4_stage
+from esoarm.plants.urdf_twin import _B, _DA, _DW, _FC, _VS, joint_drive, rk4_begin, rk4_stage
 
 __all__ = ["ENGINE_TOLERANCE", "NJ", "TWIN", "acceleration", "advance", "advance_block",
            "nominal_offset", "observer_input", "true_offset"]
@@ -137,9 +138,62 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
 
 
 @jitable
+def _drive_block(v: np.ndarray, tau: np.ndarray, tp: np.ndarray, out: np.ndarray) -> None:
+    """:func:`~esoarm.plants.urdf_twin.joint_drive` for every run (arrays (n, runs))."""
+    n, runs = v.shape
+    inv_s = tp[5 * n]
+    for i in range(n):
+        fc, vs, b = tp[_FC * n + i], tp[_VS * n + i], tp[_B * n + i]
+        for r in range(runs):
+            friction = fc * math.tanh(v[i, r] / vs) + b * v[i, r]
+            out[i, r] = (tau[i, r] - friction) * inv_s
+
+
+@jitable
+def _stage_block(stage: int, base: np.ndarray, u: np.ndarray, t: float, h: float,
+                 acc: np.ndarray, tp: np.ndarray, w: np.ndarray) -> None:
+    """:func:`~esoarm.plants.urdf_twin.rk4_stage` for every run: ``base`` (3, n, runs) the
+    step's start (q, q̇, τ), ``w`` (8, n, runs) its workspace rows, ``acc`` (n, runs)."""
+    n, runs = acc.shape
+    lag = tp[tp.shape[0] - 1]
+    weight = 1.0 if stage == 0 or stage == 3 else 2.0
+    coef = h if stage == 2 else 0.5 * h
+    for i in range(n):
+        dist = tp[_DA * n + i] * math.sin(tp[_DW * n + i] * t)  # d(t): the same for every run
+        for r in range(runs):
+            dq = w[1, i, r]
+            dv = acc[i, r] + dist
+            dtau = (u[i, r] - w[2, i, r]) / lag if lag > 0.0 else 0.0
+            w[4, i, r] += weight * dq
+            w[5, i, r] += weight * dv
+            w[6, i, r] += weight * dtau
+            if stage < 3:
+                w[0, i, r] = base[0, i, r] + coef * dq
+                w[1, i, r] = base[1, i, r] + coef * dv
+                w[2, i, r] = base[2, i, r] + coef * dtau
+    if stage == 3:
+        sixth = h / 6.0
+        for i in range(n):
+            for r in range(runs):
+                w[0, i, r] = base[0, i, r] + sixth * w[4, i, r]
+                w[1, i, r] = base[1, i, r] + sixth * w[5, i, r]
+                w[2, i, r] = base[2, i, r] + sixth * w[6, i, r]
+                w[4, i, r] = 0.0
+                w[5, i, r] = 0.0
+                w[6, i, r] = 0.0
+    _drive_block(w[1], w[2] if lag > 0.0 else u, tp, w[3])
+
+
+@jitable
 def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
                   nsub: int, p: np.ndarray) -> None:
     """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``), the same bits.
+
+    The runs are advanced together, runs innermost
+    (:func:`~esoarm.plants.rigid_body.forward_dynamics_block`, then the RK4 stage of
+    :func:`~esoarm.plants.urdf_twin.rk4_stage` for every run): each run takes the
+    operations :func:`advance` takes, in the same order.  A run that is not live
+    is carried as the zero state and not written back.
 
     Parameters
     ----------
@@ -159,12 +213,35 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
         The design vector (see the module docstring), p[0] = CODE.
     """
     n, tp, _, true = _parts(p)
-    w = np.zeros((8, n))
-    ws = np.empty(workspace_size(n))
-    acc = np.empty(n)
-    for i in range(xs.shape[0]):
-        if live[i]:
-            _advance_one(xs[i], us[i], t0, h, nsub, n, tp, true, w, ws, acc)
+    runs = xs.shape[0]
+    base = np.zeros((3, n, runs))  # the state at the start of the RK4 step
+    u = np.zeros((n, runs))
+    for r in range(runs):
+        if live[r]:
+            for i in range(n):
+                base[0, i, r] = xs[r, i]
+                base[1, i, r] = xs[r, n + i]
+                base[2, i, r] = xs[r, 2 * n + i]
+                u[i, r] = us[r, i]
+    w = np.zeros((8, n, runs))
+    wb = np.empty((workspace_size(n), runs))
+    acc = np.empty((n, runs))
+    lag = tp[tp.shape[0] - 1]
+    w[0:3] = base  # rk4_begin
+    _drive_block(base[1], base[2] if lag > 0.0 else u, tp, w[3])
+    for j in range(nsub):
+        t = t0 + j * h
+        for stage in range(4):
+            frac = 0.0 if stage == 0 else (1.0 if stage == 3 else 0.5)
+            forward_dynamics_block(true, w[0], w[1], w[3], wb, acc)
+            _stage_block(stage, base, u, t + frac * h, h, acc, tp, w)
+        base[:] = w[0:3]
+    for r in range(runs):
+        if live[r]:
+            for i in range(n):
+                xs[r, i] = base[0, i, r]
+                xs[r, n + i] = base[1, i, r]
+                xs[r, 2 * n + i] = base[2, i, r]
 
 
 @jitable

@@ -77,24 +77,39 @@ def test_recorded_evidence_is_recomputed():
 
 def test_reach_record_is_recomputed():
     """The recorded lowest/highest of each table value: the shipped twin and the seeded Sobol
-    sample of the plausible box, recomputed here exactly."""
+    sample of every key's plausible range, recomputed here exactly, and the same over the
+    twins that track like the rig (each RMS error within the tracking factor)."""
     import numpy as np
 
-    from esoarm.studies.reproduction.paper_twin import reach, sample_reach
+    from esoarm.studies.reproduction.paper_twin import (
+        SEARCH,
+        TRACKING_FACTOR,
+        reach_record,
+        sample_reach,
+        tracking,
+    )
+    from esoarm.studies.reproduction.run import EPS_SET, PAPER_TABLES
     from esoarm.studies.reproduction.twins import reach_rows, unreached
 
+    assert {"rig.backlash_deg", "actuator.pwm_bits", "sensor.vibration_deg"} <= set(SEARCH)
     values, record = load_twin("paper")
     _resid, twin = paper_residuals(values, tuple(record["seeds"]))
-    sample = sample_reach()
-    low, high = reach([twin, *sample])
-    assert record["reach"]["twins"] == len(sample) + 1 > 40
-    assert np.array_equal(low.ravel(), record["reach"]["low"])
-    assert np.array_equal(high.ravel(), record["reach"]["high"])
+    twins = [twin, *sample_reach()]
+    assert reach_record(twins) == record["reach"]
+    assert record["reach"]["twins"] == len(twins) > 100
+    paper = np.array([PAPER_TABLES[t][e][0] for t in PAPER_TABLES for e in EPS_SET])
+    tracks = tracking(twins)
+    assert record["reach"]["tracking_twins"] == len(tracks) > 5
+    for v in twins:  # the filter, by hand
+        inside = all(1 / TRACKING_FACTOR <= v[0, j] / paper[j] <= TRACKING_FACTOR
+                     for j in range(6))
+        assert inside == any(v is t for t in tracks)
     rows = reach_rows()
     assert len(rows) == 12
     for row, value in zip(rows, twin.ravel(), strict=True):
         assert row["low"] <= value <= row["high"]
-        assert row["reached"] == (row["low"] <= row["published"] <= row["high"])
+        key = "" if row["metric"] == "rms_error" else "tracking_"
+        assert row["reached"] == (row[f"{key}low"] <= row["published"] <= row[f"{key}high"])
     assert unreached() == [r for r in rows if not r["reached"]]
 
 
@@ -160,7 +175,7 @@ def test_paper_twin_page_states_the_computed_numbers():
 
     from esoarm.studies.reproduction.paper_twin import EVIDENCE, MECHANISMS, mechanisms
     from esoarm.studies.reproduction.run import PAPER_TABLES
-    from esoarm.studies.reproduction.twins import EVIDENCE_NAMES, unreached
+    from esoarm.studies.reproduction.twins import EVIDENCE_NAMES, reach_rows, unreached
 
     doc = Path(__file__).resolve().parents[3].joinpath("docs", "paper-twin.md").read_text()
     doc = " ".join(doc.split())  # line breaks inside sentences
@@ -171,10 +186,13 @@ def test_paper_twin_page_states_the_computed_numbers():
     scn = load_scenario("test-1")
     mech = {name: (u1, u2) for name, u1, u2 in mechanisms()}
     none = mech[next(iter(MECHANISMS))]
-    sensing = [n for n in MECHANISMS if any(k.startswith("sensor.") for k in MECHANISMS[n])]
+    sensing = [n for n in MECHANISMS
+               if MECHANISMS[n] and all(k.startswith("sensor.") for k in MECHANISMS[n])]
     nominal_row = "white encoder noise 0.2° (the nominal twin)"
     added = max(max(mech[n][0] - none[0], mech[n][1] - none[1]) for n in sensing[1:])
     coulomb = mech["Coulomb friction 0.45 N·m, breakaway 0.9 N·m"]
+    every = mech[list(MECHANISMS)[-1]]
+    gaps = [r["published"] / r["tracking_high"] for r in reach_rows() if r["metric"] == "rms_u"]
     t2 = PAPER_TABLES["test-2"]
     expected = [
         f"{np.floor(effort_low.min()):.0f}-{np.ceil(effort_low.max()):.0f} times below",
@@ -183,7 +201,13 @@ def test_paper_twin_page_states_the_computed_numbers():
         f"at **{np.mean(np.abs(resid)):.2f}** ({int(np.sum(np.abs(resid) <= math.log(1.3)))} "
         "of the twelve values within 30 %)",
         f"{len(unreached())} of the paper's twelve numbers lie outside what any of the "
-        f"{record['reach']['twins']} plausible twins",
+        f"{record['reach']['tracking_twins']} plausible twins that track like the rig",
+        f"128-point scrambled Sobol sample of all {len(SEARCH)}",
+        f"all six control efforts, {min(gaps):.1f}-{max(gaps):.0f} times above them",
+        f"; {record['reach']['twins']} twins in all",
+        f"range at once (the table's last row) gives {every[0]:.2f} and {every[1]:.2f} N·m",
+        f"track like the rig spend at most {max(record['reach']['tracking_high'][6:]):.2f} N·m",
+        f"RMS errors of up to {max(record['reach']['high'][:6]):.1f} rad",
         f"15 generations: {record['evaluations']} evaluations of the loss",
         f"adds at most {added:.2f} N·m on the measurement side",
         f"of the paper's order ({coulomb[0]:.2f} and {coulomb[1]:.2f} N·m)",

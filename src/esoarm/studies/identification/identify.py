@@ -69,7 +69,7 @@ from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.identification.data import IdentLog, check_supported
 from esoarm.studies.identification.fit import PARAMS, Problem, limits_from_data
-from esoarm.studies.identification.noise_ar import noise_verdict
+from esoarm.studies.identification.noise_ar import SegmentResidual, segment_verdict
 
 __all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
 
@@ -197,6 +197,9 @@ class IdentResult:
             "physical": self.physical(),
             "idim_ls": self.idim or None,
             "noise": ("written: the validation residual is white" if self.noise_is_sensor()
+                      else "written white (sensor.noise_ar = []): the residual's spectrum, with "
+                      "the segments' initial-state fit accounted for, is white sensor noise"
+                      if self.coloured_noise() == []
                       else "written with sensor.noise_ar: the validation residual is coloured "
                       "sensor noise (its AR innovation is white and uncorrelated with the past "
                       "input)" if self.coloured_noise() is not None
@@ -207,10 +210,11 @@ class IdentResult:
         }
 
     def coloured_noise(self) -> list[float] | None:
-        """AR coefficients of the encoder noise when the validation residual is not white but
-        is coloured sensor noise (:mod:`esoarm.studies.identification.noise_ar`), else None."""
+        """AR coefficients of the encoder noise (``[]``: white) when the validation residual
+        fails the plain whiteness test but the residual is sensor noise by its spectrum
+        (:mod:`esoarm.studies.identification.noise_ar`), else None."""
         spec = self.validation.get("noise_spectrum")
-        if self.noise_is_sensor() or not spec or not spec["sensor_noise"] or not spec["order"]:
+        if self.noise_is_sensor() or not spec or not spec["sensor_noise"]:
             return None
         # sensor noise has the same level on the validation logs as on the fit's: a
         # validation residual well above the fit's is the model failing to carry over
@@ -302,6 +306,8 @@ class IdentResult:
         coloured = self.coloured_noise()
         if coloured is not None:
             over[NOISE_AR_KEY] = coloured
+        elif self.noise_is_sensor():
+            over[NOISE_AR_KEY] = []  # the residual is white: so is the encoder's noise
         for key, est in self.estimates.items():
             if key == NOISE_KEY and not self.noise_is_sensor() and coloured is None:
                 continue  # model error, not sensor noise: the scenario's noise stays
@@ -523,6 +529,32 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
             "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m", PARAMS["rig.stiction"][0],
             True, True, "")
     val = _validate(scn, prob.phys(sol.x), val_logs, seg_samples, d_best, start) if val_logs else {}
+    if val:
+        # the residual's spectrum from the fit's and the validation's segments together, the
+        # part of it each segment's initial-state fit removed accounted for
+        segs = _segment_residuals(prob, sol) + val.pop("_segments")
+        q = math.radians(scn.sensor.resolution_deg)
+        verdict = segment_verdict(segs, q * q / 12.0)
+        val["noise_spectrum"] = verdict.to_dict()
+        if verdict.is_sensor_noise and \
+                val["residual_rms_rad"] <= NOISE_CARRY_OVER * resid_s and not \
+                val["whiteness"]["white"]:
+            f = verdict.fit
+            # coloured noise: the intervals of the rig parameters from the sandwich
+            # (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹ with Σ the AR noise's covariance on each segment (the
+            # white-noise intervals would be too narrow by up to √((1 + φ)/(1 − φ)))
+            estimates, gravity, _s = _estimates(scn, prob, sol, m, cost, d_best, delays,
+                                                lag_rejected, _sandwich(prob, sol, f))
+            if stiction_rejected is not None:
+                estimates["rig.stiction"] = Estimate(
+                    "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m",
+                    PARAMS["rig.stiction"][0], True, True, "")
+            val["noise_spectrum"]["parameter_intervals"] = (
+                "with the AR noise's covariance: (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹")
+            estimates[NOISE_KEY] = Estimate(
+                NOISE_KEY, math.degrees(f.std), (math.degrees(f.std_ci[0]),
+                                                 math.degrees(f.std_ci[1])), "deg",
+                "encoder noise σ (stationary std of the AR noise, quantization apart)")
     y_fit = prob.predict(sol.x)
     mask = prob.mask
     fit_pct = _fit_percent(prob.y[mask], y_fit[mask])
@@ -651,12 +683,15 @@ def _fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:
     return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / np.linalg.norm(y - np.mean(y))))
 
 
-def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected):  # type: ignore[no-untyped-def]
+def _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected,  # type: ignore[no-untyped-def]
+               cov=None):
+    """The estimates with 95 % intervals from ``cov`` (default σ̂² (JᵀJ)⁻¹: white noise)."""
     jac = sol.jac
     p = jac.shape[1]
     dof = max(m - p, 1)
     s2 = 2.0 * sol.cost / dof
-    cov = s2 * np.linalg.pinv(jac.T @ jac)
+    if cov is None:
+        cov = s2 * np.linalg.pinv(jac.T @ jac)
     se = np.sqrt(np.maximum(np.diag(cov)[: prob.n_phys], 0.0))
     corr = cov[: prob.n_phys, : prob.n_phys] / np.maximum(np.outer(se, se), 1e-300)
     lower, upper = prob.bounds()
@@ -742,9 +777,42 @@ def _validate(scn, values, logs, seg_samples, delay, start):  # type: ignore[no-
     outside = int(np.sum(np.abs(rho) > band))
     return {"fit_percent": _fit_percent(prob.y[mask], yhat[mask]),
             "residual_rms_rad": float(np.sqrt(np.mean(r**2))), "samples": m,
-            # the residual's spectrum as an AR model, and whether it is (coloured) sensor noise
-            "noise_spectrum": noise_verdict(r, prob.base[mask]).to_dict(),
+            "_segments": _segment_residuals(prob, sol),
             "whiteness": {"lags": len(lags), "band": band, "outside": outside,
                           "max_abs_autocorrelation": float(np.max(np.abs(rho))),
                           "white": outside <= 2},
             "_curves": (prob.t, prob.y, np.where(mask, yhat, np.nan), lags, rho, band)}
+
+
+def _segment_residuals(prob: Problem, sol) -> list[SegmentResidual]:  # type: ignore[no-untyped-def]
+    """Each segment's residual y − ŷ, the prediction's sensitivities to its initial angle and
+    rate (the columns of the Jacobian the fit used), the input, and the sample indices."""
+    jac = sol.jac
+    pos = np.cumsum(prob.mask) - 1  # row of each log sample in the masked arrays
+    resid = -sol.fun
+    out = []
+    for s, (k0, n) in enumerate(zip(prob.seg_start, prob.seg_len, strict=True)):
+        rows = np.arange(k0, k0 + n)
+        rows = rows[prob.mask[rows]]
+        if len(rows) < 3:
+            continue
+        at = pos[rows]
+        cols = slice(prob.n_phys + 2 * s, prob.n_phys + 2 * s + 2)
+        out.append(SegmentResidual(resid[at], jac[at][:, cols], prob.base[rows], rows - k0))
+    return out
+
+
+def _sandwich(prob: Problem, sol, noise) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Covariance of the least-squares estimate under correlated noise [parameter units²]:
+    (JᵀJ)⁻¹ (Σ_s J_sᵀ Σ_s J_s) (JᵀJ)⁻¹, with Σ_s the noise model's covariance
+    (:meth:`esoarm.studies.identification.noise_ar.RemlFit.covariance`) on segment s."""
+    jac = sol.jac
+    a_inv = np.linalg.pinv(jac.T @ jac)
+    pos = np.cumsum(prob.mask) - 1
+    b = np.zeros_like(a_inv)
+    for k0, n in zip(prob.seg_start, prob.seg_len, strict=True):
+        rows = np.arange(k0, k0 + n)
+        rows = rows[prob.mask[rows]]
+        js = jac[pos[rows]]
+        b += js.T @ noise.covariance(rows - k0) @ js
+    return a_inv @ b @ a_inv

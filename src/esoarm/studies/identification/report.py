@@ -77,16 +77,23 @@ def result_text(res: IdentResult) -> str:
                      f"{verdict}")
         spec = v.get("noise_spectrum")
         if spec:
-            what = ("sensor noise, written to the fitted scenario" if res.coloured_noise()
+            coloured = res.coloured_noise()
+            what = ("sensor noise (white), written to the fitted scenario" if coloured == []
+                    else "sensor noise, written to the fitted scenario" if coloured
                     else "sensor noise (white)" if w["white"]
                     else "model error: the validation residual is well above the fit's"
-                    if spec["sensor_noise"] and spec["order"]
+                    if spec["sensor_noise"]
                     else spec["meaning"])
-            lines.append(f"residual spectrum: AR({spec['order']}) "
-                         f"{[round(c, 4) for c in spec['noise_ar']]} by AIC, innovation "
-                         f"{spec['innovation_autocorrelation_outside']} and input cross-"
-                         f"correlation {spec['input_cross_correlation_outside']} of "
-                         f"{spec['lags']} lags outside the band: {what}")
+            cis = spec.get("noise_ar_ci95", [])
+            coef = ", ".join(f"{c:.3f} [{lo:.3f}, {hi:.3f}]" for c, (lo, hi)
+                             in zip(spec["noise_ar"], cis, strict=False)) or "white"
+            lines.append(f"residual spectrum (fit and validation segments): AR({spec['order']}) "
+                         f"by AIC, φ = {coef} (95 %), σ = {spec.get('noise_std_deg', 0.0):.3g}° "
+                         f"[{', '.join(f'{v:.3g}' for v in spec.get('noise_std_ci95_deg', []))}]; "
+                         f"innovation whiteness χ² {spec['innovation_autocorrelation_chi2']:.3g} "
+                         f"(95 %: {spec['innovation_chi2_95']:.3g}), past-input χ² "
+                         f"{spec['input_cross_correlation_chi2']:.3g} (95 %: "
+                         f"{spec['chi2_95']:.3g}): {what}")
     else:
         lines.append("validation: none (--validate-fraction 0 and a single log)")
     return "\n".join(lines)
