@@ -23,7 +23,7 @@ import importlib.util
 import pickle
 import sys
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import TypeVar
 
 F = TypeVar("F", bound=Callable[..., object])
 
@@ -46,10 +46,6 @@ def _noop_like(func: Callable[..., object]) -> Callable[..., object]:
     return noop  # type: ignore[return-value]
 
 
-#: numba's options for the compiled copies of the physics: called only from kernels.
-_LINK_ONLY: dict[str, Any] = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
-
-
 def _register(func: Callable[..., object], compiled: Callable[..., object] | None,
               array_arg: int | None = None) -> None:
     try:
@@ -58,9 +54,7 @@ def _register(func: Callable[..., object], compiled: Callable[..., object] | Non
     except ImportError:  # pragma: no cover - the reference engine needs no numba
         return
     if compiled is None:
-        # returns func itself: the interpreter keeps calling it (numba's compiled copy needs
-        # no wrapper for the interpreter; see _link_only_physics)
-        register_jitable(**_LINK_ONLY)(func)
+        register_jitable(func)  # returns func itself: the interpreter keeps calling it
     else:
         noop = _noop_like(func) if array_arg is not None else None
 
@@ -70,7 +64,7 @@ def _register(func: Callable[..., object], compiled: Callable[..., object] | Non
                 return noop
             return compiled
 
-        overload(func, jit_options=_LINK_ONLY)(typer)  # type: ignore[arg-type]
+        overload(func)(typer)
 
 
 def jitable(func: F) -> F:
@@ -129,7 +123,6 @@ def register_all() -> None:
         _tolerate_cache_write_errors()
         _inline_physics()
         _defer_blas_probe()
-        _link_only_physics()
     _registered = True
     while _pending:
         _register(*_pending.pop(0))
@@ -187,80 +180,6 @@ def _defer_blas_probe() -> None:
             raise ImportError("scipy 0.16+ is required for linear algebra")
 
     linalg.ensure_blas = ensure_blas
-
-
-def _link_only_physics() -> None:
-    """Compile the physics functions for linking into the kernels only: no machine code.
-
-    numba compiles every function a kernel calls as a library of its own, links
-    it into its callers and, as for a kernel, turns it into machine code for the
-    interpreter to call (each library with everything it calls linked in, so
-    the sample loop's functions were translated again at every level of calls:
-    4.6 s of the 22 s of CPU a first compile of :func:`esoarm.engines.batch._run`
-    takes, load 3).  The interpreter never calls these compiled copies: a
-    :func:`jitable` function stays the plain Python function there, and numba
-    compiles them without a wrapper for the interpreter (:data:`_LINK_ONLY`).
-    So a library without that wrapper is optimized and linked into its callers
-    as before, but not handed to the code generator unless its address is
-    asked for; the kernels' machine code, and so every number, is unchanged.
-    (An ``njit`` of a jitable function, called from the interpreter, has the
-    wrapper and is compiled as usual.)  Falls back to numba's own behaviour if
-    its (internal) layout is not the expected one.
-    """
-    try:
-        from numba.core import codegen, cpu
-    except ImportError:  # pragma: no cover - the reference engine needs no numba
-        return
-    context = getattr(cpu, "CPUContext", None)
-    library = getattr(codegen, "CPUCodeLibrary", None)
-    jit_library = getattr(codegen, "JITCodeLibrary", None)
-    get_executable = getattr(context, "get_executable", None)
-    finalize_module = getattr(library, "_finalize_final_module", None)
-    get_pointer = getattr(jit_library, "get_pointer_to_function", None)
-    if (get_executable is None or finalize_module is None or get_pointer is None
-            or not hasattr(jit_library, "_finalize_specific")
-            or not all(hasattr(library, n) for n in ("_finalize_dynamic_globals",
-                                                     "_verify_declare_only_symbols"))
-            or getattr(get_executable, "_esoarm_link_only", False)):
-        return  # pragma: no cover - numba's layout changed, or already done
-    try:
-        from numba import _dynfunc  # type: ignore[attr-defined]
-    except ImportError:  # pragma: no cover
-        return
-
-    def executable(self, lib, fndesc, env):  # type: ignore[no-untyped-def]
-        try:  # compiled without a wrapper for the interpreter (_LINK_ONLY)?
-            lib._final_module.get_function(fndesc.llvm_cpython_wrapper_name)
-        except (NameError, AttributeError):
-            pass
-        else:  # the interpreter may call it (an njit of a jitable function): as numba does
-            return get_executable(self, lib, fndesc, env)
-        lib._esoarm_link_only = True
-        # the interpreter cannot call it (no wrapper): no address needed
-        return _dynfunc.make_function(fndesc.lookup_module(), fndesc.qualname.split(".")[-1],
-                                      f"link-only {fndesc.qualname!r}", 0, env, (lib,))
-
-    def finalize(self):  # type: ignore[no-untyped-def]
-        if not getattr(self, "_esoarm_link_only", False):
-            return finalize_module(self)
-        self._finalize_dynamic_globals()
-        self._verify_declare_only_symbols()
-        self._finalized = True
-        self._esoarm_link_only = "pending"  # machine code made if an address is asked for
-        return None
-
-    def pointer(self, name):  # type: ignore[no-untyped-def]
-        self._ensure_finalized()
-        if getattr(self, "_esoarm_link_only", False) == "pending":
-            self._esoarm_link_only = "built"
-            self._codegen._add_module(self._final_module)
-            self._finalize_specific()
-        return get_pointer(self, name)
-
-    executable._esoarm_link_only = True  # type: ignore[attr-defined]
-    context.get_executable = executable  # type: ignore[union-attr]
-    library._finalize_final_module = finalize  # type: ignore[union-attr]
-    jit_library.get_pointer_to_function = pointer  # type: ignore[union-attr]
 
 
 def _tolerate_cache_write_errors() -> None:
