@@ -60,10 +60,15 @@ THETA0_LIMIT = 2 * math.pi
               help="Recommend an observer kind and ε for this disturbance-rejection bandwidth "
               "(−3 dB of the perturbation estimate f → ẑ3) [rad/s]: the ε of each kind "
               "(linear, cascade) that reaches it, ranked by the noise budget's RMS Δu.")
+@click.option("--tracking", is_flag=True,
+              help="With --bandwidth: match the tracking instead: each kind at the largest ε "
+              "whose measured RMS error (the twin, seeds 0-3) is at most the linear ESO's at "
+              "bandwidth W, ranked by the noise budget's RMS Δu (what a sweep optimizes; "
+              "runs about 50 simulations).")
 @bad_input_guard
 def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
             max_points: int, theta0: float | None, friction: str, plot: str | None,
-            as_json: bool, target_bw: float | None) -> None:
+            as_json: bool, target_bw: float | None, tracking: bool) -> None:
     """Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.
 
     The rig is linearized at the operating angle θ0 (gravity becomes a spring,
@@ -94,6 +99,9 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
                        "repeats every turn)")
     if target_bw is not None and not (math.isfinite(target_bw) and target_bw > 0):
         raise BadInput(f"--bandwidth {target_bw:g}: must be a positive frequency [rad/s]")
+    if tracking and target_bw is None:
+        raise BadInput("--tracking: needs --bandwidth W (the linear ESO's bandwidth whose "
+                       "tracking is matched)")
     if max_points < 1:
         raise BadInput(f"--max-points {max_points}: must be a whole number >= 1")
     if vary is not None:
@@ -107,14 +115,17 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
 
             figure_frequency(res, plot_path)
         budget = _noise_budget(scn, theta0, friction)
-        recs = _recommend(scn, target_bw)
+        recs = _recommend_tracking(scn, target_bw) if tracking else _recommend(scn, target_bw)
         if as_json:
             extra = {} if recs is None else {"recommendation": recs}
             click.echo(json.dumps({**res.to_dict(), "noise_budget": budget, **extra}))
         else:
             _print_one(res)
             _print_budget(budget)
-            _print_recommendation(target_bw, recs)
+            if tracking:
+                _print_tracking(target_bw, recs)
+            else:
+                _print_recommendation(target_bw, recs)
             if plot_path is not None:
                 click.echo(f"figure: {plot_path}")
         return
@@ -290,6 +301,37 @@ def _recommend(scn: Any, target_bw: float | None) -> list[dict[str, Any]] | None
     return [{"kind": r.kind, "eps": r.eps, "bandwidth": r.bandwidth,
              "disturbance_peak": r.disturbance_peak, **r.budget.to_dict()}
             for r in recommend_eps(scn, target_bw)]
+
+
+def _recommend_tracking(scn: Any, target_bw: float | None) -> list[dict[str, Any]] | None:
+    if target_bw is None:
+        return None
+    from esoarm.studies.frequency.sweep_check import match_tracking
+
+    if scn.plant.kind != "lever-arm" or getattr(scn, "motor", None) is not None:
+        return []
+    try:
+        bound, matches = match_tracking(scn, target_bw)
+    except ValueError:
+        return []
+    return [{"kind": m.kind, "eps": m.eps, "rms_error_bound": bound,
+             "rms_error": m.measured.rms_error, "rms_du_measured": m.measured.rms_du,
+             "rms_du": m.budget_du} for m in matches]
+
+
+def _print_tracking(target_bw: float | None, recs: list[dict[str, Any]] | None) -> None:
+    if not recs:
+        _print_recommendation(target_bw, recs)
+        return
+    best = recs[0]
+    click.echo(f"at the tracking of the linear ESO at bandwidth {target_bw:g} rad/s (RMS error "
+               f"{best['rms_error_bound']:.3g} rad, measured, seeds 0-3): "
+               f"observer.kind={best['kind']} observer.eps={best['eps']:.4g} has the least "
+               f"chatter (budget RMS Δu {best['rms_du']:.3g} N·m, measured "
+               f"{best['rms_du_measured']:.3g} N·m; RMS error {best['rms_error']:.3g} rad)")
+    for r in recs[1:]:
+        click.echo(f"  else observer.kind={r['kind']} observer.eps={r['eps']:.4g}: budget RMS Δu "
+                   f"{r['rms_du']:.3g} N·m, RMS error {r['rms_error']:.3g} rad")
 
 
 def _print_recommendation(target_bw: float | None, recs: list[dict[str, Any]] | None) -> None:

@@ -144,3 +144,9 @@ def test_recommended_eps_reaches_the_bandwidth_and_ranks_by_chatter() -> None:
                               "observer.eps": r.eps}, warn=False).metrics["rms_du"] for r in recs]
     assert du[0] < du[1]
     assert recs[0].budget.rms_du < recs[1].budget.rms_du
+
+
+def test_tracking_needs_a_bandwidth() -> None:
+    res = CliRunner().invoke(cli, ["analyze", "test-1", "--tracking"])
+    assert res.exit_code == 2
+    assert "--tracking: needs --bandwidth" in res.output and "Traceback" not in res.output

@@ -26,7 +26,8 @@ import numpy as np
 from esoarm.scenario import Scenario
 from esoarm.studies.frequency.noise import Recommendation, recommend_eps
 
-__all__ = ["DOC_GRID", "Measured", "SweepCheck", "check_recommendation", "sweep_optimum"]
+__all__ = ["DOC_GRID", "Measured", "SweepCheck", "TrackingMatch", "check_recommendation",
+           "match_tracking", "sweep_optimum"]
 
 
 @dataclass(frozen=True)
@@ -152,24 +153,132 @@ def check_recommendation(scn: Scenario, bandwidth: float, eps_grid: Sequence[flo
                       sweep_optimum(grid, at_lin.rms_error))
 
 
+@dataclass(frozen=True)
+class TrackingMatch:
+    """One kind's ε at the tracking error of the linear ESO at bandwidth W (measured).
+
+    Attributes
+    ----------
+    kind : str
+        Observer kind.
+    eps : float
+        The largest ε [s] whose measured RMS error (seed mean) is at most the bound.
+    measured : Measured
+        That point, measured.
+    budget_du : float
+        The noise budget's RMS Δu at that ε [N·m] (the ranking).
+    """
+
+    kind: str
+    eps: float
+    measured: Measured
+    budget_du: float
+
+
+#: Search grid of :func:`match_tracking`: ε_lin(W) × these factors.
+MATCH_FACTORS = tuple(float(f) for f in np.geomspace(0.6, 1.6, 11))
+
+
+def match_tracking(scn: Scenario, bandwidth: float,
+                   kinds: tuple[str, ...] = ("linear", "cascade"),
+                   seeds: Sequence[int] = (0, 1, 2, 3)) -> tuple[float, list[TrackingMatch]]:
+    """``analyze --bandwidth W --tracking``: each kind at the linear ESO's tracking, ranked.
+
+    The bound is the measured RMS tracking error (seed mean, compiled engine) of the linear
+    ESO at the ε whose f → ẑ3 bandwidth is W, ε_lin.  For every other kind, the ε grid
+    ε_lin × :data:`MATCH_FACTORS` is measured; its crossing of the bound is interpolated in
+    log ε between the last grid point within the bound and the next, measured again, and
+    kept if within the bound (else that grid point).  A kind none of whose points tracks
+    as well is left out.  The result is sorted by the noise budget's RMS Δu (the first is
+    the recommendation: the least chatter at the tracking bandwidth W buys).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario with its noise model.
+    bandwidth : float
+        Target f → ẑ3 bandwidth W [rad/s] of the linear ESO.
+    kinds : tuple of str
+        Observer kinds compared (``"linear"`` among them).
+    seeds : sequence of int
+        Noise seeds of each measurement.
+
+    Returns
+    -------
+    (float, list of TrackingMatch)
+        The bound [rad] and the kinds that meet it, least budget RMS Δu first.
+
+    Raises
+    ------
+    ValueError
+        The linear ESO does not reach the bandwidth.
+    """
+    from esoarm.studies.frequency.noise import noise_budget
+
+    linear = [r for r in recommend_eps(scn, bandwidth, ("linear",))]
+    if not linear:
+        raise ValueError(f"bandwidth {bandwidth:g} rad/s: not reached by the linear ESO")
+    eps_lin = linear[0].eps
+    others = [k for k in kinds if k != "linear"]
+    cells = [("linear", eps_lin)] + [(k, eps_lin * f) for k in others for f in MATCH_FACTORS]
+    measured = _measure(scn, cells, seeds)
+    at_lin, bound = measured[0], measured[0].rms_error
+    out = [TrackingMatch("linear", eps_lin, at_lin, linear[0].budget.rms_du)]
+    for i, kind in enumerate(others):
+        row = measured[1 + i * len(MATCH_FACTORS):1 + (i + 1) * len(MATCH_FACTORS)]
+        ok = [j for j, m in enumerate(row) if m.rms_error <= bound]
+        if not ok:
+            continue
+        j = max(ok)
+        best = row[j]
+        if j + 1 < len(row):  # the crossing, in log ε, measured
+            a, b = row[j], row[j + 1]
+            t = (bound - a.rms_error) / (b.rms_error - a.rms_error)
+            eps = float(np.exp(np.log(a.eps) + t * (np.log(b.eps) - np.log(a.eps))))
+            m = _measure(scn, [(kind, eps)], seeds)[0]
+            if m.rms_error <= bound:
+                best = m
+        point = scn.with_overrides({"observer.kind": kind, "observer.eps": best.eps})
+        out.append(TrackingMatch(kind, best.eps, best, noise_budget(point).rms_du))
+    return bound, sorted(out, key=lambda r: r.budget_du)
+
+
 #: The ε grid [s] of the documented check: ``--vary observer.eps=geom:0.02:0.3:25``.
 DOC_GRID = tuple(float(e) for e in np.geomspace(0.02, 0.3, 25))
 
 
 def main(argv: Sequence[str] | None = None) -> None:  # pragma: no cover - thin wrapper
-    """``python -m esoarm.studies.frequency.sweep_check SCENARIO W [KEY=VALUE ...]``.
+    """``python -m esoarm.studies.frequency.sweep_check SCENARIO W [KEY=VALUE ...] [--tracking]``.
 
-    Prints the recommendation for bandwidth W [rad/s], its measurement, and the sweep
-    optimum over :data:`DOC_GRID` × (linear, cascade), seeds 0-3.
+    Prints the recommendation for bandwidth W [rad/s] (with ``--tracking``: that of
+    :func:`match_tracking`), its measurement, and the sweep optimum over :data:`DOC_GRID` ×
+    (linear, cascade), seeds 0-3.
     """
     import sys
 
     from esoarm.scenario import load_scenario
 
     args = list(sys.argv[1:] if argv is None else argv)
+    tracking = "--tracking" in args
+    args = [a for a in args if a != "--tracking"]
     if len(args) < 2:
         sys.exit("usage: python -m esoarm.studies.frequency.sweep_check SCENARIO W "
-                 "[KEY=VALUE ...]")
+                 "[KEY=VALUE ...] [--tracking]")
+    if tracking:
+        scn = load_scenario(args[0], args[2:])
+        bound, matches = match_tracking(scn, float(args[1]))
+        grid = _measure(scn, [(k, e) for k in ("linear", "cascade") for e in DOC_GRID],
+                        (0, 1, 2, 3))
+        best = sweep_optimum(grid, bound)
+        for m in matches:
+            print(f"tracking match: {m.kind} eps={m.eps:.4g} s, budget RMS du {m.budget_du:.4g} "
+                  f"N·m, measured RMS du {m.measured.rms_du:.4g} N·m, RMS error "
+                  f"{m.measured.rms_error:.4g} rad (bound {bound:.4g} rad)")
+        if best is not None:
+            print(f"sweep optimum: {best.kind} eps={best.eps:.4g} s, RMS du {best.rms_du:.4g} "
+                  f"N·m, RMS error {best.rms_error:.4g} rad; recommended/optimum eps "
+                  f"{matches[0].eps / best.eps:.3g}")
+        return
     check = check_recommendation(load_scenario(args[0], args[2:]), float(args[1]), DOC_GRID)
     rec, at, opt = check.recommended, check.at_recommended, check.optimum
     print(f"recommended: {rec.kind} eps={rec.eps:.4g} s (budget RMS du {rec.budget.rms_du:.4g}"

@@ -46,6 +46,10 @@ CHI2_95_LAGS = 31.410432844230918
 MAX_ORDER = 10
 #: :func:`reml_ar` stops raising the order once BIC has not improved for this many orders.
 STOP_AFTER = 2
+#: Sensor noise: the AR model's stationary RMS is at most this many times the residual's
+#: (the segments' initial-state fit removes a few per cent of an AR(1) 0.7's variance; a
+#: model whose power is mostly slower than a segment is not identified by the log).
+SLOW_POWER_MAX = 1.5
 #: Largest order :func:`reml_ar` tries by default (each order costs an optimization of the
 #: restricted likelihood; a residual that needs more is not called sensor noise).
 REML_MAX_ORDER = 6
@@ -719,8 +723,9 @@ def segment_verdict(segments: list[SegmentResidual], quant_var: float = 0.0,
     its covariance) with the segments' fitted directions projected out; under the model
     they are white with a known covariance (the projection), whose mean autocorrelation
     is subtracted.  Sensor noise: the portmanteau Σ z_h² of their autocorrelation is below
-    the χ² 95 % quantile with :data:`LAGS` − p degrees of freedom, and Σ c_τ² of their
-    correlation with the past input below that with :data:`LAGS`.
+    the χ² 95 % quantile with :data:`LAGS` − p degrees of freedom, Σ c_τ² of their
+    correlation with the past input below that with :data:`LAGS`, and the model's RMS at
+    most :data:`SLOW_POWER_MAX` times the residual's.
 
     Parameters
     ----------
@@ -745,13 +750,20 @@ def segment_verdict(segments: list[SegmentResidual], quant_var: float = 0.0,
     wz, wout = _whiteness_statistic(parts, LAGS)
     ic, iout = _input_statistic(parts, inputs, LAGS)
     wq, iq = float(np.sum(wz**2)), float(np.sum(ic**2))
-    ok = wq < chi2_95(LAGS - fit.order) and iq < CHI2_95_LAGS
+    rms = lik.scale
+    visible = fit.std <= SLOW_POWER_MAX * rms
+    ok = wq < chi2_95(LAGS - fit.order) and iq < CHI2_95_LAGS and visible
     notes = [f"AR order {fit.order} by BIC of the restricted likelihood (0 … "
              f"{len(fit.bic) - 1})",
              f"innovation autocorrelation: Σz² = {wq:.3g} (χ²_{LAGS - fit.order} 95 %: "
              f"{chi2_95(LAGS - fit.order):.4g}), {wout} of {LAGS} lags outside ±1.96",
              f"innovation vs past input: Σc² = {iq:.3g} (χ²_{LAGS} 95 %: {CHI2_95_LAGS:.4g}), "
              f"{iout} of {LAGS} lags outside ±1.96"]
+    if not visible:
+        notes.append(f"the AR model's RMS {math.degrees(fit.std):.3g}° is more than "
+                     f"{SLOW_POWER_MAX:g}× the residual's {math.degrees(rms):.3g}°: most of its "
+                     "power would be slower than a segment, where the log cannot tell it from "
+                     "the model's drift")
     if ok and fit.order > 0:
         notes.append("an input-independent disturbance missing from the model would look the "
                      "same (the tests cannot tell it from coloured encoder noise)")

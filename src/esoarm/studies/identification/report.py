@@ -67,8 +67,9 @@ def result_text(res: IdentResult) -> str:
     v = res.validation
     if v:
         w = v["whiteness"]
-        verdict = "white" if w["white"] else "NOT white (model error or colored noise: the " \
-            "intervals are too optimistic)"
+        verdict = "white" if w["white"] else "NOT white: sensor noise by its spectrum below " \
+            "(the intervals are from its covariance)" if res.coloured_noise() is not None \
+            else "NOT white (model error or colored noise: the intervals are too optimistic)"
         lines.append(f"validation on {', '.join(res.validation_logs)} (not used for fitting): "
                      f"fit {v['fit_percent']:.2f} %, residual RMS {v['residual_rms_rad']:.3g} "
                      f"rad")
@@ -88,7 +89,7 @@ def result_text(res: IdentResult) -> str:
             coef = ", ".join(f"{c:.3f} [{lo:.3f}, {hi:.3f}]" for c, (lo, hi)
                              in zip(spec["noise_ar"], cis, strict=False)) or "white"
             lines.append(f"residual spectrum (fit and validation segments): AR({spec['order']}) "
-                         f"by AIC, φ = {coef} (95 %), σ = {spec.get('noise_std_deg', 0.0):.3g}° "
+                         f"by BIC, φ = {coef} (95 %), σ = {spec.get('noise_std_deg', 0.0):.3g}° "
                          f"[{', '.join(f'{v:.3g}' for v in spec.get('noise_std_ci95_deg', []))}]; "
                          f"innovation whiteness χ² {spec['innovation_autocorrelation_chi2']:.3g} "
                          f"(95 %: {spec['innovation_chi2_95']:.3g}), past-input χ² "
