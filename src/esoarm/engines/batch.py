@@ -48,10 +48,13 @@ from typing import Any
 
 import numba
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic, overload
 
 from esoarm import _jit
 from esoarm import kinds as _kinds
+from esoarm.engines import loop as _loop
 from esoarm.engines.loop import closed_loop, closed_loop_block
 from esoarm.engines.metrics import (
     METRICS,
@@ -89,6 +92,42 @@ from esoarm.result import SimResult
 from esoarm.scenario import Scenario
 
 _jit.register_all()  # the physics above becomes callable from the kernels below
+
+
+@intrinsic
+def _unreferenced(typingctx: Any, a: Any) -> Any:  # pragma: no cover - compiled
+    """The array ``a`` without its memory's reference count (a NULL meminfo): handing it on,
+    or taking views of it, then costs no atomic operation.  The memory stays ``a``'s owner's."""
+    if not isinstance(a, types.Array):
+        return None
+
+    def codegen(context: Any, builder: Any, sig: Any, args: Any) -> Any:
+        src = context.make_array(sig.args[0])(context, builder, value=args[0])
+        out = context.make_array(sig.return_type)(context, builder)
+        out.meminfo = cgutils.get_null_value(out.meminfo.type)  # type: ignore[no-untyped-call]
+        out.parent = cgutils.get_null_value(out.parent.type)  # type: ignore[no-untyped-call]
+        out.nitems = src.nitems
+        out.itemsize = src.itemsize
+        out.data = src.data
+        out.shape = src.shape
+        out.strides = src.strides
+        return out._getvalue()
+
+    return a(a), codegen
+
+
+@overload(_loop.borrowed)
+def _borrowed_compiled(a):  # pragma: no cover - compiled
+    """:func:`esoarm.engines.loop.borrowed` in the kernels: arrays unreferenced, else as is."""
+    if isinstance(a, types.Array):
+        return lambda a: _unreferenced(a)  # type: ignore[call-arg]
+    return lambda a: a
+
+
+@overload(_loop.keep_alive)
+def _keep_alive_compiled(owner):  # pragma: no cover - compiled
+    """:func:`esoarm.engines.loop.keep_alive` in the kernels: a use of ``owner``, no code."""
+    return lambda owner: None
 
 __all__ = [
     "METRICS",

@@ -17,6 +17,8 @@ A run ends early, as diverged, when a joint's |θ| or |ẑ1| exceeds
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from esoarm._jit import jitable
@@ -25,18 +27,72 @@ from esoarm.engines.sample import (
     Designs,
     Sampling,
     Steps,
-    Work,
-    advance_plant,
-    command,
+    advance_plant_into,
+    command_into,
     log_sample,
     new_work,
-    respond,
-    sense,
-    start,
+    respond_into,
+    sense_into,
+    start_into,
     within_limits,
 )
 
-__all__ = ["DIVERGENCE_LIMIT", "closed_loop", "closed_loop_block", "log_sample", "within_limits"]
+__all__ = ["DIVERGENCE_LIMIT", "borrowed", "borrowed_designs", "closed_loop", "closed_loop_block",
+           "keep_alive", "log_sample", "within_limits"]
+
+
+def borrowed(a: Any) -> Any:
+    """``a`` itself; compiled, an array that holds no reference to its memory.
+
+    Compiled (numba), every function an array reaches takes a reference on its memory
+    on entry and drops it on exit -- an atomic increment and decrement -- and so does
+    every view ``a[i]``; in the sample loops that came to 56-76 of each per run and sample,
+    a quarter of the compiled engine's time.  The batch engine
+    (:mod:`esoarm.engines.batch`) compiles this function to a copy of the array
+    without its reference count (no atomic operations follow it).  Its memory must stay
+    owned elsewhere for as long as the copy is used: by the caller for an argument, by
+    a variable kept alive (:func:`keep_alive`) for an array the loop allocates.  Other
+    values (tuples, numbers) pass unchanged.
+
+    Parameters
+    ----------
+    a : ndarray or any
+        The array (or value).
+
+    Returns
+    -------
+    ndarray or any
+        ``a`` (compiled: the same array, holding no reference).
+    """
+    return a
+
+
+def keep_alive(owner: Any) -> None:
+    """Nothing; a use of ``owner`` that keeps its arrays alive up to this point when compiled.
+
+    Parameters
+    ----------
+    owner : any
+        The arrays (or a tuple of them) whose :func:`borrowed` copies were used before.
+    """
+
+
+@jitable
+def borrowed_designs(d: Designs) -> Designs:
+    """``d`` with its arrays :func:`borrowed` (the caller owns them).
+
+    Parameters
+    ----------
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+
+    Returns
+    -------
+    Designs
+        The same vectors; compiled, the arrays among them hold no reference.
+    """
+    return Designs(borrowed(d.b0), borrowed(d.plant), borrowed(d.observer),
+                   borrowed(d.controller), borrowed(d.actuator), d.n_observer, d.n_controller)
 
 
 @jitable
@@ -68,15 +124,26 @@ def closed_loop(log: np.ndarray, x: np.ndarray, noise: np.ndarray, refs: np.ndar
         N, or −(k+1) if the run diverged at sample k (row k is logged).
     """
     n = sg.n
-    w = new_work(n, len(d.b0), d.n_observer, d.n_controller)
-    sense(w, x, noise, 0, sg)
-    start(w, d, s)
+    # the run's arrays, unpacked once (compiled, a record handed on costs reference counts)
+    # and borrowed: ``work`` owns them until keep_alive below
+    work = new_work(n, len(d.b0), d.n_observer, d.n_controller)
+    y, u, drive, applied, duty, sat, acc, v, z, zhat, c, hist = (
+        borrowed(work.y), borrowed(work.u), borrowed(work.drive), borrowed(work.applied),
+        borrowed(work.duty), borrowed(work.sat), borrowed(work.acc), borrowed(work.v),
+        borrowed(work.z), borrowed(work.zhat), borrowed(work.c), borrowed(work.hist))
+    log, x, noise, refs, d = borrowed(log), borrowed(x), borrowed(noise), borrowed(refs), \
+        borrowed_designs(d)
+    sense_into(y, x, noise, 0, sg)
+    start_into(z, c, y, d, s)
     for k in range(n):
-        sense(w, x, noise, k, sg)
-        command(w, k, refs, d, s)
-        if not respond(log, w, x, k, refs, sg, d, s):
+        sense_into(y, x, noise, k, sg)
+        command_into(y, u, drive, duty, sat, z, zhat, c, k, refs, d, s)
+        if not respond_into(log, x, k, refs, y, u, sat, drive, applied, hist, z, zhat, acc, v,
+                            sg, d, s):
+            keep_alive(work)
             return -(k + 1)
-        advance_plant(x, w, k, sg, d.plant, s.plant_advance)
+        advance_plant_into(x, applied, k, sg, d.plant, s.plant_advance)
+    keep_alive(work)
     return n
 
 
@@ -119,37 +186,36 @@ def closed_loop_block(logs: np.ndarray, rows: np.ndarray, xs: np.ndarray, noises
     n = sg.n
     nj = len(d.b0)
     nz, nc = max(d.n_observer, 1), max(d.n_controller, 1)
-    # per run: the arrays that carry state from one sample to the next; shared: scratch
-    y = np.empty((m, nj))
-    u = np.empty((m, nj))
-    sat = np.empty((m, nj))
-    applied = np.empty((m, nj))
-    z = np.zeros((m, nz))
-    zhat = np.zeros((m, nz))
-    c = np.zeros((m, nc))
-    hist = np.zeros((m, max(n, 1) * nj))
-    drive = np.empty(nj)
-    duty = np.empty(nj)
-    acc = np.empty(nj)
-    v = np.empty(nj)
+    # per run: the arrays that carry state from one sample to the next; shared: scratch.
+    # ``owned`` keeps them alive (keep_alive below); the loop uses them borrowed, so that
+    # a view of a run's row costs no reference count
+    owned = (np.empty((m, nj)), np.empty((m, nj)), np.empty((m, nj)), np.empty((m, nj)),
+             np.zeros((m, nz)), np.zeros((m, nz)), np.zeros((m, nc)),
+             np.zeros((m, max(n, 1) * nj)))
+    y, u, sat, applied, z, zhat, c, hist = (
+        borrowed(owned[0]), borrowed(owned[1]), borrowed(owned[2]), borrowed(owned[3]),
+        borrowed(owned[4]), borrowed(owned[5]), borrowed(owned[6]), borrowed(owned[7]))
+    scratch = new_work(0, nj, 0, 0)
+    drive, duty, acc, v = (borrowed(scratch.drive), borrowed(scratch.duty),
+                           borrowed(scratch.acc), borrowed(scratch.v))
+    logs, xs, noises, refs, d = borrowed(logs), borrowed(xs), borrowed(noises), \
+        borrowed(refs), borrowed_designs(d)
     alive = np.ones(m, dtype=np.bool_)
     for i in range(m):
         rows[i] = n
-        w = Work(y[i], u[i], drive, applied[i], duty, sat[i], acc, v, z[i], zhat[i], c[i],
-                 hist[i])
-        sense(w, xs[i], noises[i], 0, sg)
-        start(w, d, s)
+        sense_into(y[i], xs[i], noises[i], 0, sg)
+        start_into(z[i], c[i], y[i], d, s)
     for k in range(n):
         for i in range(m):
             if not alive[i]:
                 continue
-            x = xs[i]
-            w = Work(y[i], u[i], drive, applied[i], duty, sat[i], acc, v, z[i], zhat[i], c[i],
-                     hist[i])
-            sense(w, x, noises[i], k, sg)
-            command(w, k, refs, d, s)
-            if not respond(logs[i], w, x, k, refs, sg, d, s):
+            x, yi, ui, si, zi, zhi = xs[i], y[i], u[i], sat[i], z[i], zhat[i]
+            sense_into(yi, x, noises[i], k, sg)
+            command_into(yi, ui, drive, duty, si, zi, zhi, c[i], k, refs, d, s)
+            if not respond_into(logs[i], x, k, refs, yi, ui, si, drive, applied[i], hist[i],
+                                zi, zhi, acc, v, sg, d, s):
                 alive[i] = False
                 rows[i] = -(k + 1)
         # the plant step of every live run to t_{k+1} (the plant kind's block step)
         s.plant_advance_block(xs, applied, alive, k * sg.ts, sg.h, sg.nsub, d.plant)
+    keep_alive((owned, scratch))

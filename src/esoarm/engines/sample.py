@@ -32,7 +32,15 @@ What travels between them are four records, plain tuples that numba compiles:
 :class:`Sampling` (timing and sensor), :class:`Designs` (the parameter
 vectors), :class:`Steps` (the kinds' step functions: the kind modules' own in
 Python, the registry's dispatch functions compiled) and :class:`Work` (the
-state and scratch arrays of one run).
+state and scratch arrays of one run).  Each step is written once, on the
+arrays themselves (``sense_into``, ``command_into``, ``respond_into``,
+``advance_plant_into`` and the steps they call); the functions of the same
+name without ``_into`` take a :class:`Work` and hand its arrays over.  The
+loops unpack their Work once per run and call the ``_into`` functions:
+compiled, every function a record reaches takes a reference on each of its
+arrays and drops it again, every sample (twelve atomic increments and
+decrements per function for a Work), which had doubled the compiled
+engine's cost per sample.
 
 A run ends early, as diverged, when a joint's |θ| or |ẑ1| exceeds
 :data:`DIVERGENCE_LIMIT` or θ, ẑ or u is not finite (:func:`within_limits`).
@@ -53,9 +61,11 @@ from esoarm.plants.actuator import LIMIT, actuate, delayed_input, saturate
 from esoarm.plants.sensor import measure
 
 __all__ = ["DIVERGENCE_LIMIT", "Designs", "Sampling", "Steps", "Work", "actuate_commands",
-           "advance_plant", "command", "control", "estimate", "hold", "log_sample",
-           "new_work", "observe", "record", "respond", "saturate_commands", "sense", "start",
-           "steps_of", "update_observer", "within_limits"]
+           "actuate_into", "advance_plant", "advance_plant_into", "command", "command_into",
+           "control", "control_into", "estimate", "estimate_into", "hold", "log_sample",
+           "new_work", "observe", "record", "record_into", "respond", "respond_into",
+           "saturate_commands", "saturate_into", "sense", "sense_into", "start", "start_into",
+           "steps_of", "update_observer", "update_observer_into", "within_limits"]
 
 #: |θ| or |z1| beyond this [rad] (or any non-finite value) ends a run as diverged.
 DIVERGENCE_LIMIT = 1e6
@@ -303,12 +313,368 @@ def log_sample(log: np.ndarray, k: int, j: int, nj: int, x: np.ndarray, ref: flo
 
 
 # ---------------------------------------------------------------------------
-# the controller half
+# the steps on plain arrays (the loops call these; the record versions below unpack a Work)
+#
+# Compiled, a record handed to a function costs one reference-count increment and
+# decrement per array it holds (12 for a Work), in every function it reaches, every
+# sample; the loops therefore unpack their Work once per run and call these.
+
+
+@jitable
+def sense_into(y: np.ndarray, x: np.ndarray, noise: np.ndarray, k: int, sg: Sampling) -> None:
+    """Step 1: y_k = Q(θ_j(t_k) + σ n) per joint j, n = ``noise[k·joints + j]``, into ``y``.
+
+    Parameters
+    ----------
+    y : ndarray (joints,)
+        Output: the measured angles y_k [rad].
+    x : ndarray
+        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
+        further states) at t_k.
+    noise : ndarray
+        Standard-normal draws, ``joints`` per sample.
+    k : int
+        Sample index (t_k = k·Ts).
+    sg : Sampling
+        Samples N, timing [s] and sensor [rad].
+    """
+    nj = len(y)
+    for j in range(nj):
+        y[j] = measure(x[j], noise[k * nj + j], sg.sigma, sg.q)
+
+
+@jitable
+def start_into(z: np.ndarray, c: np.ndarray, y: np.ndarray, d: Designs, s: Steps) -> None:
+    """The observer's state ``z`` and the controller's ``c`` initialized from y_0 = ``y`` [rad].
+
+    Parameters
+    ----------
+    z : ndarray
+        Observer state, initialized in place.
+    c : ndarray
+        Controller state, initialized in place.
+    y : ndarray (joints,)
+        The first measurement y_0 [rad].
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
+    s.observer_initialize(z, y, d.observer)
+    s.controller_initialize(c, y, d.controller)
+
+
+@jitable
+def estimate_into(z: np.ndarray, y: np.ndarray, zhat: np.ndarray, d: Designs, s: Steps) -> None:
+    """Step 2a: the estimate ẑ_k from z_k and y_k into ``zhat`` (observer kind).
+
+    Parameters
+    ----------
+    z : ndarray
+        Observer state z_k (not changed).
+    y : ndarray (joints,)
+        Measured angles y_k [rad].
+    zhat : ndarray
+        Output: the estimate ẑ_k (3 per joint first).
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
+    s.observer_estimate(z, y, d.observer, zhat)
+
+
+@jitable
+def control_into(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, k: int, refs: np.ndarray,
+                 u: np.ndarray, d: Designs, s: Steps) -> None:
+    """Step 2b: the raw command into ``u`` (controller kind).
+
+    Parameters
+    ----------
+    c : ndarray
+        Controller state, updated in place.
+    zhat : ndarray
+        The estimate ẑ_k (3 per joint first).
+    y : ndarray (joints,)
+        Measured angles y_k [rad].
+    k : int
+        Sample index (t_k = k·Ts).
+    refs : ndarray, shape (3·joints, ≥ N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    u : ndarray (joints,)
+        Output: the raw command [N·m].
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
+    s.controller_control(c, zhat, y, refs, k, d.controller, u)
+
+
+@jitable
+def saturate_into(u: np.ndarray, sat: np.ndarray, a: Vector) -> None:
+    """Step 2c: ``u`` clipped to ±torque_limit; ``sat`` flags the clipped joints.
+
+    A NaN command passes (and is not flagged), so a fault stays visible.
+
+    Parameters
+    ----------
+    u : ndarray (joints,)
+        Command [N·m], clipped in place.
+    sat : ndarray (joints,)
+        Output: 1.0 where the command was clipped, else 0.0.
+    a : ndarray or tuple of float
+        The actuator vector (:func:`esoarm.plants.actuator.actuator_vector`; ``a[LIMIT]`` =
+        torque_limit [N·m]).
+    """
+    limit = a[LIMIT]
+    for j in range(len(u)):
+        raw = u[j]
+        u[j] = saturate(raw, limit)
+        sat[j] = 1.0 if u[j] != raw and raw == raw else 0.0
+
+
+@jitable
+def actuate_into(u: np.ndarray, drive: np.ndarray, duty: np.ndarray, zhat: np.ndarray,
+                 a: Vector) -> None:
+    """Step 2d: the saturated ``u`` through the actuator (:func:`esoarm.plants.actuator.actuate`).
+
+    ``u`` becomes the host's torque, ``drive`` the torque driving the plant, ``duty`` the
+    PWM duty (NaN without a motor).
+
+    Parameters
+    ----------
+    u : ndarray (joints,)
+        The saturated command [N·m], replaced by the host's torque u_k [N·m].
+    drive : ndarray (joints,)
+        Output: the torque driving the plant [N·m].
+    duty : ndarray (joints,)
+        Output: the PWM duty [counts] (NaN without a motor).
+    zhat : ndarray
+        The estimate ẑ_k; ``zhat[3j + 1]`` is joint j's rate estimate [rad/s] (the motor's
+        back-EMF).
+    a : ndarray or tuple of float
+        The actuator vector (:func:`esoarm.plants.actuator.actuator_vector`).
+    """
+    for j in range(len(u)):
+        u[j], drive[j], duty[j] = actuate(u[j], zhat[3 * j + 1], a)
+
+
+@jitable
+def command_into(y: np.ndarray, u: np.ndarray, drive: np.ndarray, duty: np.ndarray,
+                 sat: np.ndarray, z: np.ndarray, zhat: np.ndarray, c: np.ndarray, k: int,
+                 refs: np.ndarray, d: Designs, s: Steps) -> None:
+    """The controller half after the measurement ``y``: estimate, control, saturate, actuate.
+
+    Parameters
+    ----------
+    y : ndarray (joints,)
+        Measured angles y_k [rad].
+    u : ndarray (joints,)
+        Output: the host's torque u_k [N·m].
+    drive : ndarray (joints,)
+        Output: the torque driving the plant for sample k [N·m].
+    duty : ndarray (joints,)
+        Output: the PWM duty [counts] (NaN without a motor).
+    sat : ndarray (joints,)
+        Output: 1.0 where the command hit ±torque_limit.
+    z : ndarray
+        Observer state z_k.
+    zhat : ndarray
+        Output: the estimate ẑ_k.
+    c : ndarray
+        Controller state, updated in place.
+    k : int
+        Sample index (t_k = k·Ts).
+    refs : ndarray, shape (3·joints, ≥ N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
+    estimate_into(z, y, zhat, d, s)
+    control_into(c, zhat, y, k, refs, u, d, s)
+    saturate_into(u, sat, d.actuator)
+    actuate_into(u, drive, duty, zhat, d.actuator)
+
+
+@jitable
+def record_into(log: np.ndarray, x: np.ndarray, k: int, refs: np.ndarray, y: np.ndarray,
+                u: np.ndarray, sat: np.ndarray, applied: np.ndarray, zhat: np.ndarray,
+                acc: np.ndarray, v: np.ndarray, sg: Sampling, d: Designs, s: Steps) -> bool:
+    """Step 4: log column k (every joint); False if the run left the finite range.
+
+    Also leaves the true acceleration θ̈(t_k) in ``acc`` and the observer input v_k
+    (the plant kind's ``observer_input`` of the host's torque) in ``v``.
+
+    Parameters
+    ----------
+    log : ndarray, shape (len(LOG_ROWS)·joints, ≥ N)
+        The run's log (:data:`esoarm.engines.metrics.LOG_ROWS` per joint); column k is
+        written.
+    x : ndarray
+        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
+        further states) at t_k.
+    k : int
+        Sample index (t_k = k·Ts).
+    refs : ndarray, shape (3·joints, ≥ N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    y : ndarray (joints,)
+        Measured angles y_k [rad].
+    u : ndarray (joints,)
+        The host's torque u_k [N·m].
+    sat : ndarray (joints,)
+        1.0 where the command hit ±torque_limit.
+    applied : ndarray (joints,)
+        The drive held over [t_k, t_{k+1}) [N·m].
+    zhat : ndarray
+        The estimate ẑ_k.
+    acc : ndarray (joints,)
+        Output: the true acceleration θ̈(t_k) [rad/s²].
+    v : ndarray (joints,)
+        Output: the observer input v_k.
+    sg : Sampling
+        Samples N, timing [s] and sensor [rad].
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+
+    Returns
+    -------
+    bool
+        False if a joint's logged row breaks :func:`within_limits`.
+    """
+    nj = len(y)
+    s.plant_acceleration(x, applied, k * sg.ts, d.plant, acc)
+    s.plant_observer_input(zhat, u, d.plant, v)
+    b0 = d.b0
+    ok = True
+    for j in range(nj):
+        ok = log_sample(log, k, j, nj, x, refs[3 * j, k], u[j], zhat,
+                        acc[j] - b0[j] * v[j], y[j], sat[j]) and ok
+    return ok
+
+
+@jitable
+def update_observer_into(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, v: np.ndarray,
+                         d: Designs, s: Steps) -> None:
+    """Step 5: z_{k+1} from (z_k, ẑ_k, y_k) and the observer input ``v``.
+
+    Parameters
+    ----------
+    z : ndarray
+        Observer state z_k, advanced in place to z_{k+1}.
+    zhat : ndarray
+        The estimate ẑ_k.
+    y : ndarray (joints,)
+        Measured angles y_k [rad].
+    v : ndarray (joints,)
+        The observer input v_k.
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+    """
+    s.observer_advance(z, zhat, y, v, d.observer)
+
+
+@jitable
+def respond_into(log: np.ndarray, x: np.ndarray, k: int, refs: np.ndarray, y: np.ndarray,
+                 u: np.ndarray, sat: np.ndarray, drive: np.ndarray, applied: np.ndarray,
+                 hist: np.ndarray, z: np.ndarray, zhat: np.ndarray, acc: np.ndarray,
+                 v: np.ndarray, sg: Sampling, d: Designs, s: Steps) -> bool:
+    """Steps 3-5: hold the delayed drive, log column k, update the observer.
+
+    Returns False (and skips the update) if the run left the finite range.
+
+    Parameters
+    ----------
+    log : ndarray, shape (len(LOG_ROWS)·joints, ≥ N)
+        The run's log (:data:`esoarm.engines.metrics.LOG_ROWS` per joint); column k is
+        written.
+    x : ndarray
+        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
+        further states) at t_k.
+    k : int
+        Sample index (t_k = k·Ts).
+    refs : ndarray, shape (3·joints, ≥ N)
+        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
+        sample.
+    y : ndarray (joints,)
+        Measured angles y_k [rad].
+    u : ndarray (joints,)
+        The host's torque u_k [N·m].
+    sat : ndarray (joints,)
+        1.0 where the command hit ±torque_limit.
+    drive : ndarray (joints,)
+        The torque driving the plant for sample k [N·m] (before the delay).
+    applied : ndarray (joints,)
+        Output: the drive held over [t_k, t_{k+1}) (sample k − delay) [N·m].
+    hist : ndarray (N·joints,)
+        Drives of samples 0 … k (sample k's is written).
+    z : ndarray
+        Observer state z_k, advanced in place to z_{k+1}.
+    zhat : ndarray
+        The estimate ẑ_k.
+    acc : ndarray (joints,)
+        Output: the true acceleration θ̈(t_k) [rad/s²].
+    v : ndarray (joints,)
+        Output: the observer input v_k.
+    sg : Sampling
+        Samples N, timing [s] and sensor [rad].
+    d : Designs
+        The kinds' and the actuator's parameter vectors.
+    s : Steps
+        The kinds' step functions.
+
+    Returns
+    -------
+    bool
+        True if the run goes on; False if it diverged at sample k (row k is logged).
+    """
+    delayed_input(hist, k, sg.delay, drive, applied)
+    if not record_into(log, x, k, refs, y, u, sat, applied, zhat, acc, v, sg, d, s):
+        return False
+    update_observer_into(z, zhat, y, v, d, s)
+    return True
+
+
+@jitable
+def advance_plant_into(x: np.ndarray, applied: np.ndarray, k: int, sg: Sampling, plant: Vector,
+                       plant_advance: Callable[..., None]) -> None:
+    """Step 6: the plant kind integrates x from t_k to t_{k+1} under ``applied``.
+
+    Parameters
+    ----------
+    x : ndarray
+        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
+        further states), advanced in place to t_{k+1}.
+    applied : ndarray (joints,)
+        The drive held over [t_k, t_{k+1}) [N·m].
+    k : int
+        Sample index (t_k = k·Ts).
+    sg : Sampling
+        Samples N, timing [s] and sensor [rad].
+    plant : ndarray or tuple of float
+        The plant kind's parameter vector (element 0 its CODE).
+    plant_advance : callable
+        The plant kind's ``advance(x, u, t0, h, nsub, p)``.
+    """
+    plant_advance(x, applied, k * sg.ts, sg.h, sg.nsub, plant)
+
+
+# ---------------------------------------------------------------------------
+# the same steps on a Work record (the Gymnasium environment, the rig's host, the emulator)
 
 
 @jitable
 def sense(w: Work, x: np.ndarray, noise: np.ndarray, k: int, sg: Sampling) -> None:
-    """Step 1: y_k = Q(θ_j(t_k) + σ n) per joint j, n = ``noise[k·joints + j]``.
+    """Step 1 (:func:`sense_into`): y_k = Q(θ_j(t_k) + σ n) per joint j into ``w.y``.
 
     Parameters
     ----------
@@ -324,9 +690,7 @@ def sense(w: Work, x: np.ndarray, noise: np.ndarray, k: int, sg: Sampling) -> No
     sg : Sampling
         Samples N, timing [s] and sensor [rad].
     """
-    nj = len(w.y)
-    for j in range(nj):
-        w.y[j] = measure(x[j], noise[k * nj + j], sg.sigma, sg.q)
+    sense_into(w.y, x, noise, k, sg)
 
 
 @jitable
@@ -342,13 +706,12 @@ def start(w: Work, d: Designs, s: Steps) -> None:
     s : Steps
         The kinds' step functions.
     """
-    s.observer_initialize(w.z, w.y, d.observer)
-    s.controller_initialize(w.c, w.y, d.controller)
+    start_into(w.z, w.c, w.y, d, s)
 
 
 @jitable
 def estimate(w: Work, d: Designs, s: Steps) -> None:
-    """Step 2a: the estimate ẑ_k from z_k and y_k (observer kind).
+    """Step 2a (:func:`estimate_into`): the estimate ẑ_k from z_k and y_k into ``w.zhat``.
 
     Parameters
     ----------
@@ -359,12 +722,12 @@ def estimate(w: Work, d: Designs, s: Steps) -> None:
     s : Steps
         The kinds' step functions.
     """
-    s.observer_estimate(w.z, w.y, d.observer, w.zhat)
+    estimate_into(w.z, w.y, w.zhat, d, s)
 
 
 @jitable
 def control(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
-    """Step 2b: the raw command into ``w.u`` (controller kind).
+    """Step 2b (:func:`control_into`): the raw command into ``w.u`` (controller kind).
 
     Parameters
     ----------
@@ -381,14 +744,12 @@ def control(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
     s : Steps
         The kinds' step functions.
     """
-    s.controller_control(w.c, w.zhat, w.y, refs, k, d.controller, w.u)
+    control_into(w.c, w.zhat, w.y, k, refs, w.u, d, s)
 
 
 @jitable
 def saturate_commands(w: Work, a: Vector) -> None:
-    """Step 2c: ``w.u`` clipped to ±torque_limit; ``w.sat`` flags the clipped joints.
-
-    A NaN command passes (and is not flagged), so a fault stays visible.
+    """Step 2c (:func:`saturate_into`): ``w.u`` clipped to ±torque_limit, ``w.sat`` flags.
 
     Parameters
     ----------
@@ -398,16 +759,12 @@ def saturate_commands(w: Work, a: Vector) -> None:
         The actuator vector (:func:`esoarm.plants.actuator.actuator_vector`; ``a[LIMIT]`` =
         torque_limit [N·m]).
     """
-    limit = a[LIMIT]
-    for j in range(len(w.u)):
-        raw = w.u[j]
-        w.u[j] = saturate(raw, limit)
-        w.sat[j] = 1.0 if w.u[j] != raw and raw == raw else 0.0
+    saturate_into(w.u, w.sat, a)
 
 
 @jitable
 def actuate_commands(w: Work, a: Vector) -> None:
-    """Step 2d: the saturated ``w.u`` through the actuator (:func:`esoarm.plants.actuator.actuate`).
+    """Step 2d (:func:`actuate_into`): the saturated ``w.u`` through the actuator.
 
     ``w.u`` becomes the host's torque, ``w.drive`` the torque driving the
     plant, ``w.duty`` the PWM duty (NaN without a motor).
@@ -421,13 +778,12 @@ def actuate_commands(w: Work, a: Vector) -> None:
         The actuator vector (:func:`esoarm.plants.actuator.actuator_vector`; ``a[LIMIT]`` =
         torque_limit [N·m]).
     """
-    for j in range(len(w.u)):
-        w.u[j], w.drive[j], w.duty[j] = actuate(w.u[j], w.zhat[3 * j + 1], a)
+    actuate_into(w.u, w.drive, w.duty, w.zhat, a)
 
 
 @jitable
 def command(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
-    """The controller half after the measurement: estimate, control, saturate, actuate.
+    """The controller half after the measurement (:func:`command_into`).
 
     Parameters
     ----------
@@ -443,14 +799,7 @@ def command(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
     s : Steps
         The kinds' step functions.
     """
-    estimate(w, d, s)
-    control(w, k, refs, d, s)
-    saturate_commands(w, d.actuator)
-    actuate_commands(w, d.actuator)
-
-
-# ---------------------------------------------------------------------------
-# the plant half
+    command_into(w.y, w.u, w.drive, w.duty, w.sat, w.z, w.zhat, w.c, k, refs, d, s)
 
 
 @jitable
@@ -472,10 +821,7 @@ def hold(w: Work, k: int, delay: int) -> None:
 @jitable
 def record(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg: Sampling,
            d: Designs, s: Steps) -> bool:
-    """Step 4: log column k (every joint); False if the run left the finite range.
-
-    Also leaves the true acceleration in ``w.acc`` and the observer input v_k
-    (the plant kind's ``observer_input`` of the host's torque) in ``w.v``.
+    """Step 4 (:func:`record_into`): log column k; False if the run left the finite range.
 
     Parameters
     ----------
@@ -483,7 +829,7 @@ def record(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg
         The run's log (:data:`esoarm.engines.metrics.LOG_ROWS` per joint); column k is
         written.
     w : Work
-        The run's state and scratch arrays.
+        The run's state and scratch arrays (``w.acc`` and ``w.v`` are written).
     x : ndarray
         Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
         further states) at t_k.
@@ -504,19 +850,13 @@ def record(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg
     bool
         False if a joint's logged row breaks :func:`within_limits`.
     """
-    nj = len(w.y)
-    s.plant_acceleration(x, w.applied, k * sg.ts, d.plant, w.acc)
-    s.plant_observer_input(w.zhat, w.u, d.plant, w.v)
-    ok = True
-    for j in range(nj):
-        ok = log_sample(log, k, j, nj, x, refs[3 * j, k], w.u[j], w.zhat,
-                        w.acc[j] - d.b0[j] * w.v[j], w.y[j], w.sat[j]) and ok
-    return ok
+    return record_into(log, x, k, refs, w.y, w.u, w.sat, w.applied, w.zhat, w.acc, w.v, sg,
+                       d, s)
 
 
 @jitable
 def update_observer(w: Work, d: Designs, s: Steps) -> None:
-    """Step 5: z_{k+1} from (z_k, ẑ_k, y_k) and the observer input ``w.v``.
+    """Step 5 (:func:`update_observer_into`): z_{k+1} from (z_k, ẑ_k, y_k) and ``w.v``.
 
     Parameters
     ----------
@@ -527,7 +867,7 @@ def update_observer(w: Work, d: Designs, s: Steps) -> None:
     s : Steps
         The kinds' step functions.
     """
-    s.observer_advance(w.z, w.zhat, w.y, w.v, d.observer)
+    update_observer_into(w.z, w.zhat, w.y, w.v, d, s)
 
 
 @jitable
@@ -544,13 +884,13 @@ def observe(w: Work, d: Designs, s: Steps) -> None:
         The kinds' step functions.
     """
     s.plant_observer_input(w.zhat, w.u, d.plant, w.v)
-    update_observer(w, d, s)
+    update_observer_into(w.z, w.zhat, w.y, w.v, d, s)
 
 
 @jitable
 def respond(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg: Sampling,
             d: Designs, s: Steps) -> bool:
-    """Steps 3-5: hold the delayed drive, log column k, update the observer.
+    """Steps 3-5 (:func:`respond_into`): hold the delayed drive, log column k, update z.
 
     Returns False (and skips the update) if the run left the finite range.
 
@@ -581,17 +921,14 @@ def respond(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, s
     bool
         True if the run goes on; False if it diverged at sample k (row k is logged).
     """
-    hold(w, k, sg.delay)
-    if not record(log, w, x, k, refs, sg, d, s):
-        return False
-    update_observer(w, d, s)
-    return True
+    return respond_into(log, x, k, refs, w.y, w.u, w.sat, w.drive, w.applied, w.hist, w.z,
+                        w.zhat, w.acc, w.v, sg, d, s)
 
 
 @jitable
 def advance_plant(x: np.ndarray, w: Work, k: int, sg: Sampling, plant: Vector,
                   plant_advance: Callable[..., None]) -> None:
-    """Step 6: the plant kind integrates x from t_k to t_{k+1} under ``w.applied``.
+    """Step 6 (:func:`advance_plant_into`): the plant integrates x to t_{k+1} under ``w.applied``.
 
     Parameters
     ----------
@@ -609,4 +946,4 @@ def advance_plant(x: np.ndarray, w: Work, k: int, sg: Sampling, plant: Vector,
     plant_advance : callable
         The plant kind's ``advance(x, u, t0, h, nsub, p)``.
     """
-    plant_advance(x, w.applied, k * sg.ts, sg.h, sg.nsub, plant)
+    advance_plant_into(x, w.applied, k, sg, plant, plant_advance)

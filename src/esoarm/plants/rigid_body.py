@@ -797,42 +797,6 @@ def _pose_block(m: np.ndarray, i: int, q: np.ndarray, wb: np.ndarray, xo: int) -
 
 
 @jitable
-def _motion_in_block(wb: np.ndarray, xo: int, wo: int, oo: int) -> None:
-    """:func:`_motion_in` for every run (rows of ``wb``)."""
-    for r in range(wb.shape[1]):
-        px, py, pz = wb[xo + 9, r], wb[xo + 10, r], wb[xo + 11, r]
-        w3, w4, w5 = wb[wo + 3, r], wb[wo + 4, r], wb[wo + 5, r]
-        vx = wb[wo, r] - (py * w5 - pz * w4)
-        vy = wb[wo + 1, r] - (pz * w3 - px * w5)
-        vz = wb[wo + 2, r] - (px * w4 - py * w3)
-        for c in range(3):
-            wb[oo + c, r] = wb[xo + c, r] * vx + wb[xo + 3 + c, r] * vy + wb[xo + 6 + c, r] * vz
-            wb[oo + 3 + c, r] = (wb[xo + c, r] * w3 + wb[xo + 3 + c, r] * w4
-                                 + wb[xo + 6 + c, r] * w5)
-
-
-@jitable
-def _force_out_block(wb: np.ndarray, xo: int, fo: int, oo: int) -> None:
-    """:func:`_force_out` for every run (rows of ``wb``): rows oo … oo+5 += Xᵀ f."""
-    for r in range(wb.shape[1]):
-        f0, f1, f2 = wb[fo, r], wb[fo + 1, r], wb[fo + 2, r]
-        f3, f4, f5 = wb[fo + 3, r], wb[fo + 4, r], wb[fo + 5, r]
-        x00, x01, x02 = wb[xo, r], wb[xo + 1, r], wb[xo + 2, r]
-        x10, x11, x12 = wb[xo + 3, r], wb[xo + 4, r], wb[xo + 5, r]
-        x20, x21, x22 = wb[xo + 6, r], wb[xo + 7, r], wb[xo + 8, r]
-        lx = x00 * f0 + x01 * f1 + x02 * f2
-        ly = x10 * f0 + x11 * f1 + x12 * f2
-        lz = x20 * f0 + x21 * f1 + x22 * f2
-        px, py, pz = wb[xo + 9, r], wb[xo + 10, r], wb[xo + 11, r]
-        wb[oo, r] += lx
-        wb[oo + 1, r] += ly
-        wb[oo + 2, r] += lz
-        wb[oo + 3, r] += x00 * f3 + x01 * f4 + x02 * f5 + py * lz - pz * ly
-        wb[oo + 4, r] += x10 * f3 + x11 * f4 + x12 * f5 + pz * lx - px * lz
-        wb[oo + 5, r] += x20 * f3 + x21 * f4 + x22 * f5 + px * ly - py * lx
-
-
-@jitable
 def _inertia_out_block(wb: np.ndarray, xo: int, co: int, po: int) -> None:
     """:func:`_inertia_out` for every run (rows of ``wb``; its 9 scratch values kept local)."""
     io = co + 6
@@ -878,28 +842,22 @@ def _inertia_out_block(wb: np.ndarray, xo: int, co: int, po: int) -> None:
 
 @jitable
 def _bias_block(m: np.ndarray, v: np.ndarray, wb: np.ndarray) -> None:
-    """:func:`_bias_pass` (RNEA, q̈ = 0, gravity) for every run: n(q, q̇) into the rhs rows."""
+    """:func:`_bias_pass` (RNEA, q̈ = 0, gravity) for every run: n(q, q̇) into the rhs rows.
+
+    One loop over the runs per joint and pass (each loop's set-up costs about as much as
+    a few runs' arithmetic in a block of ten runs).
+    """
     n = int(m[0])
     runs = wb.shape[1]
     xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _layout(n)
     g0, g1, g2 = m[1], m[2], m[3]
     for i in range(n):
         parent = int(m[HEAD + ROW * i + _PARENT])
+        root = parent < 0
         x = xs + 12 * i
         vi, ai = vel + 6 * i, acc + 6 * i
-        if parent < 0:
-            for r in range(runs):
-                for k in range(6):
-                    wb[vi + k, r] = 0.0
-                    wb[ai + k, r] = 0.0
-                for c in range(3):
-                    wb[ai + c, r] = -(wb[x + c, r] * g0 + wb[x + 3 + c, r] * g1
-                                      + wb[x + 6 + c, r] * g2)
-        else:
-            _motion_in_block(wb, x, vel + 6 * parent, vi)
-            _motion_in_block(wb, x, acc + 6 * parent, ai)
+        vp, ap = vel + 6 * max(parent, 0), acc + 6 * max(parent, 0)
         s0, s1, s2, s3, s4, s5 = _subspace_values(m, i)
-        sv = (s0, s1, s2, s3, s4, s5)
         b = HEAD + ROW * i + _INERTIA
         mass, hx, hy, hz = m[b], m[b + 3], m[b + 4], m[b + 5]
         i00, i01, i02 = m[b + 6], m[b + 7], m[b + 8]
@@ -908,20 +866,52 @@ def _bias_block(m: np.ndarray, v: np.ndarray, wb: np.ndarray) -> None:
         f = frc + 6 * i
         qdd = 0.0
         for r in range(runs):
+            x00, x01, x02 = wb[x, r], wb[x + 1, r], wb[x + 2, r]
+            x10, x11, x12 = wb[x + 3, r], wb[x + 4, r], wb[x + 5, r]
+            x20, x21, x22 = wb[x + 6, r], wb[x + 7, r], wb[x + 8, r]
+            if root:  # v = 0, a = −g in the joint's frame (:func:`_rnea_pass`)
+                v0, v1, v2, v3, v4, v5 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+                a0 = -(x00 * g0 + x10 * g1 + x20 * g2)
+                a1 = -(x01 * g0 + x11 * g1 + x21 * g2)
+                a2 = -(x02 * g0 + x12 * g1 + x22 * g2)
+                a3, a4, a5 = 0.0, 0.0, 0.0
+            else:  # X v_λ, X a_λ (:func:`_motion_in`)
+                px, py, pz = wb[x + 9, r], wb[x + 10, r], wb[x + 11, r]
+                w3, w4, w5 = wb[vp + 3, r], wb[vp + 4, r], wb[vp + 5, r]
+                vx = wb[vp, r] - (py * w5 - pz * w4)
+                vy = wb[vp + 1, r] - (pz * w3 - px * w5)
+                vz = wb[vp + 2, r] - (px * w4 - py * w3)
+                v0 = x00 * vx + x10 * vy + x20 * vz
+                v1 = x01 * vx + x11 * vy + x21 * vz
+                v2 = x02 * vx + x12 * vy + x22 * vz
+                v3 = x00 * w3 + x10 * w4 + x20 * w5
+                v4 = x01 * w3 + x11 * w4 + x21 * w5
+                v5 = x02 * w3 + x12 * w4 + x22 * w5
+                w3, w4, w5 = wb[ap + 3, r], wb[ap + 4, r], wb[ap + 5, r]
+                vx = wb[ap, r] - (py * w5 - pz * w4)
+                vy = wb[ap + 1, r] - (pz * w3 - px * w5)
+                vz = wb[ap + 2, r] - (px * w4 - py * w3)
+                a0 = x00 * vx + x10 * vy + x20 * vz
+                a1 = x01 * vx + x11 * vy + x21 * vz
+                a2 = x02 * vx + x12 * vy + x22 * vz
+                a3 = x00 * w3 + x10 * w4 + x20 * w5
+                a4 = x01 * w3 + x11 * w4 + x21 * w5
+                a5 = x02 * w3 + x12 * w4 + x22 * w5
             qd = v[i, r]
-            for k in range(6):
-                wb[vi + k, r] += sv[k] * qd
-                wb[ai + k, r] += sv[k] * qdd
+            vl0, vl1, vl2 = v0 + s0 * qd, v1 + s1 * qd, v2 + s2 * qd
+            om0, om1, om2 = v3 + s3 * qd, v4 + s4 * qd, v5 + s5 * qd
+            a0, a1, a2 = a0 + s0 * qdd, a1 + s1 * qdd, a2 + s2 * qdd
+            a3, a4, a5 = a3 + s3 * qdd, a4 + s4 * qdd, a5 + s5 * qdd
             wl0, wl1, wl2 = s0 * qd, s1 * qd, s2 * qd
             ww0, ww1, ww2 = s3 * qd, s4 * qd, s5 * qd
-            vl0, vl1, vl2 = wb[vi, r], wb[vi + 1, r], wb[vi + 2, r]
-            om0, om1, om2 = wb[vi + 3, r], wb[vi + 4, r], wb[vi + 5, r]
-            a0 = wb[ai, r] + (om1 * wl2 - om2 * wl1 + vl1 * ww2 - vl2 * ww1)
-            a1 = wb[ai + 1, r] + (om2 * wl0 - om0 * wl2 + vl2 * ww0 - vl0 * ww2)
-            a2 = wb[ai + 2, r] + (om0 * wl1 - om1 * wl0 + vl0 * ww1 - vl1 * ww0)
-            a3 = wb[ai + 3, r] + (om1 * ww2 - om2 * ww1)
-            a4 = wb[ai + 4, r] + (om2 * ww0 - om0 * ww2)
-            a5 = wb[ai + 5, r] + (om0 * ww1 - om1 * ww0)
+            a0 = a0 + (om1 * wl2 - om2 * wl1 + vl1 * ww2 - vl2 * ww1)
+            a1 = a1 + (om2 * wl0 - om0 * wl2 + vl2 * ww0 - vl0 * ww2)
+            a2 = a2 + (om0 * wl1 - om1 * wl0 + vl0 * ww1 - vl1 * ww0)
+            a3 = a3 + (om1 * ww2 - om2 * ww1)
+            a4 = a4 + (om2 * ww0 - om0 * ww2)
+            a5 = a5 + (om0 * ww1 - om1 * ww0)
+            wb[vi, r], wb[vi + 1, r], wb[vi + 2, r] = vl0, vl1, vl2
+            wb[vi + 3, r], wb[vi + 4, r], wb[vi + 5, r] = om0, om1, om2
             wb[ai, r], wb[ai + 1, r], wb[ai + 2, r] = a0, a1, a2
             wb[ai + 3, r], wb[ai + 4, r], wb[ai + 5, r] = a3, a4, a5
             # f = I a (:func:`_inertia_times` on the body's inertia)
@@ -953,18 +943,34 @@ def _bias_block(m: np.ndarray, v: np.ndarray, wb: np.ndarray) -> None:
     for i in range(n - 1, -1, -1):
         f = frc + 6 * i
         s0, s1, s2, s3, s4, s5 = _subspace_values(m, i)
-        for r in range(runs):
-            t = 0.0
-            t += s0 * wb[f, r]
-            t += s1 * wb[f + 1, r]
-            t += s2 * wb[f + 2, r]
-            t += s3 * wb[f + 3, r]
-            t += s4 * wb[f + 4, r]
-            t += s5 * wb[f + 5, r]
-            wb[rhs + i, r] = t
         parent = int(m[HEAD + ROW * i + _PARENT])
-        if parent >= 0:
-            _force_out_block(wb, xs + 12 * i, f, frc + 6 * parent)
+        xo = xs + 12 * i
+        oo = frc + 6 * max(parent, 0)
+        for r in range(runs):
+            f0, f1, f2 = wb[f, r], wb[f + 1, r], wb[f + 2, r]
+            f3, f4, f5 = wb[f + 3, r], wb[f + 4, r], wb[f + 5, r]
+            t = 0.0
+            t += s0 * f0
+            t += s1 * f1
+            t += s2 * f2
+            t += s3 * f3
+            t += s4 * f4
+            t += s5 * f5
+            wb[rhs + i, r] = t
+            if parent >= 0:  # f_λ += X_iᵀ f_i (:func:`_force_out`)
+                x00, x01, x02 = wb[xo, r], wb[xo + 1, r], wb[xo + 2, r]
+                x10, x11, x12 = wb[xo + 3, r], wb[xo + 4, r], wb[xo + 5, r]
+                x20, x21, x22 = wb[xo + 6, r], wb[xo + 7, r], wb[xo + 8, r]
+                lx = x00 * f0 + x01 * f1 + x02 * f2
+                ly = x10 * f0 + x11 * f1 + x12 * f2
+                lz = x20 * f0 + x21 * f1 + x22 * f2
+                px, py, pz = wb[xo + 9, r], wb[xo + 10, r], wb[xo + 11, r]
+                wb[oo, r] += lx
+                wb[oo + 1, r] += ly
+                wb[oo + 2, r] += lz
+                wb[oo + 3, r] += x00 * f3 + x01 * f4 + x02 * f5 + py * lz - pz * ly
+                wb[oo + 4, r] += x10 * f3 + x11 * f4 + x12 * f5 + pz * lx - px * lz
+                wb[oo + 5, r] += x20 * f3 + x21 * f4 + x22 * f5 + px * ly - py * lx
 
 
 @jitable
@@ -973,15 +979,13 @@ def _crba_block(m: np.ndarray, wb: np.ndarray) -> None:
     n = int(m[0])
     runs = wb.shape[1]
     xs, ic, vel, acc, frc, ss, mm, zero, rhs, col, tmp = _layout(n)
-    for i in range(n):
+    for i in range(n):  # one loop per joint (each loop over the runs costs its set-up)
         b = HEAD + ROW * i + _INERTIA
         co = ic + 15 * i
-        for k in range(15):
-            value = m[b + k]
-            for r in range(runs):
-                wb[co + k, r] = value
-        for j in range(n):
-            for r in range(runs):
+        for r in range(runs):
+            for k in range(15):
+                wb[co + k, r] = m[b + k]
+            for j in range(n):
                 wb[mm + n * i + j, r] = 0.0
     for i in range(n - 1, -1, -1):
         parent = int(m[HEAD + ROW * i + _PARENT])
@@ -1015,31 +1019,47 @@ def _crba_block(m: np.ndarray, wb: np.ndarray) -> None:
         j = i
         parent = int(m[HEAD + ROW * j + _PARENT])
         while parent >= 0:
-            for r in range(runs):
-                for k in range(6):
-                    wb[tmp + 9 + k, r] = 0.0
-            _force_out_block(wb, xs + 12 * j, col, tmp + 9)  # F = X_jᵀ F
+            xo = xs + 12 * j
             j = parent
             t0, t1, t2, t3, t4, t5 = _subspace_values(m, j)
-            for r in range(runs):
-                for k in range(6):
-                    wb[col + k, r] = wb[tmp + 9 + k, r]
+            for r in range(runs):  # F = X_jᵀ F (:func:`_force_out` onto zeros), then S_jᵀ F
+                f0, f1, f2 = wb[col, r], wb[col + 1, r], wb[col + 2, r]
+                f3, f4, f5 = wb[col + 3, r], wb[col + 4, r], wb[col + 5, r]
+                x00, x01, x02 = wb[xo, r], wb[xo + 1, r], wb[xo + 2, r]
+                x10, x11, x12 = wb[xo + 3, r], wb[xo + 4, r], wb[xo + 5, r]
+                x20, x21, x22 = wb[xo + 6, r], wb[xo + 7, r], wb[xo + 8, r]
+                lx = x00 * f0 + x01 * f1 + x02 * f2
+                ly = x10 * f0 + x11 * f1 + x12 * f2
+                lz = x20 * f0 + x21 * f1 + x22 * f2
+                px, py, pz = wb[xo + 9, r], wb[xo + 10, r], wb[xo + 11, r]
+                c0 = 0.0 + lx
+                c1 = 0.0 + ly
+                c2 = 0.0 + lz
+                c3 = 0.0 + (x00 * f3 + x01 * f4 + x02 * f5 + py * lz - pz * ly)
+                c4 = 0.0 + (x10 * f3 + x11 * f4 + x12 * f5 + pz * lx - px * lz)
+                c5 = 0.0 + (x20 * f3 + x21 * f4 + x22 * f5 + px * ly - py * lx)
+                wb[col, r], wb[col + 1, r], wb[col + 2, r] = c0, c1, c2
+                wb[col + 3, r], wb[col + 4, r], wb[col + 5, r] = c3, c4, c5
                 e = 0.0
-                e += t0 * wb[col, r]
-                e += t1 * wb[col + 1, r]
-                e += t2 * wb[col + 2, r]
-                e += t3 * wb[col + 3, r]
-                e += t4 * wb[col + 4, r]
-                e += t5 * wb[col + 5, r]
+                e += t0 * c0
+                e += t1 * c1
+                e += t2 * c2
+                e += t3 * c3
+                e += t4 * c4
+                e += t5 * c5
                 wb[mm + n * i + j, r] = e
                 wb[mm + n * j + i, r] = e
             parent = int(m[HEAD + ROW * j + _PARENT])
 
 
 @jitable
-def _cholesky_block(wb: np.ndarray, ao: int, n: int, b: np.ndarray) -> None:
-    """:func:`_cholesky_flat` for every run: M in rows ao … of ``wb``, b (n, runs) solved."""
+def _solve_block(wb: np.ndarray, n: int, tau: np.ndarray, out: np.ndarray) -> None:
+    """out = τ − n, then :func:`_cholesky_flat` on M, for every run (runs innermost)."""
     runs = wb.shape[1]
+    ao, rhs = _layout(n)[6], _layout(n)[8]
+    for i in range(n):
+        for r in range(runs):
+            out[i, r] = tau[i, r] - wb[rhs + i, r]
     for j in range(n):
         jj = ao + n * j + j
         for r in range(runs):
@@ -1056,16 +1076,16 @@ def _cholesky_block(wb: np.ndarray, ao: int, n: int, b: np.ndarray) -> None:
                 wb[ij, r] = s / wb[jj, r]
     for i in range(n):  # L y = b
         for r in range(runs):
-            s = b[i, r]
+            s = out[i, r]
             for k in range(i):
-                s -= wb[ao + n * i + k, r] * b[k, r]
-            b[i, r] = s / wb[ao + n * i + i, r]
+                s -= wb[ao + n * i + k, r] * out[k, r]
+            out[i, r] = s / wb[ao + n * i + i, r]
     for i in range(n - 1, -1, -1):  # Lᵀ x = y
         for r in range(runs):
-            s = b[i, r]
+            s = out[i, r]
             for k in range(i + 1, n):
-                s -= wb[ao + n * k + i, r] * b[k, r]
-            b[i, r] = s / wb[ao + n * i + i, r]
+                s -= wb[ao + n * k + i, r] * out[k, r]
+            out[i, r] = s / wb[ao + n * i + i, r]
 
 
 @jitable
@@ -1087,14 +1107,9 @@ def forward_dynamics_block(m: np.ndarray, q: np.ndarray, v: np.ndarray, tau: np.
         Output: q̈ [rad/s² or m/s²] of each run (may not be ``tau``).
     """
     n = int(m[0])
-    runs = wb.shape[1]
     xs = _layout(n)[0]
     for i in range(n):
         _pose_block(m, i, q, wb, xs + 12 * i)
     _bias_block(m, v, wb)
     _crba_block(m, wb)
-    rhs = _layout(n)[8]
-    for i in range(n):
-        for r in range(runs):
-            out[i, r] = tau[i, r] - wb[rhs + i, r]
-    _cholesky_block(wb, _layout(n)[6], n, out)
+    _solve_block(wb, n, tau, out)
