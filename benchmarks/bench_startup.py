@@ -45,6 +45,10 @@ grid = build_grid(load_scenario("test-1"), ["observer.eps=geom:0.03:0.3:100"], 2
 mark("load test-1, build and check the grid (100 points)")
 engine = sys.argv[1]
 if engine == "exact":
+    from esoarm.engines.simulation import reference_metrics
+    mark("import engines.simulation (the reference engine)")
+    reference_metrics(grid.points[:1], [0])
+    mark("one 20 s run on the reference engine (a sweep of <= 3 runs)")
     import numba; mark("import numba")
     from esoarm.engines import batch; mark("import engines.batch (physics stamp, kernels)")
     from numba.core.registry import cpu_target
@@ -56,6 +60,7 @@ if engine == "exact":
 else:
     from esoarm.engines import fast; mark("import engines.fast")
     fast.load_kernel(); mark("locate and load the C kernel")
+    fast.run_metrics(grid.points[:1], [0]); mark("one 20 s run on the C kernel")
 pts = grid.points[0:100]; mark("build the 100 points again (per chunk)")
 from esoarm.engines.packing import _pack
 _pack(pts, [(i, s) for i in range(100) for s in range(20)]); mark("pack 2,000 runs (noise, refs)")

@@ -240,3 +240,56 @@ def test_simulate_command_names_the_kinds(kind_set: str, tmp_path) -> None:  # t
     assert (tmp_path / "run.png").is_file()
     if "pid" in kind_set:
         assert "pid" in res.output and "controller" in res.output  # (rich may wrap the title)
+
+
+def test_compile_only_some_kinds() -> None:
+    """The compiled dispatch can be narrowed to the kinds a job uses, and widened again."""
+    lever = kinds.kinds_of(load_scenario("test-1"))
+    pid = kinds.kinds_of(load_scenario("test-1", {"controller.kind": "pid"}))
+    nonlinear = kinds.kinds_of(load_scenario("test-1", {"observer.kind": "nonlinear"}))
+    full = kinds.dispatch_source()
+    stamp = kinds.registry_stamp()
+    try:
+        assert kinds.compile_only([lever, pid])
+        assert kinds.compiled_selection() == "lever-arm.linear.flc+pid"
+        source = kinds.dispatch_source()
+        assert "flc=0" in source and "pid=" in source and "nonlinear=" not in source
+        assert kinds.covers(lever) and kinds.covers(pid) and not kinds.covers(nonlinear)
+        assert not kinds.compile_only([pid, lever])  # the same selection: nothing to redo
+        assert kinds.registry_stamp() == stamp  # the registry itself is unchanged
+    finally:
+        kinds.compile_only(None)
+    assert kinds.compiled_selection() == "" and kinds.dispatch_source() == full
+    every = [kinds.Kinds(p, o, c) for p in kinds.PLANTS for o in kinds.OBSERVERS
+             for c in kinds.CONTROLLERS]
+    assert not kinds.compile_only(every)  # every compiled kind is the usual dispatch
+
+
+@pytest.mark.slow
+def test_batch_engine_with_some_kinds_compiled() -> None:
+    """Kernels compiled for some kinds give the reference engine's bits; a point of another
+    kind widens the selection instead of failing."""
+    pts = [load_scenario("test-1", {**SHORT, **over})
+           for over in ({}, {"controller.kind": "pid"}, {"observer.eps": 0.004})]
+    other = load_scenario("test-1", {**SHORT, "observer.kind": "nonlinear"})
+    try:
+        kinds.compile_only([kinds.kinds_of(p) for p in pts])
+        got = batch.run_metrics(pts, seeds=[0, 1], series=True).values
+        assert kinds.compiled_selection() == "lever-arm.linear.flc+pid"
+        (res,) = batch.simulate_many([pts[0]])
+        widened = batch.run_metrics([other], seeds=[0], series=True).values
+        assert kinds.compiled_selection() == ""
+    finally:
+        kinds.compile_only(None)
+    for i, scn in enumerate(pts):
+        for j, seed in enumerate((0, 1)):
+            one = scn.with_overrides({"sensor.seed": seed})
+            try:
+                ref = run_reference(one, prepare(one))
+            except Exception as exc:  # noqa: BLE001 - a diverged run's partial result
+                ref = exc.result  # type: ignore[attr-defined]
+            row = dict(zip(batch.METRICS, got[2 * i + j], strict=True))
+            assert {k: row[k] for k in ref.metrics} == ref.metrics
+    assert res.metrics == run_reference(pts[0], prepare(pts[0])).metrics
+    ref = run_reference(other, prepare(other)).metrics
+    assert {k: dict(zip(batch.METRICS, widened[0], strict=True))[k] for k in ref} == ref

@@ -82,7 +82,7 @@ def test_series_match_reference(name: str, disc: str) -> None:
 def test_metrics_match_reference(name: str) -> None:
     scns = [_scenario(name, disc, extra) for disc in DISCRETIZATIONS
             for extra in CASES.values()]
-    table = batch.run_metrics(scns, chunk=7)
+    table = batch.run_metrics(scns, chunk=7, series=False)
     assert table.values.shape == (len(scns), len(batch.METRICS))
     for i, scn in enumerate(scns):
         ref = run_reference(scn, prepare(scn))
@@ -125,7 +125,7 @@ def test_bit_identical_builtin(name: str) -> None:
 def test_blocked_metrics_bit_identical_every_case(disc: str) -> None:
     """The vectorized block kernel (stiction on and off, lag, motor, ...) changes no bit."""
     scns = [_scenario("test-1", disc, extra) for extra in CASES.values()]
-    table = batch.run_metrics(scns, seeds=[3, 4, 5])
+    table = batch.run_metrics(scns, seeds=[3, 4, 5], series=False)
     for i, scn in enumerate(scns):
         for j, seed in enumerate((3, 4, 5)):
             one = scn.with_overrides({"sensor.seed": seed})

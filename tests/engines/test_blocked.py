@@ -47,32 +47,39 @@ def test_blocks_change_no_bit(name: str, disc: str) -> None:
     pts = [load_scenario(name, {"duration": 2.0, "observer.discretization": disc, **extra})
            for key, extra in SETTINGS.items()
            if not (urdf and key in URDF_REFUSES) and not (pid and key in PID_REFUSES)]
-    blocked = batch.run_metrics(pts, seeds=range(5)).values
+    blocked = batch.run_metrics(pts, seeds=range(5), series=False).values
     single = batch.run_metrics(pts, seeds=range(5), blocked=False).values
     np.testing.assert_array_equal(blocked, single)
+    # the small-call path (the time-series kernel, metrics by NumPy): the same bits
+    np.testing.assert_array_equal(batch.run_metrics(pts, seeds=range(5), series=True).values,
+                                  single)
 
 
 def test_runs_of_a_block_diverge_at_their_own_sample() -> None:
     # Ts/ε just above 2: every seed diverges, each at its own sample (82 … 92)
     pts = [load_scenario("test-1", {"duration": 3.0, "observer.eps": eps})
            for eps in (0.0095, 0.0105)]
-    blocked = batch.run_metrics(pts, seeds=range(8)).values
+    blocked = batch.run_metrics(pts, seeds=range(8), series=False).values
     single = batch.run_metrics(pts, seeds=range(8), blocked=False).values
     samples = blocked[:8, batch.METRICS.index("samples")]
     assert blocked[:8, -1].all() and len(set(samples)) > 2
     assert not blocked[8:, -1].any()
     np.testing.assert_array_equal(blocked, single)
+    np.testing.assert_array_equal(batch.run_metrics(pts, seeds=range(8), series=True).values,
+                                  single)
 
 
 def test_small_blocks_for_long_runs(monkeypatch: pytest.MonkeyPatch) -> None:
     pts = [load_scenario("test-2", {"duration": 2.0, "observer.eps": e}) for e in (0.05, 0.2)]
-    whole = batch.run_metrics(pts, seeds=range(7)).values
+    whole = batch.run_metrics(pts, seeds=range(7), series=False).values
     budget = batch.BLOCK_BYTES
     monkeypatch.setattr(batch, "BLOCK_BYTES", 1)  # one run per block
-    np.testing.assert_array_equal(batch.run_metrics(pts, seeds=range(7)).values, whole)
+    np.testing.assert_array_equal(batch.run_metrics(pts, seeds=range(7), series=False).values,
+                                  whole)
     monkeypatch.setattr(batch, "BLOCK_BYTES", budget)
     monkeypatch.setattr(batch, "BLOCK", 3)  # blocks of 3, 3, 1 runs per point
-    np.testing.assert_array_equal(batch.run_metrics(pts, seeds=range(7)).values, whole)
+    np.testing.assert_array_equal(batch.run_metrics(pts, seeds=range(7), series=False).values,
+                                  whole)
     pairs = batch._blocks(np.repeat([0, 1], 7), np.tile([[100, 20, 0, 0, 1, 3, 0]], (2, 1)))
     assert [list(a) for a in pairs] == [[0, 0, 0, 1, 1, 1], [0, 3, 6, 7, 10, 13],
                                         [3, 3, 1, 3, 3, 1]]

@@ -45,30 +45,34 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
     (and DIR/twins.csv, DIR/twins.md) shows both twins' tables, ln(twin/paper)
     per value, claims, and which of the paper's numbers no plausible twin reaches.
     """
+    from esoarm.kinds import compile_only, kinds_of
+    from esoarm.studies.reproduction.paper_twin import twin_overrides
+    from esoarm.studies.reproduction.run import plan_runs
+    from esoarm.studies.reproduction.twins import EVIDENCE_NAMES, NOISE_SCAN
+
+    out = output_dir(out_dir, "--out")
+    overrides = twin_overrides(twin)
+    planned = plan_runs(overrides)
+    n_runs = len(planned) + ((1 + len(EVIDENCE_NAMES) + len(NOISE_SCAN))
+                             * len(plan_runs(compare=False)))
+    # the compiled kernels with only the kinds the paper's experiments use (lever arm,
+    # linear ESO, FLC, PID): a first reproduce after installation compiles less
+    compile_only([kinds_of(scn) for scn in planned.values()])
+    try:
+        _reproduce(out, fmt, twin, overrides, n_runs)
+    finally:
+        compile_only(None)
+
+
+def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int) -> None:
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from esoarm._io import staged_dir
     from esoarm.engines.simulation import SimulationDiverged
-    from esoarm.studies.reproduction.paper_twin import twin_overrides
-    from esoarm.studies.reproduction.run import (
-        figure_specs,
-        plan_runs,
-        run_reproduction,
-        write_outputs,
-    )
-    from esoarm.studies.reproduction.twins import (
-        EVIDENCE_NAMES,
-        NOISE_SCAN,
-        compared_twins,
-        twins_section,
-        write_twin_tables,
-    )
+    from esoarm.studies.reproduction.run import figure_specs, run_reproduction, write_outputs
+    from esoarm.studies.reproduction.twins import compared_twins, twins_section, write_twin_tables
 
-    out = output_dir(out_dir, "--out")
-    overrides = twin_overrides(twin)
-    n_runs = len(plan_runs(overrides)) + ((1 + len(EVIDENCE_NAMES) + len(NOISE_SCAN))
-                                          * len(plan_runs(compare=False)))
     console = Console(stderr=True)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())

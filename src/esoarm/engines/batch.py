@@ -143,6 +143,13 @@ BLOCK = 64
 BLOCK_BYTES = 32 * 2**20
 #: Runs per chunk in metrics mode (bounds memory; one progress tick per chunk).
 DEFAULT_CHUNK = 2048
+#: Up to this many compiled runs, :func:`run_metrics` runs them through the time-series
+#: kernel (:func:`_run`, the one :func:`simulate_many` uses) and takes the metrics from
+#: the logs with NumPy (:func:`esoarm.engines.metrics.series_metrics`, the same bits):
+#: a handful of runs gains little from the blocked kernel, which is a second compiled copy
+#: of the sample loop (39 s of CPU to compile, load 3; ``esoarm reproduce`` then compiles
+#: only :func:`_run`).
+SERIES_RUNS = 64
 
 
 # ---------------------------------------------------------------------------
@@ -213,13 +220,18 @@ def _install_cache_locator() -> None:
         class Locator(base):  # type: ignore[misc]
             def get_source_stamp(self) -> str:
                 extra = _kinds.registry_stamp()  # '' for the package's own kinds
-                return f"{super().get_source_stamp()}-{stamp}" + (f"-{extra}" if extra else "")
+                only = _kinds.compiled_selection()  # '' for every compiled kind
+                return (f"{super().get_source_stamp()}-{stamp}" + (f"-{extra}" if extra else "")
+                        + (f"-only-{only}" if only else ""))
 
             def get_cache_path(self) -> str:
-                # kinds registered at run time: their kernels apart from the package's own
+                # kinds registered at run time: their kernels apart from the package's own;
+                # kernels compiled for some kinds only (esoarm.kinds.compile_only) apart too
                 extra = _kinds.registry_stamp()
+                only = _kinds.compiled_selection()
                 path = super().get_cache_path()
-                return os.path.join(path, f"kinds-{extra}") if extra else path
+                path = os.path.join(path, f"kinds-{extra}") if extra else path
+                return os.path.join(path, f"only-{only}") if only else path
 
             @classmethod
             def from_function(cls, py_func: Any, py_file: str) -> Any:
@@ -239,7 +251,8 @@ _install_cache_locator()
 
 
 def _drop_compiled_kernels() -> None:
-    """After a kind is (un)registered: recompile every kernel with the new dispatch.
+    """After the dispatch changed (a kind (un)registered, :func:`esoarm.kinds.compile_only`):
+    recompile every kernel with the new dispatch.
 
     Each kernel's on-disk cache is looked up again (a registry with kinds added at
     run time has its own cache directory, :func:`esoarm.kinds.registry_stamp`).
@@ -251,7 +264,14 @@ def _drop_compiled_kernels() -> None:
                 value.enable_caching()
 
 
-_kinds.on_change(_drop_compiled_kernels)
+_kinds.on_dispatch_change(_drop_compiled_kernels)
+
+
+def _cover(points: Sequence[Scenario]) -> None:
+    """Widen the compiled kinds to every kind if a compiled point's kinds are not among them
+    (:func:`esoarm.kinds.compile_only`; the dispatch would refuse its CODE)."""
+    if not all(_kinds.covers(k) for k in map(_kinds.kinds_of, points) if k.jit):
+        _kinds.compile_only(None)
 
 
 # ---------------------------------------------------------------------------
@@ -503,6 +523,7 @@ def run_metrics(
     progress: Callable[[int], None] | None = None,
     _noise_cache: NoiseCache | None = None,
     blocked: bool = True,
+    series: bool | None = None,
 ) -> MetricsTable:
     """Run every point (× every seed) and keep only the metrics of each run.
 
@@ -523,6 +544,12 @@ def run_metrics(
         Advance the runs of a grid point together, in blocks of up to :data:`BLOCK`
         (:func:`~esoarm.engines.loop.closed_loop_block`: the same numbers, faster);
         False runs them one at a time (kept for comparison in the benchmarks).
+    series : bool, optional
+        Run through the time-series kernel and take the metrics with NumPy (the same
+        numbers; no second compiled copy of the sample loop to build or load).  Default:
+        for calls of at most :data:`SERIES_RUNS` runs, with ``blocked``, unless this process
+        has the blocked kernel loaded already.  Points whose parameter vectors are arrays
+        (URDF arms) always use the metrics kernels.
     _noise_cache : NoiseCache, optional
         Internal: the noise sequences already drawn, shared with a caller that runs the
         same seeds again (a fresh cache by default).
@@ -540,6 +567,9 @@ def run_metrics(
     out = np.empty((len(runs), NMETRIC))
     noise_cache = _noise_cache or NoiseCache()
     compiled = [_kinds.kinds_of(scn).jit for scn in points]
+    _cover(points)
+    if series is None:  # (a sweep's last, small chunk: the blocked kernel is loaded already)
+        series = blocked and len(runs) <= SERIES_RUNS and not _blocked_metrics_kernel.overloads
     with _threads(workers):
         for start in range(0, len(runs), chunk):
             part = runs[start : start + chunk]
@@ -551,7 +581,9 @@ def run_metrics(
                 pack = _pack([points[pi] for pi in used],
                              [(local[part[i][0]], part[i][1]) for i in jit_idx], noise_cache)
                 res = np.empty((len(jit_idx), NMETRIC))
-                if blocked:
+                if series and not pack.wide:
+                    _series_metrics(pack, [points[part[i][0]] for i in jit_idx], res, workers)
+                elif blocked:
                     blk = _blocks(pack.run_point, pack.ipar)
                     kernel = _blocked_metrics_kernel_wide if pack.wide else _blocked_metrics_kernel
                     kernel(*blk, *pack.args()[1:], res)  # type: ignore[call-arg]
@@ -565,6 +597,23 @@ def run_metrics(
             if progress is not None:
                 progress(len(part))
     return MetricsTable(out)
+
+
+def _series_metrics(pack: _Pack, scenarios: list[Scenario], out: np.ndarray,
+                    workers: int | None) -> None:
+    """Metrics of the runs of ``pack`` (run r of ``scenarios[r]``) into ``out``, through
+    :func:`_run` and :meth:`esoarm.result.SimResult.from_log` (see :data:`SERIES_RUNS`)."""
+    nmax = pack.refs.shape[2]
+    runs = len(pack.run_point)
+    logs = np.empty((runs, NROW * int(pack.ipar[:, _NJ].max()), nmax))
+    rows = np.empty(runs, dtype=np.int64)  # rows logged, < 0: diverged
+    _series_runs(pack, logs, rows, workers)
+    for r, scn in enumerate(scenarios):
+        k = abs(int(rows[r]))
+        t = np.arange(k) * scn.sample_time
+        nj = NROW * int(pack.ipar[pack.run_point[r], _NJ])
+        result = SimResult.from_log(scn, t, logs[r, :nj, :k], diverged=bool(rows[r] < 0))
+        out[r] = [result.metrics[name] for name in METRICS]
 
 
 def _reference_metrics(scn: Scenario) -> np.ndarray:
@@ -619,6 +668,7 @@ def simulate_many(
     results: list[SimResult] = []
     noise_cache = NoiseCache()
     scenarios = list(scenarios)
+    _cover(scenarios)
     with _threads(workers):
         for start in range(0, len(scenarios), chunk):
             part = scenarios[start : start + chunk]

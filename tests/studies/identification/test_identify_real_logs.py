@@ -96,14 +96,16 @@ def test_case_6_a_template_disturbance_is_named_on_a_log_shorter_than_two_period
 
 @pytest.mark.slow
 def test_noise_is_written_only_when_the_residual_is_white(twin_log):
-    """Issue 20, case 5: sensor.noise_deg is written only when the residual is white (the
-    model error of a fit is not sensor noise)."""
+    """Issue 20, case 5: sensor.noise_deg is written only when the residual is white, or
+    sensor noise by its spectrum (the model error of a fit is not sensor noise)."""
     scn = load_scenario("test-1")
     res = identify(scn, [read_ident_log(twin_log, 2.0)])
     white = res.validation["whiteness"]["white"]
     fitted = res.fitted_scenario()
-    if white:
+    coloured = res.coloured_noise()  # sensor noise by its spectrum (white: [])
+    if white or coloured is not None:
         assert fitted.sensor.noise_deg == pytest.approx(res.value("sensor.noise_deg"))
+        assert fitted.sensor.noise_ar == (coloured or [])
     else:
         assert fitted.sensor.noise_deg == scn.sensor.noise_deg
     assert res.noise_is_sensor() is bool(white)
