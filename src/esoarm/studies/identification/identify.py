@@ -79,6 +79,9 @@ NOISE_AR_KEY = "sensor.noise_ar"
 #: Coloured noise is written only when the validation residual's RMS is at most this many
 #: times the fit's (sensor noise does not grow on new data; model error does).
 NOISE_CARRY_OVER = 1.25
+#: Segments longer than this [samples] get the plain Yule-Walker verdict of the validation
+#: residual instead of the segments' restricted likelihood (dense n×n per evaluation).
+REML_MAX_SEGMENT = 400
 FREE_KEYS = (*PARAMS, DELAY_KEY)
 #: Why the inertia is held by default with a ``[motor]`` table.
 MOTOR_SCALE_NOTE = (
@@ -532,11 +535,19 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     if val:
         # the residual's spectrum from the fit's and the validation's segments together, the
         # part of it each segment's initial-state fit removed accounted for
-        segs = _segment_residuals(prob, sol) + val.pop("_segments")
+        vsegs = val.pop("_segments")
+        segs = _segment_residuals(prob, sol) + vsegs
         q = math.radians(scn.sensor.resolution_deg)
-        verdict = segment_verdict(segs, q * q / 12.0)
-        val["noise_spectrum"] = verdict.to_dict()
-        if verdict.is_sensor_noise and \
+        if max(len(sg.r) for sg in segs) > REML_MAX_SEGMENT:  # dense likelihood too costly:
+            from esoarm.studies.identification.noise_ar import noise_verdict  # the plain one
+
+            verdict = None
+            val["noise_spectrum"] = noise_verdict(np.concatenate([sg.r for sg in vsegs]),
+                                                  np.concatenate([sg.u for sg in vsegs])).to_dict()
+        else:
+            verdict = segment_verdict(segs, q * q / 12.0)
+            val["noise_spectrum"] = verdict.to_dict()
+        if verdict is not None and verdict.is_sensor_noise and \
                 val["residual_rms_rad"] <= NOISE_CARRY_OVER * resid_s and not \
                 val["whiteness"]["white"]:
             f = verdict.fit

@@ -58,6 +58,9 @@ STOP_AFTER = 2
 #: (the segments' initial-state fit removes a few per cent of an AR(1) 0.7's variance; a
 #: model whose power is mostly slower than a segment is not identified by the log).
 SLOW_POWER_MAX = 1.5
+#: Iterations of one order's optimization in :func:`reml_ar` (a bound on its time: the fits
+#: of twin logs converge in a few dozen).
+MAX_ITER = 100
 #: Largest order :func:`reml_ar` tries by default (each order costs an optimization of the
 #: restricted likelihood; a residual that needs more is not called sensor noise).
 REML_MAX_ORDER = 6
@@ -584,7 +587,8 @@ def reml_ar(segments: list[SegmentResidual], quant_var: float = 0.0,
         vals = [lik.objective(x0) for x0 in x0s]
         with np.errstate(invalid="ignore"):  # a Σ too close to singular is +inf
             cand = minimize(lik.objective, x0s[int(np.argmin(vals))], method="L-BFGS-B",
-                            bounds=[(-4.0, 4.0)] * p + [(-15.0, 5.0)])
+                            bounds=[(-4.0, 4.0)] * p + [(-15.0, 5.0)],
+                            options={"maxiter": MAX_ITER})
         assert cand is not None
         aics.append(float(cand.fun) + math.log(n_all) * (p + 1))
         fits.append(np.array(cand.x))

@@ -86,13 +86,14 @@ def result_text(res: IdentResult) -> str:
                     if spec["sensor_noise"]
                     else spec["meaning"])
             cis = spec.get("noise_ar_ci95", [])
+            nan, wkey = float("nan"), "innovation_autocorrelation_chi2"
             coef = ", ".join(f"{c:.3f} [{lo:.3f}, {hi:.3f}]" for c, (lo, hi)
                              in zip(spec["noise_ar"], cis, strict=False)) or "white"
             lines.append(f"residual spectrum (fit and validation segments): AR({spec['order']}) "
                          f"by BIC, φ = {coef} (95 %), σ = {spec.get('noise_std_deg', 0.0):.3g}° "
                          f"[{', '.join(f'{v:.3g}' for v in spec.get('noise_std_ci95_deg', []))}]; "
-                         f"innovation whiteness χ² {spec['innovation_autocorrelation_chi2']:.3g} "
-                         f"(95 %: {spec['innovation_chi2_95']:.3g}), past-input χ² "
+                         f"innovation whiteness χ² {spec.get(wkey, nan):.3g} "
+                         f"(95 %: {spec.get('innovation_chi2_95', nan):.3g}), past-input χ² "
                          f"{spec['input_cross_correlation_chi2']:.3g} (95 %: "
                          f"{spec['chi2_95']:.3g}): {what}")
     else:
