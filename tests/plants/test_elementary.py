@@ -105,17 +105,64 @@ def test_compiled_gives_the_same_bits_and_vectorizes():
     assert np.array_equal(out.view(np.uint64), want.view(np.uint64))
 
 
-@pytest.mark.parametrize(("fast", "vec"), [(el.tanh, el._tanh_vec), (el.cos, el._cos_vec),
-                                           (el.exp_neg, el._exp_neg_vec)])
-def test_interpreter_form_is_the_compiled_form(fast, vec):
-    """The interpreter's form of each function gives the compiled form's bits."""
+def _c_form(name: str):
+    c = pytest.importorskip("esoarm.plants._elementary",
+                            reason="the C extension was not built (no C compiler or headers)")
+    return getattr(c, name)
+
+
+FORMS = {"public": lambda name: getattr(el, name),
+         "python": lambda name: getattr(el, f"_{name}_py"),
+         "c": _c_form}
+
+
+@pytest.mark.parametrize("form", sorted(FORMS))
+@pytest.mark.parametrize("name", ["tanh", "cos", "exp_neg"])
+def test_interpreter_form_is_the_compiled_form(name, form):
+    """The interpreter's forms of each function (Python, and the C extension where it was
+    built) give the compiled form's bits."""
+    fast, vec = FORMS[form](name), getattr(el, f"_{name}_vec")
     xs = np.concatenate([RNG.normal(0, 3, 20000), RNG.uniform(-30, 30, 20000),
                          RNG.uniform(-1e6, 1e6, 5000), 10 ** RNG.uniform(-300, 12, 5000),
                          -(10 ** RNG.uniform(-300, 12, 5000)), np.arange(-100, 100) * math.pi / 4,
-                         [0.0, -0.0, 20.0, -20.0, 708.0, 709.0, 1e9, -1e9, math.inf, -math.inf]])
-    if fast is el.exp_neg:
+                         [0.0, -0.0, 20.0, -20.0, 708.0, 709.0, 1e9, -1e9, math.inf, -math.inf,
+                          5e-324, -5e-324, 1e300, -1e300, 708.5, 710.0]])
+    if name == "exp_neg":
         xs = np.abs(xs)
     got = np.array([fast(x) for x in xs.tolist()])
     want = np.array([vec(x) for x in xs.tolist()])
     assert np.array_equal(got.view(np.uint64), want.view(np.uint64))
     assert math.isnan(fast(math.nan)) and math.isnan(vec(math.nan))
+
+
+def test_the_c_extension_is_used_where_built():
+    """Where the extension was built (and gives the Python forms' bits), the interpreter
+    calls it: the reference engine's speed depends on it."""
+    _c_form("tanh")
+    assert el.COMPILED
+    assert el._tanh is _c_form("tanh") and el._cos is _c_form("cos")
+
+
+@given(st.floats(allow_nan=False, allow_infinity=True))
+@settings(max_examples=3000, deadline=None)
+def test_c_extension_same_bits_on_any_double(x):
+    """The C extension against the Python forms on any double (hypothesis' edge cases)."""
+    for name in ("tanh", "cos", "exp_neg"):
+        if name == "exp_neg":
+            x = abs(x)
+        got, want = _c_form(name)(x), getattr(el, f"_{name}_py")(x)
+        assert np.float64(got).view(np.uint64) == np.float64(want).view(np.uint64)
+
+
+def test_a_c_build_with_other_bits_is_refused(monkeypatch):
+    """A miscompiled extension (other bits) is not used, with a warning."""
+    import sys
+    import types
+
+    fake = types.ModuleType("esoarm.plants._elementary")
+    fake.tanh = lambda x: el._tanh_py(x) + 1e-16  # type: ignore[attr-defined]
+    fake.cos, fake.exp_neg = el._cos_py, el._exp_neg_py  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "esoarm.plants._elementary", fake)
+    monkeypatch.setattr("esoarm.plants._elementary", fake, raising=False)
+    with pytest.warns(RuntimeWarning, match="other bits"):
+        assert el._load_c() is None

@@ -37,6 +37,7 @@ exp_neg   x ≥ 0                ≤ 2 ulp down to e^−708; 0 beyond (no subnor
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from esoarm._jit import jitable, jitable_as
 
@@ -175,16 +176,87 @@ def _cos_vec(x: float) -> float:
 
 
 # ---------------------------------------------------------------------------
-# The public functions: the forms above, written for the interpreter.  Compiled
-# kernels use the forms above (jitable_as); the interpreter runs these, which take
-# the same floating-point operations in the same order on the arguments they
-# handle (so the same bits; tests/plants/test_elementary.py compares the two) and hand
-# everything else (NaN, ±inf, huge arguments) to the forms above.  The differences:
-# 2^k from a table or math.ldexp instead of ten exact products, n mod 4 by an
-# integer, and only the series that is needed -- about twice as fast in CPython.
+# The interpreter's forms.  Compiled kernels use the forms above (jitable_as); the
+# interpreter runs these, which take the same floating-point operations in the same
+# order on the arguments they handle (so the same bits; tests/plants/test_elementary.py
+# compares the two) and hand everything else (NaN, ±inf, huge arguments) to the forms
+# above.  The differences: 2^k from a table or math.ldexp instead of ten exact
+# products, n mod 4 by an integer, and only the series that is needed -- about twice as
+# fast in CPython.  Where the C extension esoarm.plants._elementary was built (setup.py,
+# with a C compiler), the interpreter calls it instead: the forms above in C, the same
+# bits again, ten times quicker than these.
 
 #: 2^k for the k that tanh meets (0 ≤ k ≤ 58 for |x| ≤ 20): a lookup, not a call.
 _POW2 = tuple(2.0**k for k in range(64))
+
+
+def _tanh_py(x: float) -> float:
+    a = abs(x)
+    if a > 20.0:
+        a = 20.0  # as _tanh_vec: tanh(20) is 1 to 17 digits
+    elif not a <= 20.0:
+        return _tanh_vec(x)  # NaN
+    y = a + a
+    k = (y * INV_LN2 + SHIFT) - SHIFT
+    r = (y - k * LN2_HI) - k * LN2_LO
+    s = _POW2[int(k)]
+    em = s * _expm1_series(r) + (s - 1.0)
+    return math.copysign(em / (em + 2.0), x)
+
+
+def _exp_neg_py(x: float) -> float:
+    if not 0.0 <= x <= 708.0:
+        return _exp_neg_vec(x)
+    k = (x * INV_LN2 + SHIFT) - SHIFT
+    r = (k * LN2_HI - x) + k * LN2_LO
+    return (1.0 + _expm1_series(r)) / math.ldexp(1.0, int(k))
+
+
+def _cos_py(x: float) -> float:
+    if not abs(x) < 1e9:
+        return _cos_vec(x)
+    n = (x * TWO_OVER_PI + SHIFT) - SHIFT
+    r = ((x - n * PIO2_1) - n * PIO2_2) - n * PIO2_3
+    r2 = r * r
+    q = int(n) & 3
+    v = _sin_series(r, r2) if q & 1 else _cos_series(r2)
+    return -v if q == 1 or q == 2 else v
+
+
+def _load_c() -> tuple[Callable[[float], float], ...] | None:
+    """The C extension's (tanh, exp_neg, cos), or None where it is missing or differs.
+
+    A build that gives other bits than the Python forms on a few arguments that exercise
+    every branch (a compiler flag such as -ffast-math or FMA contraction would) is not
+    used, with a warning: the engines' bit-for-bit agreement comes first.
+    """
+    try:
+        from esoarm.plants import _elementary as c  # type: ignore[attr-defined]
+    except ImportError:
+        return None
+    probe = (0.0, -0.0, 1e-9, 0.37, -0.9, 2.5, -7.25, 19.5, 21.0, 300.0, 1e5, -3e8, 2e9)
+    for x in probe:
+        pairs = [(c.tanh(x), _tanh_py(x)), (c.cos(x), _cos_py(x))]
+        if x >= 0.0:
+            pairs.append((c.exp_neg(x), _exp_neg_py(x)))
+        if any(math.copysign(1.0, a) != math.copysign(1.0, b) or a != b for a, b in pairs):
+            import warnings
+
+            warnings.warn("esoarm.plants._elementary gives other bits than the Python forms "
+                          "(built with -ffast-math or FMA contraction?); not used, the "
+                          "reference engine runs slower", RuntimeWarning, stacklevel=2)
+            return None
+    return c.tanh, c.exp_neg, c.cos
+
+
+_C = _load_c()
+_tanh, _exp_neg, _cos = _C if _C is not None else (_tanh_py, _exp_neg_py, _cos_py)
+#: True where the interpreter runs the C extension's forms.
+COMPILED = _C is not None
+
+
+# ---------------------------------------------------------------------------
+# The public functions (what the interpreter calls; kernels compile the forms above)
 
 
 @jitable_as(_tanh_vec)
@@ -206,17 +278,7 @@ def tanh(x: float) -> float:
     >>> tanh(0.0), tanh(30.0), tanh(-30.0)
     (0.0, 1.0, -1.0)
     """
-    a = abs(x)
-    if a > 20.0:
-        a = 20.0  # as _tanh_vec: tanh(20) is 1 to 17 digits
-    elif not a <= 20.0:
-        return _tanh_vec(x)  # NaN
-    y = a + a
-    k = (y * INV_LN2 + SHIFT) - SHIFT
-    r = (y - k * LN2_HI) - k * LN2_LO
-    s = _POW2[int(k)]
-    em = s * _expm1_series(r) + (s - 1.0)
-    return math.copysign(em / (em + 2.0), x)
+    return _tanh(x)
 
 
 @jitable_as(_exp_neg_vec)
@@ -238,11 +300,7 @@ def exp_neg(x: float) -> float:
     >>> exp_neg(0.0), exp_neg(800.0)
     (1.0, 0.0)
     """
-    if not 0.0 <= x <= 708.0:
-        return _exp_neg_vec(x)
-    k = (x * INV_LN2 + SHIFT) - SHIFT
-    r = (k * LN2_HI - x) + k * LN2_LO
-    return (1.0 + _expm1_series(r)) / math.ldexp(1.0, int(k))
+    return _exp_neg(x)
 
 
 @jitable_as(_cos_vec)
@@ -264,11 +322,4 @@ def cos(x: float) -> float:
     >>> cos(0.0)
     1.0
     """
-    if not abs(x) < 1e9:
-        return _cos_vec(x)
-    n = (x * TWO_OVER_PI + SHIFT) - SHIFT
-    r = ((x - n * PIO2_1) - n * PIO2_2) - n * PIO2_3
-    r2 = r * r
-    q = int(n) & 3
-    v = _sin_series(r, r2) if q & 1 else _cos_series(r2)
-    return -v if q == 1 or q == 2 else v
+    return _cos(x)
