@@ -9,6 +9,7 @@ run time, 2 bad input, 130 interrupted.  Every failure is one line on stderr;
 
 from __future__ import annotations
 
+import gc
 import importlib
 import signal
 import sys
@@ -153,7 +154,24 @@ def main(argv: list[str] | None = None) -> None:
     Click runs in non-standalone mode so that esoarm decides the exit codes:
     a usage or input error is 2, a run-time failure 1, Ctrl-C 130 (click's own
     standalone mode would turn Ctrl-C into "Aborted!" with status 1).
+
+    Run as the command (``argv`` None), the process ends after this: every live
+    object is then moved to the garbage collector's permanent generation
+    (:func:`gc.freeze`), which spares the interpreter's last full collection at
+    exit -- about 40 ms once NumPy, pydantic and the kinds are loaded, a tenth of a
+    short command.  Nothing is lost: atexit handlers still run, every file esoarm
+    writes is closed by the code that writes it, and the memory goes back to the
+    system with the process.  Called with ``argv`` (in a longer-lived process),
+    the collector is left alone.
     """
+    try:
+        _main(argv)
+    finally:
+        if argv is None:
+            gc.freeze()
+
+
+def _main(argv: list[str] | None) -> None:
     warnings.showwarning = show_warning
     if hasattr(signal, "SIGXFSZ"):  # a file-size limit: an error on write, not a kill
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
