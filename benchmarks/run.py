@@ -335,18 +335,29 @@ def bench_control(grid, n: int) -> dict:  # type: ignore[type-arg, no-untyped-de
 
 
 def bench_startup(reps: int) -> dict:  # type: ignore[type-arg]
-    """esoarm --help, --version, a one-run sweep (both engines), warm, best of reps."""
+    """esoarm --help, --version, a one-run sweep (both engines), warm: median of reps (and best).
+
+    The commands take turns (help, version, exact, fast, help, ...) so that a slow stretch
+    of the machine falls on all of them.
+    """
     out: dict = {}  # type: ignore[type-arg]
     cmds = {"help": [*esoarm_cmd(), "--help"], "version": [*esoarm_cmd(), "--version"],
             "one_exact": sweep_cmd(1, 1, "exact"), "one_fast": sweep_cmd(1, 1, "fast")}
     for cmd in cmds.values():  # warm the caches
         run_proc(cmd)
-    for name, cmd in cmds.items():
-        cpu: list[float] = []
-        out[name] = min(run_proc(cmd, cpu=cpu)[0] for _ in range(reps))
-        out[f"{name}_cpu"] = min(cpu)
+    walls: dict[str, list[float]] = {name: [] for name in cmds}
+    cpus: dict[str, list[float]] = {name: [] for name in cmds}
+    for _ in range(reps):
+        for name, cmd in cmds.items():
+            walls[name].append(run_proc(cmd, cpu=cpus[name])[0])
+    for name in cmds:
+        out[name] = float(np.median(walls[name]))
+        out[f"{name}_best"] = min(walls[name])
+        out[f"{name}_cpu"] = float(np.median(cpus[name]))
+    out["reps"] = reps
     code = "import time; t = time.perf_counter(); import esoarm.cli; print(time.perf_counter() - t)"
-    out["import_cli"] = min(float(sh([sys.executable, "-c", code]) or "nan") for _ in range(reps))
+    out["import_cli"] = float(np.median([float(sh([sys.executable, "-c", code]) or "nan")
+                                         for _ in range(reps)]))
     return out
 
 
@@ -443,6 +454,35 @@ def bench_arms(work: Path, rounds: int, quick: bool) -> dict:  # type: ignore[ty
         out["pinocchio_skip"] = missing
     out["load_after"] = load()
     return out
+
+
+def bench_first_reproduce() -> dict:  # type: ignore[type-arg]
+    """The first ``esoarm reproduce`` after ``pip install .`` into a new venv (empty caches).
+
+    As ``benchmarks/bench_first_reproduce.py``: this checkout installed (not editable)
+    with its dependencies into a new virtual environment, so numba's cache beside the
+    installed sources is empty and every kernel the command needs is compiled.
+    """
+    from bench_first_reproduce import install, timed
+
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "NUMBA_CACHE_DIR", "PYTHONDONTWRITEBYTECODE")}
+    env["MPLBACKEND"] = "Agg"
+    with tempfile.TemporaryDirectory(prefix="esoarm-first-") as tmp:
+        t0 = time.perf_counter()
+        bindir = install(ROOT, Path(tmp) / "venv")
+        installed = time.perf_counter() - t0
+        compiled_c = any((Path(tmp) / "venv").glob(
+            "lib/python*/site-packages/esoarm/plants/_elementary*.so"))
+        before = load()
+        wall, cpu, status = timed([str(bindir / "esoarm"), "reproduce", "--out",
+                                   str(Path(tmp) / "out")],
+                                  {**env, "PATH": f"{bindir}{os.pathsep}{env.get('PATH', '')}"})
+        after = load()
+    if status != 0:
+        raise RuntimeError(f"the first esoarm reproduce failed (exit {status})")
+    return {"wall": wall, "cpu": cpu, "load_before": before, "load_after": after,
+            "install": installed, "c_extension": compiled_c}
 
 
 def bench_scaling(c: CLoop, sizes: list[int], c_max: int) -> dict:  # type: ignore[type-arg]
@@ -582,7 +622,7 @@ def main() -> None:
     top = 100 if args.quick else args.max_runs
     sizes = [10**i for i in range(7) if 10**i <= top]
     steps = [
-        ("start-up", lambda: bench_startup(2 if args.quick else 5)),
+        ("start-up", lambda: bench_startup(3 if args.quick else 11)),
         ("canonical sweep: C, exact, fast (rounds)",
          lambda: bench_canonical(c, work, 1 if args.quick else args.rounds)),
         ("in-process engines", lambda: bench_inprocess(grid, c, args.quick)),
@@ -595,9 +635,11 @@ def main() -> None:
     ]
     if not args.quick:
         steps += [(f"{args.big:,}-run sweep", lambda: bench_million(work, args.big)),
-                  ("tuning study", bench_tune)]
+                  ("tuning study", bench_tune),
+                  ("first esoarm reproduce after pip install . (new venv)",
+                   bench_first_reproduce)]
     names = ["startup", "canonical", "inproc", "python", "control", "scaling", "arms", "million",
-             "tune"]
+             "tune", "first"]
     with tempfile.TemporaryDirectory(prefix="esoarm-bench-") as tmp:
         work = Path(tmp)
         c = CLoop(grid, work)
