@@ -186,6 +186,8 @@ def write_doc(m: dict, machine: dict[str, str]) -> str:  # type: ignore[type-arg
         "",
         "| command (warm caches) | wall time [s] | fastest [s] | CPU time [s] |",
         "|---|---:|---:|---:|",
+        f"| `python -c pass` (the bare interpreter, for scale) | {st['python']:.3f} | "
+        f"{st['python_best']:.3f} | {st['python_cpu']:.3f} |",
         f"| `esoarm --help` | {st['help']:.3f} | {st['help_best']:.3f} | "
         f"{st['help_cpu']:.3f} |",
         f"| `esoarm --version` | {st['version']:.3f} | {st['version_best']:.3f} | "
@@ -198,7 +200,10 @@ def write_doc(m: dict, machine: dict[str, str]) -> str:  # type: ignore[type-arg
         "",
         f"Medians of {st['reps']} runs, the commands taking turns; the fastest run beside. "
         "CPU time (user + system, of the process) is what start-up costs on an idle machine; "
-        "on a loaded one the wall time also holds the waits for a core.",
+        "on a loaded one the wall time also holds the waits for a core.  The bare "
+        "interpreter's start-up is there for scale: this machine is a virtual one on a shared "
+        "host, and its speed drifts (`python -c pass` took between 0.09 and 0.15 s on the "
+        "same day), which moves every absolute time in this table with it.",
         "",
         "## Throughput against the number of runs",
         "",

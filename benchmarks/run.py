@@ -341,7 +341,8 @@ def bench_startup(reps: int) -> dict:  # type: ignore[type-arg]
     of the machine falls on all of them.
     """
     out: dict = {}  # type: ignore[type-arg]
-    cmds = {"help": [*esoarm_cmd(), "--help"], "version": [*esoarm_cmd(), "--version"],
+    cmds = {"python": [sys.executable, "-c", "pass"],  # the bare interpreter: a yardstick
+            "help": [*esoarm_cmd(), "--help"], "version": [*esoarm_cmd(), "--version"],
             "one_exact": sweep_cmd(1, 1, "exact"), "one_fast": sweep_cmd(1, 1, "fast")}
     for cmd in cmds.values():  # warm the caches
         run_proc(cmd)

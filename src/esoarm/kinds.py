@@ -22,7 +22,6 @@ Nothing in the engines, the CLI or the report changes.
 
 from __future__ import annotations
 
-import hashlib
 import inspect
 import linecache
 from collections.abc import Callable
@@ -482,6 +481,8 @@ def registry_stamp() -> str:
     extra = [(c, m) for c in COMPONENTS for m in _registered(c) if m not in _BUILTIN[c]]
     if not extra and all(_registered(c) == _BUILTIN[c] for c in COMPONENTS):
         return ""
+    import hashlib  # only for a registry with kinds of one's own (~5 ms to import)
+
     digest = hashlib.sha256(_DISPATCH_SOURCE.encode())
     for component, module in extra:
         digest.update(component.encode())

@@ -85,3 +85,20 @@ def test_emps_runs_in_both_engines_with_the_same_numbers():
     assert row["rms_error"] == pytest.approx(ref.metrics["rms_error"], rel=1e-12)
     # the PD loop tracks the 0.24 m moves to a fraction of a millimetre with forces of tens of N
     assert ref.metrics["max_abs_error"] < 2e-4 and 5.0 < ref.metrics["rms_u"] < 200.0
+
+
+def test_angle_sensor_keys_on_a_prismatic_axis_are_flagged():
+    """The sensor's degree keys on an axis measured in m: said in words, with what they do."""
+    from esoarm.scenario import scenario_warnings
+
+    base = {"plant.kind": "axis", "plant.motion": "prismatic", "controller.kind": "pid"}
+    flagged = scenario_warnings(load_scenario("test-1", base))  # the default sensor
+    assert any(m.startswith("sensor.noise_deg = 0.2 is an angle") and "0.00349 m" in m
+               for m in flagged), flagged
+    assert any(m.startswith("sensor.resolution_deg = 0.05") for m in flagged), flagged
+    quiet = load_scenario("test-1", {**base, "sensor.noise_deg": 0.0,
+                                     "sensor.resolution_deg": 0.0})
+    assert not [m for m in scenario_warnings(quiet) if "is an angle" in m]
+    assert not [m for m in scenario_warnings(load_scenario("emps")) if "is an angle" in m]
+    rotary = load_scenario("test-1", {"plant.kind": "axis", "controller.kind": "pid"})
+    assert not [m for m in scenario_warnings(rotary) if "is an angle" in m]

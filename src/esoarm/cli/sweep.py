@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -263,6 +262,8 @@ def sweep(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...], seed
     if divergence is not None:
         warn_line(divergence)
     if as_json:
+        import json
+
         click.echo(json.dumps(_summary(writer, out_path, plot_path, writer.diverged)))
         return
     _print_sweep(writer, writer.diverged)
@@ -361,7 +362,7 @@ def _print_sweep(result: Any, diverged: int) -> None:
         table.add_row(*(_fmt(row[k]) for k in grid.keys),
                       *(f"{row[m]:{u.number_format}}{mark}"
                         for m in ("rms_error", "rms_u", "max_abs_error")))
-    Console().print(table)
+    Console(emoji=False).print(table)  # no :emoji: codes here (and rich's table unloaded)
 
 
 # ---------------------------------------------------------------------------
@@ -488,6 +489,8 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     if plot_path is not None:
         _plot_tune(res, base.name, obj.text, w, plot_path, u)
     if as_json:
+        import json
+
         click.echo(json.dumps(_json_safe({
             "scenario": base.name,
             "objective": obj.text,

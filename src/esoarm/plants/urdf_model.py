@@ -28,7 +28,6 @@ import contextlib
 import math
 import os
 import tempfile
-import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from importlib import resources
@@ -296,6 +295,8 @@ class ArmModel:
 
 
 def _check_xml(path: Path, source: str) -> None:
+    import xml.etree.ElementTree as ET  # only where a URDF is read
+
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as exc:

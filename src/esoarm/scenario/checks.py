@@ -24,7 +24,7 @@ from esoarm.scenario.errors import ScenarioError
 if TYPE_CHECKING:
     from esoarm.scenario.schema import Scenario
 
-__all__ = ["check_consistency", "scenario_warnings", "timing_warnings"]
+__all__ = ["angle_key_warnings", "check_consistency", "scenario_warnings", "timing_warnings"]
 
 
 def check_consistency(scn: Scenario, source: str,
@@ -212,7 +212,45 @@ def scenario_warnings(scn: Scenario) -> list[str]:
     >>> scenario_warnings(load_scenario("test-1"))
     []
     """
-    return [*_kinds.observer_warnings(scn), *timing_warnings(scn)]
+    return [*_kinds.observer_warnings(scn), *timing_warnings(scn), *angle_key_warnings(scn)]
+
+
+def angle_key_warnings(scn: Scenario) -> list[str]:
+    """The sensor's angle keys [deg] set on a plant whose position is not an angle.
+
+    ``sensor.noise_deg``, ``sensor.resolution_deg`` and ``sensor.vibration_deg`` are
+    converted from degrees to radians and added to the measured position.  On a plant whose
+    position is in metres (a prismatic axis) that is σ·π/180 m: a number nobody meant.
+    The default sensor (0.2° of noise, 0.05° steps) is such a case unless the scenario
+    sets them to 0, as the built-in ``emps`` does.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    list of str
+        One message per such key; empty for a plant measured in rad.
+
+    Examples
+    --------
+    >>> from esoarm.scenario import load_scenario
+    >>> angle_key_warnings(load_scenario("emps")), angle_key_warnings(load_scenario("test-1"))
+    ([], [])
+    """
+    unit = _kinds.units(scn).position
+    if unit == "rad":
+        return []
+    out = []
+    for key in ("noise_deg", "resolution_deg", "vibration_deg"):
+        value = getattr(scn.sensor, key)
+        if value != 0.0:
+            out.append(f"sensor.{key} = {value:g} is an angle [deg], but this plant's position "
+                       f"is in {unit}: it acts as {math.radians(value):.3g} {unit}; set it to 0 "
+                       f"(or to the wanted value in {unit} × 180/π)")
+    return out
 
 
 def timing_warnings(scn: Scenario) -> list[str]:
