@@ -202,8 +202,8 @@ def write_doc(m: dict, machine: dict[str, str]) -> str:  # type: ignore[type-arg
         "CPU time (user + system, of the process) is what start-up costs on an idle machine; "
         "on a loaded one the wall time also holds the waits for a core.  The bare "
         "interpreter's start-up is there for scale: this machine is a virtual one on a shared "
-        "host, and its speed drifts (`python -c pass` took between 0.09 and 0.15 s on the "
-        "same day), which moves every absolute time in this table with it.",
+        "host, its speed drifts within a day, and every absolute time in this table drifts "
+        "with it.",
         "",
         "## Throughput against the number of runs",
         "",
