@@ -49,6 +49,21 @@ def timed(cmd: list[str], env: dict[str, str]) -> tuple[float, float, int]:
     return wall, usage.ru_utime + usage.ru_stime, os.waitstatus_to_exitcode(status)
 
 
+def clean_env() -> dict[str, str]:
+    """This process's environment without what would point a venv's esoarm at this checkout
+    or at a warm numba cache, and with a headless matplotlib."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "NUMBA_CACHE_DIR", "PYTHONDONTWRITEBYTECODE")}
+    env["MPLBACKEND"] = "Agg"
+    return env
+
+
+def reproduce(bindir: Path, out: Path, env: dict[str, str]) -> tuple[float, float, int]:
+    """``esoarm reproduce --out OUT`` of the venv at ``bindir``: (wall [s], CPU [s], status)."""
+    run_env = {**env, "PATH": f"{bindir}{os.pathsep}{env.get('PATH', '')}"}
+    return timed([str(bindir / "esoarm"), "reproduce", "--out", str(out)], run_env)
+
+
 def cached_kernels(venv: Path) -> list[str]:
     """Every numba-cached function of the installed package, with its specializations."""
     out = []
@@ -66,9 +81,7 @@ def main() -> None:
     parser.add_argument("--warm", action="store_true", help="also time a second, warm run")
     args = parser.parse_args()
     sources = args.src or [ROOT]
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("PYTHONPATH", "NUMBA_CACHE_DIR", "PYTHONDONTWRITEBYTECODE")}
-    env["MPLBACKEND"] = "Agg"
+    env = clean_env()
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores")
     with tempfile.TemporaryDirectory(prefix="esoarm-first-") as tmp:
         bins = []
@@ -81,10 +94,8 @@ def main() -> None:
         for label in ("first", "warm") if args.warm else ("first",):
             for i, (src, bindir) in enumerate(zip(sources, bins, strict=True)):
                 out = Path(tmp) / f"out{i}-{label}"
-                run_env = {**env, "PATH": f"{bindir}{os.pathsep}{env.get('PATH', '')}"}
                 before = load()
-                wall, cpu, status = timed([str(bindir / "esoarm"), "reproduce", "--out",
-                                           str(out)], run_env)
+                wall, cpu, status = reproduce(bindir, out, env)
                 note = "" if status == 0 else f" (exit {status})"
                 print(f"| {src} | {label}{note} | {wall:.1f} | {cpu:.1f} | {before} | {load()} |",
                       flush=True)

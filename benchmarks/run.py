@@ -464,11 +464,8 @@ def bench_first_reproduce() -> dict:  # type: ignore[type-arg]
     with its dependencies into a new virtual environment, so numba's cache beside the
     installed sources is empty and every kernel the command needs is compiled.
     """
-    from bench_first_reproduce import install, timed
+    from bench_first_reproduce import clean_env, install, reproduce
 
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("PYTHONPATH", "NUMBA_CACHE_DIR", "PYTHONDONTWRITEBYTECODE")}
-    env["MPLBACKEND"] = "Agg"
     with tempfile.TemporaryDirectory(prefix="esoarm-first-") as tmp:
         t0 = time.perf_counter()
         bindir = install(ROOT, Path(tmp) / "venv")
@@ -476,9 +473,7 @@ def bench_first_reproduce() -> dict:  # type: ignore[type-arg]
         compiled_c = any((Path(tmp) / "venv").glob(
             "lib/python*/site-packages/esoarm/plants/_elementary*.so"))
         before = load()
-        wall, cpu, status = timed([str(bindir / "esoarm"), "reproduce", "--out",
-                                   str(Path(tmp) / "out")],
-                                  {**env, "PATH": f"{bindir}{os.pathsep}{env.get('PATH', '')}"})
+        wall, cpu, status = reproduce(bindir, Path(tmp) / "out", clean_env())
         after = load()
     if status != 0:
         raise RuntimeError(f"the first esoarm reproduce failed (exit {status})")

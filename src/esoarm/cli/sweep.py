@@ -362,7 +362,7 @@ def _print_sweep(result: Any, diverged: int) -> None:
         table.add_row(*(_fmt(row[k]) for k in grid.keys),
                       *(f"{row[m]:{u.number_format}}{mark}"
                         for m in ("rms_error", "rms_u", "max_abs_error")))
-    Console(emoji=False).print(table)  # no :emoji: codes here (and rich's table unloaded)
+    Console(emoji=False).print(table)  # no :emoji: codes here; rich's emoji table stays unloaded
 
 
 # ---------------------------------------------------------------------------
