@@ -728,9 +728,9 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
     Parameters
     ----------
-    z : ndarray, shape (3n,)
+    z : ndarray, shape ((3 + N)·n,)
         Observer state z_k (not changed).
-    zhat : ndarray, shape (3n,)
+    zhat : ndarray
         The previous estimate ẑ_{k−1} (unused: z1 is the angle predicted for t_k).
     p : ndarray or tuple of float
         The design vector; ``p[0]`` is the kind's CODE.
@@ -743,8 +743,9 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
 
 def state_size(params: Params) -> int:
-    """States per joint: 3 (angle, rate, total perturbation)."""
-    return 3
+    """States per joint: 3 (angle, rate, total perturbation), then the ``input_delay``
+    commands held for the delayed input."""
+    return 3 + int(params.input_delay)
 
 
 @jitable
