@@ -405,7 +405,7 @@ def stream(scn: Scenario, *, sink: Callable[[SimResult], None] | None = None,
             args: tuple[Any, ...] = (log, x, noise.block(m, off), refs, k0, off, m, *work, hist)
             try:
                 rows = (runner(*args) if runner is not None
-                        else stream_block(*args, sg, d, steps))  # type: ignore[misc]
+                        else stream_block(*args, sg, d, steps))  # type: ignore[call-arg]
             except (ArithmeticError, ValueError):  # out of range inside a step
                 rows = -max(int((~np.isnan(log[SAT, off:])).sum()), 1)
             done = abs(rows)
