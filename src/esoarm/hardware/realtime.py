@@ -396,9 +396,11 @@ def _chip_check(scn: Scenario, link: SerialLink, info: P.Info) -> P.ChipInfo:
             f"(hash {chip.scenario_hash}, this one {mine}): rebuild it from the same scenario "
             "and --set values ('esoarm hil SCENARIO --onboard', or 'esoarm codegen SCENARIO "
             "--target avr --out DIR' and make -C firmware ONBOARD=DIR)")
-    if motor_of(scn) is None or info.accepts_torque:
-        raise ScenarioError("--onboard: the scenario needs a [motor] table (the chip drives "
-                            "PWM duties)")
+    if (motor_of(scn) is None) != info.accepts_torque:
+        raise ScenarioError(
+            "--onboard: the scenario needs a [motor] table (the chip drives PWM duties)"
+            if motor_of(scn) is None else "--onboard: the chip drives an ideal torque source "
+            "but the scenario has a [motor] table: give both the same scenario")
     if chip.stream_every < 1:
         raise LinkError(f"the chip on '{link.port}' reports stream_every = 0")
     return chip
@@ -438,7 +440,7 @@ def _run_onboard(scn: Scenario, link: SerialLink, info: P.Info, q: float,  # noq
     with _SigintFlag() as sigint:
         try:
             _loop_onboard(link, ctl, q, chip.stream_every, limits, log, summary, acc, periods,
-                          sigint, status, n, ts, last)
+                          sigint, status, n, ts, last, info.accepts_torque)
         except _Stop as exc:
             error_message, interrupted = str(exc), exc.interrupted
         except LinkError as exc:
@@ -464,7 +466,7 @@ def _run_onboard(scn: Scenario, link: SerialLink, info: P.Info, q: float,  # noq
 
 
 def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # type: ignore[no-untyped-def]
-                  sigint, status, n, ts, last) -> None:
+                  sigint, status, n, ts, last, torque=False) -> None:
     fmt = repr
     isfinite = math.isfinite
     perf = time.perf_counter
@@ -549,7 +551,7 @@ def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # ty
             u = r.u
             log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u)},{fmt(r.z1)},"
                       f"{fmt(r.z2)},{fmt(r.z3)},{k},{fmt(t_dev)},{fmt(now - t_start)},nan,"
-                      f"{late},{r.duty},{fmt(y)}\n")
+                      f"{late},{'nan' if torque else r.duty},{fmt(y)}\n")
             acc["e"].append(e)
             acc["u"].append(u)
             y_prev = y
