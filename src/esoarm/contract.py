@@ -304,6 +304,43 @@ class ObserverKind(Kind, Protocol):
             joint j in ``zhat[3j:3j+3]``.
         """
 
+    def predict(self, z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray,
+                /) -> None:
+        """A lost sample: the measurement the observer expects at t_k into ``y``.
+
+        The stepper (:class:`esoarm.engines.stepper.Stepper`) bridges a sample that never
+        arrived with it: estimate and update then see zero innovation.  The kind says
+        which of its states (or what function of them) is the angle; no consumer assumes
+        it is ``z[0]``.
+
+        Parameters
+        ----------
+        z : ndarray
+            Observer state z_k (not changed).
+        zhat : ndarray, shape (3n,)
+            The previous estimate ẑ_{k−1} (angle, rate, perturbation per joint), for a
+            kind whose state does not hold the angle.
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        y : ndarray, shape (n,)
+            Output: the predicted angle(s) [rad].
+        """
+
+    def state_size(self, params: Any, /) -> int:
+        """The observer's states per joint for these settings (its design has n times as many).
+
+        Parameters
+        ----------
+        params : Params
+            The kind's validated table.
+
+        Returns
+        -------
+        int
+            States per joint (≥ 1); the engines size z from the design, the registry checks
+            the design against this.
+        """
+
     def advance(self, z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
                 p: np.ndarray, /) -> None:
         """z_{k+1} in place from z_k, ẑ_k, y_k and the observer input u_k.

@@ -46,7 +46,8 @@ from esoarm.contract import (
 )
 from esoarm.controllers import computed_torque, flc, pid
 from esoarm.observers import cascade, linear, nonlinear
-from esoarm.plants import axis, lever_arm, urdf
+from esoarm.plants import axis, lever_arm
+from esoarm.plants.arms import urdf
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario

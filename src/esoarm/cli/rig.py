@@ -418,7 +418,7 @@ def _replay_arm(scn, log_file: str, out_path: Path | None,  # type: ignore[no-un
                 plot_path: Path | None) -> None:
     """``replay`` with an arm scenario: theta_i, u_i per joint (esoarm.hardware.replay_arm)."""
     from esoarm.hardware.replay_arm import read_arm_log, replay_arm
-    from esoarm.plants.urdf import joint_names
+    from esoarm.plants.arms.urdf import joint_names
 
     names = joint_names(scn)
     t, theta, u, ts = read_arm_log(log_file, len(names))

@@ -8,9 +8,9 @@ engines therefore give the same numbers (the tests require bit-for-bit
 equality on every kind, discretization, noise, quantization, lag, delay,
 motor, saturation and compensation setting).  The exception is a URDF arm:
 the reference engine calls Pinocchio, the kernels the compiled rigid body of
-:mod:`esoarm.plants.rigid_body` (``COMPILED_EXACT = False``), equal to rounding
+:mod:`esoarm.plants.arms.rigid_body` (``COMPILED_EXACT = False``), equal to rounding
 (the tests hold every metric within
-:data:`esoarm.plants.urdf_compiled.ENGINE_TOLERANCE`).  A point whose kinds do
+:data:`esoarm.plants.arms.compiled.ENGINE_TOLERANCE`).  A point whose kinds do
 not compile (``JIT = False``) is run by the reference engine in worker processes.
 
 The kinds' parameter vectors reach the kernels as tuples (they live in

@@ -9,7 +9,7 @@ the replay gives back its ``z1_i``, ``z2_i``, ``z3_i``.  Each joint's observer
 runs exactly as in the loop, through the scenario's kinds: row k holds ẑ_k,
 the estimate the controller would use at t_k, then every observer is updated
 with the observers' input of the plant (v = M̂(q̂)⁻¹(u − c n̂),
-:func:`esoarm.plants.urdf.observer_input`).  A NaN angle (a lost sample) is
+:func:`esoarm.plants.arms.urdf.observer_input`).  A NaN angle (a lost sample) is
 bridged with zero innovation.  The sample period comes from the log.
 """
 
