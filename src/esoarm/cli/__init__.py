@@ -54,6 +54,7 @@ COMMANDS: dict[str, str] = {
     "codegen": "esoarm.cli.codegen:codegen",
     "pil": "esoarm.cli.pil:pil",
     "compare": "esoarm.cli.compare:compare",
+    "commission": "esoarm.cli.commission:commission",
 }
 
 
@@ -62,6 +63,8 @@ COMMANDS: dict[str, str] = {
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
     "compare": "Run the ADRC forms on SCENARIO: RMS error and RMS Δu, means over the seeds.",
+    "commission": "Commission a rig: excite, identify, design, generate, flash and run on "
+                  "board.",
     "codegen": "Generate self-contained C99 for SCENARIO's observer and controller on a target.",
     "arm-study": "Compare controllers and sweep ε on the arm SCENARIO (plant.kind = \"urdf\").",
     "analyze": "Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.",
