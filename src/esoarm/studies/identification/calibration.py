@@ -53,7 +53,9 @@ import numpy as np
 __all__ = ["HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig", "run_rig", "summary"]
 
 #: Seeds from this one on are held out of any tuning of the estimator (reported apart).
-HELD_OUT_START = 1_000_000
+#: (Seeds 1_000_000 … were held out first; the first of them, 1_000_001, a 200 Hz rig whose
+#: 2-sample delay was fitted as 1 sample and a lag, led to a change, so they are no longer.)
+HELD_OUT_START = 2_000_000
 #: RMS of the default plan's multisine [N·m] (``esoarm excite --amplitude``).
 EXCITATION_RMS = 0.2
 RATES = (50.0, 50.0, 50.0, 50.0, 50.0, 50.0, 100.0, 100.0, 200.0, 1000.0)
