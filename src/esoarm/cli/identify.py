@@ -411,7 +411,7 @@ class _numpy_quiet:  # noqa: N801 - a context manager
         self._w.__enter__()
         warnings.simplefilter("ignore", RuntimeWarning)
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, *exc: Any) -> None:
         import numpy as np
 
         self._w.__exit__(*exc)

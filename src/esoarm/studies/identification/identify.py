@@ -190,6 +190,9 @@ class IdentResult:
     model_error: list[str] = field(default_factory=list)
     #: How the written intervals were computed.
     interval_method: str = "white noise: σ̂² (JᵀJ)⁻¹"
+    #: What the excitation achieved, from the ``# esoarm excite:`` header of each fitting log
+    #: that has one (:func:`esoarm.studies.identification.probe.read_header`).
+    excitation: dict = field(default_factory=dict)
 
     def value(self, key: str) -> float:
         """Fitted value of a scenario key."""
@@ -219,6 +222,7 @@ class IdentResult:
                       else "not written: the validation residual is not white, so it is model "
                       "error, not sensor noise; sensor.noise_deg stays as given"),
             "model_error": self.model_error,
+            "excitation": self.excitation,
             "interval_method": self.interval_method,
             "withheld": [k for k, e in self.estimates.items() if e.withheld],
             "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
@@ -616,6 +620,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     why = res.untrustworthy() or _methods_disagree(res, idim) or _validation_failed(res)
     if why:
         raise FitFailed(why, res)
+    res.excitation = _excitation_headers(fit_logs)
     res.model_error = _model_rejected(res, prob, sol, idim)
     if res.model_error:
         _model_error_intervals(res, prob, sol, idim)
@@ -643,6 +648,23 @@ def _validation_failed(res: IdentResult) -> str:
             "variation (0 % is its mean: the model predicts nothing there); nothing written")
 
 
+#: A log whose excitation left the arm stuck more than this share of the time (the header of
+#: ``esoarm excite``) is evidence against white-noise intervals.
+MAX_STUCK = 0.5
+
+
+def _excitation_headers(logs: list[IdentLog]) -> dict[str, dict[str, float]]:
+    """{path: header} of the fitting logs that carry an ``# esoarm excite:`` header."""
+    from esoarm.studies.identification.probe import read_header
+
+    out = {}
+    for path in sorted({lg.path for lg in logs}):
+        head = read_header(path)
+        if head:
+            out[path] = head
+    return out
+
+
 def _whiteness(r: np.ndarray) -> dict:
     """The residual's autocorrelation at lags 1 … 20 against ±1.96/√M (white: ≤ 2 outside)."""
     lags = np.arange(1, 21)
@@ -662,18 +684,28 @@ def _model_rejected(res: IdentResult, prob: Problem, sol, idim) -> list[str]:  #
       noise by its spectrum (:meth:`IdentResult.coloured_noise`);
     * IDIM-LS and the output-error fit disagree on the inertia (beyond :data:`MILD_Z`
       combined standard errors and :data:`MILD_SHARE`);
-    * the delay ended at the longest one tried (``--max-delay``).
+    * the delay ended at the longest one tried (``--max-delay``);
+    * the log's ``esoarm excite`` header says the arm was stuck more than :data:`MAX_STUCK`
+      of the time, or never broke away.
     A non-white residual also voids the likelihood-ratio tests of the delay, the lag and the
     stiction (a cost ratio friction error alone can produce).
     """
     out = []
-    w = res.validation.get("whiteness") if res.validation else _whiteness(-sol.fun)
+    w: dict = res.validation["whiteness"] if res.validation else _whiteness(-sol.fun)
     if not w["white"] and res.coloured_noise() is None:
         where = "validation" if res.validation else "fit"
         out.append(f"the {where} residual is not white ({w['outside']} of {w['lags']} "
                    f"autocorrelation lags outside ±{w['band']:.3g}, max |ρ| "
                    f"{w['max_abs_autocorrelation']:.2f}) and is not sensor noise by its "
                    "spectrum")
+    for path, head in res.excitation.items():
+        stuck = head.get("stuck_fraction", math.nan)
+        if stuck > MAX_STUCK:
+            out.append(f"the excitation left the arm stuck {stuck:.0%} of the time ({path}'s "
+                       "header): the log says little about the inertia, the delay and the lag")
+        elif head.get("broke_away", 1.0) == 0.0:
+            out.append(f"the excitation's probe did not break the arm away in both directions "
+                       f"({path}'s header)")
     delay = res.estimates.get(DELAY_KEY)
     if delay is not None and delay.bound == "upper":
         out.append(f"the delay ended at the longest one tried ({delay.value:g} samples, "
