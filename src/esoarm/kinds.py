@@ -47,9 +47,10 @@ from esoarm.contract import (
     Units,
     read_only,
 )
-from esoarm.controllers import computed_torque, flc, pid
+from esoarm.controllers import adrc_error, adrc_tf, computed_torque, flc, pid
 from esoarm.observers import cascade, linear, nonlinear
-from esoarm.plants import axis, lever_arm, urdf
+from esoarm.plants import axis, lever_arm
+from esoarm.plants.arms import urdf
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
@@ -64,7 +65,7 @@ __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "check_kind
 #: against its component's protocol, :class:`esoarm.contract.PlantKind` etc.)
 PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis)
 OBSERVERS: tuple[ObserverKind, ...] = (linear, nonlinear, cascade)
-CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque)
+CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque, adrc_error, adrc_tf)
 
 #: What was registered at import: the kinds of the package itself.
 _BUILTIN: dict[str, tuple[Any, ...]] = {
