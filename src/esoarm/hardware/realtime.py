@@ -510,9 +510,11 @@ def _chip_check(scn: Scenario, link: SerialLink, info: P.Info) -> P.ChipInfo:
             f"(hash {chip.scenario_hash}, this one {mine}): rebuild it from the same scenario "
             "and --set values ('esoarm hil SCENARIO --onboard', or 'esoarm codegen SCENARIO "
             "--target avr --out DIR' and make -C firmware ONBOARD=DIR)")
-    if motor_of(scn) is None or info.accepts_torque:
-        raise ScenarioError("--onboard: the scenario needs a [motor] table (the chip drives "
-                            "PWM duties)")
+    if (motor_of(scn) is None) != info.accepts_torque:
+        raise ScenarioError(
+            "--onboard: the scenario needs a [motor] table (the chip drives PWM duties)"
+            if motor_of(scn) is None else "--onboard: the chip drives an ideal torque source "
+            "but the scenario has a [motor] table: give both the same scenario")
     if chip.stream_every < 1:
         raise LinkError(f"the chip on '{link.port}' reports stream_every = 0")
     return chip
@@ -546,12 +548,12 @@ def _run_onboard(scn: Scenario, link: SerialLink, info: P.Info, q: float,  # noq
                          stream_every=chip.stream_every, observer_sums=chip.sums_name)
     sup = _Supervisor(link, limits, log, summary, status, ctl.t, n, "the chip")
     ended = _supervised(link, sup, lambda sigint: _loop_onboard(
-        sup, ctl, q, chip.stream_every, sigint, n, ts))
+        sup, ctl, q, chip.stream_every, sigint, n, ts, info.accepts_torque))
     return _conclude(sup, [], ts, log_path, ended, "the chip's watchdog")
 
 
 def _loop_onboard(sup: _Supervisor, ctl: DeploymentController, q: float, every: int,
-                  sigint: _SigintFlag, n: int, ts: float) -> None:
+                  sigint: _SigintFlag, n: int, ts: float, torque: bool = False) -> None:
     """Supervise the chip: heartbeats out, each streamed CHIP_SAMPLE checked and logged."""
     fmt = repr
     isfinite = math.isfinite
@@ -608,7 +610,7 @@ def _loop_onboard(sup: _Supervisor, ctl: DeploymentController, q: float, every: 
             u = r.u
             log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u)},{fmt(r.z1)},"
                       f"{fmt(r.z2)},{fmt(r.z3)},{k},{fmt(t_dev)},{fmt(now - sup.t_start)},nan,"
-                      f"{late},{r.duty},{fmt(y)}\n")
+                      f"{late},{'nan' if torque else r.duty},{fmt(y)}\n")
             sup.logged(k, y, e, u, now)
             k_next = k + every
 
