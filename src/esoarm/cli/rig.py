@@ -32,7 +32,18 @@ def _say(line: str) -> None:
 
 
 def scope_options(func):  # type: ignore[no-untyped-def]
-    """--scope, --scope-port, --scope-window (the live page)."""
+    """--scope, --scope-port, --scope-window (the live page).
+
+    Parameters
+    ----------
+    func : callable
+        A command's function.
+
+    Returns
+    -------
+    callable
+        ``func`` with the three options.
+    """
     func = click.option("--scope-window", type=float, default=10.0, show_default=True,
                         metavar="SECONDS",
                         help="Seconds of data the scope keeps and shows [s].")(func)
