@@ -78,12 +78,15 @@ def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True,
                   disable=not stderr_is_tty()) as bar, \
-            (progress(n_runs, "reproduce", "runs") if not stderr_is_tty()  # logs, pipes
+            (progress(n_runs, "reproduce", "simulated runs (all twins)")
+             if not stderr_is_tty()  # logs, pipes
              else contextlib.nullcontext(lambda n: None)) as lines:
         task = bar.add_task("simulating", total=n_runs)
+        simulated = [0]
 
         def step(what: str) -> None:
             bar.update(task, advance=1, description=what)
+            simulated[0] += what.startswith("simulated")
             if bar.disable:  # without a terminal: a line every 10 s, each step with --verbose
                 detail(what)
                 if what.startswith("simulated"):
@@ -94,6 +97,7 @@ def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int
             reps = compared_twins({twin: rep}, progress=lambda key: step(f"simulated {key}"))
         except SimulationDiverged as exc:  # nothing written yet: no half-complete results
             raise RunFailure(str(exc)) from None
+        rep.n_simulated_all = simulated[0]  # the report counts what the progress counted
         bar.update(task, total=n_runs + len(figure_specs(rep)) + 4)
         section = ("twins", "Two twins: nominal and calibrated to the paper",
                    twins_section(reps))

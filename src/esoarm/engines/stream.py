@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from esoarm import _limits
 from esoarm._jit import jitable
 from esoarm.engines.loop import borrowed, borrowed_designs, keep_alive
 from esoarm.engines.metrics import ERR, METRICS, NROW, OM, SAT, Z2, Z3, F, U, combine_joints
@@ -63,7 +64,7 @@ BLOCK = 1 << 16
 PYTHON_BLOCK = 1 << 12
 #: ``esoarm simulate`` streams runs of more samples than this (memory: the reference engine
 #: keeps ~200 bytes per sample; time: the compiled blocks are ~50 times quicker).
-STREAM_SAMPLES = 500_000
+STREAM_SAMPLES = _limits.STREAM_SAMPLES
 
 
 @jitable
