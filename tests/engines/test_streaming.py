@@ -154,3 +154,24 @@ def test_compiled_blocks_give_the_reference_bits():
             assert np.allclose(table, ref, rtol=1e-9, atol=1e-9)
         else:
             assert np.array_equal(table, ref, equal_nan=True)
+
+
+def test_sweep_metrics_of_a_long_run_are_streamed(python_blocks, monkeypatch):
+    from esoarm.engines import simulation
+    from esoarm.engines.metrics import METRICS
+
+    monkeypatch.setattr(simulation, "STREAM_SAMPLES", 100)
+    calls = []
+    real = streaming.stream
+    monkeypatch.setattr(streaming, "stream", lambda scn, **kw: calls.append(scn) or real(scn,
+                                                                                         **kw))
+    ok = load_scenario("test-1", {"duration": 4.0})
+    bad = load_scenario("test-1", {"duration": 4.0, "observer.eps": 0.001})
+    table = simulation.reference_metrics([ok, bad])
+    assert len(calls) == 2
+    ref_ok = run_reference(ok, prepare(ok)).metrics
+    with pytest.raises(SimulationDiverged) as info:
+        run_reference(bad, prepare(bad))
+    for row, ref in zip(table.values, (ref_ok, info.value.result.metrics), strict=True):
+        for j, name in enumerate(METRICS):
+            assert row[j] == pytest.approx(ref[name], rel=RTOL, nan_ok=True), name
