@@ -21,7 +21,7 @@ from esoarm.cli._common import (
 @click.command()
 @scenario_argument
 @set_option
-@click.option("--target", type=click.Choice(["avr", "cortex-m4", "host"]), required=True,
+@click.option("--target", type=click.Choice(["avr", "cortex-m4", "host"]), default=None,
               help="avr: ATmega328P (avr-gcc, double is 32 bits); cortex-m4: with FPU "
               "(arm-none-eabi-gcc); host: the machine's gcc.")
 @click.option("--out", "out", required=True, metavar="DIR",
@@ -35,9 +35,15 @@ from esoarm.cli._common import (
 @click.option("--no-check", is_flag=True,
               help="Skip the float32 check (the generated code built for the host and run "
               "against the float64 Python reference over the twin run).")
+@click.option("--project", type=click.Choice(["stm32"]), default=None,
+              help="Write a whole firmware project into --out instead: stm32 is a Makefile "
+              "project for an STM32F401RE (Nucleo-F401RE: startup, linker script, register-"
+              "level TIM2 encoder, TIM3 PWM, TIM4 sample clock, USART2 link for 'esoarm run "
+              "--onboard'), float32 for its FPU; build it with make (arm-none-eabi-gcc).")
 @bad_input_guard
-def codegen(scenario: str, overrides: tuple[str, ...], target: str, out: str,
-            precision: str | None, plain_sums: bool, no_check: bool) -> None:
+def codegen(scenario: str, overrides: tuple[str, ...], target: str | None, out: str,
+            precision: str | None, plain_sums: bool, no_check: bool,
+            project: str | None) -> None:
     """Generate self-contained C99 for SCENARIO's observer and controller on a target.
 
     The code is the scenario as designed: the observer and controller kinds'
@@ -51,6 +57,13 @@ def codegen(scenario: str, overrides: tuple[str, ...], target: str, out: str,
     """
     from esoarm.codegen import AGREEMENT, CodegenError, generate, write_sources
 
+    if project is not None:
+        from esoarm.cli.codegen_project import write_project
+
+        write_project(scenario, overrides, project, out, target, precision, plain_sums)
+        return
+    if target is None:
+        raise BadInput("--target is required (avr, cortex-m4 or host), or --project stm32")
     precision = precision or "float32"
     folder = output_dir(out, "--out")
     scn = resolve_scenario(scenario, overrides)
