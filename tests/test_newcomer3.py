@@ -248,3 +248,20 @@ def test_bode_labels_stay_inside_their_axes():
             assert (box.x0 <= ext.x0 and ext.x1 <= box.x1 and box.y0 <= ext.y0
                     and ext.y1 <= box.y1), text.get_text()
     assert labels >= 3
+
+
+def test_ctrl_c_during_reproduce_says_what_was_kept(run_cli, monkeypatch, tmp_path):
+    from esoarm.studies.reproduction import run as reproduction
+
+    def interrupted(overrides, progress=None, **kwargs):
+        for key in ("a", "b", "c"):
+            progress(key)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(reproduction, "run_reproduction", interrupted)
+    out = tmp_path / "rep"
+    res = run_cli("reproduce", "--out", str(out))
+    assert res.exit_code == 130
+    line, = res.stderr.strip().splitlines()
+    assert "after 3 of about" in line and f"nothing written to {out}" in line
+    assert not out.exists()

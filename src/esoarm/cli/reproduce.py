@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from esoarm.cli._common import (
+    Interrupted,
     RunFailure,
     bad_input_guard,
     detail,
@@ -58,13 +59,19 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
     # the compiled kernels with only the kinds the paper's experiments use (lever arm,
     # linear ESO, FLC, PID): a first reproduce after installation compiles less
     compile_only([kinds_of(scn) for scn in planned.values()])
+    done = [0]
     try:
-        _reproduce(out, fmt, twin, overrides, n_runs)
+        _reproduce(out, fmt, twin, overrides, n_runs, done)
+    except KeyboardInterrupt:
+        raise Interrupted(f"after {done[0]} of about {n_runs} simulated runs; nothing written "
+                          f"to {out} (its files are moved there only once all are complete)"
+                          ) from None
     finally:
         compile_only(None)
 
 
-def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int) -> None:
+def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int,
+               simulated: list[int]) -> None:
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -82,7 +89,6 @@ def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int
              if not stderr_is_tty()  # logs, pipes
              else contextlib.nullcontext(lambda n: None)) as lines:
         task = bar.add_task("simulating", total=n_runs)
-        simulated = [0]
 
         def step(what: str) -> None:
             bar.update(task, advance=1, description=what)
