@@ -175,3 +175,29 @@ def test_sweep_metrics_of_a_long_run_are_streamed(python_blocks, monkeypatch):
     for row, ref in zip(table.values, (ref_ok, info.value.result.metrics), strict=True):
         for j, name in enumerate(METRICS):
             assert row[j] == pytest.approx(ref[name], rel=RTOL, nan_ok=True), name
+
+
+def test_ctrl_c_keeps_the_rows_streamed(python_blocks, monkeypatch, run_cli, tmp_path):
+    class Flag:  # Ctrl-C during the second block: seen before the third
+        checks = 0
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return None
+
+        @property
+        def hit(self):
+            Flag.checks += 1
+            return Flag.checks > 2
+
+    monkeypatch.setattr(streaming, "_SigintFlag", Flag)
+    out = tmp_path / "part.csv"
+    res = run_cli("simulate", "test-1", "--set", "duration=10", "--out", str(out))
+    assert res.exit_code == 130
+    assert f"the 128 rows run are in {out}" in res.stderr
+    scn = load_scenario("test-1", {"duration": 10.0})
+    ref = tmp_path / "ref.csv"
+    run_reference(scn, prepare(scn)).to_csv(ref)
+    assert out.read_text().splitlines() == ref.read_text().splitlines()[:129]

@@ -172,6 +172,10 @@ def _simulate_streamed(scn, out_path, plot_path, as_json: bool) -> None:  # type
                 failure = exc
                 if isinstance(exc, SimulationDiverged) and fh is not None:
                     sink(exc.result)
+            except KeyboardInterrupt:  # a second Ctrl-C, within a block: --out is dropped
+                raise Interrupted("stopped at once (a second Ctrl-C); nothing written (one "
+                                  "Ctrl-C stops at the end of a block and keeps the rows "
+                                  "run)") from None
             finally:
                 slow.cancel()
     if isinstance(failure, StreamInterrupted):

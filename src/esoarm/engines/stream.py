@@ -308,7 +308,8 @@ def _compiled_runner(inp: Any) -> Callable[..., int] | None:
 
 
 class _SigintFlag:
-    """Ctrl-C sets a flag (checked between blocks) instead of raising mid-block."""
+    """Ctrl-C sets a flag (checked between blocks) instead of raising mid-block; a second
+    Ctrl-C raises KeyboardInterrupt at once."""
 
     def __init__(self) -> None:
         self.hit = False
@@ -320,6 +321,8 @@ class _SigintFlag:
         return self
 
     def _set(self, signum: int, frame: Any) -> None:
+        if self.hit:  # a second Ctrl-C: at once (a block being compiled takes a minute)
+            raise KeyboardInterrupt
         self.hit = True
 
     def __exit__(self, *exc: object) -> None:
