@@ -53,6 +53,7 @@ COMMANDS: dict[str, str] = {
     "log": "esoarm.cli.log:log",
     "codegen": "esoarm.cli.codegen:codegen",
     "pil": "esoarm.cli.pil:pil",
+    "compare": "esoarm.cli.compare:compare",
     "commission": "esoarm.cli.commission:commission",
 }
 
@@ -61,6 +62,7 @@ COMMANDS: dict[str, str] = {
 # importing the command (tests/test_cli_startup.py checks they match the
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
+    "compare": "Run the ADRC forms on SCENARIO: RMS error and RMS Δu, means over the seeds.",
     "commission": "Commission a rig: excite, identify, design, generate, flash and run on "
                   "board.",
     "codegen": "Generate self-contained C99 for SCENARIO's observer and controller on a target.",
