@@ -141,7 +141,8 @@ def test_cli(tmp_path) -> None:
                           "duration=5"], capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     assert "float32 does not hold" in res.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["esoarm_controller.c", "esoarm_controller.h"]
+    assert sorted(p.name for p in out.iterdir()) == ["esoarm_controller.c", "esoarm_controller.h",
+                                                     "esoarm_reference.c", "esoarm_reference.h"]
     for args, word in ((["test-1", "--target", "avr", "--precision", "float64"], "float64"),
                        (["test-1-urdf", "--target", "host"], "urdf")):
         bad = tmp_path / "bad"
