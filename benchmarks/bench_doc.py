@@ -297,7 +297,7 @@ def arms_section(a: dict, machine: dict[str, str], command: str) -> str:  # type
         "",
         f"Measured by `{command}` (it rewrites only this section; the full "
         "`python benchmarks/run.py` rewrites it too). URDF arms run on the compiled batch "
-        "engine (the rigid body of `esoarm.plants.rigid_body`, checked against Pinocchio to "
+        "engine (the rigid body of `esoarm.plants.arms.rigid_body`, checked against Pinocchio to "
         "1e-10), blocks of runs like the lever arm's.",
         "",
         f"- when: {machine['date']}; machine: {machine['cpu']}, {machine['nproc']} cores, "

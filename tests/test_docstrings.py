@@ -45,12 +45,12 @@ COVERED = [
     "esoarm.plants.lever_arm",
     "esoarm.plants.model",
     "esoarm.plants.motor",
-    "esoarm.plants.rigid_body",
+    "esoarm.plants.arms.rigid_body",
     "esoarm.plants.sensor",
-    "esoarm.plants.urdf",
-    "esoarm.plants.urdf_compiled",
-    "esoarm.plants.urdf_model",
-    "esoarm.plants.urdf_twin",
+    "esoarm.plants.arms.urdf",
+    "esoarm.plants.arms.compiled",
+    "esoarm.plants.arms.model",
+    "esoarm.plants.arms.twin",
 ]
 
 

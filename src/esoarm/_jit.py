@@ -86,7 +86,7 @@ def jitable_as(compiled: Callable[..., object], *,
     same bits; the tests compare the two): e.g. a power of two by
     :func:`math.ldexp` in Python and by exact products in a vector loop.
     Or, for a URDF arm, Pinocchio in the interpreter (the reference) and
-    :mod:`esoarm.plants.rigid_body` compiled (the same numbers to rounding;
+    :mod:`esoarm.plants.arms.rigid_body` compiled (the same numbers to rounding;
     the tests state the tolerance).  ``compiled`` must itself be :func:`jitable`.
 
     ``array_arg``: the position of a parameter vector that ``compiled`` needs as

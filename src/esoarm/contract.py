@@ -304,6 +304,43 @@ class ObserverKind(Kind, Protocol):
             joint j in ``zhat[3j:3j+3]``.
         """
 
+    def predict(self, z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray,
+                /) -> None:
+        """A lost sample: the measurement the observer expects at t_k into ``y``.
+
+        The stepper (:class:`esoarm.engines.stepper.Stepper`) bridges a sample that never
+        arrived with it: estimate and update then see zero innovation.  The kind says
+        which of its states (or what function of them) is the angle; no consumer assumes
+        it is ``z[0]``.
+
+        Parameters
+        ----------
+        z : ndarray
+            Observer state z_k (not changed).
+        zhat : ndarray, shape (3n,)
+            The previous estimate ẑ_{k−1} (angle, rate, perturbation per joint), for a
+            kind whose state does not hold the angle.
+        p : ndarray
+            The design vector, ``p[0]`` the kind's CODE.
+        y : ndarray, shape (n,)
+            Output: the predicted angle(s) [rad].
+        """
+
+    def state_size(self, params: Any, /) -> int:
+        """The observer's states per joint for these settings (its design has n times as many).
+
+        Parameters
+        ----------
+        params : Params
+            The kind's validated table.
+
+        Returns
+        -------
+        int
+            States per joint (≥ 1); the engines size z from the design, the registry checks
+            the design against this.
+        """
+
     def advance(self, z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
                 p: np.ndarray, /) -> None:
         """z_{k+1} in place from z_k, ẑ_k, y_k and the observer input u_k.
@@ -392,7 +429,7 @@ _COMMON = ("KIND", "CODE", "JIT", "Params", "design")
 #: check :mod:`esoarm.kinds` runs when a kind is registered).
 REQUIRED: dict[str, tuple[str, ...]] = {
     "plant": (*_COMMON, "advance", "acceleration", "observer_input"),
-    "observer": (*_COMMON, "initialize", "estimate", "advance"),
+    "observer": (*_COMMON, "initialize", "estimate", "advance", "predict", "state_size"),
     "controller": (*_COMMON, "initialize", "control"),
 }
 
@@ -472,7 +509,13 @@ PRISMATIC_UNITS = Units(position="m", velocity="m/s", acceleration="m/s²", forc
 #:     modelled, ``analyze`` refuses the kind in one line);
 #: ``units_of(params) -> Units`` (plants; default :data:`ROTARY_UNITS`)
 #:     the units every command prints for the plant's position, rate and drive (read
-#:     through :func:`esoarm.kinds.units`).
+#:     through :func:`esoarm.kinds.units`);
+#: ``joint_names(scn) -> tuple[str, ...]`` (plants; default: none, one unnamed joint)
+#:     the names of an arm's joints: logs and replays then have one column per joint
+#:     (``theta_1``, ``u_1``, ...), the report names them;
+#: ``joint_limits(scn) -> (lower, upper)`` (plants; default: none)
+#:     per-joint position limits [rad or m]; the references are checked against them and
+#:     clipped to them (:func:`esoarm.reference.reference_rows`).
 OPTIONAL: dict[str, Any] = {
     "FAST": False,
     "MOTOR": False,
@@ -483,4 +526,6 @@ OPTIONAL: dict[str, Any] = {
     "warnings": None,
     "linearization": None,
     "units_of": None,
+    "joint_names": None,
+    "joint_limits": None,
 }

@@ -1,9 +1,9 @@
 """URDF arms on the compiled batch engine against the reference engine (Pinocchio).
 
 The compiled engine runs the arm's twin, observer input and computed-torque law
-on :mod:`esoarm.plants.rigid_body`; the reference engine on Pinocchio.  They
+on :mod:`esoarm.plants.arms.rigid_body`; the reference engine on Pinocchio.  They
 agree to rounding, not bit for bit: every metric of every run within
-:data:`esoarm.plants.urdf_compiled.ENGINE_TOLERANCE` (relative to the metric,
+:data:`esoarm.plants.arms.compiled.ENGINE_TOLERANCE` (relative to the metric,
 absolute below 1e-12), the number of samples and the divergence flag exactly.
 Within the compiled engine, blocks and single runs give the same bits, and a
 rerun the same bits.
@@ -20,7 +20,7 @@ from esoarm.engines import batch  # noqa: E402
 from esoarm.engines.metrics import METRICS  # noqa: E402
 from esoarm.engines.simulation import reference_metrics  # noqa: E402
 from esoarm.kinds import kinds_of  # noqa: E402
-from esoarm.plants.urdf_compiled import ENGINE_TOLERANCE  # noqa: E402
+from esoarm.plants.arms.compiled import ENGINE_TOLERANCE  # noqa: E402
 from esoarm.scenario import load_scenario  # noqa: E402
 
 pytestmark = pytest.mark.slow  # compiles the kernels for the arms' vectors

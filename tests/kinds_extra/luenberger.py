@@ -18,7 +18,7 @@ from pydantic import Field
 
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
-from esoarm.contract import ComponentDesign, ObserverLinearization, PlantDesign, read_only
+from esoarm.contract import ComponentDesign, ObserverLinearization, PlantDesign, Vector, read_only
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
@@ -61,6 +61,31 @@ def initialize(z: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
         z[3 * j] = y[j]
         z[3 * j + 1] = 0.0
         z[3 * j + 2] = 0.0
+
+
+@jitable
+def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
+    """A lost sample: the measurement the observer expects at t_k, ẑ1 = z1 per joint, into ``y``.
+
+    Parameters
+    ----------
+    z : ndarray, shape (3n,)
+        Observer state z_k (not changed).
+    zhat : ndarray, shape (3n,)
+        The previous estimate ẑ_{k−1} (unused: z1 is the angle predicted for t_k).
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE.
+    y : ndarray, shape (n,)
+        Output: the predicted angle(s) [rad]; the estimate and update then see zero
+        innovation.
+    """
+    for j in range(len(y)):
+        y[j] = z[3 * j]
+
+
+def state_size(params: Params) -> int:
+    """States per joint: 3 (angle, rate, total perturbation)."""
+    return 3
 
 
 @jitable

@@ -16,10 +16,10 @@ pin = pytest.importorskip("pinocchio")
 
 from esoarm.controllers.computed_torque import control, design  # noqa: E402
 from esoarm.engines.simulation import prepare, simulate  # noqa: E402
-from esoarm.plants import urdf  # noqa: E402
+from esoarm.plants.arms import urdf  # noqa: E402
+from esoarm.plants.arms.model import UrdfError, builtin_robot, load_arm  # noqa: E402
+from esoarm.plants.arms.twin import ArmTwin, TwinParams  # noqa: E402
 from esoarm.plants.lever_arm import RigParams, rig_acceleration, rig_advance  # noqa: E402
-from esoarm.plants.urdf_model import UrdfError, builtin_robot, load_arm  # noqa: E402
-from esoarm.plants.urdf_twin import ArmTwin, TwinParams  # noqa: E402
 from esoarm.scenario import load_scenario  # noqa: E402
 
 CONTINUOUS_URDF = """<?xml version="1.0"?>

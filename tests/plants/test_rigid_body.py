@@ -1,4 +1,4 @@
-"""esoarm.plants.rigid_body against Pinocchio: RNEA, CRBA, bias and forward dynamics.
+"""esoarm.plants.arms.rigid_body against Pinocchio: RNEA, CRBA, bias and forward dynamics.
 
 Every built-in arm and, when the optional package ``example-robot-data`` is
 installed, its arms of revolute/prismatic joints (UR5, Panda with its prismatic
@@ -17,8 +17,8 @@ import pytest
 
 pin = pytest.importorskip("pinocchio")
 
-from esoarm.plants import rigid_body as rb  # noqa: E402
-from esoarm.plants.urdf_model import UrdfError, builtin_robot, load_arm  # noqa: E402
+from esoarm.plants.arms import rigid_body as rb  # noqa: E402
+from esoarm.plants.arms.model import UrdfError, builtin_robot, load_arm  # noqa: E402
 
 TOL = 1e-10
 

@@ -14,7 +14,7 @@ import pytest
 pytest.importorskip("pinocchio")
 
 from esoarm.engines.simulation import prepare, simulate  # noqa: E402
-from esoarm.plants.urdf_model import UrdfError, builtin_robot, import_pinocchio  # noqa: E402
+from esoarm.plants.arms.model import UrdfError, builtin_robot, import_pinocchio  # noqa: E402
 from esoarm.scenario import ScenarioError, load_scenario  # noqa: E402
 
 

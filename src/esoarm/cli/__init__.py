@@ -53,6 +53,7 @@ COMMANDS: dict[str, str] = {
     "log": "esoarm.cli.log:log",
     "codegen": "esoarm.cli.codegen:codegen",
     "pil": "esoarm.cli.pil:pil",
+    "commission": "esoarm.cli.commission:commission",
 }
 
 
@@ -60,6 +61,8 @@ COMMANDS: dict[str, str] = {
 # importing the command (tests/test_cli_startup.py checks they match the
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
+    "commission": "Commission a rig: excite, identify, design, generate, flash and run on "
+                  "board.",
     "codegen": "Generate self-contained C99 for SCENARIO's observer and controller on a target.",
     "arm-study": "Compare controllers and sweep ε on the arm SCENARIO (plant.kind = \"urdf\").",
     "analyze": "Frequency-domain analysis of SCENARIO's loop, linearized and sampled at Ts.",

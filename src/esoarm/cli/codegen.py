@@ -49,10 +49,15 @@ from esoarm.codegen.generate import DEFAULT_PREFIX, TARGETS
 @click.option("--no-check", is_flag=True,
               help="Skip the float32 check (the generated code built for the host and run "
               "against the float64 Python reference over the twin run).")
+@click.option("--project", type=click.Choice(["stm32"]), default=None,
+              help="Write a whole firmware project into --out instead: stm32 is a Makefile "
+              "project for an STM32F401RE (Nucleo-F401RE: startup, linker script, register-"
+              "level TIM2 encoder, TIM3 PWM, TIM4 sample clock, USART2 link for 'esoarm run "
+              "--onboard'), float32 for its FPU; build it with make (arm-none-eabi-gcc).")
 @bad_input_guard
 def codegen(scenario: str, overrides: tuple[str, ...], target: str | None, out: str | None,
             library: str | None, prefix: str, precision: str | None, plain_sums: bool,
-            no_check: bool) -> None:
+            no_check: bool, project: str | None) -> None:
     """Generate self-contained C99 for SCENARIO's observer and controller on a target.
 
     The code is the scenario as designed: the observer and controller kinds'
@@ -70,6 +75,13 @@ def codegen(scenario: str, overrides: tuple[str, ...], target: str | None, out: 
     """
     from esoarm.codegen import CodegenError, generate, write_sources
 
+    if project is not None:
+        from esoarm.cli.codegen_project import write_project
+
+        if out is None or library is not None:
+            raise BadInput("--project stm32 writes into --out DIR (not --arduino-library)")
+        write_project(scenario, overrides, project, out, target, precision, plain_sums)
+        return
     if library is not None:
         if out is not None:
             raise BadInput("--arduino-library DIR and --out DIR: give one")
@@ -78,9 +90,11 @@ def codegen(scenario: str, overrides: tuple[str, ...], target: str | None, out: 
                            "(drop --target/--precision)")
         target = "avr"
     elif out is None:
-        raise BadInput("give --out DIR (the C files) or --arduino-library DIR")
+        raise BadInput("give --out DIR (the C files, or --project stm32) or "
+                       "--arduino-library DIR")
     elif target is None:
-        raise BadInput(f"--target: one of {', '.join(TARGETS)}")
+        raise BadInput(f"--target is required (one of {', '.join(TARGETS)}), or --project "
+                       "stm32, or --arduino-library DIR")
     precision = precision or "float32"
     if plain_sums and precision != "float32":
         raise BadInput("--plain-sums applies to float32: float64 already sums the observer's "

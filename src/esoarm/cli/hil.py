@@ -55,12 +55,18 @@ def _say(line: str) -> None:
               "ATmega328P; auto times both with PIL (esoarm pil SCENARIO --target avr, cached) "
               "and takes compensated where it fits the period on board, else plain, and says "
               "which and why.")
+@click.option("--target", type=click.Choice(["avr", "cortex-m4"]), default="avr",
+              show_default=True,
+              help="The simulated chip: avr (the Uno firmware in simavr) or cortex-m4 (with "
+              "--onboard: the generated controller on QEMU's mps2-an386, the twin in lockstep "
+              "on a second UART standing for the encoder and motor pins).")
 @click.option("--once", is_flag=True,
               help="Exit after the first run: once the motor pins are off and the host has "
               "sent STOP (or the link is unplugged, or the host is silent for 5 s).")
 @bad_input_guard
 def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], realtime: bool,
-        elf: str | None, driver: str, onboard: bool, sums: str, once: bool) -> None:
+        elf: str | None, driver: str, onboard: bool, sums: str, target: str,
+        once: bool) -> None:
     """Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its pins.
 
     The first line printed is 'device: PATH'; pass PATH to 'esoarm run SCENARIO
@@ -76,6 +82,11 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
     from esoarm.hardware.hil.build import ToolchainMissing, firmware_elf
     from esoarm.hardware.hil.server import SLIP_S, HilServer, parse_hil_fault
 
+    if target == "cortex-m4":
+        from esoarm.cli.hil_cortex_m import hil_cortex_m
+
+        hil_cortex_m(scenario, overrides, faults, realtime, elf, onboard, sums, once)
+        return
     specs = [parse_hil_fault(f) for f in faults]
     scn = resolve_scenario(scenario, overrides)
     lever_only(scn, "hil")  # before the [motor] check: an arm has the wrong kind, not no motor

@@ -336,16 +336,17 @@ _ESO_GAIN = """
 /* The linear ESO's gains for epsilon [s] at Ts [s] (esoarm.observers.linear.design_observer):
  * beta = (3/eps, 3/eps^2, 1/eps^3); the discrete gain for disc 0 "euler" (Ts beta), 1 "zoh"
  * (Lp, the triple pole p = exp(-Ts/eps) of Phi - Lp C in closed form: with a = 1 - p,
- * Lp = (3a, (3a^2 - a^3/2)/Ts, a^3/Ts^2)) or 2 "current" (Lc = Phi^-1 Lp).  0, or -1 when
- * eps is not a positive finite number. */
+ * Lp = (3a, (3a^2 - a^3/2)/Ts, a^3/Ts^2)) or 2 "current" (Lc = Phi^-1 Lp); beta and the gain
+ * times scale (0.5: the half-gain tuning).  0, or -1 when eps is not a positive finite
+ * number. */
 static int eso_linear_gain(esoarm_real disc, esoarm_real ts, esoarm_real eps,
-                           esoarm_real beta[3], esoarm_real gain[3])
+                           esoarm_real scale, esoarm_real beta[3], esoarm_real gain[3])
 {
     esoarm_real x, a, l1, l2, l3;
     if (!(eps > R(0.0)) || !ISFINITE(eps)) return -1;
-    beta[0] = R(3.0) / eps;
-    beta[1] = R(3.0) / (eps * eps);
-    beta[2] = R(1.0) / (eps * eps * eps);
+    beta[0] = scale * (R(3.0) / eps);
+    beta[1] = scale * (R(3.0) / (eps * eps));
+    beta[2] = scale * (R(1.0) / (eps * eps * eps));
     if (disc == R(0.0)) {
         gain[0] = ts * beta[0]; gain[1] = ts * beta[1]; gain[2] = ts * beta[2];
         return 0;
@@ -359,11 +360,11 @@ static int eso_linear_gain(esoarm_real disc, esoarm_real ts, esoarm_real eps,
     l2 = (R(3.0) * a * a - R(0.5) * a * a * a) / ts;
     l3 = a * a * a / (ts * ts);
     if (disc == R(1.0)) {
-        gain[0] = l1; gain[1] = l2; gain[2] = l3;
+        gain[0] = scale * l1; gain[1] = scale * l2; gain[2] = scale * l3;
     } else {    /* Phi^-1 = [[1, -Ts, Ts^2/2], [0, 1, -Ts], [0, 0, 1]] */
-        gain[0] = l1 - ts * l2 + R(0.5) * ts * ts * l3;
-        gain[1] = l2 - ts * l3;
-        gain[2] = l3;
+        gain[0] = scale * (l1 - ts * l2 + R(0.5) * ts * ts * l3);
+        gain[1] = scale * (l2 - ts * l3);
+        gain[2] = scale * l3;
     }
     return 0;
 }
@@ -517,6 +518,8 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     ratio = getattr(scn.observer, "ratio", None)
     if ratio is not None:
         extra += f"#define OBS_RATIO {_literal(float(ratio))}\n"
+    half = getattr(scn.observer, "tuning", "bandwidth") == "half-gain"
+    extra += f"#define OBS_GAIN_SCALE {_literal(0.5 if half else 1.0)}\n"
     parts = [banner, f'#include "{p}_controller.h"\n', local_real, _prelude(target, precision),
              f"#define ESOARM_COMPENSATED {1 if compensated else 0}\n",
              _array("OBS_P", obs.vector[1:]), _array("CTL_P", ctl.vector[1:]),

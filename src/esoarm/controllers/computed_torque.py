@@ -12,15 +12,15 @@ and the torque (saturated per joint by the actuator):
 ``compensation = "model"`` (computed torque on the nominal model, Fig. 7's baseline)
     τ = M̂(q̂) α + n̂(q̂, q̂̇)       (the observers still run and supply q̂, q̂̇)
 
-M̂ and n̂ are the nominal model's (the URDF as written, :mod:`esoarm.plants.urdf_model`).
+M̂ and n̂ are the nominal model's (the URDF as written, :mod:`esoarm.plants.arms.model`).
 Each joint's ẑ3 estimates q̈ − v with v = M̂⁻¹(τ − c n̂) the observers' input
-(:func:`esoarm.plants.urdf.observer_input`), so with perfect estimates
+(:func:`esoarm.plants.arms.urdf.observer_input`), so with perfect estimates
 M̂(q̈ − ẑ3) = τ − c n̂ gives q̈ = α: the paper's error dynamics (eq. 17) on
 every joint.  On one joint τ = I0 (α − z3): the FLC exactly.
 
 As a kind (see :mod:`esoarm.contract`): the reference engine calls Pinocchio
 for M̂ and n̂; the compiled engine runs :func:`control_compiled` in its place
-(``JIT = True``), the same law on :mod:`esoarm.plants.rigid_body` and the
+(``JIT = True``), the same law on :mod:`esoarm.plants.arms.rigid_body` and the
 nominal model packed at the end of the vector.
 """
 
@@ -36,7 +36,7 @@ from esoarm._jit import jitable, jitable_as
 from esoarm._schema import Section, unit
 from esoarm.contract import ComponentDesign, PlantDesign, read_only
 from esoarm.controllers import flc as _flc
-from esoarm.plants.rigid_body import (
+from esoarm.plants.arms.rigid_body import (
     bias_offset,
     dynamics_terms,
     mass_offset,
@@ -55,7 +55,7 @@ KIND = "computed-torque"
 CODE = 2
 JIT = True
 #: The compiled step functions agree with the reference (Pinocchio) to rounding, not
-#: bit for bit (:data:`esoarm.plants.urdf_compiled.ENGINE_TOLERANCE`).
+#: bit for bit (:data:`esoarm.plants.arms.compiled.ENGINE_TOLERANCE`).
 COMPILED_EXACT = False
 
 _PositiveGain = Annotated[float, Field(gt=0)]
@@ -159,8 +159,8 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     ValueError
         If the plant is not a URDF arm.
     """
-    from esoarm.plants import urdf
-    from esoarm.plants.urdf_compiled import nominal_offset, true_offset
+    from esoarm.plants.arms import urdf
+    from esoarm.plants.arms.compiled import nominal_offset, true_offset
 
     if int(plant.vector[0]) != urdf.CODE:
         raise ValueError("the computed-torque controller needs plant.kind = 'urdf'")
@@ -192,7 +192,7 @@ def initialize(c: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
 @jitable
 def control_compiled(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k: int,
                      p: np.ndarray, u: np.ndarray) -> None:
-    """:func:`control` as the compiled engine runs it: M̂, n̂ by :mod:`esoarm.plants.rigid_body`.
+    """:func:`control` as the compiled engine runs it: M̂, n̂ by :mod:`esoarm.plants.arms.rigid_body`.
 
     Parameters
     ----------
@@ -261,7 +261,7 @@ def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k:
         Output: the raw command u_k [N·m] per joint, written in place (positive along
         increasing θ; before the actuator's saturation).
     """
-    from esoarm.plants.urdf import arm_of
+    from esoarm.plants.arms.urdf import arm_of
 
     arm = arm_of(p)
     n = len(u)

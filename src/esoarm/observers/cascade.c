@@ -39,7 +39,8 @@ static int obs_retune(esoarm_real T[], esoarm_real eps, esoarm_real b0)
     esoarm_real ts = OBS_P[1], beta[3], level = eps;
     int i;
     for (i = CAS_LEVELS - 1; i >= 0; --i) {
-        if (eso_linear_gain(OBS_P[0], ts, level, beta, T + CAS_GAINS + 3 * i) != 0) return -1;
+        if (eso_linear_gain(OBS_P[0], ts, level, OBS_GAIN_SCALE, beta,
+                            T + CAS_GAINS + 3 * i) != 0) return -1;
         level *= OBS_RATIO;
     }
     T[2] = b0;

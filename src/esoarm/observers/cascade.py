@@ -65,7 +65,7 @@ if TYPE_CHECKING:
 
 __all__ = ["CODE", "C_SOURCE", "JIT", "KIND", "MAX_LEVELS", "Params", "advance", "design",
            "estimate", "initialize", "label", "level_eps", "linear_model", "linearization",
-           "summary", "warnings"]
+           "predict", "state_size", "summary", "warnings"]
 
 KIND = "cascade"
 CODE = 2
@@ -260,6 +260,33 @@ def initialize(z: np.ndarray, y: np.ndarray, p: Vector) -> None:
             z[i] = y[j]
             z[i + 1] = 0.0
             z[i + 2] = 0.0
+
+
+@jitable
+def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
+    """A lost sample: the measurement the observer expects, level 1's angle per joint, into ``y``.
+
+    Level 1 is the level the measurement enters (its innovation y − ẑ¹1).
+
+    Parameters
+    ----------
+    z : ndarray, shape (3·p·n,)
+        Observer state z_k of every level (not changed).
+    zhat : ndarray, shape (3n,)
+        The previous estimate ẑ_{k−1} (unused).
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE, then one block per joint.
+    y : ndarray, shape (n,)
+        Output: the predicted angle(s) [rad] (zero innovation).
+    """
+    levels = int(p[1 + LEVELS])
+    for j in range(len(y)):
+        y[j] = z[3 * levels * j]
+
+
+def state_size(params: Params) -> int:
+    """States per joint: 3 per level (angle, rate, perturbation of each cascaded ESO)."""
+    return 3 * params.levels
 
 
 @jitable

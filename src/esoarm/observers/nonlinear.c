@@ -14,7 +14,7 @@
 static int obs_retune(esoarm_real T[], esoarm_real eps, esoarm_real b0)
 {
     esoarm_real ts = OBS_P[1];
-    if (eso_linear_gain(OBS_P[0], ts, eps, T + 3, T + 18) != 0) return -1;
+    if (eso_linear_gain(OBS_P[0], ts, eps, OBS_GAIN_SCALE, T + 3, T + 18) != 0) return -1;
     T[2] = b0;
     T[15] = OBS_P[0] == R(0.0) ? R(0.0) : b0 * (ts * ts * R(0.5));
     T[16] = ts * b0;

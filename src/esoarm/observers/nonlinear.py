@@ -67,7 +67,8 @@ if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = ["CODE", "JIT", "KIND", "Params", "advance", "design", "estimate", "fal",
-           "initialize", "label", "linearization", "summary", "warnings"]
+           "initialize", "label", "linearization", "predict", "state_size", "summary",
+           "warnings"]
 
 KIND = "nonlinear"
 CODE = 1
@@ -238,6 +239,31 @@ def initialize(z: np.ndarray, y: np.ndarray, p: Vector) -> None:
         z[3 * j] = y[j]
         z[3 * j + 1] = 0.0
         z[3 * j + 2] = 0.0
+
+
+@jitable
+def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
+    """A lost sample: the measurement the observer expects at t_k, ẑ1 = z1 per joint, into ``y``.
+
+    Parameters
+    ----------
+    z : ndarray, shape (3n,)
+        Observer state z_k (not changed).
+    zhat : ndarray, shape (3n,)
+        The previous estimate ẑ_{k−1} (unused: z1 is the angle predicted for t_k).
+    p : ndarray or tuple of float
+        The design vector; ``p[0]`` is the kind's CODE.
+    y : ndarray, shape (n,)
+        Output: the predicted angle(s) [rad]; the estimate and update then see zero
+        innovation.
+    """
+    for j in range(len(y)):
+        y[j] = z[3 * j]
+
+
+def state_size(params: Params) -> int:
+    """States per joint: 3 (angle, rate, total perturbation)."""
+    return 3
 
 
 @jitable

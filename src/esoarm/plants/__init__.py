@@ -5,6 +5,9 @@
 ``sensor``      the encoder: noise and quantization
 ``actuator``    saturation, motor, transport delay: what reaches the plant (every kind)
 ``motor``       the optional DC motor and driver (``[motor]``)
-``urdf``        a serial arm from a URDF file: nominal and true models (Pinocchio)
-``urdf_twin``   the URDF arm's twin: friction, disturbance, lag, RK4 around Pinocchio's ABA
+``noise``       coloured measurement noise: AR encoder noise, arm vibration
+``backlash``    gear backlash (the twin's dead zone)
+``elementary``  tanh, cos and exp(−x) in plain arithmetic: the same bits in every engine
+``axis``        plant kind "axis": any single rotary or prismatic axis
+``arms``        serial arms from URDF files (plant kind "urdf"): models, twin, compiled rigid body
 """

@@ -17,7 +17,8 @@ closed loop*:
   so that cos θ varies and the gravity coefficient is not a constant torque
   indistinguishable from a bias.
 * kp, kd [N·m/rad, N·m·s/rad] is the weak stabilizing PD; ẑ2 comes from the
-  scenario's ESO (the same observer as ``esoarm run``), y is the measured angle.
+  scenario's own observer kind (``observer.kind``, the same observer as ``esoarm run``,
+  stepped by :class:`esoarm.engines.stepper.Stepper`), y is the measured angle.
 
 What the guard loop does to identifiability: the torque u_k that the rig
 actually receives is logged, and the fit simulates the rig from the logged
@@ -31,15 +32,13 @@ viscous friction) -- keep kp small and the sweep large enough.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from esoarm.controllers.flc import saturate
-from esoarm.observers.linear import ExtendedStateObserver, design_observer
-from esoarm.plants.model import input_gain
+from esoarm.engines.stepper import Stepper
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["ExcitationController", "ExcitationPlan", "excitation_signal", "plan_text",
@@ -92,7 +91,10 @@ class ExcitationPlan:
             ("f_min", self.f_min, self.f_min > 0, "> 0 Hz"),
             ("f_max", self.f_max, self.f_min < self.f_max < nyquist,
              f"above f-min and below the Nyquist frequency {nyquist:g} Hz"),
-            ("tones", self.n_tones, self.n_tones >= 1, ">= 1"),
+            ("tones", self.n_tones, 1 <= self.n_tones <= max(24, self.resolved_tones()),
+             f">= 1 and at most the {self.resolved_tones()} frequencies a {self.duration:g} s "
+             f"run resolves from f-min to f-max (1/duration = {1 / self.duration:.3g} Hz "
+             "apart)" if self.duration > 0 else ">= 1"),
             ("sweep", self.sweep, self.sweep >= 0, ">= 0 rad"),
             ("sweep_period", self.sweep_period, self.sweep_period > 0, "> 0 s"),
             ("kp", self.kp, self.kp >= 0, ">= 0 N·m/rad"),
@@ -101,6 +103,13 @@ class ExcitationPlan:
         for name, value, ok, allowed in checks:
             if not (ok and math.isfinite(float(value))):
                 raise ScenarioError(f"{name} {value:g}: must be {allowed}")
+
+    def resolved_tones(self) -> int:
+        """How many frequencies 1/duration apart lie in [f_min, f_max] (the DFT bins of the run)."""
+        if not (self.duration > 0 and math.isfinite(self.duration * self.f_max)):
+            return 0
+        return max(0, math.floor(self.f_max * self.duration + 1e-9)
+                   - math.ceil(self.f_min * self.duration - 1e-9) + 1)
 
     def frequencies(self) -> np.ndarray:
         """Tone frequencies [Hz], log-spaced from f_min to f_max."""
@@ -141,7 +150,8 @@ class ExcitationController:
     Parameters
     ----------
     scn : Scenario
-        Rate, torque limit and observer (ε, discretization, plant inertia for b0).
+        Rate, torque limit and observer (any registered observer kind, through the
+        registry; its b0 from the plant).
     plan : ExcitationPlan
         The experiment.
     """
@@ -159,12 +169,8 @@ class ExcitationController:
         exc, ref, dref = excitation_signal(plan, t)
         self._exc, self._ref, self._dref = exc.tolist(), ref.tolist(), dref.tolist()
         self.torque_limit = scn.actuator.torque_limit
-        design = design_observer(scn.observer.eps, self.ts, input_gain(scn.plant.inertia),
-                                 scn.observer.discretization)
-        # the same numbers as Python floats (plain floats in the log, no NumPy boxing)
-        self._design = dataclasses.replace(
-            design, vector=tuple(design.vector.tolist()))  # type: ignore[arg-type]
-        self.eso: ExtendedStateObserver | None = None
+        # the scenario's own observer kind, designed at the experiment's rate
+        self._obs = Stepper.observer_of(scn, self.ts)
         self.zhat: tuple[float, float, float] = (math.nan, math.nan, math.nan)
 
     def reference(self, k: int) -> float:
@@ -175,28 +181,30 @@ class ExcitationController:
         """Multisine torque e(t_k) [N·m]."""
         return self._exc[k]
 
+    def set_signal(self, k: int, exc: float, ref: float, dref: float) -> None:
+        """Replace e(t_k) [N·m], θc(t_k) [rad] and θ̇c(t_k) [rad/s] before :meth:`step` ``k``.
+
+        (The breakaway probe of :mod:`esoarm.studies.identification.probe` decides its
+        torque and the multisine's scale as the run goes.)
+        """
+        self._exc[k], self._ref[k], self._dref[k] = float(exc), float(ref), float(dref)
+
     def step(self, k: int, y: float) -> float:
         """Torque u_k [N·m] (saturated) from the measured angle y_k [rad]."""
-        eso = self.eso
-        if eso is None:
-            eso = self.eso = ExtendedStateObserver(self._design, y)  # type: ignore[arg-type]
-        self.zhat = eso.estimate(y)
+        zhat = self._obs.estimate(y)
+        self.zhat = (float(zhat[0]), float(zhat[1]), float(zhat[2]))
         p = self.plan
         u = self._exc[k] - p.kp * (y - self._ref[k]) - p.kd * (self.zhat[1] - self._dref[k])
         return float(saturate(u, self.torque_limit))
 
     def commit(self, u: float) -> None:
         """Advance the observer with the torque u_k [N·m] applied from t_k on."""
-        self.eso.update(u)  # type: ignore[union-attr]
+        self._obs.observe(u)
 
     def predict(self, u: float) -> tuple[float, float, float]:
-        """Bridge a missing sample (zero innovation); return the estimate used."""
-        eso = self.eso
-        if eso is None:
-            raise RuntimeError("no sample received yet")
-        zhat = eso.estimate(eso.z[0])
-        eso.update(u)
-        return zhat
+        """Bridge a missing sample (the observer kind's ``predict``); return the estimate used."""
+        zhat = self._obs.bridge(u)
+        return float(zhat[0]), float(zhat[1]), float(zhat[2])
 
 
 def plan_text(plan: ExcitationPlan, scn: Scenario, preview: dict | None = None) -> str:

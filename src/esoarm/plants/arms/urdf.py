@@ -2,8 +2,8 @@
 
 ``[plant]`` names the URDF file (relative to the scenario file) and what the
 twin carries beyond it; the nominal model known to the controller is the URDF
-as written (:mod:`esoarm.plants.urdf_model`).  The twin is the lever arm's rig
-joint by joint (:mod:`esoarm.plants.urdf_twin`): the ``[rig]`` friction,
+as written (:mod:`esoarm.plants.arms.model`).  The twin is the lever arm's rig
+joint by joint (:mod:`esoarm.plants.arms.twin`): the ``[rig]`` friction,
 disturbance, inertia scale and RK4 step, the ``[actuator]`` lag, applied to
 every joint.
 
@@ -14,8 +14,8 @@ v = M̂(q̂)⁻¹ (u − c·n̂(q̂, q̂̇)) -- the joint's component of M̂⁻�
 the controller feeds the nominal n̂ forward.  In the reference engine
 :func:`advance`, :func:`acceleration` and :func:`observer_input` call
 Pinocchio; numba cannot, so the compiled engine runs
-:mod:`esoarm.plants.urdf_compiled` in their place (``JIT = True``): the same
-twin on the rigid-body dynamics of :mod:`esoarm.plants.rigid_body`, the same
+:mod:`esoarm.plants.arms.compiled` in their place (``JIT = True``): the same
+twin on the rigid-body dynamics of :mod:`esoarm.plants.arms.rigid_body`, the same
 numbers to rounding.
 
 The parameter vector holds (CODE, handle, c, n, twin parameters, nominal
@@ -39,10 +39,10 @@ from pydantic import Field
 from esoarm._jit import jitable_as
 from esoarm._schema import PER_JOINT_KEYS, Section, unit
 from esoarm.contract import PlantDesign, read_only
-from esoarm.plants import urdf_compiled
 from esoarm.plants.actuator import motor_refused
-from esoarm.plants.urdf_model import ArmModel, UrdfError, load_arm
-from esoarm.plants.urdf_twin import TwinParams, pack_params, twin_acceleration, twin_advance
+from esoarm.plants.arms import compiled
+from esoarm.plants.arms.model import ArmModel, UrdfError, load_arm
+from esoarm.plants.arms.twin import TwinParams, pack_params, twin_acceleration, twin_advance
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
@@ -58,14 +58,14 @@ KIND = "urdf"
 CODE = 1
 JIT = True
 #: The compiled step functions agree with the reference (Pinocchio) to rounding, not
-#: bit for bit (:data:`esoarm.plants.urdf_compiled.ENGINE_TOLERANCE`).
+#: bit for bit (:data:`esoarm.plants.arms.compiled.ENGINE_TOLERANCE`).
 COMPILED_EXACT = False
 #: No motor: one ``[motor]`` table cannot describe the drive of each joint, so a scenario
 #: with one is refused (:func:`check`, :func:`esoarm.plants.actuator.motor_refused`).
 MOTOR = False
 
 HANDLE, _FEEDFORWARD = 1, 2
-_NJ, _TWIN = urdf_compiled.NJ, urdf_compiled.TWIN
+_NJ, _TWIN = compiled.NJ, compiled.TWIN
 
 class Params(Section):
     """``[plant]`` of kind "urdf": a serial arm from a URDF file (Pinocchio)."""
@@ -256,7 +256,7 @@ def design(scn: Scenario) -> PlantDesign:
     -------
     PlantDesign
         vector = (CODE, handle, c = 1 if the controller feeds n̂ forward else 0, n,
-        :func:`esoarm.plants.urdf_twin.pack_params`, nominal and true models of
+        :func:`esoarm.plants.arms.twin.pack_params`, nominal and true models of
         :func:`packed_models`); x0 = (q0 [rad], q̇ = 0, τ = 0);
         b0 = 1 per joint (the observers' input is already an acceleration, see
         :func:`observer_input`).
@@ -326,9 +326,9 @@ def packed_models(arm: ArmModel) -> tuple[np.ndarray, np.ndarray]:
     Returns
     -------
     (nominal, true) : (ndarray, ndarray)
-        :func:`esoarm.plants.rigid_body.pack_model` of ``arm.nominal`` and ``arm.true``.
+        :func:`esoarm.plants.arms.rigid_body.pack_model` of ``arm.nominal`` and ``arm.true``.
     """
-    from esoarm.plants.rigid_body import pack_model
+    from esoarm.plants.arms.rigid_body import pack_model
 
     cached = arm._data.get("packed")
     if cached is None:
@@ -341,7 +341,7 @@ def _twin(p: np.ndarray) -> np.ndarray:
     return p[_TWIN:_TWIN + 5 * n + 2]
 
 
-@jitable_as(urdf_compiled.advance, array_arg=5)
+@jitable_as(compiled.advance, array_arg=5)
 def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
             p: np.ndarray) -> None:
     """Integrate x = (q, q̇, τ) in place over one sample: ``nsub`` RK4 steps of h [s], u held.
@@ -365,7 +365,7 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
     twin_advance(arm_of(p), x, u, t0, h, nsub, _twin(p))
 
 
-@jitable_as(urdf_compiled.advance_block, array_arg=6)
+@jitable_as(compiled.advance_block, array_arg=6)
 def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h: float,
                   nsub: int, p: np.ndarray) -> None:
     """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``).
@@ -392,7 +392,7 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
             advance(xs[i], us[i], t0, h, nsub, p)
 
 
-@jitable_as(urdf_compiled.acceleration, array_arg=3)
+@jitable_as(compiled.acceleration, array_arg=3)
 def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
                  out: np.ndarray) -> None:
     """True q̈ [rad/s²] at state x, time t, input u applied from t on, into ``out``.
@@ -413,7 +413,7 @@ def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
     twin_acceleration(arm_of(p), x, u, t, _twin(p), out)
 
 
-@jitable_as(urdf_compiled.observer_input, array_arg=2)
+@jitable_as(compiled.observer_input, array_arg=2)
 def observer_input(zhat: np.ndarray, u: np.ndarray, p: np.ndarray, v: np.ndarray) -> None:
     """The observers' input v = M̂(q̂)⁻¹ (u − c·n̂(q̂, q̂̇)) [rad/s²] into ``v``.
 

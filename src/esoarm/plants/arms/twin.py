@@ -1,6 +1,6 @@
 """The digital twin of a URDF arm: the lever arm's rig, joint by joint.
 
-Per joint i, with the true rigid-body model of :class:`~esoarm.plants.urdf_model.ArmModel`
+Per joint i, with the true rigid-body model of :class:`~esoarm.plants.arms.model.ArmModel`
 (payload included, kinetic energy scaled by s = ``inertia_scale``):
 
     s (M(q) q̈ + C(q, q̇) q̇) + g(q) = τ − F(q̇),    then  q̈ ← q̈ + d(t)
@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from esoarm._jit import jitable
-from esoarm.plants.urdf_model import ArmModel, import_pinocchio
+from esoarm.plants.arms.model import ArmModel, import_pinocchio
 
 __all__ = ["ArmTwin", "TwinParams", "pack_params", "twin_acceleration", "twin_advance"]
 
@@ -341,7 +341,7 @@ class ArmTwin:
     Parameters
     ----------
     arm : ArmModel
-        From :func:`~esoarm.plants.urdf_model.load_arm`; its ``true`` model is used.
+        From :func:`~esoarm.plants.arms.model.load_arm`; its ``true`` model is used.
     params : TwinParams
         Friction, disturbance and lag.
     """

@@ -14,7 +14,7 @@ The scale is the lever arm's ``inertia_scale`` written for many joints; on
 the one-joint lever URDF it is exactly I = s·I0 with G unchanged.  It is
 realised without a second dynamics code path: s·(M q̈ + C q̇) + g = τ is
 M q̈ + C q̇ + g/s = τ/s, one articulated-body (ABA) call on the true model
-with its gravity divided by s (see :func:`esoarm.plants.urdf_twin.arm_acceleration`).
+with its gravity divided by s (see :func:`esoarm.plants.arms.twin.arm_acceleration`).
 
 Joint angles are the generalized coordinates q [rad, or m for prismatic
 joints], one per joint in URDF (Pinocchio) order.  A ``continuous`` joint is
@@ -191,7 +191,7 @@ class ArmModel:
         Returns
         -------
         ndarray, shape (8, n)
-            The same array on every call (see :func:`esoarm.plants.urdf_twin.rk4_stage`).
+            The same array on every call (see :func:`esoarm.plants.arms.twin.rk4_stage`).
         """
         if "rk4" not in self._data:
             self._data["rk4"] = np.zeros((8, self.n_joints))

@@ -1,12 +1,12 @@
 """The URDF plant kind's step functions as the compiled engine runs them.
 
-The reference engine steps a URDF arm with Pinocchio (:mod:`esoarm.plants.urdf_twin`);
+The reference engine steps a URDF arm with Pinocchio (:mod:`esoarm.plants.arms.twin`);
 numba cannot call Pinocchio, so the batch engine compiles these functions in
 their place (:func:`esoarm._jit.jitable_as`).  They take the same arguments
-and do the same arithmetic around the rigid body -- :func:`~esoarm.plants.urdf_twin.rk4_begin`,
-:func:`~esoarm.plants.urdf_twin.rk4_stage` and
-:func:`~esoarm.plants.urdf_twin.joint_drive` are shared -- with the rigid-body
-terms from :mod:`esoarm.plants.rigid_body` on the models packed into the design
+and do the same arithmetic around the rigid body -- :func:`~esoarm.plants.arms.twin.rk4_begin`,
+:func:`~esoarm.plants.arms.twin.rk4_stage` and
+:func:`~esoarm.plants.arms.twin.joint_drive` are shared -- with the rigid-body
+terms from :mod:`esoarm.plants.arms.rigid_body` on the models packed into the design
 vector.  Both agree to rounding (forward dynamics within 1e-10 of Pinocchio's
 ABA); a closed-loop run by both agrees to the tolerance
 :data:`ENGINE_TOLERANCE` states.
@@ -15,7 +15,7 @@ Layout of the plant's design vector (n joints)::
 
     [CODE, handle, c, n, twin (5n + 2: pack_params), nominal model, true model]
 
-each model :func:`esoarm.plants.rigid_body.pack_model` (the true one with the
+each model :func:`esoarm.plants.arms.rigid_body.pack_model` (the true one with the
 payload and its gravity divided by the inertia scale).
 """
 
@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from esoarm._jit import jitable
-from esoarm.plants.rigid_body import (
+from esoarm.plants.arms.rigid_body import (
     bias_offset,
     dynamics_terms,
     forward_dynamics,
@@ -36,7 +36,7 @@ from esoarm.plants.rigid_body import (
     solve_mass,
     workspace_size,
 )
-from esoarm.plants.urdf_twin import _B, _DA, _DW, _FC, _VS, joint_drive, rk4_begin, rk4_stage
+from esoarm.plants.arms.twin import _B, _DA, _DW, _FC, _VS, joint_drive, rk4_begin, rk4_stage
 
 __all__ = ["ENGINE_TOLERANCE", "NJ", "TWIN", "acceleration", "advance", "advance_block",
            "nominal_offset", "observer_input", "true_offset"]
@@ -139,7 +139,7 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
 
 @jitable
 def _drive_block(v: np.ndarray, tau: np.ndarray, tp: np.ndarray, out: np.ndarray) -> None:
-    """:func:`~esoarm.plants.urdf_twin.joint_drive` for every run (arrays (n, runs))."""
+    """:func:`~esoarm.plants.arms.twin.joint_drive` for every run (arrays (n, runs))."""
     n, runs = v.shape
     inv_s = tp[5 * n]
     for i in range(n):
@@ -152,7 +152,7 @@ def _drive_block(v: np.ndarray, tau: np.ndarray, tp: np.ndarray, out: np.ndarray
 @jitable
 def _stage_block(stage: int, base: np.ndarray, u: np.ndarray, t: float, h: float,
                  acc: np.ndarray, tp: np.ndarray, w: np.ndarray) -> None:
-    """:func:`~esoarm.plants.urdf_twin.rk4_stage` for every run: ``base`` (3, n, runs) the
+    """:func:`~esoarm.plants.arms.twin.rk4_stage` for every run: ``base`` (3, n, runs) the
     step's start (q, q̇, τ), ``w`` (8, n, runs) its workspace rows, ``acc`` (n, runs)."""
     n, runs = acc.shape
     lag = tp[tp.shape[0] - 1]
@@ -190,8 +190,8 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
     """:func:`advance` for each live run i of a block (``xs[i]``, ``us[i]``), the same bits.
 
     The runs are advanced together, runs innermost
-    (:func:`~esoarm.plants.rigid_body.forward_dynamics_block`, then the RK4 stage of
-    :func:`~esoarm.plants.urdf_twin.rk4_stage` for every run): each run takes the
+    (:func:`~esoarm.plants.arms.rigid_body.forward_dynamics_block`, then the RK4 stage of
+    :func:`~esoarm.plants.arms.twin.rk4_stage` for every run): each run takes the
     operations :func:`advance` takes, in the same order.  A run that is not live
     is carried as the zero state and not written back.
 

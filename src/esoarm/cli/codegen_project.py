@@ -1,0 +1,28 @@
+"""``esoarm codegen SCENARIO --project stm32 --out DIR``: a firmware project around the C."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from esoarm.cli._common import BadInput, note, output_dir, resolve_scenario
+
+
+def write_project(scenario: str, overrides: tuple[str, ...], project: str, out: str,
+                  target: str | None, precision: str | None, plain_sums: bool) -> None:
+    """Write the ``project`` (``stm32``) of ``scenario`` into ``out``; bad input exits 2."""
+    from esoarm.codegen import CodegenError
+    from esoarm.codegen.stm32_project import write_stm32_project
+    from esoarm.scenario import ScenarioError
+
+    if target not in (None, "cortex-m4"):
+        raise BadInput(f"--project {project} is for the Cortex-M4F: drop --target {target}")
+    if precision == "float64":
+        raise BadInput(f"--project {project}: float32 (the STM32F4's FPU is single precision)")
+    folder = output_dir(out, "--out")
+    scn = resolve_scenario(scenario, overrides)
+    try:
+        paths = write_stm32_project(scn, Path(folder), False if plain_sums else None)
+    except (CodegenError, ScenarioError) as exc:
+        raise BadInput(str(exc)) from None
+    note(f"wrote the STM32F401RE project of scenario '{scn.name}' into {folder} "
+         f"({len(paths)} files): build it with 'make -C {folder}'")
