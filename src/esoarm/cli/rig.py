@@ -241,8 +241,16 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
                           monitor=page.push if page is not None else None, onboard=onboard,
                           notice=_stream_notice)
     except RigFault as exc:
+        if as_json:  # one JSON object on stdout, as a run that ended well prints
+            click.echo(json.dumps({"scenario": scn.name, **exc.summary.to_dict(),
+                                   "wall_clock_s": round(time.monotonic() - started, 3),
+                                   "fault": str(exc)}))
         raise RunFailure(str(exc)) from None
     except RigInterrupted as exc:
+        if as_json:
+            click.echo(json.dumps({"scenario": scn.name, **exc.summary.to_dict(),
+                                   "wall_clock_s": round(time.monotonic() - started, 3),
+                                   "interrupted": str(exc)}))
         raise Interrupted(str(exc)) from None
     except LinkError as exc:
         raise RunFailure(str(exc)) from None
