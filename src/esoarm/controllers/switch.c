@@ -2,9 +2,10 @@
  * C twin of esoarm.controllers.switch.  CTL_P is the design vector without its CODE:
  *   [0..5] the PID's (kp, ki, kd, Tf, limit, Ts), [6..11] the FLC's (k1, k2, I0, gcoef,
  *   bumpless flag, limit), [12] k_switch, [13] k_back (-1: never), [14] offset decay.
- * State c = (I, D, e_{k-1}, mode, u_{k-1} applied, offset).  Returns the raw command [N m].
+ * State c = (I, D, e_{k-1}, mode, u_{k-1} applied, offset), then (C only) the sample
+ * index k, counted here (exact in float32 up to 2^24 samples).  Returns the raw command [N m].
  */
-#define CTL_NC 6
+#define CTL_NC 7
 
 static void ctl_initialize(esoarm_real c[], esoarm_real y)
 {
@@ -13,10 +14,11 @@ static void ctl_initialize(esoarm_real c[], esoarm_real y)
     for (i = 0; i < CTL_NC; ++i) c[i] = R(0.0);
 }
 
-static esoarm_real ctl_control(esoarm_real c[], const esoarm_real zhat[], esoarm_real y,
-                               const esoarm_real ref[3], uint32_t k)
+static esoarm_real ctl_control(const esoarm_real T[], esoarm_real c[],
+                               const esoarm_real zhat[], esoarm_real y,
+                               const esoarm_real ref[3], uint8_t first)
 {
-    esoarm_real kk = (esoarm_real)k;
+    esoarm_real kk = first ? R(0.0) : c[6];
     int flc_mode = kk >= CTL_P[12] && !(CTL_P[13] >= R(0.0) && kk >= CTL_P[13]);
     int bumpless = CTL_P[10] == R(1.0);
     esoarm_real e = ref[0] - y;
@@ -26,7 +28,7 @@ static esoarm_real ctl_control(esoarm_real c[], const esoarm_real zhat[], esoarm
         esoarm_real alpha = ref[2] - CTL_P[6] * (zhat[1] - ref[1]) - CTL_P[7] * (zhat[0] - ref[0]);
         esoarm_real u_flc = CTL_P[8] * (alpha - zhat[2]);
         if (c[3] == R(0.0)) {           /* PID -> FLC: enter from the last command */
-            c[5] = (bumpless && k > 0) ? c[4] - u_flc : R(0.0);
+            c[5] = (bumpless && !first) ? c[4] - u_flc : R(0.0);
             c[3] = R(1.0);
         }
         u = u_flc + c[5];
@@ -40,7 +42,7 @@ static esoarm_real ctl_control(esoarm_real c[], const esoarm_real zhat[], esoarm
             c[2] = e;
             c[3] = R(0.0);
         }
-        e_prev = k == 0 ? e : c[2];
+        e_prev = first ? e : c[2];
         a = DIV(CTL_P[3], CTL_P[3] + ts);
         der = a * c[1] + DIV(CTL_P[2] * (R(1.0) - a) * (e - e_prev), ts);
         u = CTL_P[0] * e + c[0] + der + R(0.0);
@@ -50,5 +52,7 @@ static esoarm_real ctl_control(esoarm_real c[], const esoarm_real zhat[], esoarm
         c[2] = e;
     }
     c[4] = u > limit ? limit : (u < -limit ? -limit : u);
+    c[6] = kk + R(1.0);
+    (void)T;
     return u;
 }
