@@ -268,3 +268,15 @@ def test_switch_over_the_emulated_device() -> None:
 def test_run_switch_at_is_checked(run_cli) -> None:  # type: ignore[no-untyped-def]
     res = run_cli("run", "test-1", "--port", "/dev/null", "--switch-at", "-1")
     assert res.exit_code == 2 and "--switch-at" in res.stderr
+
+
+def test_kind_switch_does_not_carry_a_key_of_another_meaning() -> None:
+    """The FLC's compensation = "eso" (β̂ = ẑ3) is not the PID's; "none" is no FLC value."""
+    assert load_scenario("test-1", {"controller.kind": "pid"}).controller.compensation == "none"
+    pid = load_scenario("test-1", {"controller.kind": "pid", "controller.compensation": "eso"})
+    assert pid.controller.compensation == "eso"
+    back = load_scenario(load_scenario("test-1", {"controller.kind": "pid"}),
+                         {"controller.kind": "flc"})
+    assert back.controller.compensation == "eso"  # the FLC's default, not the PID's "none"
+    tf = load_scenario("test-1", {"controller.k1": 12.0, "controller.kind": "adrc-tf"})
+    assert tf.controller.k1 == 12.0  # same meaning: carried
