@@ -280,3 +280,16 @@ def test_kind_switch_does_not_carry_a_key_of_another_meaning() -> None:
     assert back.controller.compensation == "eso"  # the FLC's default, not the PID's "none"
     tf = load_scenario("test-1", {"controller.k1": 12.0, "controller.kind": "adrc-tf"})
     assert tf.controller.k1 == 12.0  # same meaning: carried
+
+
+@pytest.mark.slow
+@pytest.mark.hil
+@pytest.mark.skipif(bool(_MISSING), reason=f"not installed: {', '.join(_MISSING)}")
+def test_compare_on_the_chip(run_cli) -> None:  # type: ignore[no-untyped-def]
+    res = run_cli("compare", "test-1", "--set", "duration=2", "--seeds", "1", "--kinds",
+                  "eso+flc,adrc-tf", "--chip", "avr", "--json")
+    assert res.exit_code == 0, res.stderr
+    rows = {r["form"]: r for r in json.loads(res.stdout)["forms"]}
+    for r in rows.values():
+        assert r["chip"]["max_rel_du"] <= 1e-4 and r["chip"]["median"] > 0
+    assert rows["adrc-tf"]["chip"]["flash_bytes"] > 0
