@@ -105,7 +105,7 @@ def compare(scenario: str, overrides: tuple[str, ...], forms: str, seeds: int,
         click.echo(json.dumps(data))
         return
     click.echo(f"scenario '{scn.name}', means over {seeds} seed(s)")
-    head = f"{'form':<16} {'RMS error [rad]':>16} {'RMS Δu [N·m]':>13} {'RMS u [N·m]':>12}"
+    head = f"{'form':<24} {'RMS error [rad]':>16} {'RMS Δu [N·m]':>13} {'RMS u [N·m]':>12}"
     if held is not None:
         head += f" {'delay held':>11}"
     if chips is not None:
@@ -113,7 +113,7 @@ def compare(scenario: str, overrides: tuple[str, ...], forms: str, seeds: int,
         head += f" {f'{chip} median/max {unit}':>28} {'flash [B]':>10} {'RAM [B]':>8}"
     click.echo(head)
     for r in rows:
-        line = f"{r.form:<16} {r.rms_error:>16.5f} {r.rms_du:>13.4f} {r.rms_u:>12.4f}"
+        line = f"{r.form:<24} {r.rms_error:>16.5f} {r.rms_du:>13.4f} {r.rms_u:>12.4f}"
         if held is not None:
             h = held[r.form]
             line += f" {('none' if h < 0 else str(h)):>11}"
