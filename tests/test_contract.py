@@ -320,3 +320,9 @@ def test_where_things_live_matches_the_tree() -> None:
             if ln.startswith("| `")]
     named = {cell.strip("`") for cell in rows}
     assert named == tree, (sorted(tree - named), sorted(named - tree))
+
+
+def _comments(path) -> int:  # type: ignore[no-untyped-def]
+    """Lines starting with '#' before a log's header (excite writes its probe's result)."""
+    lines = open(path).read().splitlines()
+    return next(i for i, line in enumerate(lines) if not line.startswith("#"))
