@@ -261,7 +261,9 @@ def stderr_is_tty() -> bool:
 
 def lever_only(scn: Scenario, command: str) -> None:
     """The rig protocol, its emulator and identification drive one lever arm: refuse others."""
-    if scn.plant.kind != "lever-arm":
+    from esoarm.kinds import can
+
+    if not can(scn, "RIG"):  # what the plant kind declares
         raise BadInput(f"scenario '{scn.name}': '{command}' works on the lever-arm rig (one "
                        f"joint); plant.kind '{scn.plant.kind}' runs in simulate, sweep, tune, "
                        "replay and arm-study")

@@ -294,9 +294,10 @@ def _print_budget(b: dict[str, Any]) -> None:
 def _recommend(scn: Any, target_bw: float | None) -> list[dict[str, Any]] | None:
     if target_bw is None:
         return None
+    from esoarm.kinds import can
     from esoarm.studies.frequency.noise import recommend_eps
 
-    if scn.plant.kind != "lever-arm" or getattr(scn, "motor", None) is not None:
+    if not can(scn, "RIG") or getattr(scn, "motor", None) is not None:
         return []
     return [{"kind": r.kind, "eps": r.eps, "bandwidth": r.bandwidth,
              "disturbance_peak": r.disturbance_peak, **r.budget.to_dict()}
@@ -306,9 +307,10 @@ def _recommend(scn: Any, target_bw: float | None) -> list[dict[str, Any]] | None
 def _recommend_tracking(scn: Any, target_bw: float | None) -> list[dict[str, Any]] | None:
     if target_bw is None:
         return None
+    from esoarm.kinds import can
     from esoarm.studies.frequency.sweep_check import match_tracking
 
-    if scn.plant.kind != "lever-arm" or getattr(scn, "motor", None) is not None:
+    if not can(scn, "RIG") or getattr(scn, "motor", None) is not None:
         return []
     try:
         bound, matches = match_tracking(scn, target_bw)
