@@ -19,6 +19,7 @@ import pytest
 from pydantic import Field, create_model
 
 from esoarm import kinds
+from esoarm.contract import ComponentDesign, read_only
 from esoarm.engines.simulation import prepare, run_reference
 from esoarm.scenario import ScenarioError, load_scenario
 from kinds_extra import luenberger
@@ -51,6 +52,13 @@ def _variant(kind: str, code: int, drop: tuple[str, ...] = (), **names: object):
         if not name.startswith("__") and name not in drop:
             setattr(module, name, getattr(luenberger, name))
     module.KIND, module.CODE = kind, code  # type: ignore[attr-defined]
+
+    def design(scn, plant, ts):  # type: ignore[no-untyped-def]
+        d = luenberger.design(scn, plant, ts)  # its own CODE in element 0 (the dispatch's key)
+        return ComponentDesign(read_only(np.concatenate([[float(code)], d.vector[1:]])),
+                               d.n_state)
+
+    module.design = design  # type: ignore[attr-defined]
     module.Params = create_model(  # type: ignore[attr-defined]
         "Params", __base__=luenberger.Params,
         kind=(Literal[kind], Field(kind)))  # type: ignore[valid-type]

@@ -429,7 +429,7 @@ _COMMON = ("KIND", "CODE", "JIT", "Params", "design")
 #: check :mod:`esoarm.kinds` runs when a kind is registered).
 REQUIRED: dict[str, tuple[str, ...]] = {
     "plant": (*_COMMON, "advance", "acceleration", "observer_input"),
-    "observer": (*_COMMON, "initialize", "estimate", "advance"),
+    "observer": (*_COMMON, "initialize", "estimate", "advance", "predict", "state_size"),
     "controller": (*_COMMON, "initialize", "control"),
 }
 
@@ -509,7 +509,13 @@ PRISMATIC_UNITS = Units(position="m", velocity="m/s", acceleration="m/s²", forc
 #:     modelled, ``analyze`` refuses the kind in one line);
 #: ``units_of(params) -> Units`` (plants; default :data:`ROTARY_UNITS`)
 #:     the units every command prints for the plant's position, rate and drive (read
-#:     through :func:`esoarm.kinds.units`).
+#:     through :func:`esoarm.kinds.units`);
+#: ``joint_names(scn) -> tuple[str, ...]`` (plants; default: none, one unnamed joint)
+#:     the names of an arm's joints: logs and replays then have one column per joint
+#:     (``theta_1``, ``u_1``, ...), the report names them;
+#: ``joint_limits(scn) -> (lower, upper)`` (plants; default: none)
+#:     per-joint position limits [rad or m]; the references are checked against them and
+#:     clipped to them (:func:`esoarm.reference.reference_rows`).
 OPTIONAL: dict[str, Any] = {
     "FAST": False,
     "MOTOR": False,
@@ -520,4 +526,6 @@ OPTIONAL: dict[str, Any] = {
     "warnings": None,
     "linearization": None,
     "units_of": None,
+    "joint_names": None,
+    "joint_limits": None,
 }

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import inspect
 import linecache
+import math
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -41,10 +42,12 @@ from esoarm.contract import (
     ROTARY_UNITS,
     ControllerKind,
     ObserverKind,
+    PlantDesign,
     PlantKind,
     Units,
+    read_only,
 )
-from esoarm.controllers import computed_torque, flc, pid
+from esoarm.controllers import adrc_error, adrc_tf, computed_torque, flc, pid
 from esoarm.observers import cascade, linear, nonlinear
 from esoarm.plants import axis, lever_arm
 from esoarm.plants.arms import urdf
@@ -52,7 +55,7 @@ from esoarm.plants.arms import urdf
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "check_kind",
+__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "check_kind", "check_steps",
            "compile_only", "compiled_selection", "covers", "hook",
            "kind_labels", "kinds_of", "observer_summary", "on_dispatch_change",
            "observer_warnings", "on_change", "register", "registry_stamp",
@@ -62,7 +65,7 @@ __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "check_kind
 #: against its component's protocol, :class:`esoarm.contract.PlantKind` etc.)
 PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis)
 OBSERVERS: tuple[ObserverKind, ...] = (linear, nonlinear, cascade)
-CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque)
+CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque, adrc_error, adrc_tf)
 
 #: What was registered at import: the kinds of the package itself.
 _BUILTIN: dict[str, tuple[Any, ...]] = {
@@ -112,7 +115,8 @@ def check_kind(component: str, module: Any, others: tuple[Any, ...] = ()) -> Non
     for flag in ("JIT", "FAST", "MOTOR"):
         if not isinstance(getattr(module, flag, False), bool):
             raise ImportError(f"esoarm.kinds: {who}: {flag} must be True or False")
-    steps = tuple(n for n in required if n not in ("KIND", "CODE", "JIT", "Params", "design"))
+    steps = tuple(n for n in required
+                  if n not in ("KIND", "CODE", "JIT", "Params", "design", "state_size"))
     source = getattr(module, "C_SOURCE", None)
     if source is not None and not (isinstance(source, str) and hasattr(module, "__file__")
                                    and (Path(module.__file__).parent / source).is_file()):
@@ -122,8 +126,9 @@ def check_kind(component: str, module: Any, others: tuple[Any, ...] = ()) -> Non
                             if d is None and n != "C_SOURCE" and hasattr(module, n)):
         if not callable(getattr(module, fn)):
             raise ImportError(f"esoarm.kinds: {who}: {fn} must be a function")
-    if not callable(module.design):
-        raise ImportError(f"esoarm.kinds: {who}: design must be a function")
+    for fn in ("design", "state_size"):
+        if fn in required and not callable(getattr(module, fn)):
+            raise ImportError(f"esoarm.kinds: {who}: {fn} must be a function")
     if jit:
         plain = [fn for fn in steps if not _jit.is_jitable(getattr(module, fn))]
         if plain:
@@ -380,6 +385,182 @@ def observer_warnings(scn: Scenario) -> list[str]:
 
 
 # ---------------------------------------------------------------------------
+# the passive check: every step run once on exactly sized arrays (as Gymnasium's env checker)
+
+#: Sample period [s] and nominal input gain [1/(kg·m²)] of the registration cases.
+_CASE_TS = 0.02
+_CASE_B0 = 20.0
+
+
+class _Case(NamedTuple):
+    """The tables a kind's ``design`` reads, for the registration cases (defaults)."""
+
+    plant: Any
+    observer: Any
+    controller: Any
+    actuator: Any
+
+
+class _Actuator(NamedTuple):
+    torque_limit: float = 1.0
+
+
+def _params(who: str, module: Any) -> Any:
+    try:
+        return module.Params()
+    except Exception as exc:  # noqa: BLE001 - any failure is the kind's to fix
+        raise ImportError(f"esoarm.kinds: {who}: Params() must build from its defaults (the "
+                          f"registration check designs a case with them): "
+                          f"{str(exc).splitlines()[0]}") from None
+
+
+def _run_step(who: str, step: str, nj: int, sizes: str, func: Callable[..., object],
+              *args: object) -> None:
+    try:
+        func(*args)
+    except (IndexError, ValueError, TypeError, ZeroDivisionError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ImportError(f"esoarm.kinds: {who}: {step} on the {nj}-joint case: {first} "
+                          f"({sizes})") from None
+
+
+def _finite(who: str, step: str, nj: int, name: str, array: np.ndarray, sizes: str) -> None:
+    bad = np.flatnonzero(~np.isfinite(array))
+    if bad.size:
+        raise ImportError(f"esoarm.kinds: {who}: {step} on the {nj}-joint case left {name}"
+                          f"[{int(bad[0])}] of shape {array.shape} unwritten or not finite "
+                          f"({sizes})")
+
+
+def _designed(who: str, module: Any, case: _Case, nj: int) -> Any:
+    """The kind's design for an ``nj``-joint plant, or None where it refuses the shape."""
+    plant = PlantDesign(vector=read_only(np.array([math.nan])), x0=np.zeros(2 * nj), n_joints=nj,
+                        b0=read_only(np.full(nj, _CASE_B0)))
+    try:
+        d = module.design(case, plant, _CASE_TS)
+    except ValueError:  # the kind refuses this plant in its own words (e.g. one joint only)
+        return None
+    except Exception as exc:  # noqa: BLE001
+        raise ImportError(f"esoarm.kinds: {who}: design on the {nj}-joint case: "
+                          f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+                          ) from None
+    vector = np.asarray(getattr(d, "vector", None), dtype=float)
+    n_state = getattr(d, "n_state", None)
+    if vector.ndim != 1 or vector.size < 1 or vector[0] != module.CODE:
+        raise ImportError(f"esoarm.kinds: {who}: design on the {nj}-joint case: vector of "
+                          f"shape {vector.shape} must be 1-D with vector[0] = CODE {module.CODE}")
+    if isinstance(n_state, bool) or not isinstance(n_state, int) or n_state < 1:
+        raise ImportError(f"esoarm.kinds: {who}: design on the {nj}-joint case: n_state "
+                          f"{n_state!r} must be an int >= 1")
+    return d
+
+
+def _check_observer(who: str, module: Any, case: _Case) -> None:
+    params = case.observer
+    per = module.state_size(params)
+    if isinstance(per, bool) or not isinstance(per, int) or per < 1:
+        raise ImportError(f"esoarm.kinds: {who}: state_size(params) = {per!r}: must be an "
+                          "int >= 1 (states per joint)")
+    for nj in (1, 2):
+        d = _designed(who, module, case, nj)
+        if d is None:
+            continue
+        if d.n_state != per * nj:
+            raise ImportError(f"esoarm.kinds: {who}: design on the {nj}-joint case has n_state "
+                              f"{d.n_state}, state_size declares {per} per joint ({per * nj})")
+        p = d.vector
+        sizes = f"z of shape ({d.n_state},) = state_size {per} × {nj}, ẑ ({3 * nj},), " \
+                f"y and u ({nj},)"
+        z = np.zeros(d.n_state)
+        y = np.array([0.1, -0.2][:nj])
+        u = np.array([0.3, -0.1][:nj])
+        zhat = np.full(3 * nj, math.nan)
+        _run_step(who, "initialize", nj, sizes, module.initialize, z, y, p)
+        _finite(who, "initialize", nj, "z", z, sizes)
+        _run_step(who, "estimate", nj, sizes, module.estimate, z, y, p, zhat)
+        _finite(who, "estimate", nj, "zhat", zhat, sizes)
+        _run_step(who, "advance", nj, sizes, module.advance, z, zhat, y, u, p)
+        _finite(who, "advance", nj, "z", z, sizes)
+        guess = np.full(nj, math.nan)
+        _run_step(who, "predict", nj, sizes, module.predict, z, zhat, p, guess)
+        _finite(who, "predict", nj, "y", guess, sizes)
+    lin = hook(module, "linearization")
+    if lin is not None:
+        model = lin(params, _CASE_TS, _CASE_B0)
+        n = np.shape(model.p)[0] if np.ndim(model.p) == 2 else -1
+        want = {"p": (n, n), "q": (n, 1), "gamma": (n, 1), "hz": (3, n), "hy": (3, 1)}
+        for name, shape in want.items():
+            got = np.shape(getattr(model, name))
+            if got != shape or n != per or not np.all(np.isfinite(getattr(model, name))):
+                raise ImportError(f"esoarm.kinds: {who}: linearization's {name} has shape "
+                                  f"{got}, must be {(per, per) if name == 'p' else shape} "
+                                  f"and finite (state_size {per})")
+
+
+def _check_controller(who: str, module: Any, case: _Case) -> None:
+    for nj in (1, 2):
+        d = _designed(who, module, case, nj)
+        if d is None:
+            continue
+        p = d.vector
+        sizes = f"c of shape ({d.n_state},), ẑ ({3 * nj},), y and u ({nj},), refs ({3 * nj}, 2)"
+        c = np.zeros(d.n_state)
+        y = np.array([0.1, -0.2][:nj])
+        zhat = np.array([0.1, 0.5, -1.0, -0.2, 0.2, 0.5][:3 * nj])
+        refs = np.tile(np.array([[0.2], [0.1], [0.0], [-0.1], [0.0], [0.3]][:3 * nj]), (1, 2))
+        u = np.full(nj, math.nan)
+        _run_step(who, "initialize", nj, sizes, module.initialize, c, y, p)
+        _finite(who, "initialize", nj, "c", c, sizes)
+        for k in (0, 1):
+            _run_step(who, "control", nj, sizes,
+                      module.control, c, zhat, y, refs, k, p, u)
+            _finite(who, "control", nj, "u", u, sizes)
+            _finite(who, "control", nj, "c", c, sizes)
+
+
+def check_steps(component: str, module: Any) -> None:
+    """Run each step of an observer or controller kind once on exactly sized arrays.
+
+    The passive check of registration (as Gymnasium's environment checker): the kind
+    designs a one-joint and a two-joint case (its ``Params`` defaults, Ts = 0.02 s,
+    b0 = 20 per joint; a case its ``design`` refuses with ValueError, e.g. "one joint
+    only", is left out), then every step runs once on arrays of exactly the declared
+    size -- z of ``state_size(params)`` per joint, ẑ of 3 per joint, y and u of one per
+    joint -- which NumPy bounds-checks.  Each output must be written and finite, the
+    design's ``n_state`` must be the declared size, and ``linearization``'s matrices must
+    have the shapes of :class:`esoarm.contract.ObserverLinearization`.  Plant kinds are
+    held to the engines by the tests instead.
+
+    Parameters
+    ----------
+    component : {"plant", "observer", "controller"}
+        The kind's component (plants pass unchecked).
+    module : module
+        The kind module (its names checked by :func:`check_kind` first).
+
+    Raises
+    ------
+    ImportError
+        One line naming the kind, the step, the case and the shapes.
+    """
+    if component == "plant":
+        return
+    name = getattr(module, "__name__", repr(module))
+    who = f"{component} kind {module.KIND!r} ({name})"
+    params = _params(who, module)
+    case = _Case(plant=PLANTS[0].Params(),
+                 observer=params if component == "observer" else OBSERVERS[0].Params(),
+                 controller=params if component == "controller" else CONTROLLERS[0].Params(),
+                 actuator=_Actuator())
+    with np.errstate(all="ignore"):
+        if component == "observer":
+            _check_observer(who, module, case)
+        else:
+            _check_controller(who, module, case)
+
+
+
+# ---------------------------------------------------------------------------
 # registering kinds at run time (a kind outside the package, a test's kind)
 
 
@@ -431,10 +612,13 @@ def register(component: str, module: ModuleType) -> None:
     Raises
     ------
     ImportError
-        The module is not a complete kind, or its KIND or CODE is taken.
+        The module is not a complete kind, or its KIND or CODE is taken, or one of its
+        steps writes past an array or leaves an output unwritten or not finite
+        (:func:`check_steps`, one line naming the step and the shape).
     """
     kinds = _registered(component) if component in COMPONENTS else ()
     check_kind(component, module, kinds)
+    check_steps(component, module)
     _set(component, (*kinds, module))
 
 

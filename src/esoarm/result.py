@@ -35,7 +35,29 @@ __all__ = ["CSV_COLUMNS", "SimResult", "write_csv_atomic"]
 CSV_COLUMNS = SERIES_COLUMNS
 
 
-_JOINT_KEYS = ("rms_error", "rms_u", "rms_du", "max_abs_error", "max_abs_u", "rms_f_error")
+#: The metrics a summary gives for each joint of an arm.
+JOINT_KEYS = ("rms_error", "rms_u", "rms_du", "max_abs_error", "max_abs_u", "rms_f_error")
+
+
+def run_settings(scn: Scenario) -> dict[str, Any]:
+    """The identifying settings of a run's summary: scenario, kinds, observer and controller keys.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario run.
+
+    Returns
+    -------
+    dict
+        JSON-ready names and values.
+    """
+    settings = {"scenario": scn.name, "plant": scn.plant.kind, "observer": scn.observer.kind,
+                "controller": scn.controller.kind}
+    for section in (scn.observer, scn.controller):
+        settings.update({k: v for k, v in section.model_dump().items()
+                         if k != "kind" and isinstance(v, str | int | float | list)})
+    return settings
 
 
 def _joint_names(scenario: Scenario, n_joints: int) -> tuple[str, ...]:
@@ -259,15 +281,9 @@ class SimResult:
             of :data:`~esoarm.engines.metrics.METRICS` and the number of samples (an arm adds one
             entry per joint under ``"joints"``).
         """
-        scn = self.scenario
-        settings = {"scenario": scn.name, "plant": scn.plant.kind, "observer": scn.observer.kind,
-                    "controller": scn.controller.kind}
-        for section in (scn.observer, scn.controller):
-            settings.update({k: v for k, v in section.model_dump().items()
-                             if k != "kind" and isinstance(v, str | int | float | list)})
-        out = {**settings, **self.metrics, "samples": int(len(self.t))}
+        out = {**run_settings(self.scenario), **self.metrics, "samples": int(len(self.t))}
         if self.joint_names:  # an arm: the metrics of each joint, in URDF order
-            out["joints"] = [{"name": name, **{k: p.metrics[k] for k in _JOINT_KEYS}}
+            out["joints"] = [{"name": name, **{k: p.metrics[k] for k in JOINT_KEYS}}
                              for name, p in zip(self.joint_names, self.per_joint, strict=True)]
         return out
 

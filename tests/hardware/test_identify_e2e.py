@@ -29,7 +29,9 @@ def test_excite_identify_simulate_against_the_emulator(tmp_path):
         assert res.returncode == 0, res.stderr
         assert "stop received" in emu.output()
     lines = log.read_text().splitlines()
-    assert lines[0] == ",".join(LOG_COLUMNS) and len(lines) == 1 + 1500
+    # the probe's header line, the columns, 6 s of probe and 30 s of multisine at 50 Hz
+    assert lines[0].startswith("# esoarm excite: probe_s=6.0 ")
+    assert lines[1] == ",".join(LOG_COLUMNS) and len(lines) == 2 + 300 + 1500
 
     fitted = tmp_path / "fitted.toml"
     res = esoarm("identify", str(log), "--scenario", "test-1", "--json", "--out", str(fitted),

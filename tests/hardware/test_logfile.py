@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from esoarm.hardware.logfile import read_log_columns, sample_period
-from esoarm.hardware.replay import read_log
-from esoarm.hardware.replay_arm import read_arm_log
+from esoarm.hardware.replay import read_arm_log, read_log
 from esoarm.scenario import ScenarioError
 from esoarm.studies.identification.data import read_ident_log
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -56,6 +57,10 @@ from esoarm.cli._common import (
 @click.option("--kd", type=float, default=0.05, show_default=True, metavar="N·M·S/RAD",
               help="Guard-loop rate gain [N·m·s/rad] (rate from the scenario's ESO).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the tone phases.")
+@click.option("--probe", "probe", type=float, default=6.0, show_default=True, metavar="S",
+              help="Breakaway probe before the multisine [s] (half each direction; 0: none): "
+                   "a rising torque finds the breakaway torque, and the multisine's RMS is "
+                   "raised to twice it, its peak within actuator.torque_limit.")
 @click.option("--angle-limit", type=float, default=math.pi, show_default=True, metavar="RAD",
               help="Stop when |measured angle| exceeds this [rad].")
 @click.option("--max-jump", type=float, default=0.5, show_default=True, metavar="RAD",
@@ -68,7 +73,8 @@ from esoarm.cli._common import (
 def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bool,
            log: str | None, plan_only: bool, duration: float, amplitude: float, f_min: float,
            f_max: float, tones: int, sweep: float, sweep_period: float, kp: float, kd: float,
-           seed: int, angle_limit: float, max_jump: float, watchdog: float, baud: int) -> None:
+           seed: int, probe: float, angle_limit: float, max_jump: float, watchdog: float,
+           baud: int) -> None:
     """Record an identification experiment on the rig at PORT or on the twin of SCENARIO.
 
     The torque is a multisine (RMS --amplitude [N·m], tones from --f-min to
@@ -76,8 +82,11 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
     that keeps the nearly neutrally stable arm near a slow setpoint sweep θc.
     On a rig it runs through the safety layer of 'esoarm run' (torque limit
     actuator.torque_limit [N·m], angle limit, encoder-jump check, watchdog,
-    stop on any fault, every row logged and flushed). Feed the log to
-    'esoarm identify'.
+    stop on any fault, every row logged and flushed). First a --probe phase
+    measures the breakaway torque and the multisine is scaled to overcome it;
+    during the multisine the share of time the arm is stuck and the velocity
+    reversals are counted. Both are printed and written as the log's first
+    line ('# esoarm excite: key=value ...'). Feed the log to 'esoarm identify'.
     """
     from esoarm.hardware.realtime import SafetyLimits
     from esoarm.studies.identification.excitation import ExcitationPlan, plan_text
@@ -92,16 +101,26 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
     scn = resolve_scenario(scenario, overrides)
     lever_only(scn, "excite")
     plan.check(scn.sample_time)
+    from esoarm.studies.identification.probe import ProbingExcitation, probe_text
+
     limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog)
+    ctl = ProbingExcitation(scn, plan, probe)
     if plan_only:
-        from esoarm.hardware.excite import ExcitationFault, excite_twin
+        from esoarm.cli._common import Interrupted
+        from esoarm.hardware.excite import ExcitationFault, ExcitationInterrupted, excite_twin
 
         try:
-            _summary, preview = excite_twin(scn, plan, None, limits)
+            _summary, preview = excite_twin(scn, plan, None, limits, controller=ctl)
+        except ExcitationInterrupted:
+            raise Interrupted("the plan's preview on the twin; nothing written") from None
         except ExcitationFault as exc:
             preview = None
             click.echo(f"on the twin: stops early: {exc}")
-        click.echo(plan_text(plan, scn, preview))
+        shown = plan if ctl.amplitude == plan.amplitude else dataclasses.replace(
+            plan, amplitude=ctl.amplitude)
+        click.echo(plan_text(shown, scn, preview))
+        click.echo("on the twin, probe and motion:")
+        click.echo(probe_text(ctl.finish()))
         return
     if twin == (port is not None):
         raise BadInput("give exactly one of --port PATH (a rig) or --twin (the digital twin), "
@@ -112,16 +131,20 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
     if port is not None:
         require_extra("serial", "'esoarm excite --port' (the serial link)")
     if twin:
-        _excite_twin(scn, plan, log_path, limits)
+        _excite_twin(scn, ctl, log_path, limits)
     else:
-        _excite_rig(scn, plan, port, log_path, limits, baud)  # type: ignore[arg-type]
+        _excite_rig(scn, ctl, port, log_path, limits, baud)  # type: ignore[arg-type]
+    click.echo(probe_text(ctl.finish()))
 
 
-def _excite_twin(scn, plan, log_path: Path, limits) -> None:  # type: ignore[no-untyped-def]
-    from esoarm.hardware.excite import ExcitationFault, excite_twin
+def _excite_twin(scn, ctl, log_path: Path, limits) -> None:  # type: ignore[no-untyped-def]
+    from esoarm.cli._common import Interrupted
+    from esoarm.hardware.excite import ExcitationFault, ExcitationInterrupted, excite_twin
 
     try:
-        summary, preview = excite_twin(scn, plan, log_path, limits)
+        summary, preview = excite_twin(scn, None, log_path, limits, controller=ctl)
+    except ExcitationInterrupted as exc:
+        raise Interrupted(str(exc)) from None
     except ExcitationFault as exc:
         raise RunFailure(str(exc)) from None
     click.echo(f"twin of '{scn.name}': {summary.samples} samples, RMS u {preview['rms_u']:.4g} "
@@ -129,13 +152,12 @@ def _excite_twin(scn, plan, log_path: Path, limits) -> None:  # type: ignore[no-
     click.echo(f"log: {log_path}")
 
 
-def _excite_rig(scn, plan, port: str, log_path: Path, limits, baud: int) -> None:  # type: ignore[no-untyped-def]
+def _excite_rig(scn, ctl, port: str, log_path: Path, limits, baud: int) -> None:  # type: ignore[no-untyped-def]
     from esoarm.cli._common import Interrupted
+    from esoarm.hardware.excite import finish_log
     from esoarm.hardware.link import LinkError, SerialLink
     from esoarm.hardware.realtime import RigFault, RigInterrupted, run_rig
-    from esoarm.studies.identification.excitation import ExcitationController
 
-    ctl = ExcitationController(scn, plan)
     try:
         link = SerialLink(port, baudrate=baud)
     except LinkError as exc:
@@ -143,16 +165,20 @@ def _excite_rig(scn, plan, port: str, log_path: Path, limits, baud: int) -> None
     try:
         summary = run_rig(scn, link, log_path, limits, controller=ctl)
     except RigFault as exc:
+        finish_log(ctl, log_path)
         raise RunFailure(str(exc)) from None
     except RigInterrupted as exc:
+        finish_log(ctl, log_path)
         raise Interrupted(str(exc)) from None
     except LinkError as exc:
+        finish_log(ctl, log_path)
         raise RunFailure(str(exc)) from None
     except KeyboardInterrupt:
         link.stop()
         raise Interrupted("before the experiment started: stop sent, nothing logged") from None
     finally:
         link.close()
+    finish_log(ctl, log_path)
     click.echo(f"rig ({summary.mode}): {summary.samples} samples, RMS u {summary.rms_u:.4g} N·m, "
                f"{summary.lost_samples} lost, {summary.deadline_misses} deadline misses")
     click.echo(f"log: {log_path}")

@@ -385,56 +385,64 @@ def replay(log_file: str, scenario: str, overrides: tuple[str, ...], out: str | 
     (docs/semantics.md, the sampled-data loop); the sample period comes from
     the log.
     """
-    from esoarm.hardware.replay import plot_replay, read_log
-    from esoarm.hardware.replay import replay as run_replay
+    import numpy as np
+
+    from esoarm.hardware import replay as rp
+    from esoarm.kinds import hook, kinds_of
+    from esoarm.scenario import ScenarioError
 
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     scn = resolve_scenario(scenario, overrides)
-    if scn.plant.kind == "urdf":  # an arm: one observer per joint
-        _replay_arm(scn, log_file, out_path, plot_path)
-        return
-    t, theta, u, ts = read_log(log_file)
-    lost = int(sum(1 for v in theta.tolist() if v != v))  # NaN: a sample lost on the link
+    plant = kinds_of(scn).plant
+    names_of = hook(plant, "joint_names")  # an arm's joints: theta_i, u_i columns
+    names = tuple(names_of(scn)) if names_of is not None else ()
+    if names:
+        t, theta2, u2, ts = rp.read_arm_log(log_file, len(names))
+    else:
+        t, theta, u, ts = rp.read_log(log_file)
+        theta2, u2 = theta.reshape(-1, 1), u.reshape(-1, 1)
+    if any(o.split("=", 1)[0].strip() == "sensor.rate_hz" for o in overrides):
+        rate = 1.0 / ts  # replay runs at the log's rate: a rate set here must be the log's
+        if abs(scn.sensor.rate_hz - rate) > 1e-6 * rate:
+            raise ScenarioError(
+                f"sensor.rate_hz = {scn.sensor.rate_hz:g} Hz, but '{log_file}' is sampled at "
+                f"{rate:.6g} Hz (its t column); replay runs the observer at the log's rate: "
+                "drop --set sensor.rate_hz or resample the log")
+    rp.check_units(scn, theta2, u2, ts, log_file)
+    lost = int(np.isnan(theta2).any(axis=1).sum())  # NaN: a sample lost on the link
     if lost:
         warn_line(f"{lost} of {len(t)} rows of '{log_file}' have no measured angle (theta = nan, "
                   "lost samples): bridged by the observer's prediction with zero innovation")
-    result = run_replay(scn, t, theta, u, ts)
+    failure = None
+    try:
+        z = rp.estimates(scn, theta2, u2, ts)
+    except rp.ReplayDiverged as exc:
+        z, failure = exc.estimates, str(exc)
+    rows = len(z)
+    result: rp.ReplayResult | rp.ArmReplay
+    if names:
+        result = rp.ArmReplay(t[:rows], theta2[:rows], u2[:rows], z, ts)
+        columns = result.columns()
+    else:
+        result = rp.ReplayResult(t[:rows], theta2[:rows, 0], u2[:rows, 0], z[:, 0, :], ts, scn)
+        columns = list(rp.REPLAY_COLUMNS)
     if out_path is None:
-        import numpy as np
-
-        sys.stdout.write(",".join(("t", "theta", "u", "z1", "z2", "z3")) + "\n")
+        sys.stdout.write(",".join(columns) + "\n")
         np.savetxt(sys.stdout, result.table(), delimiter=",", fmt="%.17g")
     else:
         result.to_csv(out_path)
-    if plot_path is not None:
-        plot_replay(result, plot_path)
+    if plot_path is not None and failure is None:
+        if isinstance(result, rp.ArmReplay):
+            from esoarm.plotting.arms import figure_arm_replay
+
+            figure_arm_replay(result, names, plot_path)
+        else:
+            rp.plot_replay(result, plot_path)
+    joints = f", {len(names)} joints" if names else ""
     for label, path in (("estimates", out_path), ("figure", plot_path)):
-        if path is not None:
-            click.echo(f"{label}: {Path(path)} ({len(t)} rows, Ts = {ts:g} s)")
-
-
-def _replay_arm(scn, log_file: str, out_path: Path | None,  # type: ignore[no-untyped-def]
-                plot_path: Path | None) -> None:
-    """``replay`` with an arm scenario: theta_i, u_i per joint (esoarm.hardware.replay_arm)."""
-    from esoarm.hardware.replay_arm import read_arm_log, replay_arm
-    from esoarm.plants.arms.urdf import joint_names
-
-    names = joint_names(scn)
-    t, theta, u, ts = read_arm_log(log_file, len(names))
-    result = replay_arm(scn, t, theta, u, ts)
-    if out_path is None:
-        import numpy as np
-
-        sys.stdout.write(",".join(result.columns()) + "\n")
-        np.savetxt(sys.stdout, result.table(), delimiter=",", fmt="%.17g")
-    else:
-        result.to_csv(out_path)
-    if plot_path is not None:
-        from esoarm.plotting.arms import figure_arm_replay
-
-        figure_arm_replay(result, names, plot_path)
-    for label, path in (("estimates", out_path), ("figure", plot_path)):
-        if path is not None:
-            click.echo(f"{label}: {Path(path)} ({len(t)} rows, {len(names)} joints, "
-                       f"Ts = {ts:g} s)")
+        if path is not None and (failure is None or label == "estimates"):
+            click.echo(f"{label}: {Path(path)} ({rows} rows{joints}, Ts = {ts:g} s)")
+    if failure is not None:
+        kept = f"; {rows} rows kept in {out_path}" if out_path is not None else ""
+        raise RunFailure(f"{failure}{kept}")

@@ -11,6 +11,7 @@ from esoarm.cli._common import (
     Interrupted,
     RunFailure,
     bad_input_guard,
+    note,
     output_path,
     progress,
     resolve_scenario,
@@ -43,7 +44,10 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
     and prints the metrics: RMS tracking error [rad], RMS control [N·m] and
     max |error| [rad] (m and N on a prismatic axis).
     A long run shows its progress on stderr; Ctrl-C stops it
-    and writes the rows logged so far to --out.
+    and writes the rows logged so far to --out.  A run of more than 500,000 samples
+    goes block by block in constant memory (compiled where the scenario allows it):
+    its rows are streamed to --out, its metrics accumulated as it goes, and --plot
+    draws about 100,000 evenly spaced samples.
     """
     from esoarm.engines.simulation import SimulationDiverged, SimulationInterrupted
     from esoarm.engines.simulation import simulate as run
@@ -51,6 +55,11 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     scn = resolve_scenario(scenario, overrides)
+    from esoarm.engines.stream import STREAM_SAMPLES
+
+    if scn.n_samples > STREAM_SAMPLES:
+        _simulate_streamed(scn, out_path, plot_path, as_json)
+        return
     try:
         with progress(scn.n_samples, "simulating", "samples") as advance:
             result = run(scn, warn=False, progress=advance)
@@ -92,6 +101,100 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
     for label, path in (("time series", out_path), ("figure", plot_path)):
         if path is not None:
             click.echo(f"{label}: {path}")
+
+
+#: Samples kept for the figure of a streamed run (evenly spaced).
+FIGURE_ROWS = 100_000
+
+
+def _simulate_streamed(scn, out_path, plot_path, as_json: bool) -> None:  # type: ignore[no-untyped-def]
+    """``simulate`` of a long run: blocks of samples streamed to --out, metrics accumulated.
+
+    Memory stays flat whatever the run's length; the blocks run compiled where the
+    scenario's kinds allow it.
+    """
+    import contextlib
+    import threading
+
+    from esoarm._io import atomic_path
+    from esoarm.engines.simulation import SimulationDiverged
+    from esoarm.engines.stream import StreamInterrupted, stream
+
+    note(f"{scn.n_samples:,} samples: run block by block (memory stays flat), the "
+         "metrics accumulated as it goes" + (f", the rows streamed to {out_path}"
+                                             if out_path is not None else ""))
+    state = {"rows": 0, "started": False}
+    slow = threading.Timer(3.0, lambda: None if state["started"] else note(
+        "preparing the compiled engine for long runs (the first time only, about a "
+        "minute; cached for the next runs)"))
+    slow.daemon = True
+    failure: BaseException | None = None
+    with contextlib.ExitStack() as stack:
+        fh = None
+        if out_path is not None:
+            tmp = stack.enter_context(atomic_path(out_path))
+            fh = stack.enter_context(tmp.open("w", encoding="utf-8", newline=""))
+
+        def sink(part) -> None:  # type: ignore[no-untyped-def]
+            import io
+
+            import numpy as np
+
+            buf = io.StringIO()
+            if state["rows"] == 0:
+                buf.write(",".join(part.columns()) + "\n")
+            np.savetxt(buf, part.table(), delimiter=",", fmt="%.17g")
+            assert fh is not None
+            fh.write(buf.getvalue())  # one write: Ctrl-C never leaves half a block
+            state["rows"] += len(part.t)
+
+        with progress(scn.n_samples, "simulating", "samples") as advance:
+            def step(m: int) -> None:
+                state["started"] = True
+                advance(m)
+
+            slow.start()
+            try:
+                run = stream(scn, sink=sink if fh is not None else None, progress=step,
+                             figure_rows=FIGURE_ROWS if plot_path is not None else 0)
+            except (StreamInterrupted, SimulationDiverged) as exc:
+                failure = exc
+                if isinstance(exc, SimulationDiverged) and fh is not None:
+                    sink(exc.result)
+            finally:
+                slow.cancel()
+    if isinstance(failure, StreamInterrupted):
+        done = (f"at t = {failure.t_end:.4g} s of {scn.duration:g} s ({failure.samples:,} "
+                "samples)")
+        if out_path is not None and state["rows"]:
+            raise Interrupted(f"{done}; the {state['rows']:,} rows run are in {out_path}")
+        raise Interrupted(f"{done}; nothing written (give --out FILE.csv to keep the rows "
+                          "run)")
+    if isinstance(failure, SimulationDiverged):
+        kept = f"; the {state['rows']:,} rows logged are in {out_path}" if out_path else ""
+        raise RunFailure(f"{failure}{kept}")
+    from esoarm.engines.diagnosis import saturation_warning
+    from esoarm.kinds import units
+
+    saturated = saturation_warning(run.metrics.get("saturated_fraction", float("nan")),
+                                   scn.actuator.torque_limit, units(scn))
+    if saturated:
+        warn_line(saturated)
+    if plot_path is not None and run.series is not None:
+        run.series.plot(plot_path)
+    if as_json:
+        from esoarm.engines.metrics import metric_units
+
+        summary = run.summary()
+        summary["units"] = {k: u for k, u in metric_units(units(scn)).items() if k in summary}
+        click.echo(json.dumps(summary))
+        return
+    _print_metrics(run)
+    if out_path is not None:
+        click.echo(f"time series: {out_path}")
+    if plot_path is not None:
+        click.echo(f"figure: {plot_path} (every {run.stride:,}th sample)" if run.stride > 1
+                   else f"figure: {plot_path}")
 
 
 def _print_metrics(result) -> None:  # type: ignore[no-untyped-def]

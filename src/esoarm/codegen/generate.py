@@ -45,7 +45,7 @@ import numpy as np
 
 from esoarm import __version__
 from esoarm.contract import Kind
-from esoarm.kinds import kinds_of
+from esoarm.kinds import Kinds, kinds_of
 from esoarm.plants.actuator import actuator_vector
 from esoarm.reference import Multisine, QuinticSteps
 
@@ -321,25 +321,16 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     CodegenError
         An unknown target or precision, a precision the target lacks, a kind
         without C, a reference kind without C, or more than one joint.
+
+    Notes
+    -----
+    The steps: the options checked (:func:`_check_options`), the kinds' C
+    (:func:`_kind_sources`), their designs, then the banner, the header and the source
+    (:func:`_banner`, :func:`_header`, :func:`_reference_c`, ``_STEP``).
     """
-    if target not in TARGETS:
-        raise CodegenError(f"--target '{target}': one of {', '.join(TARGETS)}")
-    if precision not in PRECISIONS:
-        raise CodegenError(f"--precision '{precision}': one of {', '.join(PRECISIONS)}")
-    if precision not in TARGETS[target]:
-        raise CodegenError(f"--precision {precision} is not available on {target} "
-                           f"(avr-gcc's double is 32 bits): use {TARGETS[target][0]}")
-    if compensated is None:
-        compensated = precision == "float32"
+    compensated = _check_options(target, precision, compensated)
     kinds = kinds_of(scn)
-    texts = {}
-    for component, module in (("plant", kinds.plant), ("observer", kinds.observer),
-                              ("controller", kinds.controller)):
-        text = c_source(module)
-        if text is None:
-            raise CodegenError(f"{component}.kind = '{module.KIND}' has no C (C_SOURCE): "
-                               "esoarm codegen cannot generate it")
-        texts[component] = text
+    texts = _kind_sources(kinds)
     plant = kinds.plant.design(scn)
     if plant.n_joints != 1:
         raise CodegenError(f"plant.kind = '{scn.plant.kind}' has {plant.n_joints} joints: "
@@ -347,60 +338,18 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     ts = scn.sample_time
     obs = kinds.observer.design(scn, plant, ts)
     ctl = kinds.controller.design(scn, plant, ts)
-    act = actuator_vector(scn)
     digest = scenario_hash(scn)
     sizes = {"OBS_N": obs.n_state, "CTL_N": ctl.n_state}
     nz = _state_size(texts["observer"], "OBS_NZ", kinds.observer.KIND, sizes)
     nc = _state_size(texts["controller"], "CTL_NC", kinds.controller.KIND, sizes)
-    real = "float" if precision == "float32" else "double"
-    disc = getattr(scn.observer, "discretization", None)
-    summary = (f" * observer: {kinds.observer.KIND}" + (f" ({disc})" if disc else "")
-               + f", controller: {kinds.controller.KIND}, plant: {kinds.plant.KIND}"
-               + (", motor (torque -> duty)" if scn.motor is not None else "") + "\n"
-               + f" * Ts = {ts!r} s ({scn.sensor.rate_hz:g} Hz), {scn.n_samples} samples, "
-               f"torque limit {scn.actuator.torque_limit!r} N m\n")
-    banner = (f"/* esoarm generated controller -- do not edit; regenerate with\n"
-              f" *   esoarm codegen {scn.name} --target {target} --precision {precision}\n"
-              f" * scenario: {scn.name}   sha256: {digest}\n"
-              f" * target: {target}   precision: {precision}   observer sums: "
-              f"{'compensated' if compensated else 'plain'}\n"
-              + summary
-              + f" * esoarm {__version__}\n */\n")
-    header = (banner
-              + "#ifndef ESOARM_CONTROLLER_H\n#define ESOARM_CONTROLLER_H\n\n"
-              "#include <stdint.h>\n\n"
-              f"typedef {real} esoarm_real;\n\n"
-              f'#define ESOARM_SCENARIO "{scn.name}"\n'
-              f'#define ESOARM_SCENARIO_HASH "{digest}"\n'
-              f"#define ESOARM_SAMPLE_RATE_HZ {scn.sensor.rate_hz!r}\n"
-              f"#define ESOARM_N_SAMPLES {scn.n_samples}UL\n"
-              f"#define ESOARM_OBS_NZ {nz}\n#define ESOARM_CTL_NC {nc}\n\n"
-              "/* Everything of one run: the observer state z (and its carried errors),\n"
-              " * the estimate zhat, the controller state c, the sample index k, and the\n"
-              " * outputs of the latest step. */\n"
-              "typedef struct esoarm_state {\n"
-              "    esoarm_real z[ESOARM_OBS_NZ];\n"
-              "    esoarm_real zhat[3];\n"
-              "    esoarm_real c[ESOARM_CTL_NC];\n"
-              "    uint32_t k;\n"
-              "    uint8_t started;\n"
-              "    esoarm_real u;        /* saturated command [N m] */\n"
-              "    esoarm_real applied;  /* torque the observer is updated with [N m] */\n"
-              "    esoarm_real drive;    /* torque driving the plant [N m] */\n"
-              "    esoarm_real duty;     /* PWM duty [counts], 0 without a motor */\n"
-              "} esoarm_state;\n\n"
-              "#ifdef __cplusplus\nextern \"C\" {\n#endif\n\n"
-              "/* Before the first sample. */\n"
-              "void esoarm_init(esoarm_state *s);\n"
-              "/* One sample: the measured angle y_k [rad] -> the saturated command u_k [N m]. */\n"
-              "esoarm_real esoarm_step(esoarm_state *s, esoarm_real y);\n\n"
-              "#ifdef __cplusplus\n}\n#endif\n\n"
-              "#endif\n")
+    banner = _banner(scn, kinds, target, precision, compensated, digest)
+    header = _header(scn, banner, digest, "float" if precision == "float32" else "double",
+                     nz, nc)
     parts = [banner, f'#include "{HEADER}"\n', _prelude(target, precision),
              f"#define ESOARM_COMPENSATED {1 if compensated else 0}\n",
              f"#define REF_TS {_literal(ts)}\n",
              _array("OBS_P", obs.vector[1:]), _array("CTL_P", ctl.vector[1:]),
-             _array("ACT_P", act),
+             _array("ACT_P", actuator_vector(scn)),
              f"#define OBS_N {obs.n_state}\n#define CTL_N {ctl.n_state}\n",
              f"\n/* ---- plant kind '{kinds.plant.KIND}' ---- */\n", texts["plant"],
              f"\n/* ---- observer kind '{kinds.observer.KIND}' ---- */\n", texts["observer"],
@@ -410,6 +359,85 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
              (resources.files("esoarm.codegen") / "actuator.c").read_text(encoding="utf-8"),
              "\n/* ---- the step ---- */\n", _STEP]
     return Generated(header, "".join(parts), scn.name, digest, target, precision, compensated)
+
+
+def _check_options(target: str, precision: str, compensated: bool | None) -> bool:
+    """The target and precision checked (CodegenError), and the compensation to use."""
+    if target not in TARGETS:
+        raise CodegenError(f"--target '{target}': one of {', '.join(TARGETS)}")
+    if precision not in PRECISIONS:
+        raise CodegenError(f"--precision '{precision}': one of {', '.join(PRECISIONS)}")
+    if precision not in TARGETS[target]:
+        raise CodegenError(f"--precision {precision} is not available on {target} "
+                           f"(avr-gcc's double is 32 bits): use {TARGETS[target][0]}")
+    if compensated is None:
+        return precision == "float32"
+    return compensated
+
+
+def _kind_sources(kinds: Kinds) -> dict[str, str]:
+    """The C of the plant, observer and controller kinds (CodegenError for a kind without)."""
+    texts = {}
+    for component, module in (("plant", kinds.plant), ("observer", kinds.observer),
+                              ("controller", kinds.controller)):
+        text = c_source(module)
+        if text is None:
+            raise CodegenError(f"{component}.kind = '{module.KIND}' has no C (C_SOURCE): "
+                               "esoarm codegen cannot generate it")
+        texts[component] = text
+    return texts
+
+
+def _banner(scn: Scenario, kinds: Kinds, target: str, precision: str, compensated: bool,
+            digest: str) -> str:
+    """The comment heading both files: how to regenerate them, from what, with what."""
+    disc = getattr(scn.observer, "discretization", None)
+    summary = (f" * observer: {kinds.observer.KIND}" + (f" ({disc})" if disc else "")
+               + f", controller: {kinds.controller.KIND}, plant: {kinds.plant.KIND}"
+               + (", motor (torque -> duty)" if scn.motor is not None else "") + "\n"
+               + f" * Ts = {scn.sample_time!r} s ({scn.sensor.rate_hz:g} Hz), "
+               f"{scn.n_samples} samples, torque limit {scn.actuator.torque_limit!r} N m\n")
+    return (f"/* esoarm generated controller -- do not edit; regenerate with\n"
+            f" *   esoarm codegen {scn.name} --target {target} --precision {precision}\n"
+            f" * scenario: {scn.name}   sha256: {digest}\n"
+            f" * target: {target}   precision: {precision}   observer sums: "
+            f"{'compensated' if compensated else 'plain'}\n"
+            + summary
+            + f" * esoarm {__version__}\n */\n")
+
+
+def _header(scn: Scenario, banner: str, digest: str, real: str, nz: int, nc: int) -> str:
+    """``esoarm_controller.h``: the real type, the run's constants, the state, the two calls."""
+    return (banner
+            + "#ifndef ESOARM_CONTROLLER_H\n#define ESOARM_CONTROLLER_H\n\n"
+            "#include <stdint.h>\n\n"
+            f"typedef {real} esoarm_real;\n\n"
+            f'#define ESOARM_SCENARIO "{scn.name}"\n'
+            f'#define ESOARM_SCENARIO_HASH "{digest}"\n'
+            f"#define ESOARM_SAMPLE_RATE_HZ {scn.sensor.rate_hz!r}\n"
+            f"#define ESOARM_N_SAMPLES {scn.n_samples}UL\n"
+            f"#define ESOARM_OBS_NZ {nz}\n#define ESOARM_CTL_NC {nc}\n\n"
+            "/* Everything of one run: the observer state z (and its carried errors),\n"
+            " * the estimate zhat, the controller state c, the sample index k, and the\n"
+            " * outputs of the latest step. */\n"
+            "typedef struct esoarm_state {\n"
+            "    esoarm_real z[ESOARM_OBS_NZ];\n"
+            "    esoarm_real zhat[3];\n"
+            "    esoarm_real c[ESOARM_CTL_NC];\n"
+            "    uint32_t k;\n"
+            "    uint8_t started;\n"
+            "    esoarm_real u;        /* saturated command [N m] */\n"
+            "    esoarm_real applied;  /* torque the observer is updated with [N m] */\n"
+            "    esoarm_real drive;    /* torque driving the plant [N m] */\n"
+            "    esoarm_real duty;     /* PWM duty [counts], 0 without a motor */\n"
+            "} esoarm_state;\n\n"
+            "#ifdef __cplusplus\nextern \"C\" {\n#endif\n\n"
+            "/* Before the first sample. */\n"
+            "void esoarm_init(esoarm_state *s);\n"
+            "/* One sample: the measured angle y_k [rad] -> the saturated command u_k [N m]. */\n"
+            "esoarm_real esoarm_step(esoarm_state *s, esoarm_real y);\n\n"
+            "#ifdef __cplusplus\n}\n#endif\n\n"
+            "#endif\n")
 
 
 _STEP = """void esoarm_init(esoarm_state *s)

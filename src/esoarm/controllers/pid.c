@@ -1,6 +1,7 @@
 /* Controller kind "pid": the discrete PID of esoarm.controllers.pid in C.
  * CTL_P is the design vector without its CODE: [0] kp, [1] ki, [2] kd, [3] Tf,
- * [4] torque limit, [5] Ts.  State c = (integrator, filtered derivative, previous error).
+ * [4] torque limit, [5] Ts, [6] compensation (0 none, 1 eso: u -= zhat3 / b0), [7] 1/b0.
+ * State c = (integrator, filtered derivative, previous error).
  */
 #define CTL_NC 3
 
@@ -18,10 +19,10 @@ static esoarm_real ctl_control(esoarm_real c[], const esoarm_real zhat[], esoarm
     esoarm_real e_prev = k == 0 ? e : c[2];
     esoarm_real a = DIV(CTL_P[3], CTL_P[3] + ts);
     esoarm_real der = a * c[1] + DIV(CTL_P[2] * (R(1.0) - a) * (e - e_prev), ts);
-    esoarm_real u = CTL_P[0] * e + c[0] + der;
+    esoarm_real comp = CTL_P[6] == R(1.0) ? -CTL_P[7] * zhat[2] : R(0.0);
+    esoarm_real u = CTL_P[0] * e + c[0] + der + comp;
     esoarm_real limit = CTL_P[4];
     int saturated = (u > limit && e > R(0.0)) || (u < -limit && e < R(0.0));
-    (void)zhat;
     if (!saturated) c[0] = c[0] + CTL_P[1] * ts * e;
     c[1] = der;
     c[2] = e;

@@ -14,8 +14,12 @@ The integrator uses forward Euler, so u_k does not depend on e_k through I,
 and stops integrating while the command is saturated in the direction the
 error pushes it (conditional integration, the anti-windup).  I_0 = 0, D_0 = 0.
 
-The PID ignores the observer's estimate: the ESO still runs beside it (its
-estimates are logged), so a PID run shows what the perturbation estimate adds.
+With ``compensation = "none"`` (the default) the PID ignores the observer's estimate: the
+ESO still runs beside it (its estimates are logged), so a PID run shows what the
+perturbation estimate adds.  ``compensation = "eso"`` adds it: u_k = PID_k − ẑ3_k/b0
+(MATLAB's Disturbance Compensator block, u = u0 + Kd·d̂ with Kd = −1/b0), so a user keeps
+their PID and the ESO cancels the total perturbation it sees; the anti-windup judges the
+compensated command.
 The default gains are tuned on test-1, rounded: ``esoarm tune test-1 --set
 controller.kind=pid --vary controller.kp=0.1:3 --vary controller.kd=0.005:0.5
 --vary controller.ki=0:5 --seeds 2 --maxiter 12 --popsize 6`` (objective
@@ -37,7 +41,8 @@ from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "JIT", "KIND", "Params", "control", "design", "initialize", "pid_command"]
+__all__ = ["CODE", "JIT", "KIND", "Params", "control", "design", "initialize", "label",
+           "pid_command"]
 
 KIND = "pid"
 CODE = 1
@@ -45,7 +50,8 @@ JIT = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "pid.c"
 
-KP, KI, KD, TF, LIMIT, TS = range(6)
+KP, KI, KD, TF, LIMIT, TS, COMP, INV_B0 = range(8)
+COMPENSATIONS = ("none", "eso")
 # controller state: integrator, filtered derivative, previous error
 INT, DER, EPREV = range(3)
 
@@ -64,6 +70,10 @@ class Params(Section):
     derivative_filter: float = Field(
         0.02, ge=0, description="time constant Tf of the derivative's first-order filter",
         json_schema_extra=unit("s"))
+    compensation: Literal["none", "eso"] = Field(
+        "none", description='"none": the PID alone | "eso": the ESO\'s perturbation estimate '
+        "compensated, u = PID − ẑ3/b0 (a disturbance compensator)",
+        json_schema_extra={"own_meaning": True})
 
 
 def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
@@ -82,7 +92,8 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     -------
     ComponentDesign
         kp [N·m/rad], ki [N·m/(rad·s)], kd [N·m·s/rad], Tf [s], torque_limit [N·m],
-        Ts [s] after the CODE; three states (I [N·m], D [N·m], e_{k−1} [rad]).
+        Ts [s], compensation (0 "none", 1 "eso"), 1/b0 [kg·m²] after the CODE; three states
+        (I [N·m], D [N·m], e_{k−1} [rad]).
     """
     ctl = scn.controller
     if not isinstance(ctl, Params):  # pragma: no cover - the registry dispatches by kind
@@ -90,12 +101,13 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     if plant.n_joints != 1:
         raise ValueError("the PID kind is designed for one joint")
     vec = [float(CODE), ctl.kp, ctl.ki, ctl.kd, ctl.derivative_filter,
-           scn.actuator.torque_limit, ts]
+           scn.actuator.torque_limit, ts, float(COMPENSATIONS.index(ctl.compensation)),
+           1.0 / float(plant.b0[0])]
     return ComponentDesign(read_only(np.array(vec)), 3)
 
 
 @jitable
-def pid_command(e: float, k: int, c: np.ndarray, pid: Vector) -> float:
+def pid_command(e: float, k: int, c: np.ndarray, pid: Vector, comp: float = 0.0) -> float:
     """PID command u_k [N·m] for the error e_k [rad] at sample k; updates the state ``c``.
 
     ``pid`` is the design vector without its CODE; ``c`` = (I, D, e_{k−1}).
@@ -111,12 +123,16 @@ def pid_command(e: float, k: int, c: np.ndarray, pid: Vector) -> float:
         Controller state (I_k [N·m], D_{k−1} [N·m], e_{k−1} [rad]), updated in place to
         (I_{k+1}, D_k, e_k).
     pid : ndarray or tuple of float
-        (kp [N·m/rad], ki [N·m/(rad·s)], kd [N·m·s/rad], Tf [s], torque_limit [N·m], Ts [s]).
+        (kp [N·m/rad], ki [N·m/(rad·s)], kd [N·m·s/rad], Tf [s], torque_limit [N·m], Ts [s],
+        ...).
+    comp : float
+        A compensation added to the command [N·m] (−ẑ3/b0 with ``compensation = "eso"``),
+        part of the command the anti-windup judges.
 
     Returns
     -------
     float
-        The command u_k = P_k + I_k + D_k [N·m], before saturation.
+        The command u_k = P_k + I_k + D_k + comp [N·m], before saturation.
 
     Examples
     --------
@@ -130,7 +146,7 @@ def pid_command(e: float, k: int, c: np.ndarray, pid: Vector) -> float:
     e_prev = e if k == 0 else c[EPREV]
     a = pid[TF] / (pid[TF] + ts)
     der = a * c[DER] + pid[KD] * (1.0 - a) * (e - e_prev) / ts
-    u: float = pid[KP] * e + c[INT] + der
+    u: float = pid[KP] * e + c[INT] + der + comp
     limit = pid[LIMIT]
     saturated = (u > limit and e > 0.0) or (u < -limit and e < 0.0)
     if not saturated:
@@ -168,7 +184,8 @@ def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k:
         The controller's own state: (I, D, e_{k−1}), updated in place (:func:`pid_command`).
     zhat : ndarray, shape (3n,)
         The estimate ẑ_k: angle [rad], rate [rad/s] and total perturbation [rad/s²] of
-        joint j in ``zhat[3j:3j+3]``; the perturbation is f = θ̈ − b0·u (eq. 7).
+        joint j in ``zhat[3j:3j+3]``; the perturbation is f = θ̈ − b0·u (eq. 7); with
+        ``compensation = "eso"`` −ẑ3/b0 is added to the command.
     y : ndarray, shape (n,)
         Measured angle(s) y_k [rad]; e_k = θd(t_k) − y_k.
     refs : ndarray, shape (3n, N)
@@ -182,4 +199,23 @@ def control(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, refs: np.ndarray, k:
         Output: the raw command u_k [N·m] per joint, written in place (positive along
         increasing θ; before saturation).
     """
-    u[0] = pid_command(refs[0, k] - y[0], k, c, p[1:])
+    pid = p[1:]
+    comp = -pid[INV_B0] * zhat[2] if pid[COMP] == 1.0 else 0.0
+    u[0] = pid_command(refs[0, k] - y[0], k, c, pid, comp)
+
+
+def label(params: Params) -> str:
+    """The controller in titles: ``pid controller``, ``+ ESO compensation`` when compensated.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[controller]`` table.
+
+    Returns
+    -------
+    str
+        The label.
+    """
+    return "pid controller + ESO compensation" if params.compensation == "eso" \
+        else "pid controller"

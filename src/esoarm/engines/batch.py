@@ -159,15 +159,22 @@ _PHYSICS_DIRS = ("engines", "plants", "observers", "controllers")
 _PHYSICS_FILES = ("kinds.py", "contract.py", "_jit.py")
 
 
-def _physics_stamp() -> str:
-    """Hash of every source file the kernels may compile (the kinds, the loop, the metrics)."""
+def _physics_files() -> list[Path]:
+    """Every source file the kernels may compile: the kinds, the loop, the metrics, the
+    physics folders with their sub-packages (the URDF arms' ``plants/arms``)."""
     root = Path(__file__).resolve().parent.parent
     files = [root / name for name in _PHYSICS_FILES]
     for folder in _PHYSICS_DIRS:
-        files.extend(sorted((root / folder).glob("*.py")))
+        files.extend(sorted((root / folder).rglob("*.py")))
+    return files
+
+
+def _physics_stamp() -> str:
+    """Hash of every source file the kernels may compile (:func:`_physics_files`)."""
+    root = Path(__file__).resolve().parent.parent
     digest = hashlib.sha256()
-    for path in files:
-        digest.update(path.name.encode())
+    for path in _physics_files():
+        digest.update(path.relative_to(root).as_posix().encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
 

@@ -267,6 +267,8 @@ def unsupported(scn: Scenario) -> str | None:
     for section, module in zip(("plant", "observer", "controller"), kinds_of(scn), strict=True):
         if not hook(module, "FAST"):  # the kind does not declare FAST = True
             return f"{section}.kind = {module.KIND!r}"
+    if getattr(scn.observer, "input_delay", 0):
+        return "observer.input_delay > 0"
     if getattr(scn, "motor", None) is not None:
         return "a [motor] model"
     kind = getattr(scn.rig.disturbance, "kind", "sine")

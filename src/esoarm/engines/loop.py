@@ -190,7 +190,7 @@ def closed_loop_block(logs: np.ndarray, rows: np.ndarray, xs: np.ndarray, noises
     # ``owned`` keeps them alive (keep_alive below); the loop uses them borrowed, so that
     # a view of a run's row costs no reference count
     owned = (np.empty((m, nj)), np.empty((m, nj)), np.empty((m, nj)), np.empty((m, nj)),
-             np.zeros((m, nz)), np.zeros((m, nz)), np.zeros((m, nc)),
+             np.zeros((m, nz)), np.zeros((m, 3 * nj)), np.zeros((m, nc)),
              np.zeros((m, max(n, 1) * nj)))
     y, u, sat, applied, z, zhat, c, hist = (
         borrowed(owned[0]), borrowed(owned[1]), borrowed(owned[2]), borrowed(owned[3]),

@@ -2,45 +2,41 @@
 
 Every place that takes a sample calls these functions: the one-run loop and
 the block loop (:mod:`esoarm.engines.loop`, as plain Python in the reference
-engine and compiled in the batch engine), the Gymnasium environment
-(:mod:`esoarm.envs.lever_arm`), the rig's host controller
-(:mod:`esoarm.hardware.host_control`) and the emulated device
-(:mod:`esoarm.hardware.emulator`).  The C kernel of the fast engine
-(``_fast_kernel.c``) is the only other statement of the sample, held to these
-numbers by the tests.  Sample k, t_k = k·Ts:
+engine and compiled in the batch engine), and the one-sample stepper
+(:class:`esoarm.engines.stepper.Stepper`) that the Gymnasium environment, the
+rig's host controller, ``excite``'s guard loop and ``replay`` drive.  The C kernel
+of the fast engine (``_fast_kernel.c``) is the only other statement of the sample,
+held to these numbers by the tests.  Sample k, t_k = k·Ts:
 
-controller half (:func:`command`)
-    1. measure y_k = Q(θ(t_k) + σ n_k) per joint (:func:`sense`; on a rig the
+controller half (:func:`command_into`)
+    1. measure y_k = Q(θ(t_k) + σ n_k) per joint (:func:`sense_into`; on a rig the
        encoder does it);
-    2. estimate ẑ_k (observer kind, :func:`estimate`), control (controller kind,
-       :func:`control`), saturate to ±torque_limit (:func:`saturate_commands`),
-       through the actuator (:func:`actuate_commands`: with a motor, the torque
+    2. estimate ẑ_k (observer kind, :func:`estimate_into`), control (controller kind,
+       :func:`control_into`), saturate to ±torque_limit (:func:`saturate_into`),
+       through the actuator (:func:`actuate_into`: with a motor, the torque
        becomes a PWM duty; the host's torque u_k is what is logged and observed,
        the drive is what reaches the plant);
-plant half (:func:`respond`, then :func:`advance_plant`)
+plant half (:func:`respond_into`, then :func:`advance_plant_into`)
     3. the drive of sample k − delay (0 before the first command) is held over
-       [t_k, t_{k+1}) (:func:`hold`);
-    4. log row k (:func:`record`): true θ(t_k), θd, e_k, u_k, ẑ_k, the true
+       [t_k, t_{k+1}) (:func:`esoarm.plants.actuator.delayed_input`);
+    4. log row k (:func:`record_into`): true θ(t_k), θd, e_k, u_k, ẑ_k, the true
        perturbation f_k = θ̈(t_k) − b0·v_k, y_k, the saturation flag, θ̇(t_k),
        where v_k is the plant kind's observer input for u_k (u_k itself for the
        lever arm, M̂(q̂)⁻¹(u_k − c·n̂) for a URDF arm);
-    5. observer update with (y_k, v_k) (:func:`update_observer`; the rig's
-       controller does 4's observer input and 5 in :func:`observe`);
-    6. the plant kind integrates to t_{k+1} (:func:`advance_plant`).
+    5. observer update with (y_k, v_k) (:func:`update_observer_into`);
+    6. the plant kind integrates to t_{k+1} (:func:`advance_plant_into`).
 
 What travels between them are four records, plain tuples that numba compiles:
 :class:`Sampling` (timing and sensor), :class:`Designs` (the parameter
 vectors), :class:`Steps` (the kinds' step functions: the kind modules' own in
 Python, the registry's dispatch functions compiled) and :class:`Work` (the
 state and scratch arrays of one run).  Each step is written once, on the
-arrays themselves (``sense_into``, ``command_into``, ``respond_into``,
-``advance_plant_into`` and the steps they call); the functions of the same
-name without ``_into`` take a :class:`Work` and hand its arrays over.  The
-loops unpack their Work once per run and call the ``_into`` functions:
+arrays themselves; the loops unpack their Work once per run and call them:
 compiled, every function a record reaches takes a reference on each of its
 arrays and drops it again, every sample (twelve atomic increments and
 decrements per function for a Work), which had doubled the compiled
-engine's cost per sample.
+engine's cost per sample.  Only the plant half's :func:`hold` and
+:func:`advance_plant` take a Work (the emulated device's twin).
 
 A run ends early, as diverged, when a joint's |θ| or |ẑ1| exceeds
 :data:`DIVERGENCE_LIMIT` or θ, ẑ or u is not finite (:func:`within_limits`).
@@ -60,12 +56,11 @@ from esoarm.engines.metrics import ERR, NROW, OM, REF, SAT, TH, Z1, Z2, Z3, F, U
 from esoarm.plants.actuator import LIMIT, actuate, delayed_input, saturate
 from esoarm.plants.sensor import measure
 
-__all__ = ["DIVERGENCE_LIMIT", "Designs", "Sampling", "Steps", "Work", "actuate_commands",
-           "actuate_into", "advance_plant", "advance_plant_into", "command", "command_into",
-           "control", "control_into", "estimate", "estimate_into", "hold", "log_sample",
-           "new_work", "observe", "record", "record_into", "respond", "respond_into",
-           "saturate_commands", "saturate_into", "sense", "sense_into", "start", "start_into",
-           "steps_of", "update_observer", "update_observer_into", "within_limits"]
+__all__ = ["DIVERGENCE_LIMIT", "Designs", "Sampling", "Steps", "Work", "actuate_into",
+           "advance_plant", "advance_plant_into", "command_into", "control_into",
+           "estimate_into", "hold", "log_sample", "new_work", "record_into", "respond_into",
+           "saturate_into", "sense_into", "start_into", "steps_of", "update_observer_into",
+           "within_limits"]
 
 #: |θ| or |z1| beyond this [rad] (or any non-finite value) ends a run as diverged.
 DIVERGENCE_LIMIT = 1e6
@@ -165,8 +160,10 @@ class Work(NamedTuple):
         True acceleration θ̈(t_k) [rad/s²].
     v : ndarray (joints,)
         Observer input v_k (the plant kind's ``observer_input`` of u_k).
-    z, zhat : ndarray
-        Observer state z_k and estimate ẑ_k (3 per joint first).
+    z : ndarray
+        Observer state z_k (the size its design declares).
+    zhat : ndarray (3·joints,)
+        Estimate ẑ_k: angle, rate, perturbation per joint (whatever the observer's state).
     c : ndarray
         Controller state.
     hist : ndarray (N·joints,)
@@ -223,11 +220,12 @@ def new_work(n: int, nj: int, nz: int, nc: int) -> Work:
     Returns
     -------
     Work
-        Per-joint arrays uninitialized; z, ẑ, c and the drive history zero.
+        Per-joint arrays uninitialized; z (nz: the observer's declared state), ẑ (always
+        3 per joint: angle, rate, perturbation), c and the drive history zero.
     """
     return Work(np.empty(nj), np.empty(nj), np.empty(nj), np.empty(nj), np.empty(nj),
                 np.empty(nj), np.empty(nj), np.empty(nj), np.zeros(max(nz, 1)),
-                np.zeros(max(nz, 1)), np.zeros(max(nc, 1)), np.zeros(max(n, 1) * nj))
+                np.zeros(3 * nj), np.zeros(max(nc, 1)), np.zeros(max(n, 1) * nj))
 
 
 @jitable
@@ -669,137 +667,7 @@ def advance_plant_into(x: np.ndarray, applied: np.ndarray, k: int, sg: Sampling,
 
 
 # ---------------------------------------------------------------------------
-# the same steps on a Work record (the Gymnasium environment, the rig's host, the emulator)
-
-
-@jitable
-def sense(w: Work, x: np.ndarray, noise: np.ndarray, k: int, sg: Sampling) -> None:
-    """Step 1 (:func:`sense_into`): y_k = Q(θ_j(t_k) + σ n) per joint j into ``w.y``.
-
-    Parameters
-    ----------
-    w : Work
-        The run's state and scratch arrays; ``w.y`` receives y_k [rad].
-    x : ndarray
-        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
-        further states) at t_k.
-    noise : ndarray
-        Standard-normal draws, ``joints`` per sample.
-    k : int
-        Sample index (t_k = k·Ts).
-    sg : Sampling
-        Samples N, timing [s] and sensor [rad].
-    """
-    sense_into(w.y, x, noise, k, sg)
-
-
-@jitable
-def start(w: Work, d: Designs, s: Steps) -> None:
-    """The observer's and the controller's initial state from the first measurement ``w.y``.
-
-    Parameters
-    ----------
-    w : Work
-        The run's state and scratch arrays; ``w.z`` and ``w.c`` are initialized from ``w.y`` [rad].
-    d : Designs
-        The kinds' and the actuator's parameter vectors.
-    s : Steps
-        The kinds' step functions.
-    """
-    start_into(w.z, w.c, w.y, d, s)
-
-
-@jitable
-def estimate(w: Work, d: Designs, s: Steps) -> None:
-    """Step 2a (:func:`estimate_into`): the estimate ẑ_k from z_k and y_k into ``w.zhat``.
-
-    Parameters
-    ----------
-    w : Work
-        The run's state and scratch arrays; ``w.zhat`` receives ẑ_k.
-    d : Designs
-        The kinds' and the actuator's parameter vectors.
-    s : Steps
-        The kinds' step functions.
-    """
-    estimate_into(w.z, w.y, w.zhat, d, s)
-
-
-@jitable
-def control(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
-    """Step 2b (:func:`control_into`): the raw command into ``w.u`` (controller kind).
-
-    Parameters
-    ----------
-    w : Work
-        The run's state and scratch arrays; ``w.u`` receives the raw command [N·m], ``w.c`` is
-        updated.
-    k : int
-        Sample index (t_k = k·Ts).
-    refs : ndarray, shape (3·joints, ≥ N)
-        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
-        sample.
-    d : Designs
-        The kinds' and the actuator's parameter vectors.
-    s : Steps
-        The kinds' step functions.
-    """
-    control_into(w.c, w.zhat, w.y, k, refs, w.u, d, s)
-
-
-@jitable
-def saturate_commands(w: Work, a: Vector) -> None:
-    """Step 2c (:func:`saturate_into`): ``w.u`` clipped to ±torque_limit, ``w.sat`` flags.
-
-    Parameters
-    ----------
-    w : Work
-        The run's state and scratch arrays; ``w.u`` [N·m] clipped in place, ``w.sat`` set.
-    a : ndarray or tuple of float
-        The actuator vector (:func:`esoarm.plants.actuator.actuator_vector`; ``a[LIMIT]`` =
-        torque_limit [N·m]).
-    """
-    saturate_into(w.u, w.sat, a)
-
-
-@jitable
-def actuate_commands(w: Work, a: Vector) -> None:
-    """Step 2d (:func:`actuate_into`): the saturated ``w.u`` through the actuator.
-
-    ``w.u`` becomes the host's torque, ``w.drive`` the torque driving the
-    plant, ``w.duty`` the PWM duty (NaN without a motor).
-
-    Parameters
-    ----------
-    w : Work
-        The run's state and scratch arrays; ``w.zhat`` supplies the rate estimate [rad/s] for the
-        motor's back-EMF.
-    a : ndarray or tuple of float
-        The actuator vector (:func:`esoarm.plants.actuator.actuator_vector`; ``a[LIMIT]`` =
-        torque_limit [N·m]).
-    """
-    actuate_into(w.u, w.drive, w.duty, w.zhat, a)
-
-
-@jitable
-def command(w: Work, k: int, refs: np.ndarray, d: Designs, s: Steps) -> None:
-    """The controller half after the measurement (:func:`command_into`).
-
-    Parameters
-    ----------
-    w : Work
-        The run's state and scratch arrays (``w.y`` holds y_k).
-    k : int
-        Sample index (t_k = k·Ts).
-    refs : ndarray, shape (3·joints, ≥ N)
-        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
-        sample.
-    d : Designs
-        The kinds' and the actuator's parameter vectors.
-    s : Steps
-        The kinds' step functions.
-    """
-    command_into(w.y, w.u, w.drive, w.duty, w.sat, w.z, w.zhat, w.c, k, refs, d, s)
+# the plant half on a Work record (the emulated device's twin)
 
 
 @jitable
@@ -816,113 +684,6 @@ def hold(w: Work, k: int, delay: int) -> None:
         Transport delay [samples].
     """
     delayed_input(w.hist, k, delay, w.drive, w.applied)
-
-
-@jitable
-def record(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg: Sampling,
-           d: Designs, s: Steps) -> bool:
-    """Step 4 (:func:`record_into`): log column k; False if the run left the finite range.
-
-    Parameters
-    ----------
-    log : ndarray, shape (len(LOG_ROWS)·joints, ≥ N)
-        The run's log (:data:`esoarm.engines.metrics.LOG_ROWS` per joint); column k is
-        written.
-    w : Work
-        The run's state and scratch arrays (``w.acc`` and ``w.v`` are written).
-    x : ndarray
-        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
-        further states) at t_k.
-    k : int
-        Sample index (t_k = k·Ts).
-    refs : ndarray, shape (3·joints, ≥ N)
-        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
-        sample.
-    sg : Sampling
-        Samples N, timing [s] and sensor [rad].
-    d : Designs
-        The kinds' and the actuator's parameter vectors.
-    s : Steps
-        The kinds' step functions.
-
-    Returns
-    -------
-    bool
-        False if a joint's logged row breaks :func:`within_limits`.
-    """
-    return record_into(log, x, k, refs, w.y, w.u, w.sat, w.applied, w.zhat, w.acc, w.v, sg,
-                       d, s)
-
-
-@jitable
-def update_observer(w: Work, d: Designs, s: Steps) -> None:
-    """Step 5 (:func:`update_observer_into`): z_{k+1} from (z_k, ẑ_k, y_k) and ``w.v``.
-
-    Parameters
-    ----------
-    w : Work
-        The run's state and scratch arrays; ``w.z`` is advanced in place.
-    d : Designs
-        The kinds' and the actuator's parameter vectors.
-    s : Steps
-        The kinds' step functions.
-    """
-    update_observer_into(w.z, w.zhat, w.y, w.v, d, s)
-
-
-@jitable
-def observe(w: Work, d: Designs, s: Steps) -> None:
-    """Step 5 for the rig's host: v_k of the torque ``w.u`` (as in step 4), then z_{k+1}.
-
-    Parameters
-    ----------
-    w : Work
-        The run's state and scratch arrays; ``w.v`` and ``w.z`` are written.
-    d : Designs
-        The kinds' and the actuator's parameter vectors.
-    s : Steps
-        The kinds' step functions.
-    """
-    s.plant_observer_input(w.zhat, w.u, d.plant, w.v)
-    update_observer_into(w.z, w.zhat, w.y, w.v, d, s)
-
-
-@jitable
-def respond(log: np.ndarray, w: Work, x: np.ndarray, k: int, refs: np.ndarray, sg: Sampling,
-            d: Designs, s: Steps) -> bool:
-    """Steps 3-5 (:func:`respond_into`): hold the delayed drive, log column k, update z.
-
-    Returns False (and skips the update) if the run left the finite range.
-
-    Parameters
-    ----------
-    log : ndarray, shape (len(LOG_ROWS)·joints, ≥ N)
-        The run's log (:data:`esoarm.engines.metrics.LOG_ROWS` per joint); column k is
-        written.
-    w : Work
-        The run's state and scratch arrays.
-    x : ndarray
-        Plant state (angles x[:joints] [rad], rates x[joints:2·joints] [rad/s], then any
-        further states) at t_k.
-    k : int
-        Sample index (t_k = k·Ts).
-    refs : ndarray, shape (3·joints, ≥ N)
-        θd [rad], θ̇d [rad/s], θ̈d [rad/s²] of joint j in rows 3j … 3j+2, one column per
-        sample.
-    sg : Sampling
-        Samples N, timing [s] and sensor [rad].
-    d : Designs
-        The kinds' and the actuator's parameter vectors.
-    s : Steps
-        The kinds' step functions.
-
-    Returns
-    -------
-    bool
-        True if the run goes on; False if it diverged at sample k (row k is logged).
-    """
-    return respond_into(log, x, k, refs, w.y, w.u, w.sat, w.drive, w.applied, w.hist, w.z,
-                        w.zhat, w.acc, w.v, sg, d, s)
 
 
 @jitable

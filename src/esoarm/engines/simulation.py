@@ -43,7 +43,9 @@ __all__ = [
     "SimulationDiverged",
     "SimulationInterrupted",
     "diverged_message",
+    "joint_limits",
     "prepare",
+    "prepare_designs",
     "run_reference",
     "simulate",
     "within_limits",
@@ -179,22 +181,73 @@ def prepare(scn: Scenario, *, draw_noise: bool = True) -> RunInputs:
         A ``[motor]`` table with a plant kind that does not model a motor.
     """
     n = scn.n_samples
+    t = np.arange(n) * scn.sample_time
+    bare = prepare_designs(scn)
+    refs = reference_rows(scn.reference, t, bare.plant.n_joints, joint_limits(scn, bare.kinds))
+    noise = noise_model(scn)
+    return RunInputs(
+        t=t,
+        refs=refs,
+        noise=(draws(noise, scn.sensor.seed, n * bare.plant.n_joints, bare.plant.n_joints)
+               if draw_noise else np.empty(0)),
+        sigma=bare.sigma, q=bare.q, kinds=bare.kinds, plant=bare.plant,
+        observer=bare.observer, controller=bare.controller, actuator=bare.actuator,
+        ts=bare.ts, h=bare.h, nsub=bare.nsub, delay=bare.delay,
+    )
+
+
+def joint_limits(scn: Scenario, kinds: Kinds) -> tuple[np.ndarray, np.ndarray] | None:
+    """The plant kind's joint limits (lower, upper) [rad or m], or None if it has none.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+    kinds : Kinds
+        Its kind modules.
+
+    Returns
+    -------
+    (ndarray, ndarray) or None
+        Lower and upper limits per joint (the ``range`` reference needs them).
+    """
+    plant = kinds.plant
+    return plant.joint_limits(scn) if hasattr(plant, "joint_limits") else None
+
+
+def prepare_designs(scn: Scenario) -> RunInputs:
+    """:func:`prepare` without the per-sample arrays: empty ``t``, ``refs`` and ``noise``.
+
+    For engines that make the sample times, the reference and the noise block by block
+    (:mod:`esoarm.engines.stream`); memory does not grow with the run's length.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    RunInputs
+        The kinds, their designs, the actuator vector, timing and the sensor's σ and
+        quantization step [rad]; ``t``, ``refs`` and ``noise`` empty.
+
+    Raises
+    ------
+    ScenarioError
+        A ``[motor]`` table with a plant kind that does not model a motor.
+    """
     ts = scn.sample_time
-    t = np.arange(n) * ts
     kinds = kinds_of(scn)
     if not getattr(kinds.plant, "MOTOR", False) and scn.motor is not None:
         # a plant kind that neither models a motor nor refuses one in its check
         raise ScenarioError(str(motor_refused(scn, kinds.plant.KIND)))
     plant = kinds.plant.design(scn)
-    limits = kinds.plant.joint_limits(scn) if hasattr(kinds.plant, "joint_limits") else None
-    refs = reference_rows(scn.reference, t, plant.n_joints, limits)
-    noise = noise_model(scn)
     return RunInputs(
-        t=t,
-        refs=refs,
-        noise=(draws(noise, scn.sensor.seed, n * plant.n_joints, plant.n_joints)
-               if draw_noise else np.empty(0)),
-        sigma=sequence_scale(noise),
+        t=np.empty(0),
+        refs=np.empty((3 * plant.n_joints, 0)),
+        noise=np.empty(0),
+        sigma=sequence_scale(noise_model(scn)),
         q=math.radians(scn.sensor.resolution_deg),
         kinds=kinds,
         plant=plant,

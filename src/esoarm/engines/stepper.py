@@ -253,17 +253,21 @@ class Stepper:
         return self.zhat
 
     def predict(self) -> np.ndarray:
-        """A lost sample: :attr:`y` = the measurement the observer expects at t_k.
+        """A lost sample: the NaN entries of :attr:`y` = the measurement the observer expects.
 
-        The observer kind's ``predict`` (from z_k and the previous estimate); the
-        estimate and update that follow then see zero innovation.
+        The observer kind's ``predict`` (from z_k and the previous estimate) for every
+        joint whose measurement is missing (the others keep theirs); the estimate and
+        update that follow then see zero innovation on them.
 
         Returns
         -------
         ndarray (joints,)
             :attr:`y`.
         """
-        self.kinds.observer.predict(self.z, self.zhat, self.designs.observer, self.y)
+        lost = ~np.isfinite(self.y)
+        guess = np.empty(self.n_joints)
+        self.kinds.observer.predict(self.z, self.zhat, self.designs.observer, guess)
+        self.y[lost] = guess[lost]
         self.lost += 1
         return self.y
 

@@ -2,7 +2,8 @@
 
 One ``step`` is one sample period Ts of the sampled-data loop that
 ``esoarm simulate`` runs (:func:`esoarm.engines.loop.closed_loop`): the very
-sample functions of :mod:`esoarm.engines.sample` with the step functions of the
+sample functions of :mod:`esoarm.engines.sample`, taken one at a time by
+:class:`esoarm.engines.stepper.Stepper`, with the step functions of the
 scenario's plant, observer and controller kinds (:mod:`esoarm.kinds`), the
 action taking the controller's place, so that the environment driven by the
 ESO-FLC gives the simulator's trajectory bit for bit (tested):
@@ -45,21 +46,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from esoarm.controllers.flc import LIMIT as FLC_LIMIT
-from esoarm.controllers.flc import flc_command
 from esoarm.engines.metrics import NROW
-from esoarm.engines.sample import (
-    actuate_commands,
-    advance_plant,
-    control,
-    estimate,
-    new_work,
-    respond,
-    saturate_commands,
-    sense,
-    start,
-)
 from esoarm.engines.simulation import prepare
+from esoarm.engines.stepper import Stepper
 from esoarm.plants.actuator import LIMIT
 from esoarm.plants.noise import draws, noise_model
 from esoarm.scenario import Scenario, load_scenario
@@ -113,8 +102,6 @@ class LeverArmEnv(gym.Env):
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": scn.sensor.rate_hz}
         self._inp = prepare(scn, draw_noise=False)
-        self._sampling, self._designs, self._steps = (self._inp.sampling, self._inp.designs,
-                                                      self._inp.steps)
         self.n_steps = len(self._inp.t)
         self.n_joints = self._inp.plant.n_joints
         if self.n_joints != 1:
@@ -131,8 +118,8 @@ class LeverArmEnv(gym.Env):
         inp = self._inp
         self._noise = np.zeros(self.n_steps)
         self._x = np.array(inp.plant.x0)
-        self._w = new_work(self.n_steps, 1, inp.observer.n_state, inp.controller.n_state)
-        self._w.u[0] = 0.0
+        self._st = Stepper(inp.kinds, inp.plant, inp.observer, inp.controller, inp.actuator,
+                           inp.refs, inp.sampling)
         self._log = np.full((NROW, max(self.n_steps, 1)), np.nan)
         self._k = 0
 
@@ -152,44 +139,45 @@ class LeverArmEnv(gym.Env):
         self._new_arrays()
         self._noise = draws(noise_model(self.scenario), noise_seed, self.n_steps)
         if self.n_steps:
-            sense(self._w, self._x, self._noise, 0, self._sampling)
-        start(self._w, self._designs, self._steps)
+            self._st.sense(self._x, self._noise, 0)
+        self._st.start()
         self._measure()
         return self._observation(), {"t": 0.0, "noise_seed": noise_seed}
 
     def _measure(self) -> None:
         """The controller half up to the estimate: y_k and ẑ_k at the current sample."""
-        sense(self._w, self._x, self._noise, self._k, self._sampling)
-        estimate(self._w, self._designs, self._steps)
+        self._st.sense(self._x, self._noise, self._k)
+        self._st.estimate()
 
     def _observation(self) -> np.ndarray:
-        inp, k = self._inp, min(self._k, self.n_steps - 1)
-        head = (self._w.y[0], inp.refs[0, k], inp.refs[1, k], inp.refs[2, k])
+        inp, k, st = self._inp, min(self._k, self.n_steps - 1), self._st
+        head = (st.y[0], inp.refs[0, k], inp.refs[1, k], inp.refs[2, k])
         if self.observe_estimates:
-            return np.array((*head, *self._w.zhat[:3]), dtype=np.float64)
+            return np.array((*head, *st.zhat[:3]), dtype=np.float64)
         return np.array(head, dtype=np.float64)
 
     def flc_command(self) -> float:
         """The controller kind's raw command u_k [N·m] for the current sample (unsaturated)."""
-        control(self._w, self._k, self._inp.refs, self._designs, self._steps)
-        return float(self._w.u[0])
+        return float(self._st.control(self._k)[0])
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Apply the action over one sample period Ts; see the module docstring."""
         if self._k >= self.n_steps:
             raise RuntimeError("the episode is over (truncated): call reset()")
-        inp, k, w = self._inp, self._k, self._w
-        a = float(np.asarray(action, dtype=np.float64).reshape(-1)[0])
+        inp, k, st = self._inp, self._k, self._st
+        arr = np.asarray(action, dtype=np.float64)
+        if arr.size != 1 or arr.ndim > 1:  # (1,) as action_space, or a scalar
+            raise ValueError(f"action of shape {arr.shape}: must be shape (1,) (the action "
+                             f"space {self.action_space}); the episode is unchanged")
+        a = float(arr.reshape(-1)[0])
         if not math.isfinite(a):  # a NaN would end the episode as if the arm had diverged
             raise ValueError(f"action {a}: must be a finite torque [N·m] ({self.action_mode} "
                              "mode); the episode is unchanged")
         raw = a if self.action_mode == "torque" else self.flc_command() + a
         # the rest of the controller half (saturate, actuate), then the plant half
-        w.u[0] = raw
-        saturate_commands(w, inp.actuator)
-        actuate_commands(w, inp.actuator)
-        ok = respond(self._log, w, self._x, k, inp.refs, self._sampling, self._designs,
-                     self._steps)
+        st.limit(raw)
+        st.hold(k)
+        ok = st.record(self._log, self._x, k)
         row = self._log[:, k]
         info = dict(zip(INFO_KEYS, (float(inp.t[k]), *(float(value) for value in row[:-1])),
                         strict=True))
@@ -197,8 +185,8 @@ class LeverArmEnv(gym.Env):
         reward = -(error * error + self.effort_weight * u * u)
         if not ok:
             return self._observation(), float(reward), True, False, info
-        advance_plant(self._x, w, k, self._sampling, self._designs.plant,
-                      self._steps.plant_advance)
+        st.update()
+        st.advance_plant(self._x, k)
         self._k = k + 1
         truncated = self._k >= self.n_steps
         if not truncated:
@@ -214,25 +202,41 @@ class LeverArmEnv(gym.Env):
 
         k = min(self._k, self.n_steps - 1)
         return draw_arm(float(self._x[0]), float(self._inp.refs[0, k]),
-                        float(self._w.u[0]) / float(self._inp.actuator[LIMIT]))
+                        float(self._st.u[0]) / float(self._inp.actuator[LIMIT]))
 
 
 class EsoFlcPolicy:
-    """The paper's ESO-FLC as a fixed policy for ``action_mode="torque"``.
+    """The scenario's own controller kind on the observation, as a fixed policy.
 
-    Needs ``observe_estimates=True``: the action is the FLC's raw command
-    (eq. 14-16) from (ẑ, θd, θ̇d, θ̈d), which the environment saturates as
-    ``esoarm simulate`` does.
+    For ``action_mode="torque"`` with ``observe_estimates=True``: the action is the
+    controller kind's raw command (the paper's FLC, eq. 14-16, for the default
+    ``controller.kind``; whatever kind the scenario names otherwise) from
+    (ẑ, θd, θ̇d, θ̈d) and the measured y in the observation, with the controller's own
+    state kept here; the environment saturates it as ``esoarm simulate`` does.  The kind
+    is asked through the registry, never recognised by its parameters.
     """
 
     def __init__(self, env: gym.Env) -> None:
         base = env.unwrapped
         if not isinstance(base, LeverArmEnv) or not base.observe_estimates:
             raise ValueError("EsoFlcPolicy needs a LeverArmEnv with observe_estimates=True")
-        self._ctl = base._inp.controller.vector[1:]  # the FLC kind's parameters
-        if len(self._ctl) <= FLC_LIMIT:
-            raise ValueError("EsoFlcPolicy needs the FLC controller kind")
+        inp = base._inp
+        self._kind = inp.kinds.controller
+        self._p = inp.controller.vector
+        self._c = np.zeros(max(inp.controller.n_state, 1))
+        self._k = 0
+        self._started = False
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        _, ref, dref, ddref, z1, z2, z3 = (float(v) for v in obs)
-        return np.array([flc_command(z1, z2, z3, ref, dref, ddref, self._ctl)])
+        y0, ref, dref, ddref, z1, z2, z3 = (float(v) for v in obs)
+        y = np.array([y0])
+        if not self._started:
+            self._kind.initialize(self._c, y, self._p)
+            self._started = True
+        u = np.zeros(1)
+        self._kind.control(self._c, np.array([z1, z2, z3]), y,
+                           np.array([[ref, ref], [dref, dref], [ddref, ddref]]),
+                           0 if self._k == 0 else 1,
+                           self._p, u)
+        self._k += 1
+        return u

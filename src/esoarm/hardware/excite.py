@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -26,7 +27,8 @@ from esoarm.hardware.realtime import LOG_COLUMNS, RunSummary, SafetyLimits, _Log
 from esoarm.scenario import Scenario
 from esoarm.studies.identification.excitation import ExcitationController, ExcitationPlan
 
-__all__ = ["TWIN_LOG_COLUMNS", "ExcitationFault", "excite_twin"]
+__all__ = ["TWIN_LOG_COLUMNS", "ExcitationFault", "ExcitationInterrupted", "excite_twin",
+           "finish_log"]
 
 #: Columns of a twin excitation log: those of ``esoarm run`` plus the true angle [rad].
 TWIN_LOG_COLUMNS = (*LOG_COLUMNS, "theta_true")
@@ -38,6 +40,10 @@ class ExcitationFault(RuntimeError):
     def __init__(self, message: str, summary: RunSummary) -> None:
         super().__init__(message)
         self.summary = summary
+
+
+class ExcitationInterrupted(ExcitationFault):
+    """Ctrl-C during the twin experiment; the message says how many rows were kept and where."""
 
 
 def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | None = None,
@@ -66,7 +72,10 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
     summary : RunSummary
         Rows logged, RMS of u [N·m].
     preview : dict
-        ``max_abs_theta`` [rad], ``rms_u`` [N·m], ``saturated`` (fraction of samples).
+        ``max_abs_theta`` [rad], ``rms_u`` [N·m], ``saturated`` (fraction of samples);
+        with a :class:`~esoarm.studies.identification.probe.ProbingExcitation` also
+        ``probe``, its :class:`~esoarm.studies.identification.probe.ProbeReport`, which
+        is then written as the log's first line as well (:func:`finish_log`).
 
     Raises
     ------
@@ -87,6 +96,7 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
     fmt = repr
     summary = RunSummary(mode="twin", log=str(log_path) if log_path else "")
     message = log_failed = None
+    interrupted = False
     try:
         for k in range(n):
             theta = twin.theta
@@ -118,14 +128,25 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
             except _Stop as exc:  # the log cannot be written (a full disk): stop, keep the rows
                 log_failed = str(exc)
                 break
+    except KeyboardInterrupt:  # between two rows or inside one: the file ends at a whole row
+        interrupted = True
     finally:
         log.close()
     rows = log.rows
+    report = _finish(ctl, log_path if rows else None)
     summary.samples = rows
     if rows:
         summary.rms_u = float(np.sqrt(np.mean(u_log[:rows] ** 2)))
-    preview = {"max_abs_theta": theta_max, "rms_u": summary.rms_u,
-               "saturated": saturated / max(rows, 1)}
+    preview: dict[str, Any] = {"max_abs_theta": theta_max, "rms_u": summary.rms_u,
+                               "saturated": saturated / max(rows, 1)}
+    if report is not None:
+        preview["probe"] = report
+    if interrupted:
+        where = (f"the {rows:,} rows logged ({rows / scn.sensor.rate_hz:.4g} s of "
+                 f"{n / scn.sensor.rate_hz:.4g} s) are in {log_path}, each row whole" if log_path
+                 else "nothing logged")
+        raise ExcitationInterrupted(f"twin experiment stopped at sample {rows:,} of {n:,}; "
+                                    f"{where}", summary)
     if log_failed is not None:
         raise ExcitationFault(f"{log_failed}; {rows} rows kept", summary)
     if message is not None:
@@ -134,3 +155,27 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
     if not math.isfinite(summary.rms_u):
         summary.rms_u = 0.0
     return summary, preview
+
+
+def finish_log(controller: object, log_path: Path | None) -> Any:
+    """The probe's report of ``controller`` (None if it has none), written into the log's header.
+
+    Called after a run on the twin or on a rig, whether it ended, faulted or was
+    interrupted: the header then says what was measured up to the last row.
+    """
+    return _finish(controller, log_path)
+
+
+def _finish(controller: object, log_path: Path | None) -> Any:
+    finish = getattr(controller, "finish", None)
+    if finish is None:
+        return None
+    report = finish()
+    if log_path is not None and Path(log_path).exists():
+        from esoarm.studies.identification.probe import write_header
+
+        try:
+            write_header(log_path, report)
+        except OSError:
+            pass  # the rows are kept as they are; only the summary line is missing
+    return report

@@ -1,8 +1,8 @@
 """The deployment controller: the scenario's observer and controller stepped one sample at a time.
 
-It calls the controller half of the sample of every engine
-(:mod:`esoarm.engines.sample`, with the step functions of the scenario's kinds,
-:mod:`esoarm.kinds`), driven from measured angles:
+It drives :class:`esoarm.engines.stepper.Stepper` (the controller half of the sample of
+every engine, with the step functions of the scenario's kinds, :mod:`esoarm.kinds`) from
+measured angles:
 
     ẑ_k = estimate(z_k, y_k)                    (observer kind)
     u_k = sat(control(ẑ_k, y_k, reference_k))   (controller kind, ±torque_limit)
@@ -10,7 +10,8 @@ It calls the controller half of the sample of every engine
     v_k = observer_input(ẑ_k, u_k)              (plant kind: u_k itself for the lever arm)
     z_{k+1} = advance(z_k, ẑ_k, y_k, v_k)       (observer kind)
 
-so a run fed the simulator's measurements reproduces
+and a sample that never arrived is bridged with the observer kind's ``predict`` (the
+measurement it expects), so a run fed the simulator's measurements reproduces
 :func:`esoarm.engines.simulation.run_reference` bit for bit (tested).  The
 reference is precomputed for all N samples with the same vectorized
 :func:`esoarm.reference.evaluate_reference` call the simulators use.
@@ -23,16 +24,7 @@ from typing import Protocol
 
 import numpy as np
 
-from esoarm.engines.sample import (
-    actuate_commands,
-    control,
-    estimate,
-    new_work,
-    observe,
-    saturate_commands,
-    start,
-)
-from esoarm.engines.simulation import prepare
+from esoarm.engines.stepper import Stepper
 from esoarm.plants.actuator import LIMIT
 from esoarm.scenario import Scenario
 
@@ -86,30 +78,22 @@ class DeploymentController:
         Estimate ẑ_k of joint 0 used for the latest control [rad, rad/s, rad/s²].
     """
 
-    __slots__ = ("_act", "_d", "_refs", "_ref", "_s", "_started", "_w", "kinds", "n_samples",
-                 "t", "torque_limit", "ts", "zhat")
+    __slots__ = ("_ref", "_st", "kinds", "n_samples", "t", "torque_limit", "ts", "zhat")
 
     def __init__(self, scn: Scenario) -> None:
-        inp = prepare(scn, draw_noise=False)
-        self.kinds = inp.kinds
-        self._d, self._s = inp.designs, inp.steps
-        self._act = inp.actuator
-        self._refs = inp.refs
-        self._ref = inp.refs[0].tolist()
-        self._w = new_work(0, inp.plant.n_joints, inp.observer.n_state, inp.controller.n_state)
-        self._w.y[:] = 0.0
-        self._w.u[:] = 0.0
-        self._started = False
-        self.t = inp.t.tolist()
+        self._st = Stepper.of(scn)
+        self.kinds = self._st.kinds
+        self._ref = self._st.refs[0].tolist()
+        self.t = (np.arange(scn.n_samples) * scn.sample_time).tolist()
         self.n_samples = len(self.t)
         self.ts = scn.sample_time
-        self.torque_limit = float(inp.actuator[LIMIT])
+        self.torque_limit = float(self._st.designs.actuator[LIMIT])
         self.zhat: tuple[float, float, float] = (math.nan, math.nan, math.nan)
 
     @property
     def observer_state(self) -> np.ndarray:
         """A copy of the observer state z_{k+1} after the latest commit."""
-        return self._w.z.copy()
+        return self._st.z.copy()
 
     def reference(self, k: int) -> float:
         """θd(t_k) [rad]."""
@@ -117,43 +101,31 @@ class DeploymentController:
 
     def step(self, k: int, y: float) -> float:
         """Control u_k [N·m] (saturated) from the measured angle y_k [rad]."""
-        w = self._w
-        w.y[0] = y
-        if not self._started:
-            start(w, self._d, self._s)
-            self._started = True
-        estimate(w, self._d, self._s)
-        control(w, k, self._refs, self._d, self._s)
-        saturate_commands(w, self._act)
-        zhat = w.zhat
+        st = self._st
+        zhat = st.estimate(y)
+        st.control(k)
+        st.saturate()
         self.zhat = (float(zhat[0]), float(zhat[1]), float(zhat[2]))
-        return float(w.u[0])
+        return float(st.u[0])
 
     def actuate(self, u: float) -> tuple[float, float]:
         """(torque the host applies [N·m], PWM duty [counts] or NaN) for the command u."""
-        w = self._w
-        w.u[0] = u
-        actuate_commands(w, self._act)
-        return float(w.u[0]), float(w.duty[0])
+        st = self._st
+        st.actuate(u)
+        return float(st.u[0]), float(st.duty[0])
 
     def commit(self, u: float) -> None:
         """Advance the observer with the torque u_k [N·m] applied from t_k on.
 
         The observer's input is the plant kind's for u_k (u_k itself for the lever arm).
         """
-        self._w.u[0] = u
-        observe(self._w, self._d, self._s)
+        self._st.observe(u)
 
     def predict(self, u: float) -> tuple[float, float, float]:
-        """Bridge a missing sample: estimate with zero innovation, update with u.
+        """Bridge a missing sample: the observer kind's ``predict`` (zero innovation), then
+        the update with u.
 
         Returns the estimate used for the missing sample.
         """
-        if not self._started:
-            raise RuntimeError("no sample received yet")
-        w = self._w
-        w.y[0] = w.z[0]  # y = ẑ1: no innovation
-        estimate(w, self._d, self._s)
-        zhat = (float(w.zhat[0]), float(w.zhat[1]), float(w.zhat[2]))
-        self.commit(u)
-        return zhat
+        zhat = self._st.bridge(u)
+        return float(zhat[0]), float(zhat[1]), float(zhat[2])

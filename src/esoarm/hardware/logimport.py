@@ -24,14 +24,34 @@ worst one (its row and its time).
 
 A file without time stamps (the Silverbox benchmark's CSV has only its input
 and output voltages) is imported with its sample rate given instead of a ``t``
-column (``rate_hz``): t_k = k/rate.
+column (``rate_hz``, at most :data:`MAX_RATE_HZ`): t_k = k/rate.
+
+Irregular stamps (a logger that writes when it can: 0.8 ms, then 1.3 ms, ...)
+are refused unless ``resample_hz`` is given: then every mapped column is
+interpolated linearly onto t_0 + k/resample_hz up to the last stamp, and the
+import says how far the stamps were apart (median, smallest and largest step,
+the row of the largest).  A step longer than :data:`MAX_RESAMPLE_GAP` new
+samples is refused (linear interpolation across it would invent the motion).
+
+Calibration
+-----------
+Each mapped column may be corrected: value = sign · scale · raw + offset
+(``signs``, ``scales``, ``offsets``; a scale or offset is a number or the name
+of a scalar variable of the file).
 
 Source variables
 ----------------
 A CSV column by its header name (a trailing empty field on every line, as
-MATLAB's ``writematrix`` of a table leaves, is dropped).  A ``.mat`` variable
-by its name; a column of a 2-D matrix (a Simulink ``data`` array) as
-``NAME:J``, J counted from 1 as in MATLAB's ``data(:, J)``.
+MATLAB's ``writematrix`` of a table leaves, is dropped; a file whose header
+has semicolons and no commas -- a spreadsheet's regional CSV -- is read with
+``;`` between fields and a decimal comma allowed).  A column that holds text
+(a clock time such as ``12:00:01.5``) is kept aside and named if mapped.  A
+``.mat`` variable by its name; a column of a 2-D matrix (a Simulink ``data``
+array) as ``NAME:J``, J counted from 1 as in MATLAB's ``data(:, J)``; a field
+of a 1×1 struct as ``NAME.FIELD``.  A variable that is text, complex, empty, a
+cell array or an array of more than 2 dimensions is named as such when mapped.
+A JSON file holds either a list of records (``[{"t": 0, "y": 0.1, ...}, ...]``)
+or columns (``{"t": [...], "y": [...], "gain": 35.15}``; a number is a scalar).
 
 Every problem is a :class:`~esoarm.scenario.ScenarioError`: one line naming
 the file and the variable.
@@ -49,11 +69,18 @@ import numpy as np
 
 from esoarm.scenario import ScenarioError
 
-__all__ = ["ImportedLog", "MAX_JITTER", "REQUIRED", "import_log", "parse_pairs", "read_source",
-           "write_log"]
+__all__ = ["ImportedLog", "MAX_JITTER", "MAX_RATE_HZ", "REQUIRED", "import_log", "parse_pairs",
+           "read_source", "write_log"]
 
 #: Largest deviation of a stamp from the uniform grid, in samples, still read as jitter.
 MAX_JITTER = 0.1
+#: Highest sample rate accepted [Hz] (``rate_hz``, ``resample_hz``): no electromechanical log
+#: is sampled faster; a larger number is usually a period or a count mistaken for a rate.
+MAX_RATE_HZ = 1e6
+#: Lowest sample rate accepted [Hz].
+MIN_RATE_HZ = 1e-3
+#: Longest step between two stamps that ``resample_hz`` interpolates across, in new samples.
+MAX_RESAMPLE_GAP = 10.0
 #: Columns every imported log has (time [s], measured position, applied force/torque).
 REQUIRED = ("t", "y", "u")
 #: Further columns an import may map (what esoarm's commands read besides t, y, u).
@@ -83,6 +110,16 @@ class ImportedLog:
         esoarm column -> factor applied.
     constants : dict of str to float
         The source's scalar variables (a .mat file's gains, e.g. ``gtau``).
+    offsets : dict of str to float
+        esoarm column -> offset added after the scale.
+    signs : dict of str to float
+        esoarm column -> ±1 applied.
+    notes : list of str
+        What the import did besides mapping (resampling and how far the
+        stamps were apart, the field separator read).
+    resampled : bool
+        The columns were interpolated onto the grid (``resample_hz``); the
+        jitter fields are then 0.
     """
 
     columns: dict[str, np.ndarray]
@@ -93,6 +130,10 @@ class ImportedLog:
     mapping: dict[str, str]
     scales: dict[str, float]
     constants: dict[str, float] = field(default_factory=dict)
+    offsets: dict[str, float] = field(default_factory=dict)
+    signs: dict[str, float] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    resampled: bool = False
 
     @property
     def n(self) -> int:
@@ -102,9 +143,11 @@ class ImportedLog:
     def summary(self) -> str:
         """One line: samples, rate, duration and jitter."""
         dur = self.n / self.rate_hz
-        return (f"{self.n} samples at {self.rate_hz:.6g} Hz ({dur:.4g} s); time-stamp jitter "
-                f"{self.jitter:.2g} of a sample at most, {self.jitter_rms:.2g} RMS (written on "
-                "the uniform grid)")
+        text = f"{self.n} samples at {self.rate_hz:.6g} Hz ({dur:.4g} s)"
+        if not self.resampled:
+            text += (f"; time-stamp jitter {self.jitter:.2g} of a sample at most, "
+                     f"{self.jitter_rms:.2g} RMS (written on the uniform grid)")
+        return "; ".join([text, *self.notes])
 
 
 def parse_pairs(text: str, option: str, numbers: bool = False) -> dict[str, str]:
@@ -124,14 +167,32 @@ def parse_pairs(text: str, option: str, numbers: bool = False) -> dict[str, str]
     return out
 
 
+@dataclass
+class _Source:
+    """What a file holds: vectors and scalars by name, the rest described, notes."""
+
+    vectors: dict[str, np.ndarray]
+    scalars: dict[str, float]
+    others: dict[str, str] = field(default_factory=dict)  # name -> what it is (not a column)
+    notes: list[str] = field(default_factory=list)
+
+
 def read_source(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, float]]:
-    """The variables of a ``.mat`` or CSV file: (vectors by name, scalars by name).
+    """The variables of a ``.mat``, CSV or JSON file: (vectors by name, scalars by name).
 
     A ``.mat`` file (MATLAB 5 to 7.2, read with :func:`scipy.io.loadmat`): every
     numeric variable with one non-singleton dimension is a vector, every 1×1
-    numeric variable a scalar.  A CSV file: a header line of names, then
-    numbers (a UTF-8 byte-order mark is skipped).
+    numeric variable a scalar, each column of a matrix a vector ``NAME:J``,
+    each field of a 1×1 struct ``NAME.FIELD``.  A CSV file: a header line of
+    names, then numbers (a UTF-8 byte-order mark is skipped; see the module
+    docstring for semicolons and text columns).  A JSON file: a list of records
+    or an object of columns.
     """
+    src = _read(path)
+    return src.vectors, src.scalars
+
+
+def _read(path: str | Path) -> _Source:
     src = f"file '{path}'"
     p = Path(path)
     if not p.exists():
@@ -143,77 +204,229 @@ def read_source(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, floa
         return _read_mat(p, src)
     if suffix in (".csv", ".txt"):
         return _read_csv(p, src)
-    raise ScenarioError(f"{src}: unknown format '{p.suffix}' (a MATLAB .mat or a .csv file)")
+    if suffix == ".json":
+        return _read_json(p, src)
+    raise ScenarioError(f"{src}: unknown format '{p.suffix}' (a MATLAB .mat, a .csv or a "
+                        ".json file)")
 
 
-def _read_mat(p: Path, src: str) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+def _describe(value: np.ndarray) -> str | None:
+    """What a .mat value is when it is not a numeric vector, scalar or matrix (else None)."""
+    kind = value.dtype.kind
+    if kind in "US":
+        text = str(value.ravel()[0]) if value.size else ""
+        return f"text ('{text[:20]}'), not numbers"
+    if kind == "c":
+        return "complex numbers (map its real part, saved as a variable of its own)"
+    if value.dtype.names:
+        return None  # a struct: its fields are flattened by the caller
+    if kind == "O":
+        return "a cell array, not a numeric array (save its contents as numeric variables)"
+    if kind == "b":
+        return None
+    if value.size == 0:
+        return "empty (0 values)"
+    if value.ndim > 2 and sum(d > 1 for d in value.shape) > 2:
+        return f"an array of {value.ndim} dimensions {value.shape}, not a vector or matrix"
+    return None
+
+
+def _add_mat_value(name: str, value: np.ndarray, out: _Source) -> None:
+    what = _describe(value)
+    if what is not None:
+        out.others[name] = what
+        return
+    if value.dtype.names:  # a struct (scipy: a structured array)
+        if value.size != 1:
+            out.others[name] = (f"a {'×'.join(map(str, value.shape))} struct array, not "
+                                "numbers (save each field as a numeric variable)")
+            return
+        fields = list(value.dtype.names)
+        out.others[name] = (f"a struct with fields {', '.join(fields)}: name one as "
+                            f"{name}.{fields[0]}")
+        for f in fields:
+            inner = value[f].ravel()[0]
+            if isinstance(inner, np.ndarray):
+                _add_mat_value(f"{name}.{f}", inner, out)
+        return
+    if value.size == 1:
+        out.scalars[name] = float(value.ravel()[0])
+    elif sum(d > 1 for d in value.shape) == 1:
+        out.vectors[name] = value.astype(float).ravel()
+    elif value.ndim == 2:  # a matrix: its columns as NAME:1 … NAME:n (MATLAB's data(:, j))
+        for j in range(value.shape[1]):
+            out.vectors[f"{name}:{j + 1}"] = value[:, j].astype(float)
+
+
+def _read_mat(p: Path, src: str) -> _Source:
     import scipy.io
+    from scipy.io.matlab import MatReadError
 
     try:
         raw = scipy.io.loadmat(p)
     except NotImplementedError:
         raise ScenarioError(f"{src}: a MATLAB 7.3 (HDF5) file; save it with "
                             "save(..., '-v7') in MATLAB, then import it") from None
-    except (ValueError, OSError, TypeError) as exc:
+    except MatReadError as exc:
+        raise ScenarioError(f"{src}: not a MATLAB .mat file ({exc}); give a file saved by "
+                            "MATLAB's save (v4 to v7.2), or a .csv or .json file") from None
+    except (ValueError, OSError, TypeError, EOFError, KeyError, IndexError) as exc:
         raise ScenarioError(f"{src}: cannot read as a MATLAB .mat file: {exc}") from None
-    vectors: dict[str, np.ndarray] = {}
-    scalars: dict[str, float] = {}
+    out = _Source({}, {})
     for name, value in raw.items():
         if name.startswith("__") or not isinstance(value, np.ndarray):
             continue
-        if value.dtype.kind not in "biuf" or value.size == 0:
-            continue
-        if value.size == 1:
-            scalars[name] = float(value.ravel()[0])
-        elif sum(d > 1 for d in value.shape) == 1:
-            vectors[name] = value.astype(float).ravel()
-        elif value.ndim == 2:  # a matrix: its columns as NAME:1 … NAME:n (MATLAB's data(:, j))
-            for j in range(value.shape[1]):
-                vectors[f"{name}:{j + 1}"] = value[:, j].astype(float)
-    return vectors, scalars
+        _add_mat_value(name, value, out)
+    return out
 
 
-def _read_csv(p: Path, src: str) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+def _number(text: str, decimal_comma: bool) -> float:
+    text = text.strip()
+    if decimal_comma:
+        text = text.replace(",", ".")
+    return float(text)
+
+
+def _read_csv(p: Path, src: str) -> _Source:
+    notes: list[str] = []
     try:
         with open(p, encoding="utf-8-sig", newline="") as fh:
-            reader = csv.reader(fh)
+            first = fh.readline()
+            delimiter = ","
+            if ";" in first and "," not in first:
+                delimiter = ";"
+                notes.append("fields separated by ';' (decimal commas read as points)")
+            fh.seek(0)
+            if fh.read(1) != "\ufeff":
+                fh.seek(0)
+            reader = csv.reader(fh, delimiter=delimiter)
             header = [h.strip() for h in next(reader, [])]
             if not any(header):
                 raise ScenarioError(f"{src}: empty file (expected a header line of names)")
             trailing = len(header) > 1 and header[-1] == ""  # "V1","V2", (a trailing comma)
             if trailing:
                 header = header[:-1]
-            rows = []
+            if all(_is_number(h, delimiter == ";") for h in header):
+                raise ScenarioError(f"{src}: the first line holds numbers ({', '.join(header[:3])}"
+                                    f"{', …' if len(header) > 3 else ''}), not column names: add "
+                                    "a header line naming the columns (e.g. t,y,u) and map them "
+                                    "with --map")
+            if len(header) == 1 and ("\t" in header[0] or " " in header[0].strip()):
+                raise ScenarioError(f"{src}: one column named '{header[0][:40]}': the fields "
+                                    "are not separated by commas or semicolons (tabs or "
+                                    "spaces?); save the file as CSV with commas")
+            rows: list[list[str]] = []
             for row in reader:
-                if not row:
+                if not row or not any(v.strip() for v in row):
                     continue
                 if trailing and len(row) == len(header) + 1 and not row[-1].strip():
                     row = row[:-1]
-                try:
-                    rows.append([float(v) for v in row])
-                except ValueError:
-                    raise ScenarioError(f"{src}: line {reader.line_num}: expected numbers") \
-                        from None
                 if len(row) != len(header):
                     raise ScenarioError(f"{src}: line {reader.line_num}: {len(row)} values, "
                                         f"the header names {len(header)}")
+                rows.append(row)
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ScenarioError(f"{src}: cannot read: {exc}") from None
     if not rows:
         raise ScenarioError(f"{src}: no data rows (only the header)")
-    data = np.array(rows, dtype=float)
-    return {name: data[:, j] for j, name in enumerate(header)}, {}
+    out = _Source({}, {}, notes=notes)
+    for j, name in enumerate(header):
+        values = np.empty(len(rows))
+        for i, row in enumerate(rows):
+            try:
+                values[i] = _number(row[j], delimiter == ";")
+            except ValueError:
+                out.others[name] = (f"text ('{row[j].strip()[:24]}' on data row {i + 1}), not "
+                                    "numbers")
+                break
+        else:
+            out.vectors[name] = values
+    return out
+
+
+def _is_number(text: str, decimal_comma: bool) -> bool:
+    try:
+        _number(text, decimal_comma)
+    except ValueError:
+        return False
+    return bool(text.strip())
+
+
+def _read_json(p: Path, src: str) -> _Source:
+    import json
+
+    try:
+        with open(p, encoding="utf-8-sig") as fh:
+            data = json.load(fh)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{src}: cannot read: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise ScenarioError(f"{src}: not JSON: {exc.msg} at line {exc.lineno} column "
+                            f"{exc.colno}") from None
+    out = _Source({}, {})
+    if isinstance(data, list):  # records
+        if not data:
+            raise ScenarioError(f"{src}: an empty list (expected records such as "
+                                '[{"t": 0.0, "y": 0.1, "u": 0.0}, ...])')
+        if not all(isinstance(r, dict) for r in data):
+            i = next(i for i, r in enumerate(data) if not isinstance(r, dict))
+            raise ScenarioError(f"{src}: record {i + 1} is {type(data[i]).__name__}, not an "
+                                'object of named values ({"t": 0.0, "y": 0.1, ...})')
+        names = list(dict.fromkeys(k for r in data for k in r))
+        for name in names:
+            missing = next((i for i, r in enumerate(data) if name not in r), None)
+            if missing is not None:
+                out.others[name] = f"missing from record {missing + 1} of {len(data)}"
+                continue
+            _json_column(name, [r[name] for r in data], out)
+        return out
+    if isinstance(data, dict):  # columns
+        for name, value in data.items():
+            if isinstance(value, list):
+                _json_column(name, value, out)
+            elif isinstance(value, (int, float)) and not isinstance(value, bool):
+                out.scalars[name] = float(value)
+            else:
+                out.others[name] = f"{type(value).__name__}, not a list of numbers or a number"
+        return out
+    raise ScenarioError(f"{src}: holds a {type(data).__name__}; expected a list of records "
+                        '([{"t": 0.0, "y": 0.1, "u": 0.0}, ...]) or an object of columns '
+                        '({"t": [...], "y": [...], "u": [...]})')
+
+
+def _json_column(name: str, values: list, out: _Source) -> None:
+    bad = next((i for i, v in enumerate(values) if isinstance(v, bool)
+                or not isinstance(v, (int, float)) and v is not None), None)
+    if bad is not None:
+        out.others[name] = (f"{type(values[bad]).__name__} ({str(values[bad])[:24]!r}) at "
+                            f"position {bad + 1}, not numbers")
+    elif not values:
+        out.others[name] = "empty (0 values)"
+    else:  # null is a missing value: nan, refused below like any non-finite value
+        out.vectors[name] = np.array([math.nan if v is None else v for v in values], dtype=float)
+
+
+def check_rate(rate: float, option: str) -> float:
+    """``rate`` [Hz] if it is a plausible sample rate, else a one-line error naming ``option``."""
+    if not (math.isfinite(rate) and MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
+        raise ScenarioError(f"{option} {rate:g}: must be a sample rate > 0 (from "
+                            f"{MIN_RATE_HZ:g} to {MAX_RATE_HZ:g} Hz; is it a period? the rate "
+                            "is 1/period)")
+    return float(rate)
 
 
 def import_log(path: str | Path, mapping: Mapping[str, str],
                scales: Mapping[str, str | float] | None = None,
-               rate_hz: float | None = None) -> ImportedLog:
+               rate_hz: float | None = None,
+               offsets: Mapping[str, str | float] | None = None,
+               signs: Mapping[str, str | float] | None = None,
+               resample_hz: float | None = None) -> ImportedLog:
     """Read ``path`` and map, scale and check it into an esoarm log.
 
     Parameters
     ----------
     path : str or Path
-        A MATLAB ``.mat`` or a CSV file.
+        A MATLAB ``.mat``, a CSV or a JSON file.
     mapping : mapping of str to str
         esoarm column -> source variable; ``t``, ``y`` and ``u`` are required,
         ``theta_ref``, ``theta`` and ``duty`` may be added.
@@ -225,18 +438,28 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
     rate_hz : float, optional
         The sample rate [Hz] of a file without time stamps: then ``t`` is not
         mapped and t_k = k/rate_hz (jitter 0).
+    offsets : mapping of str to (float or str), optional
+        esoarm column -> offset added after the scale [the column's unit]
+        (e.g. ``y=-1.5708`` to move a zero that the source put at the bottom).
+    signs : mapping of str to (float or str), optional
+        esoarm column -> +1 or -1 (an encoder counting the other way).
+    resample_hz : float, optional
+        Interpolate every column linearly onto a uniform grid of this rate
+        [Hz] (irregular stamps); the import notes how far the stamps were apart.
 
     Returns
     -------
     ImportedLog
-        On the uniform grid (see the module docstring).
+        On the uniform grid (see the module docstring): value = sign · scale ·
+        raw + offset.
 
     Raises
     ------
     ScenarioError
         One line naming the file and the variable: unknown or missing
-        variable, columns of different lengths, a non-finite value, a gap in
-        the time stamps (the worst one named), a non-increasing time column.
+        variable (or one that is text, complex, empty, a struct), columns of
+        different lengths, a non-finite value, a gap in the time stamps (the
+        worst one named), a non-increasing time column.
     """
     src = f"file '{path}'"
     for col in mapping:
@@ -244,36 +467,35 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
             raise ScenarioError(f"map {col}: not an esoarm log column (one of "
                                 f"{', '.join(REQUIRED + OPTIONAL)})")
     if rate_hz is not None:
-        if not (math.isfinite(rate_hz) and rate_hz > 0):
-            raise ScenarioError(f"rate {rate_hz:g}: must be a sample rate > 0 [Hz]")
+        check_rate(rate_hz, "rate")
         if "t" in mapping:
             raise ScenarioError(f"map t={mapping['t']} and a rate of {rate_hz:g} Hz: give one "
                                 "(the time stamps, or the rate of a file without them)")
+    if resample_hz is not None:
+        check_rate(resample_hz, "resample")
+        if rate_hz is not None:
+            raise ScenarioError(f"resample {resample_hz:g} Hz and a rate of {rate_hz:g} Hz: "
+                                "a file without stamps is already on its grid; give one")
     missing = [c for c in REQUIRED if c not in mapping and not (c == "t" and rate_hz)]
     if missing:
+        hint = (" (or --rate HZ for a file without time stamps)" if missing == ["t"] else "")
         raise ScenarioError(f"map: give {', '.join(missing)} (t = time [s], y = measured "
-                            "position, u = applied force or torque), e.g. --map t=t,y=qm,u=vir")
-    vectors, scalars = read_source(path)
-    factors: dict[str, float] = {}
-    for col, value in (scales or {}).items():
-        if col not in mapping:
-            raise ScenarioError(f"scale {col}: not a mapped column (mapped: "
-                                f"{', '.join(mapping)})")
-        factors[col] = _factor(value, scalars, src, col)
+                            "position, u = applied force or torque), e.g. --map t=t,y=qm,u=vir"
+                            + hint)
+    source = _read(path)
+    vectors, scalars = source.vectors, source.scalars
+    factors = _per_column(scales, "scale", mapping, scalars, src, nonzero=True)
+    shifts = _per_column(offsets, "offset", mapping, scalars, src, nonzero=False)
+    flips = _per_column(signs, "sign", mapping, {}, src, nonzero=True)
+    for col, f in flips.items():
+        if f not in (1.0, -1.0):
+            raise ScenarioError(f"sign {col}={f:g}: must be +1 or -1 (use --scale for a factor)")
     columns: dict[str, np.ndarray] = {}
     for col, var in mapping.items():
         if var not in vectors:
-            matrix = sorted(int(k.rsplit(":", 1)[1]) for k in vectors
-                            if k.rsplit(":", 1)[0] == var and ":" in k)
-            if matrix:
-                raise ScenarioError(f"{src}: {var} (for {col}) is a matrix of {len(matrix)} "
-                                    f"columns: name one as {var}:1 … {var}:{matrix[-1]} "
-                                    f"(MATLAB's {var}(:, j))")
-            what = "a scalar, not a column" if var in scalars else "no such variable"
-            names = sorted({k.rsplit(":", 1)[0] + (":j" if ":" in k else "") for k in vectors})
-            raise ScenarioError(f"{src}: {var} (for {col}): {what}; the file has "
-                                f"{', '.join(names) or 'no columns'}")
-        values = vectors[var] * factors.get(col, 1.0)
+            _missing_variable(source, var, col, src, rate_hz)
+        values = vectors[var] * (flips.get(col, 1.0) * factors.get(col, 1.0)) \
+            + shifts.get(col, 0.0)
         bad = ~np.isfinite(values)
         if bad.any():
             k = int(np.argmax(bad))
@@ -284,6 +506,8 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
     if len(set(lengths.values())) > 1:
         raise ScenarioError(f"{src}: the mapped variables differ in length ("
                             + ", ".join(f"{mapping[c]} {n}" for c, n in lengths.items()) + ")")
+    notes = list(source.notes)
+    resampled = False
     if rate_hz is not None:
         n = len(columns["y"])
         columns = {"t": np.arange(n) / rate_hz, **columns}
@@ -291,6 +515,11 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
             raise ScenarioError(f"{src}: needs at least 2 samples, has {n}")
         rate, jitter, jitter_rms = float(rate_hz), 0.0, 0.0
         grid = columns["t"]
+    elif resample_hz is not None:
+        rate, jitter, jitter_rms = float(resample_hz), 0.0, 0.0
+        grid, columns, note = _resample(columns, rate, f"{src}: {mapping['t']} (for t)")
+        notes.append(note)
+        resampled = True
     else:
         t = columns["t"]
         ts, jitter, jitter_rms = check_time(t, f"{src}: {mapping['t']} (for t)")
@@ -299,10 +528,80 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
     order = [*REQUIRED, *(c for c in columns if c not in REQUIRED)]
     ordered = {c: grid if c == "t" else columns[c] for c in order}
     return ImportedLog(ordered, rate, jitter, jitter_rms, str(path), dict(mapping),
-                       factors, scalars)
+                       factors, scalars, shifts, flips, notes, resampled)
 
 
-def _factor(value: str | float, scalars: Mapping[str, float], src: str, col: str) -> float:
+def _missing_variable(source: _Source, var: str, col: str, src: str,
+                      rate_hz: float | None) -> None:
+    """Raise the one-line error for a mapped variable that is not a column of the file."""
+    vectors = source.vectors
+    matrix = sorted(int(k.rsplit(":", 1)[1]) for k in vectors
+                    if k.rsplit(":", 1)[0] == var and ":" in k)
+    if matrix:
+        raise ScenarioError(f"{src}: {var} (for {col}) is a matrix of {len(matrix)} "
+                            f"columns: name one as {var}:1 … {var}:{matrix[-1]} "
+                            f"(MATLAB's {var}(:, j))")
+    if var in source.others:
+        what = source.others[var]
+        if col == "t" and what.startswith("text"):
+            what += ("; stamps must be seconds as numbers: convert them, or map no t and give "
+                     "--rate HZ")
+        raise ScenarioError(f"{src}: {var} (for {col}) is {what}")
+    names = sorted({k.rsplit(":", 1)[0] + (":j" if ":" in k else "") for k in vectors})
+    what = "a scalar, not a column" if var in source.scalars else "no such variable"
+    hint = ""
+    if col == "t" and rate_hz is None:
+        hint = ("; map t to the column of time stamps [s], or, for a file without stamps, map "
+                "no t and give --rate HZ")
+    raise ScenarioError(f"{src}: {var} (for {col}): {what}; the file has "
+                        f"{', '.join(names) or 'no numeric columns'}{hint}")
+
+
+def _per_column(values: Mapping[str, str | float] | None, option: str,
+                mapping: Mapping[str, str], scalars: Mapping[str, float], src: str,
+                nonzero: bool) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for col, value in (values or {}).items():
+        if col not in mapping:
+            raise ScenarioError(f"{option} {col}: not a mapped column (mapped: "
+                                f"{', '.join(mapping)})")
+        out[col] = _factor(value, scalars, src, col, option, nonzero)
+    return out
+
+
+def _resample(columns: dict[str, np.ndarray], rate: float,
+              what: str) -> tuple[np.ndarray, dict[str, np.ndarray], str]:
+    """Columns interpolated linearly onto t_0 + k/rate; a note on how far the stamps were apart."""
+    t = columns["t"]
+    n = len(t)
+    if n < 2:
+        raise ScenarioError(f"{what}: needs at least 2 samples, has {n}")
+    dt = np.diff(t)
+    if not np.all(dt > 0):
+        i = int(np.argmin(dt))
+        raise ScenarioError(f"{what}: time must increase; row {i + 2} (t = {t[i + 1]:.9g} s) "
+                            f"is not after row {i + 1} (t = {t[i]:.9g} s)")
+    worst = int(np.argmax(dt))
+    if dt[worst] * rate > MAX_RESAMPLE_GAP:
+        raise ScenarioError(
+            f"{what}: a gap of {dt[worst]:.6g} s between row {worst + 1} (t = {t[worst]:.9g} s) "
+            f"and row {worst + 2}, {dt[worst] * rate:.3g} samples at {rate:g} Hz: interpolating "
+            f"across more than {MAX_RESAMPLE_GAP:g} would invent the motion; split the log there")
+    grid = t[0] + np.arange(int(math.floor((t[-1] - t[0]) * rate * (1 + 1e-12))) + 1) / rate
+    grid = grid[grid <= t[-1]]
+    if len(grid) < 2:
+        raise ScenarioError(f"{what}: spans {t[-1] - t[0]:.6g} s, less than two samples at "
+                            f"{rate:g} Hz")
+    out = {c: np.interp(grid, t, v) for c, v in columns.items() if c != "t"}
+    med = float(np.median(dt))
+    note = (f"resampled linearly from {n} stamps {med * 1e3:.4g} ms apart (median; from "
+            f"{float(dt.min()) * 1e3:.4g} to {float(dt[worst]) * 1e3:.4g} ms, the longest "
+            f"between rows {worst + 1} and {worst + 2})")
+    return grid, out, note
+
+
+def _factor(value: str | float, scalars: Mapping[str, float], src: str, col: str,
+            option: str = "scale", nonzero: bool = True) -> float:
     if isinstance(value, (int, float)):
         f = float(value)
     else:
@@ -310,12 +609,14 @@ def _factor(value: str | float, scalars: Mapping[str, float], src: str, col: str
             f = float(value)
         except ValueError:
             if value not in scalars:
-                raise ScenarioError(f"scale {col}={value}: neither a number nor a scalar of "
+                raise ScenarioError(f"{option} {col}={value}: neither a number nor a scalar of "
                                     f"{src} (its scalars: "
                                     f"{', '.join(sorted(scalars)) or 'none'})") from None
             f = scalars[value]
-    if not (math.isfinite(f) and f != 0.0):
-        raise ScenarioError(f"scale {col}={value}: must be a finite, non-zero factor")
+    if not math.isfinite(f) or (nonzero and f == 0.0):
+        what = "non-zero factor" if nonzero else "number"
+        raise ScenarioError(f"{option} {col}={value}: must be a finite{', ' if nonzero else ' '}"
+                            f"{what}")
     return f
 
 
@@ -357,7 +658,7 @@ def check_time(t: np.ndarray, what: str) -> tuple[float, float, float]:
             f"samples of {ts:.6g} s) between row {worst + 1} (t = {t[worst]:.9g} s) and row "
             f"{worst + 2}; the worst of {int(np.sum(np.abs(steps - 1.0) > MAX_JITTER))} such "
             f"step(s); jitter up to {MAX_JITTER:g} of a sample is accepted; split the log at "
-            "the gap or resample it")
+            "the gap, or resample irregular stamps (--resample HZ)")
     slope, intercept = np.polyfit(k, t, 1)
     ts = float(slope)
     # the grid through the first stamp with the fitted period (the written time column)
@@ -369,7 +670,7 @@ def check_time(t: np.ndarray, what: str) -> tuple[float, float, float]:
         if jitter > 0.5:
             raise ScenarioError(f"{what}: the stamps drift off a uniform grid by {jitter:.3g} "
                                 "samples (a clock that runs at another rate part of the time); "
-                                "resample the log")
+                                "resample the log (--resample HZ)")
     return ts, jitter, float(np.sqrt(np.mean(dev_fit**2)))
 
 

@@ -48,7 +48,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -61,6 +61,7 @@ from esoarm.hardware import protocol as P
 from esoarm.hardware.host_control import DeploymentController, SampleController
 from esoarm.hardware.link import LinkError, SerialLink
 from esoarm.plants.actuator import actuate, actuator_vector, motor_of
+from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["HEARTBEAT_S", "LOG_COLUMNS", "RigFault", "RigInterrupted", "RunSummary", "SafetyLimits",
@@ -265,6 +266,130 @@ class _Stop(Exception):
         self.interrupted = interrupted
 
 
+class _Supervisor:
+    """What both real-time loops do around their control law, written once.
+
+    The host's watchdog on incoming samples, the device's FAULT and STOPPED reports,
+    the device clock (its 32-bit µs counter unwrapped), the limits on the measurement
+    (encoder jump, angle, following error), and the bookkeeping of a logged sample (the
+    error and u for the summary, the last sample for the final status, the live status
+    ten times a second).  ``source`` names the other end in the messages ("the device",
+    "the chip"); ``last`` is [k, y, k shown, e, u] of the last sample logged.
+    """
+
+    def __init__(self, link: SerialLink, limits: SafetyLimits, log: _LogWriter,
+                 summary: RunSummary, status: Callable[[dict], None] | None,
+                 t: Sequence[float], n: int, source: str) -> None:
+        self.link, self.limits, self.log, self.summary = link, limits, log, summary
+        self.status, self.t, self.n, self.source = status, t, n, source
+        self.acc: dict[str, list[float]] = {"e": [], "u": []}  # of the samples received
+        self.periods: list[float] = []
+        self.last: list[Any] = [-1, math.nan, -1, math.nan, math.nan]
+        self.y_prev = math.nan
+        self.t_start = time.perf_counter()
+        self.t_last_rx = self.t_start
+        self.next_status = self.t_start
+        self._t_us_last, self._wraps = 0, 0
+
+    def receive(self, timeout: float, k_next: int, hint: str = "") -> tuple[list[P.Frame], float]:
+        """The frames that came in within ``timeout`` [s], and when; the watchdog stops the run."""
+        frames = self.link.receive(timeout)
+        now = time.perf_counter()
+        if not frames and now - self.t_last_rx > self.limits.watchdog:
+            raise _Stop(f"watchdog: no sample from {self.source} for "
+                        f"{(now - self.t_last_rx) * 1e3:.0f} ms at sample {k_next}{hint}")
+        return frames, now
+
+    def reports(self, frame: P.Frame, k_next: int, watchdog: str, at: str) -> None:
+        """Stop on the device's FAULT (``at`` formats its detail) or an unexpected STOPPED."""
+        kind = frame.kind
+        if kind == P.FAULT:
+            code, detail = frame.fields()
+            name = _fault_name(code, watchdog)
+            raise _Stop(f"{self.source} reported a fault: {name}{at.format(detail)}")
+        if kind == P.STOPPED:
+            raise _Stop(f"{self.source} stopped unexpectedly at sample {k_next}")
+
+    def arrived(self, now: float, t_us: int) -> float:
+        """A sample arrived at host time ``now``: the watchdog fed, the device time [s]."""
+        self.t_last_rx = now
+        if t_us < self._t_us_last:
+            self._wraps += 1
+        self._t_us_last = t_us
+        return (t_us + self._wraps * 4294967296) * 1e-6
+
+    def measurement(self, y: float, e: float, k: int, span: str) -> None:
+        """Stop on an encoder jump (``span``: since which sample), the angle or following error."""
+        limits = self.limits
+        if abs(y - self.y_prev) > limits.max_jump:
+            raise _Stop(f"encoder jump: θ changed by {y - self.y_prev:.4g} rad {span} "
+                        f"at sample {k} (limit {limits.max_jump:g} rad)")
+        if abs(y) > limits.angle_limit:
+            raise _Stop(f"angle limit: measured θ = {y:.4g} rad at sample {k} "
+                        f"(limit ±{limits.angle_limit:g} rad)")
+        if abs(e) > limits.max_error:
+            raise _Stop(f"following error: θ − θd = {e:.4g} rad at "
+                        f"sample {k} (limit {limits.max_error:g} rad)")
+
+    def logged(self, k: int, y: float, e: float, u: float, now: float) -> None:
+        """Sample k was logged: its error and u kept, the live status ten times a second."""
+        self.acc["e"].append(e)
+        self.acc["u"].append(u)
+        self.y_prev = y
+        last = self.last
+        last[0], last[1], last[3], last[4] = k, y, e, u
+        if self.status is not None and now >= self.next_status:
+            self.next_status = now + 0.1
+            last[2] = k
+            self.status({"t": self.t[k], "theta": y, "error": e, "u": u,
+                         "deadline_misses": self.summary.deadline_misses, "k": k, "n": self.n})
+
+
+def _supervised(link: SerialLink, sup: _Supervisor,
+                loop: Callable[[_SigintFlag], None]) -> tuple[str | None, bool]:
+    """Run ``loop`` under Ctrl-C as a flag; whatever ends it, STOP is sent and the log closed.
+
+    Returns the message that ended the run early (None: it ran to the end) and whether
+    it was Ctrl-C.
+    """
+    error_message, interrupted = None, False
+    with _SigintFlag() as sigint:
+        try:
+            loop(sigint)
+        except _Stop as exc:
+            error_message, interrupted = str(exc), exc.interrupted
+        except LinkError as exc:
+            error_message = str(exc)
+        finally:
+            link.stop()
+            sup.summary.stop_acknowledged = _wait_stopped(link, 0.5)
+            sup.log.close()
+    return error_message, interrupted
+
+
+def _conclude(sup: _Supervisor, latencies: list[float], ts: float, log_path: Path | None,
+              ended: tuple[str | None, bool], whose_watchdog: str) -> RunSummary:
+    """The final status, the summary's metrics, and RigFault / RigInterrupted for an early end."""
+    summary = sup.summary
+    k_last, y_last, k_shown, e_last, u_last = sup.last
+    if sup.status is not None and k_last > k_shown:
+        # the status is rate-limited (10/s): once more with the last sample logged, after
+        # STOP went out, so that a display ends where the log ends
+        sup.status({"t": sup.t[k_last], "theta": y_last, "error": e_last, "u": u_last,
+                    "deadline_misses": summary.deadline_misses, "k": k_last, "n": sup.n})
+    _finish(summary, sup.acc, sup.periods, latencies, sup.log.rows, sup.link, ts)
+    error_message, interrupted = ended
+    if error_message is not None:
+        kept = f"; {sup.log.rows} rows in {log_path}" if log_path else ""
+        off = "stop sent, motor off" if summary.stop_acknowledged else \
+            f"stop sent (not acknowledged; {whose_watchdog} turns the motor off)"
+        text = f"{error_message}: {off}{kept}"
+        if interrupted:
+            raise RigInterrupted(text, summary)
+        raise RigFault(text, summary)
+    return summary
+
+
 def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             limits: SafetyLimits | None = None,
             status: Callable[[dict], None] | None = None,
@@ -272,6 +397,10 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             monitor: Callable[[str], None] | None = None, onboard: bool = False,
             notice: Callable[[str], None] | None = None) -> RunSummary:
     """Drive the device on ``link`` through one run of ``scn``.
+
+    The steps: the handshake and the device checked against the scenario
+    (:func:`_check_mode`, :func:`check_device`, :func:`_drive_of`), then the loop under
+    supervision (:func:`_loop`, or on board :func:`_run_onboard`), then the summary.
 
     Parameters
     ----------
@@ -317,6 +446,25 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
     """
     limits = limits or SafetyLimits()
     info = link.handshake()
+    _check_mode(info, onboard, link)
+    q = check_device(info, scn)
+    if onboard:
+        return _run_onboard(scn, link, info, q, log_path, limits, status, monitor, notice)
+    motor = _drive_of(scn, info)
+    ctl = controller if controller is not None else DeploymentController(scn)
+    n, ts = ctl.n_samples, ctl.ts
+    log = _LogWriter(log_path, tee=monitor)
+    summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
+                         log=str(log_path) if log_path else "")
+    sup = _Supervisor(link, limits, log, summary, status, ctl.t, n, "the device")
+    latencies: list[float] = []
+    ended = _supervised(link, sup, lambda sigint: _loop(
+        scn, sup, ctl, q, motor, latencies, sigint, n, ts, info.lockstep))
+    return _conclude(sup, latencies, ts, log_path, ended, "the device watchdog")
+
+
+def _check_mode(info: P.Info, onboard: bool, link: SerialLink) -> None:
+    """The device runs a controller of its own exactly when the run is on board."""
     if info.onboard and not onboard:
         raise ScenarioError(
             f"the device on '{link.port}' runs its own controller (firmware built with "
@@ -326,9 +474,13 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
             f"--onboard: the device on '{link.port}' runs no controller of its own; build the "
             "firmware with the scenario's controller (make -C firmware ONBOARD=DIR, or "
             "'esoarm hil SCENARIO --onboard')")
-    q = check_device(info, scn)
-    if onboard:
-        return _run_onboard(scn, link, info, q, log_path, limits, status, monitor, notice)
+
+
+def _drive_of(scn: Scenario, info: P.Info) -> MotorParams | None:
+    """The scenario's motor when the device takes PWM duties; None for a torque device.
+
+    Raises :class:`ScenarioError` where the scenario's ``[motor]`` and the device disagree.
+    """
     motor = motor_of(scn)
     use_torque = info.accepts_torque and motor is None
     if not use_torque and motor is None:
@@ -343,45 +495,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
         raise ScenarioError(
             f"motor.pwm_max = {motor.pwm_max} does not match the device's PWM range "
             f"±{info.pwm_max}")
-    ctl = controller if controller is not None else DeploymentController(scn)
-    n, ts = ctl.n_samples, ctl.ts
-    log = _LogWriter(log_path, tee=monitor)
-    summary = RunSummary(mode="lockstep" if info.lockstep else "real time",
-                         log=str(log_path) if log_path else "")
-    acc: dict[str, list[float]] = {"e": [], "u": []}  # error and u of the samples received
-    periods: list[float] = []
-    latencies: list[float] = []
-    error_message = None
-    interrupted = False
-    last: list[Any] = [-1, math.nan, -1]  # k logged last, its measured θ, k of the last status
-    with _SigintFlag() as sigint:
-        try:
-            _loop(scn, link, ctl, q, motor if not use_torque else None, limits, log, summary,
-                  acc, periods, latencies, sigint, status, n, ts, info.lockstep, last)
-        except _Stop as exc:
-            error_message, interrupted = str(exc), exc.interrupted
-        except LinkError as exc:
-            error_message = str(exc)
-        finally:
-            link.stop()
-            summary.stop_acknowledged = _wait_stopped(link, 0.5)
-            log.close()
-    k_last, y_last, k_shown = last
-    if status is not None and k_last > k_shown:
-        # the status is rate-limited (10/s): once more with the last sample logged, after
-        # STOP went out, so that a display ends where the log ends
-        status({"t": ctl.t[k_last], "theta": y_last, "error": acc["e"][-1], "u": acc["u"][-1],
-                "deadline_misses": summary.deadline_misses, "k": k_last, "n": n})
-    _finish(summary, acc, periods, latencies, log.rows, link, ts)
-    if error_message is not None:
-        kept = f"; {log.rows} rows in {log_path}" if log_path else ""
-        off = "stop sent, motor off" if summary.stop_acknowledged else \
-            "stop sent (not acknowledged; the device watchdog turns the motor off)"
-        text = f"{error_message}: {off}{kept}"
-        if interrupted:
-            raise RigInterrupted(text, summary)
-        raise RigFault(text, summary)
-    return summary
+    return motor
 
 
 def _chip_check(scn: Scenario, link: SerialLink, info: P.Info) -> P.ChipInfo:
@@ -432,56 +546,25 @@ def _run_onboard(scn: Scenario, link: SerialLink, info: P.Info, q: float,  # noq
     log = _LogWriter(log_path, tee=monitor, preamble=line)
     summary = RunSummary(mode="on board", log=str(log_path) if log_path else "", onboard=True,
                          stream_every=chip.stream_every, observer_sums=chip.sums_name)
-    acc: dict[str, list[float]] = {"e": [], "u": []}
-    periods: list[float] = []
-    error_message = None
-    interrupted = False
-    last: list[Any] = [-1, math.nan, -1, math.nan, math.nan]  # k, y, k shown, e, u
-    with _SigintFlag() as sigint:
-        try:
-            _loop_onboard(link, ctl, q, chip.stream_every, limits, log, summary, acc, periods,
-                          sigint, status, n, ts, last, info.accepts_torque)
-        except _Stop as exc:
-            error_message, interrupted = str(exc), exc.interrupted
-        except LinkError as exc:
-            error_message = str(exc)
-        finally:
-            link.stop()
-            summary.stop_acknowledged = _wait_stopped(link, 0.5)
-            log.close()
-    k_last, y_last, k_shown, e_last, u_last = last
-    if status is not None and k_last > k_shown:
-        status({"t": ctl.t[k_last], "theta": y_last, "error": e_last, "u": u_last,
-                "deadline_misses": summary.deadline_misses, "k": k_last, "n": n})
-    _finish(summary, acc, periods, [], log.rows, link, ts)
-    if error_message is not None:
-        kept = f"; {log.rows} rows in {log_path}" if log_path else ""
-        off = "stop sent, motor off" if summary.stop_acknowledged else \
-            "stop sent (not acknowledged; the chip's watchdog turns the motor off)"
-        text = f"{error_message}: {off}{kept}"
-        if interrupted:
-            raise RigInterrupted(text, summary)
-        raise RigFault(text, summary)
-    return summary
+    sup = _Supervisor(link, limits, log, summary, status, ctl.t, n, "the chip")
+    ended = _supervised(link, sup, lambda sigint: _loop_onboard(
+        sup, ctl, q, chip.stream_every, sigint, n, ts, info.accepts_torque))
+    return _conclude(sup, [], ts, log_path, ended, "the chip's watchdog")
 
 
-def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # type: ignore[no-untyped-def]
-                  sigint, status, n, ts, last, torque=False) -> None:
+def _loop_onboard(sup: _Supervisor, ctl: DeploymentController, q: float, every: int,
+                  sigint: _SigintFlag, n: int, ts: float, torque: bool = False) -> None:
+    """Supervise the chip: heartbeats out, each streamed CHIP_SAMPLE checked and logged."""
     fmt = repr
     isfinite = math.isfinite
-    perf = time.perf_counter
+    link, log, summary = sup.link, sup.log, sup.summary
     limit = ctl.torque_limit * (1 + 1e-6)  # the chip saturates in float32
     k_next = 0
-    y_prev = math.nan
-    t_start = perf()
-    t_last_rx = t_start
     # Heartbeats follow the chip's samples, not the wall clock: a chip that streams nothing
     # gets none (its watchdog then stops the motor), and a simulated chip slower than real
     # time is not flooded (each frame costs it ~1k cycles to take in).
     beat_samples = max(1, round(HEARTBEAT_S / ts))
     k_beat = 0
-    next_status = t_start
-    t_us_last, wraps = 0, 0
     t_dev_prev = math.nan
     link.send(P.START)
     while k_next < n:
@@ -490,31 +573,15 @@ def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # ty
         if k_next >= k_beat:  # the chip's watchdog, every HEARTBEAT_S of the chip's time
             link.send(P.HEARTBEAT, max(k_next - every, 0))
             k_beat = k_next + beat_samples
-        frames = link.receive(HEARTBEAT_S / 2)
-        now = perf()
-        if not frames:
-            if now - t_last_rx > limits.watchdog:
-                raise _Stop(f"watchdog: no sample from the chip for "
-                            f"{(now - t_last_rx) * 1e3:.0f} ms at sample {k_next} (link lost?)")
-            continue
+        frames, now = sup.receive(HEARTBEAT_S / 2, k_next, " (link lost?)")
         for frame in frames:
-            kind = frame.kind
-            if kind == P.FAULT:
-                code, detail = frame.fields()
-                name = _fault_name(code, "heartbeat watchdog")
-                raise _Stop(f"the chip reported a fault: {name} at sample {detail}")
-            if kind == P.STOPPED:
-                raise _Stop(f"the chip stopped unexpectedly at sample {k_next}")
-            if kind != P.CHIP_SAMPLE:
+            sup.reports(frame, k_next, "heartbeat watchdog", " at sample {}")
+            if frame.kind != P.CHIP_SAMPLE:
                 continue
             r = P.ChipSample.from_frame(frame)
             if r.k < k_next:
                 continue  # stale
-            t_last_rx = now
-            if r.t_us < t_us_last:
-                wraps += 1
-            t_us_last = r.t_us
-            t_dev = (r.t_us + wraps * 4294967296) * 1e-6
+            t_dev = sup.arrived(now, r.t_us)
             while k_next < r.k and k_next < n:  # a frame lost on the link: a row of nan
                 log.write(f"{fmt(ctl.t[k_next])},nan,{fmt(ctl.reference(k_next))},nan,nan,nan,"
                           f"nan,nan,{k_next},nan,nan,nan,0,nan,nan\n")
@@ -528,15 +595,7 @@ def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # ty
             ref = ctl.reference(k)
             e = y - ref
             # -- the supervisor: the chip controls, the host still watches
-            if abs(y - y_prev) > limits.max_jump:
-                raise _Stop(f"encoder jump: θ changed by {y - y_prev:.4g} rad between streamed "
-                            f"samples at sample {k} (limit {limits.max_jump:g} rad)")
-            if abs(y) > limits.angle_limit:
-                raise _Stop(f"angle limit: measured θ = {y:.4g} rad at sample {k} "
-                            f"(limit ±{limits.angle_limit:g} rad)")
-            if abs(e) > limits.max_error:
-                raise _Stop(f"following error: θ − θd = {e:.4g} rad at sample {k} "
-                            f"(limit {limits.max_error:g} rad)")
+            sup.measurement(y, e, k, "between streamed samples")
             if not (isfinite(r.u) and isfinite(r.z1) and isfinite(r.z2) and isfinite(r.z3)):
                 raise _Stop(f"NaN guard: the chip's control or estimate is not finite at "
                             f"sample {k}")
@@ -546,22 +605,14 @@ def _loop_onboard(link, ctl, q, every, limits, log, summary, acc, periods,  # ty
             late = 1 if t_dev - k * ts > ts else 0
             summary.deadline_misses += late
             if t_dev_prev == t_dev_prev:
-                periods.append((t_dev - t_dev_prev) / every)
+                sup.periods.append((t_dev - t_dev_prev) / every)
             t_dev_prev = t_dev
             u = r.u
             log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u)},{fmt(r.z1)},"
-                      f"{fmt(r.z2)},{fmt(r.z3)},{k},{fmt(t_dev)},{fmt(now - t_start)},nan,"
+                      f"{fmt(r.z2)},{fmt(r.z3)},{k},{fmt(t_dev)},{fmt(now - sup.t_start)},nan,"
                       f"{late},{'nan' if torque else r.duty},{fmt(y)}\n")
-            acc["e"].append(e)
-            acc["u"].append(u)
-            y_prev = y
+            sup.logged(k, y, e, u, now)
             k_next = k + every
-            last[0], last[1], last[3], last[4] = k, y, e, u
-            if status is not None and now >= next_status:
-                next_status = now + 0.1
-                last[2] = k
-                status({"t": ctl.t[k], "theta": y, "error": e, "u": u,
-                        "deadline_misses": summary.deadline_misses, "k": k, "n": n})
 
 
 def _wait_stopped(link: SerialLink, timeout: float) -> bool:
@@ -575,55 +626,36 @@ def _wait_stopped(link: SerialLink, timeout: float) -> bool:
     return False
 
 
-def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencies,  # type: ignore[no-untyped-def]
-          sigint, status, n, ts, lockstep, last) -> None:
+def _loop(scn: Scenario, sup: _Supervisor, ctl: SampleController, q: float,
+          motor: MotorParams | None, latencies: list[float], sigint: _SigintFlag, n: int,
+          ts: float, lockstep: bool) -> None:
+    """The host's control law per sample: measure, check, command, send, log, update."""
     fmt = repr
-    nan = math.nan
     isfinite = math.isfinite
     perf = time.perf_counter
+    link, log, summary = sup.link, sup.log, sup.summary
     limit = ctl.torque_limit
     act = actuator_vector(scn)
     k_next = 0
-    y_prev = nan
     u_last = 0.0
     offset = math.inf
-    t_prev_rx = nan
-    t_start = perf()
-    t_last_rx = t_start
-    next_status = t_start
-    t_us_last, wraps = 0, 0
+    t_prev_rx = math.nan
     link.send(P.START)
     while k_next < n:
         if sigint.hit:
             raise _Stop(f"interrupted at sample {k_next}", interrupted=True)
-        frames = link.receive(0.05)
-        now = perf()
-        if not frames:
-            if now - t_last_rx > limits.watchdog:
-                raise _Stop(f"watchdog: no sample from the device for "
-                            f"{(now - t_last_rx) * 1e3:.0f} ms at sample {k_next}")
-            continue
+        frames, now = sup.receive(0.05, k_next)
         for frame in frames:
-            kind = frame.kind
-            if kind == P.FAULT:
-                code, detail = frame.fields()
-                name = _fault_name(code, "command watchdog")
-                raise _Stop(f"device reported a fault: {name} (detail {detail})")
-            if kind == P.STOPPED:
-                raise _Stop(f"device stopped unexpectedly at sample {k_next}")
-            if kind != P.SAMPLE:
+            sup.reports(frame, k_next, "command watchdog", " (detail {})")
+            if frame.kind != P.SAMPLE:
                 continue
             k_dev, t_us, count = frame.fields()
             if k_dev < k_next:
                 continue  # stale
-            t_last_rx = now
-            if t_us < t_us_last:
-                wraps += 1
-            t_us_last = t_us
-            t_dev = (t_us + wraps * 4294967296) * 1e-6
+            t_dev = sup.arrived(now, t_us)
             offset = min(offset, now - t_dev)
             if t_prev_rx == t_prev_rx:
-                periods.append(now - t_prev_rx)
+                sup.periods.append(now - t_prev_rx)
             t_prev_rx = now
             while k_next < k_dev and k_next < n:  # lost samples: observer prediction
                 z1, z2, z3 = ctl.predict(u_last)
@@ -636,16 +668,9 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
                 break
             k = k_next
             y = q * count
-            # -- safety on the measurement
-            if abs(y - y_prev) > limits.max_jump:
-                raise _Stop(f"encoder jump: θ changed by {y - y_prev:.4g} rad in one sample "
-                            f"at sample {k} (limit {limits.max_jump:g} rad)")
-            if abs(y) > limits.angle_limit:
-                raise _Stop(f"angle limit: measured θ = {y:.4g} rad at sample {k} "
-                            f"(limit ±{limits.angle_limit:g} rad)")
-            if abs(y - ctl.reference(k)) > limits.max_error:
-                raise _Stop(f"following error: θ − θd = {y - ctl.reference(k):.4g} rad at "
-                            f"sample {k} (limit {limits.max_error:g} rad)")
+            ref = ctl.reference(k)
+            e = y - ref
+            sup.measurement(y, e, k, "in one sample")  # -- safety on the measurement
             u = ctl.step(k, y)
             z1, z2, z3 = ctl.zhat
             if not (isfinite(u) and isfinite(z1) and isfinite(z2) and isfinite(z3)):
@@ -667,23 +692,12 @@ def _loop(scn, link, ctl, q, motor, limits, log, summary, acc, periods, latencie
             late = 0 if lockstep or t_sent <= t_dev + offset + ts else 1
             summary.deadline_misses += late
             latencies.append(latency)
-            ref = ctl.reference(k)
-            e = y - ref
             log.write(f"{fmt(ctl.t[k])},{fmt(y)},{fmt(ref)},{fmt(e)},{fmt(u_applied)},"
-                      f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},{fmt(t_dev)},{fmt(now - t_start)},"
+                      f"{fmt(z1)},{fmt(z2)},{fmt(z3)},{k},{fmt(t_dev)},{fmt(now - sup.t_start)},"
                       f"{fmt(latency)},{late},{duty},{fmt(y)}\n")
-            acc["e"].append(e)
-            acc["u"].append(u_applied)
-            y_prev = y
+            sup.logged(k, y, e, u_applied, now)
             u_last = u_applied
             k_next = k + 1
-            last[0] = k
-            last[1] = y
-            if status is not None and now >= next_status:
-                next_status = now + 0.1
-                last[2] = k
-                status({"t": ctl.t[k], "theta": y, "error": e, "u": u_applied,
-                        "deadline_misses": summary.deadline_misses, "k": k, "n": n})
 
 
 def _finish(summary: RunSummary, acc: dict[str, list[float]], periods: list[float],

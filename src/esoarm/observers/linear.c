@@ -2,18 +2,22 @@
  *
  * OBS_P is the kind's design vector without its CODE (ESODesign.vector):
  *   [0] discretization (0 euler, 1 zoh, 2 current), [1] Ts, [2] b0, [3..5] beta,
- *   [6..14] Phi (row-major), [15..17] Gamma, [18..20] gain (Lp, Lc or Ts*beta).
+ *   [6..14] Phi (row-major), [15..17] Gamma, [18..20] gain (Lp, Lc or Ts*beta),
+ *   [21] input delay N [samples], [22] form (0 the ESO fed u_{k-N}, 1 also the predictor).
  * The generator supplies esoarm_real, R(x) (a literal in that precision) and
  * ESOARM_COMPENSATED (1: the increments are summed with their rounding error
  * carried, see docs/on-the-chip.md; 0: exactly the Python step's arithmetic).
- * The state holds z1..z3, then (compensated form only) their carried errors.
+ * The state holds z1..z3, then (compensated form only) their carried errors, then the N
+ * commands u_{k-N} .. u_{k-1} of the input delay (Python's state: z, then the commands).
  */
-#define OBS_NZ 6
+#define OBS_NZ (OBS_N + 3)
+#define OBS_DELAY ((uint8_t)OBS_P[21])
 
 static void obs_initialize(esoarm_real z[], esoarm_real y)
 {
+    uint8_t i;
     z[0] = y; z[1] = R(0.0); z[2] = R(0.0);
-    z[3] = R(0.0); z[4] = R(0.0); z[5] = R(0.0);
+    for (i = 3; i < OBS_NZ; ++i) z[i] = R(0.0);
 }
 
 /* The innovation y - z1; the compensated form adds back z1's carried error. */
@@ -26,7 +30,7 @@ static esoarm_real obs_innovation(const esoarm_real z[], esoarm_real y)
 #endif
 }
 
-static void obs_estimate(const esoarm_real z[], esoarm_real y, esoarm_real zhat[])
+static void obs_correct(const esoarm_real z[], esoarm_real y, esoarm_real zhat[])
 {
     if (OBS_P[0] == R(2.0)) {           /* "current": z + Lc (y - z1) */
         esoarm_real e = obs_innovation(z, y);
@@ -36,6 +40,34 @@ static void obs_estimate(const esoarm_real z[], esoarm_real y, esoarm_real zhat[
     } else {
         zhat[0] = z[0]; zhat[1] = z[1]; zhat[2] = z[2];
     }
+}
+
+/* The estimate; the predictor form moves angle and rate N samples ahead with the commands
+ * already sent (exact held-input model of the triple integrator, f held). */
+static void obs_estimate(const esoarm_real z[], esoarm_real y, esoarm_real zhat[])
+{
+    uint8_t i, nd = OBS_DELAY;
+    obs_correct(z, y, zhat);
+    if (nd > 0 && OBS_P[22] == R(1.0)) {
+        esoarm_real ts = OBS_P[1], half = R(0.5) * OBS_P[1] * OBS_P[1];
+        for (i = 0; i < nd; ++i) {
+            esoarm_real acc = zhat[2] + OBS_P[2] * z[6 + i];
+            zhat[0] = zhat[0] + ts * zhat[1] + half * acc;
+            zhat[1] = zhat[1] + ts * acc;
+        }
+    }
+}
+
+/* u_{k-N} from the commands held; u_k shifted in. */
+static esoarm_real obs_delayed(esoarm_real z[], esoarm_real u)
+{
+    uint8_t i, nd = OBS_DELAY;
+    esoarm_real old;
+    if (nd == 0) return u;
+    old = z[6];
+    for (i = 0; i + 1 < nd; ++i) z[6 + i] = z[7 + i];
+    z[6 + nd - 1] = u;
+    return old;
 }
 
 /* z_i <- z_i + d with the rounding error of the sum carried to the next sample
@@ -53,9 +85,17 @@ static esoarm_real obs_accumulate(esoarm_real zi, esoarm_real d, esoarm_real *ca
 #endif
 }
 
-static void obs_advance(esoarm_real z[], const esoarm_real zhat[], esoarm_real y, esoarm_real u)
+static void obs_advance(esoarm_real z[], const esoarm_real zhat_in[], esoarm_real y,
+                        esoarm_real u_in)
 {
     esoarm_real z1 = z[0], z2 = z[1], z3 = z[2];
+    esoarm_real corrected[3];
+    const esoarm_real *zhat = zhat_in;
+    esoarm_real u = obs_delayed(z, u_in);
+    if (OBS_DELAY > 0 && OBS_P[22] == R(1.0)) {   /* zhat_in holds the prediction */
+        obs_correct(z, y, corrected);
+        zhat = corrected;
+    }
     if (OBS_P[0] == R(0.0)) {           /* "euler": z + Ts (eq. 8) */
         esoarm_real ts = OBS_P[1];
         esoarm_real e = obs_innovation(z, y);

@@ -8,6 +8,21 @@ Continuous observer (eq. 8), y = θ measured, b0 = 1/I0:
 
 Theorem 1: β1 = 3/ε, β2 = 3/ε², β3 = 1/ε³ put all three error poles at −1/ε.
 
+Tunings (``tuning``): ``"bandwidth"`` (the above: Gao's bandwidth parametrization, every
+discretization's gain placing the triple pole) or ``"half-gain"`` (G. Herbst, "Half-gain tuning
+for active disturbance rejection control", arXiv:2003.03986; discrete time: Herbst & Hempel,
+Control Eng. Practice 2025): the same gain vector halved (β/2 for "euler", Lp/2, Lc/2), which
+passes less measurement noise at the same ε; pyadrc's ``half_gain=(False, True)`` is "current"
+with Lc/2 (tested to round-off).
+
+Input delay (``input_delay`` = N samples, ``delay_form``): the ESO is fed the command of N
+samples ago, u_{k−N} (0 before the first), the drive the rig applies over [t_k, t_{k+1}) when
+its transport delay is N samples (``actuator.delay_samples``), so the perturbation estimate no
+longer holds b0·(u_{k−N} − u_k).  ``delay_form = "predictor"`` also hands the controller the
+estimate predicted N samples ahead with the exact held-input model of the triple integrator and
+the N commands already sent, θ̂ and θ̇̂ at t_{k+N} (f̂ held), a Smith predictor in the
+observer.  The state then holds, after the 3 per joint, the N last commands of each joint.
+
 The semantics: step 5 of the sampled-data loop (docs/semantics.md).  Three discretizations, selected
 by name:
 
@@ -68,6 +83,9 @@ __all__ = [
     "summary",
     "warnings",
     "DISCRETIZATIONS",
+    "TUNINGS",
+    "delayed_linearization",
+    "eso_predict",
     "ESODesign",
     "ExtendedStateObserver",
     "continuous_error_matrix",
@@ -85,6 +103,10 @@ __all__ = [
 
 Discretization = Literal["euler", "zoh", "current"]
 DISCRETIZATIONS: tuple[str, ...] = ("euler", "zoh", "current")
+TUNINGS: tuple[str, ...] = ("bandwidth", "half-gain")
+DELAY_FORMS: tuple[str, ...] = ("input", "predictor")
+#: the largest ``input_delay`` [samples]
+MAX_INPUT_DELAY = 50
 
 # Layout of the packed observer vector (see ESODesign.vector).
 DISC, TS, B0, BETA1, BETA2, BETA3 = 0, 1, 2, 3, 4, 5
@@ -93,6 +115,10 @@ GAMMA = 15  # 3 entries
 GAIN = 18  # 3 entries: Lp ("zoh") or Lc ("current"); Ts·β for "euler" (information only)
 VECTOR_SIZE = 21
 EULER, ZOH, CURRENT = 0, 1, 2
+# The kind's block per joint: ESODesign.vector, then the input delay N [samples] and the form
+# (0 "input": the ESO fed u_{k−N}; 1 "predictor": the estimate also predicted N samples ahead).
+DELAY, FORM = 21, 22
+BLOCK_SIZE = 23
 
 KIND = "linear"
 CODE = 0
@@ -115,6 +141,16 @@ class Params(Section):
     discretization: Literal["euler", "zoh", "current"] = Field(
         "euler", description='"euler" (paper) | "zoh" | "current"'
     )
+    tuning: Literal["bandwidth", "half-gain"] = Field(
+        "bandwidth", description='"bandwidth": the triple pole at −1/ε (Theorem 1) | '
+        '"half-gain": that gain vector halved (Herbst), less noise at the same ε')
+    input_delay: int = Field(
+        0, ge=0, le=MAX_INPUT_DELAY, description="the ESO is fed the command of this many "
+        "samples ago (the rig's transport delay, actuator.delay_samples)",
+        json_schema_extra=unit("samples"))
+    delay_form: Literal["input", "predictor"] = Field(
+        "input", description='with input_delay > 0: "input": the ESO fed u_{k−N} | '
+        '"predictor": also the estimate predicted N samples ahead (a Smith predictor)')
 
 
 def continuous_gains(eps: float) -> tuple[float, float, float]:
@@ -218,7 +254,9 @@ class ESODesign:
     phi, gamma : ndarray
         Discrete extended plant (exact ZOH; for "euler", I + Ts·A and Ts·B).
     gain : ndarray, shape (3,)
-        Lp ("zoh"), Lc ("current"), or Ts·β ("euler").
+        Lp ("zoh"), Lc ("current"), or Ts·β ("euler"); halved by "half-gain".
+    tuning : {"bandwidth", "half-gain"}
+        The observer tuning.
     """
 
     discretization: Discretization
@@ -230,19 +268,30 @@ class ESODesign:
     gamma: np.ndarray
     gain: np.ndarray
     vector: np.ndarray = field(repr=False)
+    tuning: str = "bandwidth"
 
     @property
     def error_matrix(self) -> np.ndarray:
         """Matrix of the discrete estimation-error recursion."""
+        if self.tuning != "bandwidth":
+            c_row = np.array([1.0, 0.0, 0.0])
+            if self.discretization == "current":
+                return self.phi - np.outer(self.gain, c_row @ self.phi)
+            return self.phi - np.outer(self.gain, c_row)
         return discrete_error_matrix(self.eps, self.ts, self.discretization)
 
     @property
     def poles(self) -> np.ndarray:
-        """Design error poles in the z-plane (triple)."""
+        """Error poles in the z-plane (the triple pole of "bandwidth"; "half-gain": the
+        eigenvalues of :attr:`error_matrix`, largest modulus first)."""
+        if self.tuning != "bandwidth":
+            ev = np.linalg.eigvals(self.error_matrix)
+            return ev[np.argsort(-np.abs(ev))]
         return discrete_error_poles(self.eps, self.ts, self.discretization)
 
 
-def design_observer(eps: float, ts: float, b0: float, discretization: str = "euler") -> ESODesign:
+def design_observer(eps: float, ts: float, b0: float, discretization: str = "euler",
+                    tuning: str = "bandwidth") -> ESODesign:
     """Discretize the ESO of eq. 8 for sample period ``ts``.
 
     Parameters
@@ -255,6 +304,8 @@ def design_observer(eps: float, ts: float, b0: float, discretization: str = "eul
         Input gain 1/I0 [1/(kg·m²)].
     discretization : {"euler", "zoh", "current"}
         See the module docstring and the sampled-data loop, step 5.
+    tuning : {"bandwidth", "half-gain"}
+        "half-gain": the gain vector of "bandwidth" halved (β/2 for "euler", Lp/2, Lc/2).
 
     Returns
     -------
@@ -264,15 +315,19 @@ def design_observer(eps: float, ts: float, b0: float, discretization: str = "eul
     Raises
     ------
     ValueError
-        If ``discretization`` is unknown, or ``ts`` or ``eps`` is not positive.
+        If ``discretization`` or ``tuning`` is unknown, or ``ts`` or ``eps`` is not positive.
     """
     if discretization not in DISCRETIZATIONS:
         raise ValueError(
             f"discretization must be one of {', '.join(DISCRETIZATIONS)}; got {discretization!r}"
         )
+    if tuning not in TUNINGS:
+        raise ValueError(f"tuning must be one of {', '.join(TUNINGS)}; got {tuning!r}")
     if not ts > 0:
         raise ValueError(f"ts must be > 0, got {ts!r}")
     beta = np.array(continuous_gains(eps))
+    scale = 0.5 if tuning == "half-gain" else 1.0
+    beta = scale * beta
     c_row = np.array([1.0, 0.0, 0.0])
     if discretization == "euler":
         a, b, _ = extended_plant(b0)
@@ -284,11 +339,11 @@ def design_observer(eps: float, ts: float, b0: float, discretization: str = "eul
         phi, gamma = _zoh_matrices(ts, b0)
         pole = math.exp(-ts / eps)
         if discretization == "zoh":
-            gain = _ackermann_observer(phi, c_row, pole)
+            gain = scale * _ackermann_observer(phi, c_row, pole)
             kind = ZOH
         else:
             # Φ − Lc C Φ: an observer for the pair (Φ, CΦ)
-            gain = _ackermann_observer(phi, c_row @ phi, pole)
+            gain = scale * _ackermann_observer(phi, c_row @ phi, pole)
             kind = CURRENT
     vec = np.zeros(VECTOR_SIZE)
     vec[DISC] = kind
@@ -301,7 +356,7 @@ def design_observer(eps: float, ts: float, b0: float, discretization: str = "eul
     for arr in (beta, phi, gamma, gain, vec):
         arr.setflags(write=False)
     return ESODesign(cast(Discretization, discretization), eps, ts, b0, beta, phi, gamma, gain,
-                     vec)
+                     vec, tuning)
 
 
 def discrete_error_matrix(eps: float, ts: float, discretization: str) -> np.ndarray:
@@ -554,10 +609,10 @@ def eso_advance(z1: float, z2: float, z3: float, zh1: float, zh2: float, zh3: fl
 
 
 def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
-    """(CODE, one :attr:`ESODesign.vector` per joint) for the scenario's ε and discretization.
+    """(CODE, one block per joint) for the scenario's ε, discretization, tuning and delay.
 
     Joint j's ESO uses ε_j (one ε applies to every joint) and the plant's b0_j at
-    Ts [s].  State: 3 per joint.
+    Ts [s].  State: 3 per joint, then ``input_delay`` commands per joint.
 
     Parameters
     ----------
@@ -571,7 +626,8 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     Returns
     -------
     ComponentDesign
-        (CODE, one 21-float :attr:`ESODesign.vector` per joint), 3n states.
+        (CODE, per joint the 21-float :attr:`ESODesign.vector`, the input delay N [samples]
+        and the form (0 "input", 1 "predictor")), (3 + N)·n states.
 
     Raises
     ------
@@ -579,33 +635,91 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
         If ``observer.eps`` has not one entry per joint.
     """
     n = plant.n_joints
-    eps = scn.observer.eps
+    ob = scn.observer
+    eps = ob.eps
     eps_j = list(eps) if isinstance(eps, list) else [eps] * n
     if len(eps_j) != n:
         raise ValueError(f"observer.eps has {len(eps_j)} entries for {n} joints")
-    blocks = [design_observer(e, ts, float(b0), scn.observer.discretization).vector
+    nd = int(getattr(ob, "input_delay", 0))
+    form = DELAY_FORMS.index(getattr(ob, "delay_form", "input"))
+    blocks = [np.concatenate([design_observer(e, ts, float(b0), ob.discretization,
+                                              getattr(ob, "tuning", "bandwidth")).vector,
+                              [float(nd), float(form)]])
               for e, b0 in zip(eps_j, plant.b0, strict=True)]
-    return ComponentDesign(read_only(np.concatenate([[float(CODE)], *blocks])), 3 * n)
+    return ComponentDesign(read_only(np.concatenate([[float(CODE)], *blocks])), (3 + nd) * n)
 
 
 @jitable
 def initialize(z: np.ndarray, y: np.ndarray, p: np.ndarray) -> None:
     """Initial state z_0 = (y_0, 0, 0) per joint from the first measurement y_0 [rad].
 
+    The commands held for the input delay start at 0 (none sent yet).
+
     Parameters
     ----------
-    z : ndarray, shape (3n,)
+    z : ndarray, shape ((3 + N)·n,)
         Observer state, set in place to z_0.
     y : ndarray, shape (n,)
         First measured angle(s) y_0 [rad].
     p : ndarray or tuple of float
         The design vector; ``p[0]`` is the kind's CODE, then
-        one :attr:`ESODesign.vector` per joint (unused here).
+        one block per joint (unused here).
     """
     for j in range(len(y)):
         z[3 * j] = y[j]
         z[3 * j + 1] = 0.0
         z[3 * j + 2] = 0.0
+    for i in range(3 * len(y), len(z)):
+        z[i] = 0.0
+
+
+@jitable
+def eso_predict(h1: float, h2: float, h3: float, z: np.ndarray, base: int, nd: int,
+                obs: np.ndarray) -> tuple[float, float]:
+    """θ̂, θ̇̂ at t_{k+N} from ẑ_k and the N commands sent, u_{k−N} … u_{k−1}.
+
+    The exact model of the triple integrator under a held input, f̂ held:
+    θ⁺ = θ + Ts θ̇ + Ts²/2 (f̂ + b0 u),  θ̇⁺ = θ̇ + Ts (f̂ + b0 u), whatever the
+    discretization of the observer itself.
+
+    Parameters
+    ----------
+    h1, h2, h3 : float
+        The estimate ẑ_k: angle [rad], rate [rad/s], perturbation [rad/s²].
+    z : ndarray
+        The observer state; ``z[base:base+nd]`` holds u_{k−N} … u_{k−1} [N·m].
+    base : int
+        Where the joint's commands start in ``z``.
+    nd : int
+        The input delay N [samples].
+    obs : ndarray
+        The joint's block (:attr:`ESODesign.vector` first).
+
+    Returns
+    -------
+    tuple of float
+        Predicted angle [rad] and rate [rad/s] at t_{k+N}.
+    """
+    ts = obs[TS]
+    b0 = obs[B0]
+    half = 0.5 * ts * ts
+    for i in range(nd):
+        acc = h3 + b0 * z[base + i]
+        h1 = h1 + ts * h2 + half * acc
+        h2 = h2 + ts * acc
+    return h1, h2
+
+
+@jitable
+def _delayed(z: np.ndarray, base: int, nd: int, u: float) -> float:
+    """u_{k−N} from the commands held in ``z[base:base+nd]``; u_k appended (shifted in)."""
+    if nd == 0:
+        return u
+    old: float = z[base]
+    for i in range(nd - 1):
+        z[base + i] = z[base + i + 1]
+    z[base + nd - 1] = u
+    return old
 
 
 @jitable
@@ -614,9 +728,9 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
     Parameters
     ----------
-    z : ndarray, shape (3n,)
+    z : ndarray, shape ((3 + N)·n,)
         Observer state z_k (not changed).
-    zhat : ndarray, shape (3n,)
+    zhat : ndarray
         The previous estimate ẑ_{k−1} (unused: z1 is the angle predicted for t_k).
     p : ndarray or tuple of float
         The design vector; ``p[0]`` is the kind's CODE.
@@ -629,55 +743,70 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
 
 def state_size(params: Params) -> int:
-    """States per joint: 3 (angle, rate, total perturbation)."""
-    return 3
+    """States per joint: 3 (angle, rate, total perturbation), then the ``input_delay``
+    commands held for the delayed input."""
+    return 3 + int(params.input_delay)
 
 
 @jitable
 def estimate(z: np.ndarray, y: np.ndarray, p: np.ndarray, zhat: np.ndarray) -> None:
     """Estimate ẑ_k for the controller from z_k and y_k into ``zhat`` (:func:`eso_estimate`).
 
-    ``p`` holds one design per joint; the compiled kernels run one joint and
-    hand ``p`` over as a tuple, which is sliced statically there.
+    With ``delay_form = "predictor"`` and N > 0, the angle and rate handed over are
+    predicted N samples ahead (:func:`eso_predict`).  ``p`` holds one block per joint;
+    the compiled kernels run one joint and hand ``p`` over as a tuple, which is sliced
+    statically there.
 
     Parameters
     ----------
-    z : ndarray, shape (3n,)
-        Observer state z_k (joint j in ``z[3j:3j+3]``); not changed.
+    z : ndarray, shape ((3 + N)·n,)
+        Observer state z_k (joint j in ``z[3j:3j+3]``, its commands in
+        ``z[3n + Nj : 3n + N(j+1)]``); not changed.
     y : ndarray, shape (n,)
         Measured angle(s) y_k [rad].
     p : ndarray or tuple of float
         The design vector; ``p[0]`` is the kind's CODE, then
-        one :attr:`ESODesign.vector` per joint.
-    zhat : ndarray, shape (3n,)
+        one block per joint (:attr:`ESODesign.vector`, N, form).
+    zhat : ndarray, shape ((3 + N)·n,)
         Output: the estimate ẑ_k, angle [rad], rate [rad/s] and total perturbation
         [rad/s²] of joint j in ``zhat[3j:3j+3]``, written in place.
         The perturbation is f = θ̈ − b0·u (eq. 7): what accelerates θ besides the input.
     """
-    if len(y) == 1:
+    nj = len(y)
+    if nj == 1:
         obs = p[1:]
-        zhat[0], zhat[1], zhat[2] = eso_estimate(z[0], z[1], z[2], y[0], obs)
+        h1, h2, h3 = eso_estimate(z[0], z[1], z[2], y[0], obs)
+        nd = int(obs[DELAY])
+        if nd > 0 and obs[FORM] == 1.0:
+            h1, h2 = eso_predict(h1, h2, h3, z, 3, nd, obs)
+        zhat[0], zhat[1], zhat[2] = h1, h2, h3
         return
     vec = np.asarray(p)
-    for j in range(len(y)):
+    for j in range(nj):
         i = 3 * j
-        obs_j = vec[1 + VECTOR_SIZE * j:1 + VECTOR_SIZE * (j + 1)]
-        zhat[i], zhat[i + 1], zhat[i + 2] = eso_estimate(z[i], z[i + 1], z[i + 2], y[j], obs_j)
+        obs_j = vec[1 + BLOCK_SIZE * j:1 + BLOCK_SIZE * (j + 1)]
+        h1, h2, h3 = eso_estimate(z[i], z[i + 1], z[i + 2], y[j], obs_j)
+        nd = int(obs_j[DELAY])
+        if nd > 0 and obs_j[FORM] == 1.0:
+            h1, h2 = eso_predict(h1, h2, h3, z, 3 * nj + nd * j, nd, obs_j)
+        zhat[i], zhat[i + 1], zhat[i + 2] = h1, h2, h3
 
 
 @jitable
 def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
             p: np.ndarray) -> None:
-    """z_{k+1} in place from z_k, ẑ_k, y_k and the input u_k (:func:`eso_advance`).
+    """z_{k+1} in place from z_k, ẑ_k, y_k and the input u_{k−N} (:func:`eso_advance`).
 
-    ``u`` is the plant's observer input (the command for the lever arm).
+    ``u`` is the plant's observer input (the command for the lever arm); with an input
+    delay N the ESO takes the one of N samples ago and keeps u_k for later.
 
     Parameters
     ----------
-    z : ndarray, shape (3n,)
+    z : ndarray, shape ((3 + N)·n,)
         Observer state z_k, updated in place to z_{k+1}.
-    zhat : ndarray, shape (3n,)
-        The estimate ẑ_k from :func:`estimate` (used by "current").
+    zhat : ndarray, shape ((3 + N)·n,)
+        The estimate ẑ_k from :func:`estimate` (used by "current"; recomputed from z_k and
+        y_k when it holds a prediction).
     y : ndarray, shape (n,)
         Measured angle(s) y_k [rad].
     u : ndarray, shape (n,)
@@ -685,23 +814,35 @@ def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
         entering as b0·u [rad/s²].
     p : ndarray or tuple of float
         The design vector; ``p[0]`` is the kind's CODE, then
-        one :attr:`ESODesign.vector` per joint.
+        one block per joint (:attr:`ESODesign.vector`, N, form).
     """
-    if len(y) == 1:
+    nj = len(y)
+    if nj == 1:
         obs = p[1:]
-        z[0], z[1], z[2] = eso_advance(z[0], z[1], z[2], zhat[0], zhat[1], zhat[2], y[0], u[0],
-                                       obs)
+        nd = int(obs[DELAY])
+        h1, h2, h3 = zhat[0], zhat[1], zhat[2]
+        if nd > 0 and obs[FORM] == 1.0:
+            h1, h2, h3 = eso_estimate(z[0], z[1], z[2], y[0], obs)
+        ud = _delayed(z, 3, nd, u[0])
+        z[0], z[1], z[2] = eso_advance(z[0], z[1], z[2], h1, h2, h3, y[0], ud, obs)
         return
     vec = np.asarray(p)
-    for j in range(len(y)):
+    for j in range(nj):
         i = 3 * j
-        obs_j = vec[1 + VECTOR_SIZE * j:1 + VECTOR_SIZE * (j + 1)]
-        z[i], z[i + 1], z[i + 2] = eso_advance(z[i], z[i + 1], z[i + 2], zhat[i], zhat[i + 1],
-                                               zhat[i + 2], y[j], u[j], obs_j)
+        obs_j = vec[1 + BLOCK_SIZE * j:1 + BLOCK_SIZE * (j + 1)]
+        nd = int(obs_j[DELAY])
+        h1, h2, h3 = zhat[i], zhat[i + 1], zhat[i + 2]
+        if nd > 0 and obs_j[FORM] == 1.0:
+            h1, h2, h3 = eso_estimate(z[i], z[i + 1], z[i + 2], y[j], obs_j)
+        ud = _delayed(z, 3 * nj + nd * j, nd, u[j])
+        z[i], z[i + 1], z[i + 2] = eso_advance(z[i], z[i + 1], z[i + 2], h1, h2, h3, y[j], ud,
+                                               obs_j)
 
 
 def label(params: Params) -> str:
     """The observer in titles: its discretization ("euler"), the paper's ESO being the default.
+
+    A half-gain tuning and an input delay are added (``zoh, half-gain, delay 2``).
 
     Parameters
     ----------
@@ -711,9 +852,15 @@ def label(params: Params) -> str:
     Returns
     -------
     str
-        The discretization's name.
+        The discretization's name and any non-default tuning or delay.
     """
-    return str(params.discretization)
+    out = str(params.discretization)
+    if params.tuning != "bandwidth":
+        out += f", {params.tuning}"
+    if params.input_delay:
+        out += f", {'predictor' if params.delay_form == 'predictor' else 'delay'} " \
+            f"{params.input_delay}"
+    return out
 
 
 def summary(params: Params) -> str:
@@ -727,13 +874,16 @@ def summary(params: Params) -> str:
     Returns
     -------
     str
-        ε [s] per joint and the discretization.
+        ε [s] per joint, the discretization, and any non-default tuning or input delay.
     """
-    return f"ε = {show_joint_values(params.eps)} s ({params.discretization})"
+    return f"ε = {show_joint_values(params.eps)} s ({label(params)})"
 
 
 def warnings(params: Params, ts: float) -> list[str]:
     """:func:`observer_warnings` of each ε of ``params`` (once each) at Ts [s].
+
+    With the half-gain tuning the poles are those of the halved gains: an unstable
+    design is reported from them.
 
     Parameters
     ----------
@@ -749,7 +899,16 @@ def warnings(params: Params, ts: float) -> list[str]:
     """
     out: list[str] = []
     for eps in dict.fromkeys(joint_values(params.eps)):
-        out.extend(m for m in observer_warnings(eps, ts, params.discretization) if m not in out)
+        if params.tuning == "bandwidth":
+            msgs = observer_warnings(eps, ts, params.discretization)
+        else:
+            radius = float(np.max(np.abs(design_observer(eps, ts, 1.0, params.discretization,
+                                                         params.tuning).poles)))
+            msgs = [] if radius < 1.0 else [
+                f"observer.eps = {eps:g} s with tuning '{params.tuning}' and discretization "
+                f"'{params.discretization}' at Ts = {ts:g} s: the discrete observer is unstable "
+                f"(pole radius {radius:.3g} >= 1)"]
+        out.extend(m for m in msgs if m not in out)
     return out
 
 
@@ -796,6 +955,58 @@ def discrete_linearization(d: ESODesign, gain: np.ndarray, pole: float,
                                  d.discretization, label)
 
 
+def delayed_linearization(lin: ObserverLinearization, ts: float, b0: float, nd: int,
+                          predictor: bool) -> ObserverLinearization:
+    """``lin`` fed the input of ``nd`` samples ago, its estimate predicted ahead if asked.
+
+    The state grows by the commands held, h = (u_{k−N}, …, u_{k−1}):
+    z⁺ = P z + Q y + Γ h1, h⁺ = (h2, …, hN, u); the predictor's estimate is
+    Ψᴺ ẑ + Σ_i Ψ^{N−1−i} Γx h_i with Ψ, Γx the exact held-input model (:func:`eso_predict`).
+
+    Parameters
+    ----------
+    lin : ObserverLinearization
+        The observer without delay (3 states).
+    ts : float
+        Sample period Ts [s].
+    b0 : float
+        Input gain 1/I0 [1/(kg·m²)].
+    nd : int
+        Input delay N [samples] (0 gives ``lin``).
+    predictor : bool
+        The estimate predicted N samples ahead.
+
+    Returns
+    -------
+    ObserverLinearization
+        3 + N states.
+    """
+    if nd == 0:
+        return lin
+    n = lin.p.shape[0]
+    m = n + nd
+    pmat = np.zeros((m, m))
+    pmat[:n, :n] = lin.p
+    pmat[:n, n:n + 1] = lin.gamma
+    for i in range(nd - 1):
+        pmat[n + i, n + i + 1] = 1.0
+    qmat = np.vstack([lin.q, np.zeros((nd, 1))])
+    gam = np.zeros((m, 1))
+    gam[-1, 0] = 1.0
+    hz = np.hstack([lin.hz, np.zeros((3, nd))])
+    hy = lin.hy
+    if predictor:
+        psi, gx = _zoh_matrices(ts, b0)
+        psi = psi.copy()
+        psi[2, :] = (0.0, 0.0, 1.0)
+        pn = np.linalg.matrix_power(psi, nd)
+        hz = np.hstack([pn @ lin.hz] + [
+            (np.linalg.matrix_power(psi, nd - 1 - i) @ gx).reshape(3, 1) for i in range(nd)])
+        hy = pn @ lin.hy
+    return ObserverLinearization(pmat, qmat, gam, hz, hy, lin.pole, lin.eps,
+                                 lin.discretization, lin.label)
+
+
 def linearization(params: Params, ts: float, b0: float) -> ObserverLinearization:
     """The ESO as a linear system for ``analyze`` (exact: the ESO is linear).
 
@@ -811,10 +1022,14 @@ def linearization(params: Params, ts: float, b0: float) -> ObserverLinearization
     Returns
     -------
     ObserverLinearization
-        Its design pole is the triple pole of the discretization.
+        Its design pole is the slowest error pole of the discretization and tuning; with an
+        input delay N, 3 + N states (:func:`delayed_linearization`).
     """
-    d = design_observer(_one_eps(params), ts, b0, params.discretization)
-    return discrete_linearization(d, d.gain, float(d.poles[0]), "ESO")
+    d = design_observer(_one_eps(params), ts, b0, params.discretization, params.tuning)
+    pole = float(np.max(np.abs(d.poles)))
+    lin = discrete_linearization(d, d.gain, pole, "ESO")
+    return delayed_linearization(lin, ts, b0, params.input_delay,
+                                 params.delay_form == "predictor")
 
 
 class ExtendedStateObserver:

@@ -156,7 +156,7 @@ def figure_arm_replay(result: object, names: Sequence[str],
                       path: str | Path | None = None) -> Figure:
     """Measured angle with the estimates ẑ1, ẑ2, ẑ3 of each joint (``esoarm replay`` on an arm).
 
-    ``result`` is an :class:`esoarm.hardware.replay_arm.ArmReplay`.
+    ``result`` is an :class:`esoarm.hardware.replay.ArmReplay`.
     """
     t, theta, z = result.t, result.theta, result.z  # type: ignore[attr-defined]
     n = theta.shape[1]

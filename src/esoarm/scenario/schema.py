@@ -16,6 +16,7 @@ import functools
 import os
 import re
 import tomllib
+import typing
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, TypeAlias
@@ -317,6 +318,13 @@ def _kinds_changed() -> None:
 _kinds.on_change(_kinds_changed)
 
 
+def _allowed(annotation: Any, value: Any) -> bool:
+    """False for a value a ``Literal`` key of another kind cannot take (it is not carried)."""
+    if typing.get_origin(annotation) is typing.Literal:
+        return value in typing.get_args(annotation)
+    return True
+
+
 def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     """``base`` updated by ``over``, table by table; neither is modified.
 
@@ -335,7 +343,13 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
                 models = [m for m in KIND_SECTIONS[key]
                           if m.model_fields["kind"].default == new_kind]
                 shared = set(models[0].model_fields) - {"kind"} if models else set()
-                kept = {k: v for k, v in out[key].items() if k in shared}
+                # a key whose meaning is the new kind's own (json_schema_extra "own_meaning",
+                # e.g. the PID's compensation, not the FLC's) starts from its default
+                shared = {k for k in shared if not isinstance(
+                    extra := models[0].model_fields[k].json_schema_extra, dict)
+                    or not extra.get("own_meaning")}
+                kept = {k: v for k, v in out[key].items()
+                        if k in shared and _allowed(models[0].model_fields[k].annotation, v)}
                 out[key] = _merge(kept, value)
             else:
                 out[key] = _merge(out[key], value)

@@ -91,7 +91,10 @@ class ExcitationPlan:
             ("f_min", self.f_min, self.f_min > 0, "> 0 Hz"),
             ("f_max", self.f_max, self.f_min < self.f_max < nyquist,
              f"above f-min and below the Nyquist frequency {nyquist:g} Hz"),
-            ("tones", self.n_tones, self.n_tones >= 1, ">= 1"),
+            ("tones", self.n_tones, 1 <= self.n_tones <= max(24, self.resolved_tones()),
+             f">= 1 and at most the {self.resolved_tones()} frequencies a {self.duration:g} s "
+             f"run resolves from f-min to f-max (1/duration = {1 / self.duration:.3g} Hz "
+             "apart)" if self.duration > 0 else ">= 1"),
             ("sweep", self.sweep, self.sweep >= 0, ">= 0 rad"),
             ("sweep_period", self.sweep_period, self.sweep_period > 0, "> 0 s"),
             ("kp", self.kp, self.kp >= 0, ">= 0 N·m/rad"),
@@ -100,6 +103,13 @@ class ExcitationPlan:
         for name, value, ok, allowed in checks:
             if not (ok and math.isfinite(float(value))):
                 raise ScenarioError(f"{name} {value:g}: must be {allowed}")
+
+    def resolved_tones(self) -> int:
+        """How many frequencies 1/duration apart lie in [f_min, f_max] (the DFT bins of the run)."""
+        if not (self.duration > 0 and math.isfinite(self.duration * self.f_max)):
+            return 0
+        return max(0, math.floor(self.f_max * self.duration + 1e-9)
+                   - math.ceil(self.f_min * self.duration - 1e-9) + 1)
 
     def frequencies(self) -> np.ndarray:
         """Tone frequencies [Hz], log-spaced from f_min to f_max."""
@@ -170,6 +180,14 @@ class ExcitationController:
     def excitation(self, k: int) -> float:
         """Multisine torque e(t_k) [N·m]."""
         return self._exc[k]
+
+    def set_signal(self, k: int, exc: float, ref: float, dref: float) -> None:
+        """Replace e(t_k) [N·m], θc(t_k) [rad] and θ̇c(t_k) [rad/s] before :meth:`step` ``k``.
+
+        (The breakaway probe of :mod:`esoarm.studies.identification.probe` decides its
+        torque and the multisine's scale as the run goes.)
+        """
+        self._exc[k], self._ref[k], self._dref[k] = float(exc), float(ref), float(dref)
 
     def step(self, k: int, y: float) -> float:
         """Torque u_k [N·m] (saturated) from the measured angle y_k [rad]."""

@@ -341,10 +341,60 @@ def tune(
         Called with 1 after each generation.
     engine : {"exact", "fast"}
         The engine that scores candidates (:data:`esoarm.studies.sweeps.sweep.ENGINES`).
-    """
-    from scipy.optimize import differential_evolution
 
+    Returns
+    -------
+    TuneResult
+        The best values found and their metrics, the scenario's own for comparison, and
+        every candidate scored.
+
+    Raises
+    ------
+    ScenarioError
+        Bad input (:func:`_check_request`), or an objective that is not a finite number at
+        any candidate whose runs did not diverge.
+
+    Notes
+    -----
+    The steps: the request checked (:func:`_check_request`), the rig variants drawn
+    (:func:`_robust_samples`), the scenario's own values as the start
+    (:func:`_own_start`), the search (:func:`_search`, every candidate scored by a
+    :class:`_Scorer`), then the best found held against the scenario as given
+    (:func:`_best_or_own`).
+    """
     run_metrics = metrics_runner(engine)
+    keys = _check_request(bounds, robust, seeds, samples)
+    objective = objective or Objective(DEFAULT_OBJECTIVE)
+    variants = _robust_samples(robust, samples, seed)
+    scorer = _Scorer(base, bounds, objective, variants, list(range(seeds)), run_metrics,
+                     workers)
+    own, x0 = _own_start(base, bounds)
+    start = time.perf_counter()
+    res, gens = _search(scorer, bounds, seed, maxiter, popsize, x0, progress)
+    best = {b.key: b.from_unit(float(c)) for b, c in zip(bounds, np.atleast_1d(res.x),
+                                                          strict=True)}
+    scorer.refuse_nonfinite(keys)
+    best, best_row, base_row = _best_or_own(scorer, best, own, inside=x0 is not None)
+    nonfinite = scorer.nonfinite
+    return TuneResult(
+        keys=keys,
+        best=best,
+        best_metrics={k: v for k, v in best_row.items() if k not in keys},
+        baseline=base_row,
+        evaluations=scorer.evaluations,
+        robust_samples=[v for v in variants if v],
+        generations=gens,
+        runs=scorer.runs,
+        seconds=time.perf_counter() - start,
+        message=str(res.message),
+        nonfinite=len(nonfinite),
+        nonfinite_example=nonfinite[0] if nonfinite else None,
+    )
+
+
+def _check_request(bounds: Sequence[Bound], robust: Sequence[Bound], seeds: int,
+                   samples: int) -> tuple[str, ...]:
+    """The keys tuned, once each and none also sampled; ScenarioError (bad input) if not."""
     if not bounds:
         raise ScenarioError("vary: give at least one KEY=LOW:HIGH to tune")
     keys = tuple(b.key for b in bounds)
@@ -358,25 +408,42 @@ def tune(
         raise ScenarioError(f"seeds {seeds}: must be >= 1")
     if samples < 1:
         raise ScenarioError(f"samples {samples}: must be >= 1")
-    objective = objective or Objective(DEFAULT_OBJECTIVE)
-    variants = _robust_samples(robust, samples, seed)
-    seed_list = list(range(seeds))
-    evaluations: list[dict[str, Any]] = []
-    nonfinite: list[dict[str, Any]] = []  # rows of the search whose objective was inf/nan
-    runs = 0
+    return keys
 
-    def score(candidates: list[dict[str, Any]],
+
+class _Scorer:
+    """The objective of the search: candidates run on the batch engine and scored.
+
+    Each candidate runs on every rig variant with every seed (common random numbers); its
+    metrics are averaged and the objective evaluated on the means.  A candidate with a
+    diverged run, or whose objective is not finite, scores :data:`DIVERGED_PENALTY`.
+    Every row scored by the search is kept (``evaluations``; ``nonfinite``: those whose
+    objective was inf or nan), and ``runs`` counts the runs.
+    """
+
+    def __init__(self, base: Scenario, bounds: Sequence[Bound], objective: Objective,
+                 variants: list[dict[str, Any]], seed_list: list[int],
+                 run_metrics: Callable[..., Any], workers: int | None) -> None:
+        self.base, self.bounds, self.objective = base, bounds, objective
+        self.variants, self.seed_list = variants, seed_list
+        self.run_metrics, self.workers = run_metrics, workers
+        self.evaluations: list[dict[str, Any]] = []
+        self.nonfinite: list[dict[str, Any]] = []  # rows of the search whose objective was inf/nan
+        self.runs = 0
+
+    def score(self, candidates: list[dict[str, Any]],
               ) -> tuple[np.ndarray, list[dict[str, float]], np.ndarray]:
-        nonlocal runs
-        points = [_apply(base, {**cand, **var}, ", ".join([*cand, *var]))
+        """Objective, evaluation rows and the not-finite mask of ``candidates`` (key -> value)."""
+        variants, seed_list = self.variants, self.seed_list
+        points = [_apply(self.base, {**cand, **var}, ", ".join([*cand, *var]))
                   for cand in candidates for var in variants]
-        table = run_metrics(points, seed_list, workers=workers)
-        runs += len(table)
+        table = self.run_metrics(points, seed_list, workers=self.workers)
+        self.runs += len(table)
         vals = table.values.reshape(len(candidates), len(variants) * len(seed_list), len(METRICS))
         with np.errstate(all="ignore"):
             means = {m: vals[:, :, i].mean(axis=1) for i, m in enumerate(METRICS)}
         diverged = vals[:, :, METRICS.index("diverged")].max(axis=1) > 0
-        raw = np.broadcast_to(objective(means), diverged.shape)
+        raw = np.broadcast_to(self.objective(means), diverged.shape)
         bad = ~diverged & ~np.isfinite(raw)
         obj = np.where(diverged | bad, DIVERGED_PENALTY, raw)
         rows = []
@@ -387,25 +454,50 @@ def tune(
             rows.append(row)
         return obj, rows, bad
 
-    def func(x: np.ndarray) -> np.ndarray:
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """The search's objective: x (D,) or (D, S) in search coordinates, kept as rows."""
         x = np.asarray(x, dtype=float)
         if x.ndim == 1:  # one candidate, shape (D,)
             x = x[:, None]
-        cands = [{b.key: b.from_unit(float(c)) for b, c in zip(bounds, col, strict=True)}
+        cands = [{b.key: b.from_unit(float(c)) for b, c in zip(self.bounds, col, strict=True)}
                  for col in x.T]
-        obj, rows, bad = score(cands)
-        evaluations.extend(rows)
-        nonfinite.extend(row for row, b in zip(rows, bad, strict=True) if b)
+        obj, rows, bad = self.score(cands)
+        self.evaluations.extend(rows)
+        self.nonfinite.extend(row for row, b in zip(rows, bad, strict=True) if b)
         return obj
 
-    # The scenario's own values start the search when they lie within the bounds: differential
-    # evolution replaces a member only by a better one, so the best found is never worse than
-    # the scenario as given.
+    def refuse_nonfinite(self, keys: tuple[str, ...]) -> None:
+        """ScenarioError: the objective was finite at no candidate whose runs did not diverge."""
+        nonfinite = self.nonfinite
+        finite_scored = sum(r["diverged_runs"] == 0 for r in self.evaluations) - len(nonfinite)
+        if nonfinite and finite_scored == 0:
+            objective = self.objective
+            raise ScenarioError(
+                f"objective '{objective.text}': not a finite number at any of the "
+                f"{len(nonfinite)} candidates whose runs did not diverge (e.g. at "
+                f"{_describe(nonfinite[0], keys, objective.metrics)}); nothing to minimize")
+
+
+def _own_start(base: Scenario, bounds: Sequence[Bound],
+               ) -> tuple[dict[str, Any], list[float] | None]:
+    """The scenario's own values of the keys, and the search's start from them (None: outside).
+
+    The scenario's own values start the search when they lie within the bounds: differential
+    evolution replaces a member only by a better one, so the best found is never worse than
+    the scenario as given.
+    """
     own = {b.key: _lookup(base.to_dict(), b.key) for b in bounds}
     inside = all(isinstance(own[b.key], int | float) and b.low <= own[b.key] <= b.high
                  for b in bounds)
     x0 = [b.to_unit(float(own[b.key])) for b in bounds] if inside else None
-    start = time.perf_counter()
+    return own, x0
+
+
+def _search(scorer: _Scorer, bounds: Sequence[Bound], seed: int, maxiter: int, popsize: int,
+            x0: list[float] | None, progress: Callable[[int], None] | None) -> tuple[Any, int]:
+    """:func:`scipy.optimize.differential_evolution`, seeded and vectorized; result, generations."""
+    from scipy.optimize import differential_evolution
+
     gens = 0
 
     def callback(*_args: Any, **_kw: Any) -> None:
@@ -415,7 +507,7 @@ def tune(
             progress(1)
 
     res = differential_evolution(
-        func,
+        scorer,
         [b.search_bounds for b in bounds],
         seed=seed,
         maxiter=maxiter,
@@ -429,35 +521,22 @@ def tune(
         callback=callback,
         x0=x0,
     )
-    best = {b.key: b.from_unit(float(c)) for b, c in zip(bounds, np.atleast_1d(res.x),
-                                                          strict=True)}
-    finite_scored = sum(r["diverged_runs"] == 0 for r in evaluations) - len(nonfinite)
-    if nonfinite and finite_scored == 0:
-        raise ScenarioError(
-            f"objective '{objective.text}': not a finite number at any of the "
-            f"{len(nonfinite)} candidates whose runs did not diverge (e.g. at "
-            f"{_describe(nonfinite[0], keys, objective.metrics)}); nothing to minimize")
-    _, (best_row,), _ = score([best])
-    _, (base_row,), _ = score([own])
+    return res, gens
+
+
+def _best_or_own(scorer: _Scorer, best: dict[str, Any], own: dict[str, Any], inside: bool,
+                 ) -> tuple[dict[str, Any], dict[str, float], dict[str, float]]:
+    """The best values and their row, and the scenario's own row, scored again (not kept).
+
+    When the search started from the scenario's values and found nothing better, the best
+    point, mapped back from the search coordinate (10**log10 x), may differ from them in the
+    last bit and score a round-off worse: the scenario's values are reported as they are.
+    """
+    _, (best_row,), _ = scorer.score([best])
+    _, (base_row,), _ = scorer.score([own])
     if inside and not best_row["objective"] < base_row["objective"]:
-        # the search started from the scenario's values and found nothing better; the
-        # best point, mapped back from the search coordinate (10**log10 x), may differ
-        # from them in the last bit and score a round-off worse: report them as they are
         best, best_row = dict(own), base_row
-    return TuneResult(
-        keys=keys,
-        best=best,
-        best_metrics={k: v for k, v in best_row.items() if k not in keys},
-        baseline=base_row,
-        evaluations=evaluations,
-        robust_samples=[v for v in variants if v],
-        generations=gens,
-        runs=runs,
-        seconds=time.perf_counter() - start,
-        message=str(res.message),
-        nonfinite=len(nonfinite),
-        nonfinite_example=nonfinite[0] if nonfinite else None,
-    )
+    return best, best_row, base_row
 
 
 def _describe(row: dict[str, Any], keys: Sequence[str], metrics: Sequence[str]) -> str:
