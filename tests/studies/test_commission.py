@@ -169,7 +169,7 @@ def test_a_refusal_stops_with_what_to_change(tmp_path: Path) -> None:
     assert not (work / "01-excite.json").exists()
 
 
-@pytest.mark.slow
+@needs_hil  # the AVR toolchain and simavr: the PIL timing and the firmware build
 def test_on_a_port_flashing_is_checked_by_the_boards_hash(tmp_path: Path) -> None:
     """--port: the excitation through the serial link (the emulated rig in lockstep), the
     identification, design and code; then the board on the port runs no controller of its
