@@ -22,12 +22,12 @@ from pathlib import Path
 
 from esoarm.codegen.avr import image_sizes
 from esoarm.codegen.cortex_m4 import CFLAGS, CLOCK_HZ, ICOUNT_SHIFT
-from esoarm.codegen.generate import HEADER, SOURCE, Generated, generate
+from esoarm.codegen.generate import Generated, generate
 from esoarm.codegen.toolchain import build
 from esoarm.hardware.hil.build import ToolchainMissing, default_firmware_dir
 from esoarm.scenario import Scenario, ScenarioError
 
-__all__ = ["M4Firmware", "m4_onboard_firmware", "reference_files"]
+__all__ = ["M4Firmware", "m4_onboard_firmware"]
 
 
 @dataclass(frozen=True)
@@ -65,14 +65,6 @@ def _protocol_header() -> str:
         raise ToolchainMissing("the firmware sources (firmware/ of the esoarm checkout, with "
                                "esoarm_rig/esoarm_protocol.h) were not found")
     return (fw / "esoarm_rig" / "esoarm_protocol.h").read_text(encoding="utf-8")
-
-
-def reference_files(gen: Generated) -> dict[str, str]:
-    """The generated reference generator's files, where the generator writes one."""
-    header, source = getattr(gen, "ref_header", None), getattr(gen, "ref_source", None)
-    if not header or not source:
-        return {}
-    return {"esoarm_reference.h": header, "esoarm_reference.c": source}
 
 
 def _chip(name: str, folder: str = "cortex_m") -> str:
@@ -123,8 +115,7 @@ def m4_onboard_firmware(scn: Scenario, compensated: bool | None = None) -> M4Fir
                f"-DICOUNT_SHIFT={ICOUNT_SHIFT}", f"-DONBOARD_FLAGS=({flags})",
                "-DONBOARD_SUMS=" + ("ESO_SUMS_COMPENSATED" if gen.compensated
                                     else "ESO_SUMS_PLAIN")]
-    files = {HEADER: gen.header, SOURCE: gen.source, **reference_files(gen),
-             "esoarm_protocol.h": _protocol_header(),
+    files = {**gen.files, "esoarm_protocol.h": _protocol_header(),
              "mps2_onboard.c": _chip("mps2_onboard.c"), "m4.ld": _chip("m4.ld", "chip")}
     elf = build("arm-none-eabi-gcc", files, [*CFLAGS, *defines], "onboard.elf",
                 "esoarm-onboard-m4", ["-lm"])

@@ -20,10 +20,7 @@
 #include <stdint.h>
 #include "esoarm_protocol.h"
 #include "esoarm_controller.h"
-#ifdef ESOARM_FAULT_MEASUREMENT /* the step takes the reference: the scenario's moves from START */
 #include "esoarm_reference.h"
-#define WITH_REFERENCE 1
-#endif
 #include "esoarm_board.h"
 
 #define REG(a) (*(volatile uint32_t *)(a))
@@ -75,9 +72,7 @@
 #define RING 8u
 
 static esoarm_state ctl;
-#ifdef WITH_REFERENCE
-static esoarm_reference ref;
-#endif
+static esoarm_reference ref;  /* the scenario's moves, from START */
 static const esoarm_real COUNT_TO_RAD = (esoarm_real)(6.283185307179586 / COUNTS_PER_REV);
 static const char SCENARIO_HASH8[8] = {ESOARM_SCENARIO_HASH[0], ESOARM_SCENARIO_HASH[1],
     ESOARM_SCENARIO_HASH[2], ESOARM_SCENARIO_HASH[3], ESOARM_SCENARIO_HASH[4],
@@ -200,15 +195,11 @@ void TIM4_IRQHandler(void)
     }
     stepping = 1u;
     count = (int32_t)(TIM_CNT(TIM2) - count0);
-#ifdef WITH_REFERENCE
     {
         esoarm_real r[3];
         esoarm_reference_next(&ref, r);
-        esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD, r[0], r[1], r[2]);
+        (void)esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD, r[0], r[1], r[2]);
     }
-#else
-    esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD);
-#endif
     duty = (int16_t)ctl.duty;
     motor_write(duty);
     if ((ring_head + 1u) % RING == ring_tail) {
@@ -275,9 +266,7 @@ static void handle_frame(const eso_frame_t *f)
         running = 0u;
         motor_write(0);
         esoarm_init(&ctl);
-#ifdef WITH_REFERENCE
         esoarm_reference_init(&ref);
-#endif
         count0 = TIM_CNT(TIM2); /* the angle at START is theta = 0 */
         sample_k = 0u;
         beat_k = 0u;
