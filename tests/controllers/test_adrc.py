@@ -193,3 +193,27 @@ def test_pil_on_avr(sets: tuple[str, ...]) -> None:
     data = json.loads(res.stdout)
     assert data["ok"] and data["max_rel_du"] <= 1e-4
     assert data["cycles"]["max"] < data["budget_cycles"]
+
+
+# -- esoarm compare --------------------------------------------------------------------
+
+
+def test_compare_refuses_an_unknown_form(run_cli) -> None:  # type: ignore[no-untyped-def]
+    res = run_cli("compare", "test-1", "--kinds", "eso+flc,lqr")
+    assert res.exit_code == 2
+    assert "--kinds: unknown form lqr" in res.stderr and "Traceback" not in res.stderr
+    res = run_cli("compare", "test-1", "--delays", "1:4")
+    assert res.exit_code == 2 and "--delays" in res.stderr
+
+
+@pytest.mark.slow
+def test_compare_runs_the_forms(run_cli) -> None:  # type: ignore[no-untyped-def]
+    """Two seconds of test-1: the TF form commands what the ESO + FLC does (same metrics);
+    the delay search answers for every form."""
+    res = run_cli("compare", "test-1", "--set", "duration=2", "--seeds", "1", "--kinds",
+                  "eso+flc,adrc-tf,delay-input", "--delays", "0,1,2", "--json")
+    assert res.exit_code == 0, res.stderr
+    data = json.loads(res.stdout)
+    rows = {r["form"]: r for r in data["forms"]}
+    assert rows["adrc-tf"]["rms_error"] == pytest.approx(rows["eso+flc"]["rms_error"], rel=1e-6)
+    assert all(r["delay_held"] >= 0 for r in data["forms"])

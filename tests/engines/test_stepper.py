@@ -12,7 +12,7 @@ from esoarm.scenario import load_scenario
 
 
 def _read(path):
-    data = np.genfromtxt(path, delimiter=",", names=True)
+    data = np.genfromtxt(path, delimiter=",", names=True, skip_header=_comments(path))
     return data
 
 
@@ -91,3 +91,9 @@ def test_excite_lost_sample_uses_the_kinds_predict():
     zhat = ctl.predict(0.0)
     assert all(math.isfinite(v) for v in zhat)
     assert abs(zhat[0] - 0.1) < 1e-6
+
+
+def _comments(path) -> int:  # type: ignore[no-untyped-def]
+    """Lines starting with '#' before a log's header (excite writes its probe's result)."""
+    lines = open(path).read().splitlines()
+    return next(i for i, line in enumerate(lines) if not line.startswith("#"))

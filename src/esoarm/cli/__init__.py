@@ -54,6 +54,7 @@ COMMANDS: dict[str, str] = {
     "codegen": "esoarm.cli.codegen:codegen",
     "pil": "esoarm.cli.pil:pil",
     "flash": "esoarm.cli.flash:flash",
+    "compare": "esoarm.cli.compare:compare",
     "commission": "esoarm.cli.commission:commission",
 }
 
@@ -62,6 +63,7 @@ COMMANDS: dict[str, str] = {
 # importing the command (tests/test_cli_startup.py checks they match the
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
+    "compare": "Run the ADRC forms on SCENARIO: RMS error and RMS Δu, means over the seeds.",
     "commission": "Commission a rig: excite, identify, design, generate, flash and run on "
                   "board.",
     "codegen": "Generate self-contained C99 for SCENARIO's observer and controller on a target.",
@@ -92,10 +94,30 @@ class LazyGroup(click.Group):
     """A click group that imports each subcommand's module on first use."""
 
     def list_commands(self, ctx: click.Context) -> list[str]:
+        """The subcommands' names, sorted (none is imported).
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The group's context.
+
+        Returns
+        -------
+        list of str
+            The names of :data:`COMMANDS`.
+        """
         return sorted(COMMANDS)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
-        """The command list of ``--help`` from :data:`SUMMARIES` (no subcommand imported)."""
+        """The command list of ``--help`` from :data:`SUMMARIES` (no subcommand imported).
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The group's context.
+        formatter : click.HelpFormatter
+            Where the help text is written.
+        """
         names = self.list_commands(ctx)
         if not names:
             return
@@ -114,6 +136,20 @@ class LazyGroup(click.Group):
             formatter.write_dl(rows)
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        """The subcommand ``cmd_name``, its module imported now, with ``--quiet``/``--verbose``.
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The group's context.
+        cmd_name : str
+            A name of :data:`COMMANDS`.
+
+        Returns
+        -------
+        click.Command or None
+            The command; None for an unknown name.
+        """
         target = COMMANDS.get(cmd_name)
         if target is None:
             return None
@@ -122,10 +158,46 @@ class LazyGroup(click.Group):
         return add_verbosity_options(getattr(importlib.import_module(module), attr))
 
     def make_context(self, info_name, args, parent=None, **extra):  # type: ignore[no-untyped-def]
+        """A context for one invocation, at the normal verbosity.
+
+        Parameters
+        ----------
+        info_name : str
+            The program's name as invoked.
+        args : list of str
+            The command-line arguments.
+        parent : click.Context, optional
+            The parent context.
+        **extra
+            Passed on to :meth:`click.Group.make_context`.
+
+        Returns
+        -------
+        click.Context
+        """
         reset_verbosity()  # each invocation starts at the normal level
         return super().make_context(info_name, args, parent=parent, **extra)
 
     def resolve_command(self, ctx, args):  # type: ignore[no-untyped-def]
+        """The subcommand the arguments name; an unknown one is bad input, with a close match.
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The group's context.
+        args : list of str
+            The arguments after the program's options.
+
+        Returns
+        -------
+        tuple
+            (name, command, remaining arguments), as :meth:`click.Group.resolve_command`.
+
+        Raises
+        ------
+        BadInput
+            An unknown command (exit status 2), naming the nearest one.
+        """
         name = args[0] if args else ""
         if name and not name.startswith("-") and name not in COMMANDS:
             import difflib
@@ -174,6 +246,11 @@ def main(argv: list[str] | None = None) -> None:
     ``PYDANTIC_DISABLE_PLUGINS`` is set already): esoarm uses none, and finding them
     reads the entry points of every installed package when the first scenario
     model is built, about 15 ms of every command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after the program's name; None: the process's own (``sys.argv``).
     """
     if argv is None:
         os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")

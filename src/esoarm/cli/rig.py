@@ -32,7 +32,18 @@ def _say(line: str) -> None:
 
 
 def scope_options(func):  # type: ignore[no-untyped-def]
-    """--scope, --scope-port, --scope-window (the live page)."""
+    """--scope, --scope-port, --scope-window (the live page).
+
+    Parameters
+    ----------
+    func : callable
+        A command's function.
+
+    Returns
+    -------
+    callable
+        ``func`` with the three options.
+    """
     func = click.option("--scope-window", type=float, default=10.0, show_default=True,
                         metavar="SECONDS",
                         help="Seconds of data the scope keeps and shows [s].")(func)
@@ -257,10 +268,20 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
     if pace is not None:
         warn_line(pace)
     if as_json:
-        click.echo(json.dumps({"scenario": scn.name, **summary.to_dict(),
-                               "wall_clock_s": round(wall, 3)}))
+        click.echo(json.dumps(_json_summary(scn.name, summary, wall, 1.0 / scn.sensor.rate_hz)))
         return
     _print_summary(scn, summary, wall, 1.0 / scn.sensor.rate_hz)
+
+
+def _json_summary(name: str, s, wall: float, ts: float) -> dict:  # type: ignore[no-untyped-def, type-arg]
+    """``run --json``: the summary, its "mode" what was measured (as the table's title)."""
+    out = {"scenario": name, **s.to_dict(), "wall_clock_s": round(wall, 3)}
+    pace = _pace(s, wall, ts)
+    if pace is not None:  # asked for real time, delivered otherwise: say what was measured
+        out["mode_requested"] = out.get("mode", s.mode)
+        out["mode"] = "not real time"
+        out["pace_warning"] = pace
+    return out
 
 
 def _stream_notice(line: str) -> None:

@@ -55,9 +55,9 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     scn = resolve_scenario(scenario, overrides)
-    from esoarm.engines.stream import STREAM_SAMPLES
+    from esoarm.engines import stream
 
-    if scn.n_samples > STREAM_SAMPLES:
+    if scn.n_samples > stream.STREAM_SAMPLES:
         _simulate_streamed(scn, out_path, plot_path, as_json)
         return
     try:
@@ -85,6 +85,7 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
                                    scn.actuator.torque_limit, units(scn))
     if saturated:
         warn_line(saturated)
+    _undriven_warning(scn, result.metrics)
     if out_path is not None:
         result.to_csv(out_path)
     if plot_path is not None:
@@ -101,6 +102,16 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
     for label, path in (("time series", out_path), ("figure", plot_path)):
         if path is not None:
             click.echo(f"{label}: {path}")
+
+
+def _undriven_warning(scn, metrics: dict) -> None:  # type: ignore[no-untyped-def, type-arg]
+    """A run whose every command was rounded to zero torque (a too coarse PWM): say so."""
+    bits = scn.actuator.pwm_bits
+    if bits > 0 and scn.motor is None and metrics.get("max_abs_u") == 0.0:
+        step = scn.actuator.torque_limit / (2**bits - 1)
+        warn_line(f"every command was rounded to 0 N·m: actuator.pwm_bits = {bits} steps the "
+                  f"torque by {step:.3g} N·m and the controller never asked for half a step; "
+                  "the arm was not driven (raise actuator.pwm_bits, e.g. 8)")
 
 
 #: Samples kept for the figure of a streamed run (evenly spaced).
@@ -161,6 +172,10 @@ def _simulate_streamed(scn, out_path, plot_path, as_json: bool) -> None:  # type
                 failure = exc
                 if isinstance(exc, SimulationDiverged) and fh is not None:
                     sink(exc.result)
+            except KeyboardInterrupt:  # a second Ctrl-C, within a block: --out is dropped
+                raise Interrupted("stopped at once (a second Ctrl-C); nothing written (one "
+                                  "Ctrl-C stops at the end of a block and keeps the rows "
+                                  "run)") from None
             finally:
                 slow.cancel()
     if isinstance(failure, StreamInterrupted):
@@ -180,6 +195,7 @@ def _simulate_streamed(scn, out_path, plot_path, as_json: bool) -> None:  # type
                                    scn.actuator.torque_limit, units(scn))
     if saturated:
         warn_line(saturated)
+    _undriven_warning(scn, run.metrics)
     if plot_path is not None and run.series is not None:
         run.series.plot(plot_path)
     if as_json:
