@@ -426,6 +426,10 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
         raise CodegenError(f"--target '{target}': one of {', '.join(TARGETS)}")
     if precision not in PRECISIONS:
         raise CodegenError(f"--precision '{precision}': one of {', '.join(PRECISIONS)}")
+    if getattr(scn.controller, "feedforward_map", None):
+        raise CodegenError("controller.feedforward_map: the generated C does not apply a "
+                           "learned feedforward table yet (the simulated engines do); set it "
+                           "to [] to generate")
     if precision not in TARGETS[target]:
         raise CodegenError(f"--precision {precision} is not available on {target} "
                            f"(avr-gcc's double is 32 bits): use {TARGETS[target][0]}")
