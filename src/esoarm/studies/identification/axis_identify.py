@@ -391,11 +391,11 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
         if kept:
             est = split
     names = physical_names(motion, est.names)
-    cut = _halves(logs, ts, est.cutoff_hz)
-    if cut is None:  # one excited stretch (a step then rest): nothing to compare
+    split_at = _halves(logs, ts, est.cutoff_hz)
+    if split_at is None:  # one excited stretch (a step then rest): nothing to compare
         halves: tuple[IdimResult, ...] = ()
     else:
-        halves = tuple(idim_ls(h, ts, est.cutoff_hz, gravity, est.asymmetric) for h in cut)
+        halves = tuple(idim_ls(h, ts, est.cutoff_hz, gravity, est.asymmetric) for h in split_at)
     h1, h2 = halves if halves else (est, est)
     for i, name in enumerate(names):
         if name in ("offset", "gravity"):
