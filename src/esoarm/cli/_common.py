@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import re
 import sys
 import warnings
@@ -35,6 +36,16 @@ def one_line(text: str) -> str:
     """``text`` with control characters escaped, so that a message is one line whatever it quotes.
 
     (A key given as ``'0\\r0'`` must not break the one-line error in two.)
+
+    Parameters
+    ----------
+    text : str
+        A message, or a piece of one quoting user input.
+
+    Returns
+    -------
+    str
+        ``text`` itself when it is printable, else with each control character as its escape.
     """
     if text.isprintable():
         return text
@@ -47,6 +58,13 @@ class BadInput(click.ClickException):
     exit_code = 2
 
     def show(self, file: Any = None) -> None:
+        """Print the one-line error on stderr.
+
+        Parameters
+        ----------
+        file : optional
+            Unused (click's signature): the line always goes to stderr.
+        """
         click.echo(f"esoarm: error: {one_line(self.format_message())}", err=True)
 
 
@@ -56,6 +74,13 @@ class RunFailure(click.ClickException):
     exit_code = 1
 
     def show(self, file: Any = None) -> None:
+        """Print the one-line failure on stderr.
+
+        Parameters
+        ----------
+        file : optional
+            Unused (click's signature): the line always goes to stderr.
+        """
         click.echo(f"esoarm: failed: {one_line(self.format_message())}", err=True)
 
 
@@ -65,6 +90,13 @@ class Interrupted(click.ClickException):
     exit_code = 130
 
     def show(self, file: Any = None) -> None:
+        """Print the one-line interruption, with what was kept, on stderr.
+
+        Parameters
+        ----------
+        file : optional
+            Unused (click's signature): the line always goes to stderr.
+        """
         click.echo(f"esoarm: interrupted: {one_line(self.format_message())}", err=True)
 
 
@@ -81,7 +113,13 @@ def reset_verbosity() -> None:
 
 
 def verbosity() -> int:
-    """The current level: :data:`QUIET`, :data:`NORMAL` or :data:`VERBOSE`."""
+    """The current level.
+
+    Returns
+    -------
+    int
+        :data:`QUIET`, :data:`NORMAL` or :data:`VERBOSE`.
+    """
     return int(_state["level"])
 
 
@@ -101,7 +139,13 @@ VERBOSE_HELP = ("Also print what is done, step by step, on stderr (progress line
 
 
 def verbosity_params() -> list[click.Option]:
-    """Fresh ``-q/--quiet`` and ``-v/--verbose`` options (they only set the level)."""
+    """Fresh ``-q/--quiet`` and ``-v/--verbose`` options (they only set the level).
+
+    Returns
+    -------
+    list of click.Option
+        The two options, eager, exposing no value to the command.
+    """
     return [
         click.Option(["-q", "--quiet"], is_flag=True, expose_value=False, is_eager=True,
                      callback=_set_level, help=QUIET_HELP),
@@ -111,32 +155,79 @@ def verbosity_params() -> list[click.Option]:
 
 
 def add_verbosity_options(cmd: click.Command) -> click.Command:
-    """Give ``cmd`` the ``--quiet``/``--verbose`` options (once)."""
+    """Give ``cmd`` the ``--quiet``/``--verbose`` options (once).
+
+    Parameters
+    ----------
+    cmd : click.Command
+        A command of the group.
+
+    Returns
+    -------
+    click.Command
+        ``cmd`` itself, its options extended where it had none of the two.
+    """
     if not any(p.name in ("quiet", "verbose") for p in cmd.params):
         cmd.params.extend(verbosity_params())
     return cmd
 
 
 def note(message: str) -> None:
-    """An informational line on stderr (not shown with --quiet)."""
+    """An informational line on stderr (not shown with --quiet).
+
+    Parameters
+    ----------
+    message : str
+        The text, without the ``esoarm:`` prefix.
+    """
     if verbosity() >= NORMAL:
         click.echo(f"esoarm: {message}", err=True)
 
 
 def detail(message: str) -> None:
-    """A line shown only with --verbose, on stderr."""
+    """A line shown only with --verbose, on stderr.
+
+    Parameters
+    ----------
+    message : str
+        The text, without the ``esoarm:`` prefix.
+    """
     if verbosity() >= VERBOSE:
         click.echo(f"esoarm: {message}", err=True)
 
 
 def warn_line(message: str) -> None:
-    """A one-line warning on stderr (not shown with --quiet)."""
+    """A one-line warning on stderr (not shown with --quiet).
+
+    Parameters
+    ----------
+    message : str
+        The warning, without the ``esoarm: warning:`` prefix.
+    """
     if verbosity() >= NORMAL:
         click.echo(f"esoarm: warning: {one_line(message)}", err=True)
 
 
 def show_warning(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
-    """Print warnings as one line on stderr (ScenarioWarning without a location)."""
+    """Print warnings as one line on stderr (ScenarioWarning without a location).
+
+    Installed as :func:`warnings.showwarning`; nothing is shown with --quiet.
+
+    Parameters
+    ----------
+    message : Warning or str
+        The warning.
+    category : type
+        Its class (a :class:`~esoarm.scenario.ScenarioWarning` is printed without its name).
+    filename : str
+        Unused: no location is printed.
+    lineno : int
+        Unused.
+    file : optional
+        Unused: the line always goes to stderr.
+    line : str, optional
+        Unused.
+    """
     from esoarm.scenario import ScenarioWarning
 
     if verbosity() < NORMAL:
@@ -148,7 +239,19 @@ def show_warning(message, category, filename, lineno, file=None, line=None):  # 
 
 
 def bad_input_guard(func: F) -> F:
-    """Turn :class:`ScenarioError` raised inside a command into exit status 2."""
+    """Turn :class:`ScenarioError` raised inside a command into exit status 2.
+
+    Parameters
+    ----------
+    func : callable
+        A command's function.
+
+    Returns
+    -------
+    callable
+        ``func`` wrapped: a ScenarioError becomes :class:`BadInput`, worded for the command
+        line (:func:`cli_wording`).
+    """
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -163,7 +266,18 @@ def bad_input_guard(func: F) -> F:
 
 
 def set_option(func: F) -> F:
-    """The repeatable ``--set KEY=VALUE`` option."""
+    """The repeatable ``--set KEY=VALUE`` option.
+
+    Parameters
+    ----------
+    func : callable
+        A command's function.
+
+    Returns
+    -------
+    callable
+        ``func`` with the option (its values reach the parameter ``overrides``).
+    """
     return click.option(
         "--set",
         "overrides",
@@ -175,7 +289,18 @@ def set_option(func: F) -> F:
 
 
 def scenario_argument(func: F) -> F:
-    """The positional SCENARIO argument (built-in name or TOML path)."""
+    """The positional SCENARIO argument (built-in name or TOML path).
+
+    Parameters
+    ----------
+    func : callable
+        A command's function.
+
+    Returns
+    -------
+    callable
+        ``func`` with the argument (its value reaches the parameter ``scenario``).
+    """
     return click.argument("scenario", metavar="SCENARIO")(func)
 
 
@@ -192,6 +317,16 @@ def cli_wording(message: str) -> str:
     key``, ``max_runs 0: …``); the command line names the option that carries
     them (``--set …``, ``--max-runs 0: …``): :data:`CLI_FLAGS`, else an option
     of the running command whose parameter has that name.
+
+    Parameters
+    ----------
+    message : str
+        A library's one-line message.
+
+    Returns
+    -------
+    str
+        The message with its leading argument name replaced by the option, where one is found.
     """
     match = _LEAD.match(message)
     if match is None:
@@ -208,7 +343,25 @@ def cli_wording(message: str) -> str:
 
 
 def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scenario:
-    """Load a scenario with overrides and print its warnings (one line each)."""
+    """Load a scenario with overrides and print its warnings (one line each).
+
+    Parameters
+    ----------
+    name : str
+        A built-in scenario's name or a TOML file.
+    overrides : sequence of str
+        ``KEY=VALUE`` items of ``--set``.
+
+    Returns
+    -------
+    Scenario
+        The validated scenario.
+
+    Raises
+    ------
+    ScenarioError
+        Bad input: an unknown scenario, key or value.
+    """
     from esoarm.kinds import observer_summary
     from esoarm.scenario import ScenarioWarning, load_scenario, scenario_warnings
 
@@ -218,13 +371,52 @@ def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scena
 
     for msg in scenario_warnings(scn):
         warnings.warn(msg, ScenarioWarning, stacklevel=2)
+    added = _motor_added(name, overrides, scn)
+    if added:
+        warnings.warn(added, ScenarioWarning, stacklevel=2)
     return scn
+
+
+def _motor_added(name: str, overrides: tuple[str, ...] | list[str], scn: Scenario) -> str | None:
+    """A --set motor.KEY on a scenario without a [motor] table adds a whole motor: say so."""
+    keys = [item.partition("=")[0].strip() for item in overrides]
+    motor_keys = [k for k in keys if k.startswith("motor.")]
+    if not motor_keys or scn.motor is None:
+        return None
+    from esoarm.scenario import load_scenario
+
+    if load_scenario(name, []).motor is not None:
+        return None
+    rest = {k: v for k, v in scn.motor.model_dump().items() if f"motor.{k}" not in keys}
+    shown = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}"
+                      for k, v in list(rest.items())[:5])
+    return (f"--set {motor_keys[0]}: '{scn.name}' has no [motor] table, so this adds a whole DC "
+            f"motor model (back-EMF, driver deadband, PWM), every other motor key at its "
+            f"default ({shown}, ...; 'esoarm show' lists them); the arm is no longer driven by "
+            "an ideal torque source")
 
 
 def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Path | None:
     """Check an output file before any work: allowed suffix, a place that can be written.
 
-    Raises :class:`BadInput` (exit status 2) naming the option and the path.
+    Parameters
+    ----------
+    value : str, optional
+        The path given; None: the option was not given.
+    option : str
+        The option's name, for the error (``--out``).
+    suffixes : tuple of str
+        The allowed suffixes, lower case with the dot.
+
+    Returns
+    -------
+    Path or None
+        The path; None when ``value`` is None.
+
+    Raises
+    ------
+    BadInput
+        Exit status 2, naming the option and the path.
     """
     if value is None:
         return None
@@ -239,7 +431,25 @@ def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Pa
 
 
 def output_dir(value: str, option: str) -> Path:
-    """Check an output directory before any work (it may not exist yet; not the empty path)."""
+    """Check an output directory before any work (it may not exist yet; not the empty path).
+
+    Parameters
+    ----------
+    value : str
+        The directory given.
+    option : str
+        The option's name, for the error (``--out``).
+
+    Returns
+    -------
+    Path
+        The directory.
+
+    Raises
+    ------
+    BadInput
+        Exit status 2, naming the option and the path.
+    """
     if not value:
         raise BadInput(f"{option} '': give a directory name (. for the current directory)")
     path = Path(value)
@@ -255,13 +465,34 @@ def _check(path: Path, option: str, directory: bool) -> None:
 
 
 def stderr_is_tty() -> bool:
-    """Whether live progress displays should be drawn (a terminal, and not --quiet)."""
+    """Whether live progress displays should be drawn.
+
+    Returns
+    -------
+    bool
+        stderr is a terminal and the level is not --quiet.
+    """
     return sys.stderr.isatty() and verbosity() >= NORMAL
 
 
 def lever_only(scn: Scenario, command: str) -> None:
-    """The rig protocol, its emulator and identification drive one lever arm: refuse others."""
-    if scn.plant.kind != "lever-arm":
+    """The rig protocol, its emulator and identification drive one lever arm: refuse others.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario loaded.
+    command : str
+        The command's name, for the error.
+
+    Raises
+    ------
+    BadInput
+        ``scn`` is not a lever arm (exit status 2).
+    """
+    from esoarm.kinds import can
+
+    if not can(scn, "RIG"):  # what the plant kind declares
         raise BadInput(f"scenario '{scn.name}': '{command}' works on the lever-arm rig (one "
                        f"joint); plant.kind '{scn.plant.kind}' runs in simulate, sweep, tune, "
                        "replay and arm-study")
@@ -271,6 +502,18 @@ def lever_only(scn: Scenario, command: str) -> None:
 PROGRESS_LINE_S = 10.0
 #: ... and with --verbose this often [s].
 PROGRESS_LINE_VERBOSE_S = 1.0
+
+
+#: A time-left estimate is shown once this share of the work is done ...
+SETTLE_FRACTION = 0.05
+#: ... and this long [s] has passed since the first progress (a rate over less is noise).
+SETTLE_SECONDS = 3.0
+
+
+def settled(fraction: float, seconds: float) -> bool:
+    """Whether a time-left estimate made after ``fraction`` of the work, ``seconds`` [s]
+    after it started, is worth showing (:data:`SETTLE_FRACTION`, :data:`SETTLE_SECONDS`)."""
+    return fraction >= SETTLE_FRACTION and seconds >= SETTLE_SECONDS
 
 
 @contextlib.contextmanager
@@ -283,6 +526,22 @@ def progress(total: float, label: str, unit: str, fmt: Callable[[float], str] = 
     every :data:`PROGRESS_LINE_S` seconds (every :data:`PROGRESS_LINE_VERBOSE_S` with
     --verbose), none for work that ends sooner, and a last line once any was printed.
     Nothing with --quiet.
+
+    Parameters
+    ----------
+    total : float
+        The amount of work, in ``unit``.
+    label : str
+        What is done (``sweep``), the line's first word.
+    unit : str
+        The unit of the count (``runs``).
+    fmt : callable
+        Formats a count for the line (default: a whole number with thousands separators).
+
+    Yields
+    ------
+    callable
+        ``advance(n)``: ``n`` more units done.
     """
     if verbosity() < NORMAL:
         yield lambda n: None
@@ -297,9 +556,20 @@ def progress(total: float, label: str, unit: str, fmt: Callable[[float], str] = 
             TimeRemainingColumn,
         )
 
+        class SettledRemaining(TimeRemainingColumn):
+            """Rich's time left, shown only once the estimate has settled (:func:`settled`)."""
+
+            def render(self, task):  # type: ignore[no-untyped-def]
+                from rich.text import Text
+
+                done = task.completed / task.total if task.total else 0.0
+                if not settled(done, task.elapsed or 0.0):
+                    return Text("(estimating)", style="progress.remaining")
+                return super().render(task)
+
         with Progress(TextColumn(label), BarColumn(),
                       TextColumn(f"{{task.completed:,.0f}} of {{task.total:,.0f}} {unit}"),
-                      TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(),
+                      TimeElapsedColumn(), TextColumn("left"), SettledRemaining(),
                       console=Console(stderr=True), transient=True) as bar:
             task = bar.add_task(label, total=total)
             yield lambda n: bar.advance(task, n)
@@ -308,19 +578,34 @@ def progress(total: float, label: str, unit: str, fmt: Callable[[float], str] = 
 
     every = PROGRESS_LINE_VERBOSE_S if verbosity() >= VERBOSE else PROGRESS_LINE_S
     start = time.monotonic()
-    state = {"done": 0.0, "last": start, "shown": False, "shown_done": -1.0}
+    state: dict[str, Any] = {"done": 0.0, "last": start, "shown": False, "shown_done": -1.0,
+                             "first": None, "estimate": None}
 
     def line(now: float) -> None:
         done = state["done"]
-        rate = done / max(now - start, 1e-9)
-        left = f", about {(total - done) / rate:,.0f} s left" if 0 < done < total else ""
+        left = ""
+        if 0 < done < total and state["first"] is not None:
+            # the rate since the first progress reported (what came before it -- loading,
+            # compiling -- is not work to be repeated), shown once the estimate has settled:
+            # enough done, and close to the estimate of the previous line
+            t0, d0 = state["first"]
+            rate = (done - d0) / max(now - t0, 1e-9)
+            estimate = (total - done) / rate if rate > 0 else math.inf
+            previous, state["estimate"] = state["estimate"], estimate
+            if (settled(done / total, now - t0) and math.isfinite(estimate)
+                    and previous is not None and 0.5 * previous <= estimate <= 2.0 * previous):
+                left = f", about {estimate:,.0f} s left"
+            else:
+                left = ", estimating the time left"
         click.echo(f"esoarm: {label}: {fmt(done)} of {fmt(total)} {unit} ({now - start:,.0f} s"
                    f"{left})", err=True)
         state["last"], state["shown"], state["shown_done"] = now, True, done
 
     def advance(n: float) -> None:
-        state["done"] += n
         now = time.monotonic()
+        if state["first"] is None:
+            state["first"] = (now, state["done"] + n)
+        state["done"] += n
         if now - state["last"] >= every:
             line(now)
 
@@ -342,6 +627,13 @@ def require_extra(module: str, what: str) -> None:
 
     A set-up problem, not a run-time failure: exit status 2, one line naming the extra
     (``esoarm: error: esoarm run needs pyserial: pip install 'esoarm[rig]'``).
+
+    Parameters
+    ----------
+    module : str
+        The module to look for (``serial``), a key of :data:`EXTRAS`.
+    what : str
+        The command, the line's start (``esoarm run``).
     """
     import importlib.util
 

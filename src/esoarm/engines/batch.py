@@ -54,6 +54,7 @@ from numba.extending import intrinsic, overload
 
 from esoarm import _jit
 from esoarm import kinds as _kinds
+from esoarm._limits import STREAM_SAMPLES
 from esoarm.engines import loop as _loop
 from esoarm.engines.loop import closed_loop, closed_loop_block
 from esoarm.engines.metrics import (
@@ -577,11 +578,23 @@ def run_metrics(
     _cover(points)
     if series is None:  # (a sweep's last, small chunk: the blocked kernel is loaded already)
         series = blocked and len(runs) <= SERIES_RUNS and not _blocked_metrics_kernel.overloads
+    # a long run (more than STREAM_SAMPLES samples) block by block, in constant memory: a
+    # kernel here keeps its whole log (~90 bytes a sample)
+    long = [points[pi].n_samples > STREAM_SAMPLES for pi in range(len(points))]
     with _threads(workers):
         for start in range(0, len(runs), chunk):
             part = runs[start : start + chunk]
-            jit_idx = [i for i, (pi, _) in enumerate(part) if compiled[pi]]
-            py_idx = [i for i, (pi, _) in enumerate(part) if not compiled[pi]]
+            jit_idx = [i for i, (pi, _) in enumerate(part) if compiled[pi] and not long[pi]]
+            py_idx = [i for i, (pi, _) in enumerate(part) if not compiled[pi] and not long[pi]]
+            for i, (pi, seed) in enumerate(part):
+                if long[pi]:
+                    from esoarm.engines.stream import streamed_metrics
+
+                    scn = points[pi]
+                    scn = (scn.with_overrides({"sensor.seed": seed})
+                           if seed != scn.sensor.seed else scn)
+                    got = streamed_metrics(scn)
+                    out[start + i] = [got[name] for name in METRICS]
             if jit_idx:
                 used = sorted({part[i][0] for i in jit_idx})
                 local = {pi: j for j, pi in enumerate(used)}
