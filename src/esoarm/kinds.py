@@ -47,7 +47,7 @@ from esoarm.contract import (
     Units,
     read_only,
 )
-from esoarm.controllers import adrc_error, adrc_tf, computed_torque, flc, pid
+from esoarm.controllers import adrc_error, adrc_tf, computed_torque, flc, pid, switch
 from esoarm.observers import cascade, linear, nonlinear
 from esoarm.plants import axis, lever_arm
 from esoarm.plants.arms import urdf
@@ -66,7 +66,8 @@ __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "can", "che
 #: against its component's protocol, :class:`esoarm.contract.PlantKind` etc.)
 PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis)
 OBSERVERS: tuple[ObserverKind, ...] = (linear, nonlinear, cascade)
-CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque, adrc_error, adrc_tf)
+CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque, adrc_error, adrc_tf,
+                                            switch)
 
 #: What was registered at import: the kinds of the package itself.
 _BUILTIN: dict[str, tuple[Any, ...]] = {

@@ -54,6 +54,7 @@ COMMANDS: dict[str, str] = {
     "codegen": "esoarm.cli.codegen:codegen",
     "pil": "esoarm.cli.pil:pil",
     "compare": "esoarm.cli.compare:compare",
+    "flash": "esoarm.cli.flash:flash",
     "commission": "esoarm.cli.commission:commission",
 }
 
@@ -71,6 +72,7 @@ SUMMARIES: dict[str, str] = {
     "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",
     "excite": "Record an identification experiment on the rig at PORT or on the twin of "
               "SCENARIO.",
+    "flash": "Build SCENARIO's on-board firmware and write it to the Uno on PORT.",
     "hil": "Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its "
            "pins.",
     "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "

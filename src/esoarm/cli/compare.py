@@ -23,8 +23,9 @@ _DEFAULT_FORMS = "eso+flc,half-gain,adrc-tf,adrc-error,pid,pid+eso"
 @set_option
 @click.option("--kinds", "forms", default=_DEFAULT_FORMS, show_default=True,
               help="Comma-separated forms: eso+flc (the paper's ESO + FLC), half-gain, "
-              "delay-input, delay-predictor (told actuator.delay_samples), adrc-tf, "
-              "adrc-error, pid, pid+eso.")
+              "delay-input, delay-predictor (told actuator.delay_samples), "
+              "delay-predictor+preview (also the reference's moves started N·Ts earlier), "
+              "adrc-tf, adrc-error, pid, pid+eso.")
 @click.option("--seeds", type=click.IntRange(1, 64), default=4, show_default=True,
               help="Noise seeds per form (sensor.seed 0 … N−1); means are reported.")
 @click.option("--delays", default=None,

@@ -24,6 +24,11 @@ def _say(line: str) -> None:
     print(line, flush=True)
 
 
+def _progress(line: str) -> None:
+    """Progress before the device exists: on stderr ('device: PATH' stays stdout's first line)."""
+    click.echo(f"esoarm: {line}", err=True)
+
+
 #: ELF e_machine of the AVR.
 EM_AVR = 83
 
@@ -130,10 +135,10 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
             try:
                 why = ""
                 if sums == "auto":
-                    choice = choose_sums(scn, say=_say)
+                    choice = choose_sums(scn, say=_progress)
                     sums, why = choice.name, f" (auto: {choice.reason})"
                 else:
-                    fits, numbers = sums_fit(scn, sums == "compensated", say=_say)
+                    fits, numbers = sums_fit(scn, sums == "compensated", say=_progress)
                     if not fits:
                         warn_line(f"--sums {sums} does not fit the ATmega328P's period on "
                                   f"board at {scn.sensor.rate_hz:g} Hz ({numbers}): expect "

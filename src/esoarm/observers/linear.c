@@ -65,10 +65,11 @@ static void obs_correct(const esoarm_real T[], const esoarm_real z[], esoarm_rea
 static void obs_estimate(const esoarm_real T[], const esoarm_real z[], esoarm_real y,
                          esoarm_real zhat[])
 {
-    uint8_t i, nd = OBS_DELAY;
+    uint8_t nd = OBS_DELAY;
     obs_correct(T, z, y, zhat);
     if (nd > 0 && OBS_P[22] == R(1.0)) {
         esoarm_real ts = OBS_P[1], half = R(0.5) * OBS_P[1] * OBS_P[1];
+        uint8_t i;
         for (i = 0; i < nd; ++i) {
             esoarm_real acc = zhat[2] + T[2] * z[6 + i];
             zhat[0] = zhat[0] + ts * zhat[1] + half * acc;
