@@ -63,8 +63,6 @@ PENDING = {
     "esoarm.hardware.logimport": 5,
     "esoarm.hardware.protocol": 9,
     "esoarm.hardware.realtime": 3,
-    "esoarm.hardware.replay": 5,
-    "esoarm.hardware.replay_arm": 5,
     "esoarm.hardware.scope": 8,
     "esoarm.plotting.arms": 3,
     "esoarm.plotting.run": 7,
