@@ -92,7 +92,18 @@ def c_source(module: Kind | ModuleType) -> str | None:
 
 
 def scenario_hash(scn: Scenario) -> str:
-    """First 16 hex digits of the SHA-256 of the resolved scenario's JSON."""
+    """First 16 hex digits of the SHA-256 of the resolved scenario's JSON.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario (with its overrides).
+
+    Returns
+    -------
+    str
+        16 lower-case hex digits; the same for the same resolved scenario.
+    """
     return hashlib.sha256(scn.model_dump_json().encode()).hexdigest()[:16]
 
 

@@ -744,7 +744,17 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
 def state_size(params: Params) -> int:
     """States per joint: 3 (angle, rate, total perturbation), then the ``input_delay``
-    commands held for the delayed input."""
+    commands held for the delayed input.
+
+    Parameters
+    ----------
+    params : Params
+        The kind's validated ``[observer]`` table.
+
+    Returns
+    -------
+    int
+    """
     return 3 + int(params.input_delay)
 
 

@@ -262,7 +262,17 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
 
 def state_size(params: Params) -> int:
-    """States per joint: 3 (angle, rate, total perturbation)."""
+    """States per joint: 3 (angle, rate, total perturbation).
+
+    Parameters
+    ----------
+    params : Params
+        The kind's validated ``[observer]`` table.
+
+    Returns
+    -------
+    int
+    """
     return 3
 
 
