@@ -9,3 +9,13 @@ MAX_RUNS = 1_000_000
 #: Most points ``esoarm analyze --vary`` analyzes unless raised (``--max-points``): each
 #: point is a linearization, a sampling and a frequency sweep, about 0.1-0.3 s.
 MAX_ANALYZE_POINTS = 1_000
+#: ``esoarm simulate`` runs a run of more samples than this block by block in constant memory
+#: (:mod:`esoarm.engines.stream`; the reference engine keeps ~200 bytes a sample), compiled
+#: where the scenario's kinds allow it.
+STREAM_SAMPLES = 500_000
+#: Largest gear play ``rig.backlash_deg`` [deg]: a worn toy gear train has a few degrees;
+#: beyond this the arm is not driven through a gear but swings free over most of a turn.
+MAX_BACKLASH_DEG = 20.0
+#: ... and runs it compiled when it has more samples than this (below, compiling the block
+#: the first time, 30-90 s, would take longer than the plain-Python blocks, ~70 µs a sample).
+COMPILED_STREAM_SAMPLES = 1_000_000

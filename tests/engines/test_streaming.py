@@ -154,3 +154,57 @@ def test_compiled_blocks_give_the_reference_bits():
             assert np.allclose(table, ref, rtol=1e-9, atol=1e-9)
         else:
             assert np.array_equal(table, ref, equal_nan=True)
+
+
+def test_sweep_metrics_of_a_long_run_are_streamed(python_blocks, monkeypatch):
+    from esoarm.engines import simulation
+    from esoarm.engines.metrics import METRICS
+
+    monkeypatch.setattr(simulation, "STREAM_SAMPLES", 100)
+    calls = []
+    real = streaming.stream
+    monkeypatch.setattr(streaming, "stream", lambda scn, **kw: calls.append(scn) or real(scn,
+                                                                                         **kw))
+    ok = load_scenario("test-1", {"duration": 4.0})
+    bad = load_scenario("test-1", {"duration": 4.0, "observer.eps": 0.001})
+    table = simulation.reference_metrics([ok, bad])
+    assert len(calls) == 2
+    ref_ok = run_reference(ok, prepare(ok)).metrics
+    with pytest.raises(SimulationDiverged) as info:
+        run_reference(bad, prepare(bad))
+    for row, ref in zip(table.values, (ref_ok, info.value.result.metrics), strict=True):
+        for j, name in enumerate(METRICS):
+            assert row[j] == pytest.approx(ref[name], rel=RTOL, nan_ok=True), name
+
+
+def test_ctrl_c_keeps_the_rows_streamed(python_blocks, monkeypatch, run_cli, tmp_path):
+    class Flag:  # Ctrl-C during the second block: seen before the third
+        checks = 0
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return None
+
+        @property
+        def hit(self):
+            Flag.checks += 1
+            return Flag.checks > 2
+
+    monkeypatch.setattr(streaming, "_SigintFlag", Flag)
+    out = tmp_path / "part.csv"
+    res = run_cli("simulate", "test-1", "--set", "duration=10", "--out", str(out))
+    assert res.exit_code == 130
+    assert f"the 128 rows run are in {out}" in res.stderr
+    scn = load_scenario("test-1", {"duration": 10.0})
+    ref = tmp_path / "ref.csv"
+    run_reference(scn, prepare(scn)).to_csv(ref)
+    assert out.read_text().splitlines() == ref.read_text().splitlines()[:129]
+
+
+def test_only_runs_worth_the_compile_are_compiled():
+    short = load_scenario("test-1", {"duration": 2e4})  # 10⁶ samples: Python blocks
+    long = load_scenario("test-1", {"duration": 2.1e4})
+    assert streaming.worth_compiling(short) is False
+    assert streaming.worth_compiling(long) is None

@@ -47,13 +47,15 @@ COMMANDS: dict[str, str] = {
     "replay": "esoarm.cli.rig:replay",
     "arm-study": "esoarm.cli.arms:arm_study",
     "analyze": "esoarm.cli.analyze:analyze",
-    "hil": "esoarm.cli.hil:hil",
+    "hil": "esoarm.cli.board.hil:hil",
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
     "log": "esoarm.cli.log:log",
-    "codegen": "esoarm.cli.codegen:codegen",
-    "pil": "esoarm.cli.pil:pil",
-    "commission": "esoarm.cli.commission:commission",
+    "codegen": "esoarm.cli.board.codegen:codegen",
+    "pil": "esoarm.cli.board.pil:pil",
+    "compare": "esoarm.cli.compare:compare",
+    "flash": "esoarm.cli.board.flash:flash",
+    "commission": "esoarm.cli.board.commission:commission",
 }
 
 
@@ -61,6 +63,7 @@ COMMANDS: dict[str, str] = {
 # importing the command (tests/test_cli_startup.py checks they match the
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
+    "compare": "Run the ADRC forms on SCENARIO: RMS error and RMS Δu, means over the seeds.",
     "commission": "Commission a rig: excite, identify, design, generate, flash and run on "
                   "board.",
     "codegen": "Generate self-contained C99 for SCENARIO's observer and controller on a target.",
@@ -69,6 +72,7 @@ SUMMARIES: dict[str, str] = {
     "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",
     "excite": "Record an identification experiment on the rig at PORT or on the twin of "
               "SCENARIO.",
+    "flash": "Build SCENARIO's on-board firmware and write it to the Uno on PORT.",
     "hil": "Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its "
            "pins.",
     "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import re
 import sys
 import warnings
@@ -370,7 +371,29 @@ def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scena
 
     for msg in scenario_warnings(scn):
         warnings.warn(msg, ScenarioWarning, stacklevel=2)
+    added = _motor_added(name, overrides, scn)
+    if added:
+        warnings.warn(added, ScenarioWarning, stacklevel=2)
     return scn
+
+
+def _motor_added(name: str, overrides: tuple[str, ...] | list[str], scn: Scenario) -> str | None:
+    """A --set motor.KEY on a scenario without a [motor] table adds a whole motor: say so."""
+    keys = [item.partition("=")[0].strip() for item in overrides]
+    motor_keys = [k for k in keys if k.startswith("motor.")]
+    if not motor_keys or scn.motor is None:
+        return None
+    from esoarm.scenario import load_scenario
+
+    if load_scenario(name, []).motor is not None:
+        return None
+    rest = {k: v for k, v in scn.motor.model_dump().items() if f"motor.{k}" not in keys}
+    shown = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}"
+                      for k, v in list(rest.items())[:5])
+    return (f"--set {motor_keys[0]}: '{scn.name}' has no [motor] table, so this adds a whole DC "
+            f"motor model (back-EMF, driver deadband, PWM), every other motor key at its "
+            f"default ({shown}, ...; 'esoarm show' lists them); the arm is no longer driven by "
+            "an ideal torque source")
 
 
 def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Path | None:
@@ -467,7 +490,9 @@ def lever_only(scn: Scenario, command: str) -> None:
     BadInput
         ``scn`` is not a lever arm (exit status 2).
     """
-    if scn.plant.kind != "lever-arm":
+    from esoarm.kinds import can
+
+    if not can(scn, "RIG"):  # what the plant kind declares
         raise BadInput(f"scenario '{scn.name}': '{command}' works on the lever-arm rig (one "
                        f"joint); plant.kind '{scn.plant.kind}' runs in simulate, sweep, tune, "
                        "replay and arm-study")
@@ -477,6 +502,30 @@ def lever_only(scn: Scenario, command: str) -> None:
 PROGRESS_LINE_S = 10.0
 #: ... and with --verbose this often [s].
 PROGRESS_LINE_VERBOSE_S = 1.0
+
+
+#: A time-left estimate is shown once this share of the work is done ...
+SETTLE_FRACTION = 0.05
+#: ... and this long [s] has passed since the first progress (a rate over less is noise).
+SETTLE_SECONDS = 3.0
+
+
+def settled(fraction: float, seconds: float) -> bool:
+    """Whether a time-left estimate made after ``fraction`` of the work, ``seconds`` [s]
+    after it started, is worth showing (:data:`SETTLE_FRACTION`, :data:`SETTLE_SECONDS`).
+
+    Parameters
+    ----------
+    fraction : float
+        The share of the work done, 0 … 1.
+    seconds : float
+        Time since the work started [s].
+
+    Returns
+    -------
+    bool
+    """
+    return fraction >= SETTLE_FRACTION and seconds >= SETTLE_SECONDS
 
 
 @contextlib.contextmanager
@@ -519,9 +568,20 @@ def progress(total: float, label: str, unit: str, fmt: Callable[[float], str] = 
             TimeRemainingColumn,
         )
 
+        class SettledRemaining(TimeRemainingColumn):
+            """Rich's time left, shown only once the estimate has settled (:func:`settled`)."""
+
+            def render(self, task):  # type: ignore[no-untyped-def]
+                from rich.text import Text
+
+                done = task.completed / task.total if task.total else 0.0
+                if not settled(done, task.elapsed or 0.0):
+                    return Text("(estimating)", style="progress.remaining")
+                return super().render(task)
+
         with Progress(TextColumn(label), BarColumn(),
                       TextColumn(f"{{task.completed:,.0f}} of {{task.total:,.0f}} {unit}"),
-                      TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(),
+                      TimeElapsedColumn(), TextColumn("left"), SettledRemaining(),
                       console=Console(stderr=True), transient=True) as bar:
             task = bar.add_task(label, total=total)
             yield lambda n: bar.advance(task, n)
@@ -530,19 +590,34 @@ def progress(total: float, label: str, unit: str, fmt: Callable[[float], str] = 
 
     every = PROGRESS_LINE_VERBOSE_S if verbosity() >= VERBOSE else PROGRESS_LINE_S
     start = time.monotonic()
-    state = {"done": 0.0, "last": start, "shown": False, "shown_done": -1.0}
+    state: dict[str, Any] = {"done": 0.0, "last": start, "shown": False, "shown_done": -1.0,
+                             "first": None, "estimate": None}
 
     def line(now: float) -> None:
         done = state["done"]
-        rate = done / max(now - start, 1e-9)
-        left = f", about {(total - done) / rate:,.0f} s left" if 0 < done < total else ""
+        left = ""
+        if 0 < done < total and state["first"] is not None:
+            # the rate since the first progress reported (what came before it -- loading,
+            # compiling -- is not work to be repeated), shown once the estimate has settled:
+            # enough done, and close to the estimate of the previous line
+            t0, d0 = state["first"]
+            rate = (done - d0) / max(now - t0, 1e-9)
+            estimate = (total - done) / rate if rate > 0 else math.inf
+            previous, state["estimate"] = state["estimate"], estimate
+            if (settled(done / total, now - t0) and math.isfinite(estimate)
+                    and previous is not None and 0.5 * previous <= estimate <= 2.0 * previous):
+                left = f", about {estimate:,.0f} s left"
+            else:
+                left = ", estimating the time left"
         click.echo(f"esoarm: {label}: {fmt(done)} of {fmt(total)} {unit} ({now - start:,.0f} s"
                    f"{left})", err=True)
         state["last"], state["shown"], state["shown_done"] = now, True, done
 
     def advance(n: float) -> None:
-        state["done"] += n
         now = time.monotonic()
+        if state["first"] is None:
+            state["first"] = (now, state["done"] + n)
+        state["done"] += n
         if now - state["last"] >= every:
             line(now)
 

@@ -12,7 +12,9 @@ from esoarm._limits import MAX_ANALYZE_POINTS
 from esoarm.cli._common import (
     PLOT_SUFFIXES,
     BadInput,
+    Interrupted,
     bad_input_guard,
+    note,
     output_path,
     progress,
     resolve_scenario,
@@ -87,7 +89,6 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
     innovations within ±δ).
     """
     from esoarm.studies.frequency.linearization import check_supported
-    from esoarm.studies.frequency.margins import analyze as run_analysis
 
     if len(varies) > 1:  # click would keep the last one without a word
         raise BadInput(f"--vary given {len(varies)} times: analyze varies one key (for a grid "
@@ -102,6 +103,9 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
     if tracking and target_bw is None:
         raise BadInput("--tracking: needs --bandwidth W (the linear ESO's bandwidth whose "
                        "tracking is matched)")
+    if vary is not None and target_bw is not None:
+        raise BadInput("--bandwidth with --vary: the recommendation is made for one scenario, "
+                       "not for each value of the key; drop --vary (or --bandwidth)")
     if max_points < 1:
         raise BadInput(f"--max-points {max_points}: must be a whole number >= 1")
     if vary is not None:
@@ -109,27 +113,56 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
     scn = resolve_scenario(scenario, overrides)
     check_supported(scn)
     if vary is None:
-        res = run_analysis(scn, theta0=theta0, friction=friction)
-        if plot_path is not None:
-            from esoarm.studies.frequency.plots import figure_frequency
-
-            figure_frequency(res, plot_path)
-        budget = _noise_budget(scn, theta0, friction)
-        recs = _recommend_tracking(scn, target_bw) if tracking else _recommend(scn, target_bw)
-        if as_json:
-            extra = {} if recs is None else {"recommendation": recs}
-            click.echo(json.dumps({**res.to_dict(), "noise_budget": budget, **extra}))
-        else:
-            _print_one(res)
-            _print_budget(budget)
-            if tracking:
-                _print_tracking(target_bw, recs)
-            else:
-                _print_recommendation(target_bw, recs)
-            if plot_path is not None:
-                click.echo(f"figure: {plot_path}")
+        try:
+            _analyze_one(scn, theta0, friction, plot_path, as_json, target_bw, tracking)
+        except KeyboardInterrupt:
+            raise Interrupted("nothing written (analyze prints and draws only at the end)"
+                              ) from None
         return
+    _analyze_vary(scn, vary, max_points, theta0, friction, plot_path, as_json)
+
+
+def _analyze_one(scn: Any, theta0: float | None, friction: str, plot_path: Any, as_json: bool,
+                 target_bw: float | None, tracking: bool) -> None:
+    from esoarm.studies.frequency.margins import analyze as run_analysis
+
+    res = run_analysis(scn, theta0=theta0, friction=friction)
+    budget = _noise_budget(scn, theta0, friction)
+    if tracking:
+        note("--tracking: measuring the tracking of each observer kind on the twin (about 50 "
+             "runs)")
+    recs, why = (_recommend_tracking(scn, target_bw) if tracking
+                 else _recommend(scn, target_bw))
+    if plot_path is not None:  # last: Ctrl-C before it leaves nothing written
+        from esoarm.studies.frequency.plots import figure_frequency
+
+        figure_frequency(res, plot_path)
+    left_out = left_out_notes(scn)
+    if as_json:
+        extra: dict[str, Any] = {} if recs is None else {"recommendation": recs}
+        if why:
+            extra["recommendation_note"] = why
+        if left_out:
+            extra["left_out"] = left_out
+        click.echo(json.dumps({**res.to_dict(), "noise_budget": budget, **extra}))
+    else:
+        _print_one(res)
+        for line in left_out:
+            click.echo(line)
+        _print_budget(budget)
+        if tracking:
+            _print_tracking(target_bw, recs, why)
+        else:
+            _print_recommendation(target_bw, recs, why)
+        if plot_path is not None:
+            click.echo(f"figure: {plot_path}")
+
+
+def _analyze_vary(scn: Any, vary: str, max_points: int, theta0: float | None, friction: str,
+                  plot_path: Any, as_json: bool) -> None:
     from esoarm.scenario import ScenarioError
+    from esoarm.studies.frequency.linearization import check_supported
+    from esoarm.studies.frequency.margins import analyze as run_analysis
     from esoarm.studies.sweeps.sweep import parse_vary
 
     spec = parse_vary(vary, scn, max_values=max_points)
@@ -144,10 +177,15 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
         except ScenarioError as exc:
             raise BadInput(f"--vary {spec.key}={value!r}: {exc}") from None
     points = []
-    with progress(len(scenarios), "analyzing", "points") as advance:
-        for point in scenarios:
-            points.append(run_analysis(point, theta0=theta0, friction=friction))
-            advance(1)
+    try:
+        with progress(len(scenarios), "analyzing", "points") as advance:
+            for point in scenarios:
+                points.append(run_analysis(point, theta0=theta0, friction=friction))
+                advance(1)
+    except KeyboardInterrupt:
+        raise Interrupted(f"after {len(points)} of {len(scenarios)} points of --vary "
+                          f"{spec.key}; nothing written (analyze prints and draws only at the "
+                          "end: use fewer values)") from None
     if plot_path is not None:
         from esoarm.studies.frequency.plots import figure_vary
 
@@ -157,8 +195,33 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
             {"value": v, **p.to_dict()} for v, p in zip(spec.values, points, strict=True)]}))
         return
     _print_vary(spec.key, spec.values, points)
+    for line in sorted({line for p in scenarios for line in left_out_notes(p)}):
+        click.echo(line)
     if plot_path is not None:
         click.echo(f"figure: {plot_path}")
+
+
+def left_out_notes(scn: Any) -> list[str]:
+    """What of the scenario's rig the linear model leaves out, beyond the motor's (one line each).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario analyzed.
+
+    Returns
+    -------
+    list of str
+        Empty when the linear model holds all of it (saturation, quantization and noise
+        are left out always, as the help says).
+    """
+    out = []
+    backlash = getattr(scn.rig, "backlash_deg", 0.0)
+    if backlash > 0:
+        out.append(f"left out (nonlinear): the gear backlash rig.backlash_deg = {backlash:g}° "
+                   "(a dead zone of the two-mass drive train): the linear model takes a rigid "
+                   "gear; simulate or sweep the scenario to see what the play costs")
+    return out
 
 
 def _too_many(vary: str, n: int, max_points: int) -> str:
@@ -291,37 +354,59 @@ def _print_budget(b: dict[str, Any]) -> None:
                f"{b['rms_du']:.4g} N·m, RMS error {b['rms_error']:.3g} rad")
 
 
-def _recommend(scn: Any, target_bw: float | None) -> list[dict[str, Any]] | None:
+def _not_modelled(scn: Any) -> str | None:
+    """Why the recommendation cannot be made for this scenario, or None."""
+    from esoarm.kinds import can
+
+    if not can(scn, "RIG"):  # what the plant kind declares
+        return (f"the recommendation models the lever arm only (plant.kind = "
+                f"'{scn.plant.kind}')")
+    if getattr(scn, "motor", None) is not None:
+        return ("the recommendation does not model a [motor] table (its back-EMF and the host's "
+                "compensation change the observer's input); ask it of the same scenario without "
+                "[motor] (a TOML file without the table), whose torque loop it describes")
+    return None
+
+
+Recs = tuple[list[dict[str, Any]] | None, str | None]
+
+
+def _recommend(scn: Any, target_bw: float | None) -> Recs:
     if target_bw is None:
-        return None
+        return None, None
     from esoarm.studies.frequency.noise import recommend_eps
 
-    if scn.plant.kind != "lever-arm" or getattr(scn, "motor", None) is not None:
-        return []
-    return [{"kind": r.kind, "eps": r.eps, "bandwidth": r.bandwidth,
+    blocked = _not_modelled(scn)
+    if blocked:
+        return [], blocked
+    why: list[str] = []
+    recs = [{"kind": r.kind, "eps": r.eps, "bandwidth": r.bandwidth,
              "disturbance_peak": r.disturbance_peak, **r.budget.to_dict()}
-            for r in recommend_eps(scn, target_bw)]
+            for r in recommend_eps(scn, target_bw, why=why)]
+    return recs, "; ".join(why) or None
 
 
-def _recommend_tracking(scn: Any, target_bw: float | None) -> list[dict[str, Any]] | None:
+def _recommend_tracking(scn: Any, target_bw: float | None) -> Recs:
     if target_bw is None:
-        return None
+        return None, None
     from esoarm.studies.frequency.sweep_check import match_tracking
 
-    if scn.plant.kind != "lever-arm" or getattr(scn, "motor", None) is not None:
-        return []
+    blocked = _not_modelled(scn)
+    if blocked:
+        return [], blocked
     try:
         bound, matches = match_tracking(scn, target_bw)
-    except ValueError:
-        return []
+    except ValueError as exc:
+        return [], str(exc)
     return [{"kind": m.kind, "eps": m.eps, "rms_error_bound": bound,
              "rms_error": m.measured.rms_error, "rms_du_measured": m.measured.rms_du,
-             "rms_du": m.budget_du} for m in matches]
+             "rms_du": m.budget_du} for m in matches], None
 
 
-def _print_tracking(target_bw: float | None, recs: list[dict[str, Any]] | None) -> None:
+def _print_tracking(target_bw: float | None, recs: list[dict[str, Any]] | None,
+                    why: str | None = None) -> None:
     if not recs:
-        _print_recommendation(target_bw, recs)
+        _print_recommendation(target_bw, recs, why)
         return
     best = recs[0]
     click.echo(f"at the tracking of the linear ESO at bandwidth {target_bw:g} rad/s (RMS error "
@@ -334,12 +419,13 @@ def _print_tracking(target_bw: float | None, recs: list[dict[str, Any]] | None) 
                    f"{r['rms_du']:.3g} N·m, RMS error {r['rms_error']:.3g} rad")
 
 
-def _print_recommendation(target_bw: float | None, recs: list[dict[str, Any]] | None) -> None:
+def _print_recommendation(target_bw: float | None, recs: list[dict[str, Any]] | None,
+                          why: str | None = None) -> None:
     if recs is None:
         return
     if not recs:
-        click.echo(f"--bandwidth {target_bw:g} rad/s: no observer kind reaches it below the "
-                   "Nyquist frequency with a stable loop (or a [motor] scenario: not modelled)")
+        why = why or "no observer kind reaches it with a stable loop"
+        click.echo(f"--bandwidth {target_bw:g} rad/s: no recommendation: {why}")
         return
     best = recs[0]
     click.echo(f"for a perturbation-estimate bandwidth of {target_bw:g} rad/s: "

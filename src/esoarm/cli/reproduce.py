@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from esoarm.cli._common import (
+    Interrupted,
     RunFailure,
     bad_input_guard,
     detail,
@@ -58,13 +59,19 @@ def reproduce(out_dir: str, fmt: str, twin: str) -> None:
     # the compiled kernels with only the kinds the paper's experiments use (lever arm,
     # linear ESO, FLC, PID): a first reproduce after installation compiles less
     compile_only([kinds_of(scn) for scn in planned.values()])
+    done = [0]
     try:
-        _reproduce(out, fmt, twin, overrides, n_runs)
+        _reproduce(out, fmt, twin, overrides, n_runs, done)
+    except KeyboardInterrupt:
+        raise Interrupted(f"after {done[0]} of about {n_runs} simulated runs; nothing written "
+                          f"to {out} (its files are moved there only once all are complete)"
+                          ) from None
     finally:
         compile_only(None)
 
 
-def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int) -> None:
+def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int,
+               simulated: list[int]) -> None:
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -78,12 +85,14 @@ def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True,
                   disable=not stderr_is_tty()) as bar, \
-            (progress(n_runs, "reproduce", "runs") if not stderr_is_tty()  # logs, pipes
+            (progress(n_runs, "reproduce", "simulated runs (all twins)")
+             if not stderr_is_tty()  # logs, pipes
              else contextlib.nullcontext(lambda n: None)) as lines:
         task = bar.add_task("simulating", total=n_runs)
 
         def step(what: str) -> None:
             bar.update(task, advance=1, description=what)
+            simulated[0] += what.startswith("simulated")
             if bar.disable:  # without a terminal: a line every 10 s, each step with --verbose
                 detail(what)
                 if what.startswith("simulated"):
@@ -94,6 +103,7 @@ def _reproduce(out: Path, fmt: str, twin: str, overrides: list[str], n_runs: int
             reps = compared_twins({twin: rep}, progress=lambda key: step(f"simulated {key}"))
         except SimulationDiverged as exc:  # nothing written yet: no half-complete results
             raise RunFailure(str(exc)) from None
+        rep.n_simulated_all = simulated[0]  # the report counts what the progress counted
         bar.update(task, total=n_runs + len(figure_specs(rep)) + 4)
         section = ("twins", "Two twins: nominal and calibrated to the paper",
                    twins_section(reps))

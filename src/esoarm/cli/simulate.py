@@ -55,9 +55,9 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
     out_path = output_path(out, "--out", (".csv",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     scn = resolve_scenario(scenario, overrides)
-    from esoarm.engines.stream import STREAM_SAMPLES
+    from esoarm.engines import stream
 
-    if scn.n_samples > STREAM_SAMPLES:
+    if scn.n_samples > stream.STREAM_SAMPLES:
         _simulate_streamed(scn, out_path, plot_path, as_json)
         return
     try:
@@ -85,6 +85,7 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
                                    scn.actuator.torque_limit, units(scn))
     if saturated:
         warn_line(saturated)
+    _undriven_warning(scn, result.metrics)
     if out_path is not None:
         result.to_csv(out_path)
     if plot_path is not None:
@@ -103,6 +104,16 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str | None, plot: s
             click.echo(f"{label}: {path}")
 
 
+def _undriven_warning(scn, metrics: dict) -> None:  # type: ignore[no-untyped-def, type-arg]
+    """A run whose every command was rounded to zero torque (a too coarse PWM): say so."""
+    bits = scn.actuator.pwm_bits
+    if bits > 0 and scn.motor is None and metrics.get("max_abs_u") == 0.0:
+        step = scn.actuator.torque_limit / (2**bits - 1)
+        warn_line(f"every command was rounded to 0 N·m: actuator.pwm_bits = {bits} steps the "
+                  f"torque by {step:.3g} N·m and the controller never asked for half a step; "
+                  "the arm was not driven (raise actuator.pwm_bits, e.g. 8)")
+
+
 #: Samples kept for the figure of a streamed run (evenly spaced).
 FIGURE_ROWS = 100_000
 
@@ -118,12 +129,15 @@ def _simulate_streamed(scn, out_path, plot_path, as_json: bool) -> None:  # type
 
     from esoarm._io import atomic_path
     from esoarm.engines.simulation import SimulationDiverged
-    from esoarm.engines.stream import StreamInterrupted, stream
+    from esoarm.engines.stream import StreamInterrupted, stream, worth_compiling
 
     note(f"{scn.n_samples:,} samples: run block by block (memory stays flat), the "
          "metrics accumulated as it goes" + (f", the rows streamed to {out_path}"
                                              if out_path is not None else ""))
-    state = {"rows": 0, "started": False}
+    from esoarm.kinds import kinds_of
+
+    compiled = worth_compiling(scn) is None and kinds_of(scn).jit
+    state = {"rows": 0, "started": not compiled}
     slow = threading.Timer(3.0, lambda: None if state["started"] else note(
         "preparing the compiled engine for long runs (the first time only, about a "
         "minute; cached for the next runs)"))
@@ -156,11 +170,16 @@ def _simulate_streamed(scn, out_path, plot_path, as_json: bool) -> None:  # type
             slow.start()
             try:
                 run = stream(scn, sink=sink if fh is not None else None, progress=step,
-                             figure_rows=FIGURE_ROWS if plot_path is not None else 0)
+                             figure_rows=FIGURE_ROWS if plot_path is not None else 0,
+                             compiled=worth_compiling(scn))
             except (StreamInterrupted, SimulationDiverged) as exc:
                 failure = exc
                 if isinstance(exc, SimulationDiverged) and fh is not None:
                     sink(exc.result)
+            except KeyboardInterrupt:  # a second Ctrl-C, within a block: --out is dropped
+                raise Interrupted("stopped at once (a second Ctrl-C); nothing written (one "
+                                  "Ctrl-C stops at the end of a block and keeps the rows "
+                                  "run)") from None
             finally:
                 slow.cancel()
     if isinstance(failure, StreamInterrupted):
@@ -180,6 +199,7 @@ def _simulate_streamed(scn, out_path, plot_path, as_json: bool) -> None:  # type
                                    scn.actuator.torque_limit, units(scn))
     if saturated:
         warn_line(saturated)
+    _undriven_warning(scn, run.metrics)
     if plot_path is not None and run.series is not None:
         run.series.plot(plot_path)
     if as_json:

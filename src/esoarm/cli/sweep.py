@@ -412,18 +412,19 @@ def _print_sweep(result: Any, diverged: int) -> None:
               help="Threads (cores) [default: all].")
 @click.option("--out", "out", metavar="FILE.csv",
               help="Write every candidate scored: its values, mean metrics, objective.")
-@click.option("--plot", "plot", default="tune-pareto.png", show_default=True, metavar="FILE.png",
-              help="The trade-off figure: RMS error [rad or m] against RMS control [N·m or N] "
-              "of every "
-              "candidate, the Pareto front, the optimum (.png, .pdf or .svg).")
-@click.option("--no-plot", "no_plot", is_flag=True, help="Do not write the figure.")
+@click.option("--plot", "plot", default=None, metavar="FILE.png",
+              help="Write the trade-off figure: RMS error [rad or m] against RMS control [N·m "
+              "or N] of every candidate, the Pareto front, the optimum (.png, .pdf or .svg). "
+              "Without it no figure is written.")
+@click.option("--no-plot", "no_plot", is_flag=True,
+              help="No figure (the default; kept for scripts that pass it).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print a JSON object: best values, their metrics, the baseline, runs, seconds.")
 @bad_input_guard
 def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
          objective: str | None, weight: float | None, seeds: int, robust: tuple[str, ...],
          samples: int, seed: int, maxiter: int, popsize: int, engine: str, workers: int | None,
-         out: str | None, plot: str, no_plot: bool, as_json: bool) -> None:
+         out: str | None, plot: str | None, no_plot: bool, as_json: bool) -> None:
     """Tune keys of SCENARIO to minimize an objective (SciPy differential evolution).
 
     Each candidate is scored on K noise seeds (and M sampled rig variants with
@@ -446,7 +447,10 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     from esoarm.studies.sweeps.tune import tune as run_tune
 
     out_path = output_path(out, "--out", (".csv",))
-    plot_path = None if no_plot else output_path(plot, "--plot", PLOT_SUFFIXES)
+    if no_plot and plot is not None:
+        raise BadInput(f"--plot {plot} with --no-plot: give one (--plot FILE writes the figure, "
+                       "without it none is written)")
+    plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     for value, option in ((seeds, "--seeds"), (samples, "--samples"), (maxiter, "--maxiter"),
                           (popsize, "--popsize")):
         _positive(value, option)

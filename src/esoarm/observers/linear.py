@@ -106,7 +106,7 @@ DISCRETIZATIONS: tuple[str, ...] = ("euler", "zoh", "current")
 TUNINGS: tuple[str, ...] = ("bandwidth", "half-gain")
 DELAY_FORMS: tuple[str, ...] = ("input", "predictor")
 #: the largest ``input_delay`` [samples]
-MAX_INPUT_DELAY = 50
+MAX_INPUT_DELAY = 200
 
 # Layout of the packed observer vector (see ESODesign.vector).
 DISC, TS, B0, BETA1, BETA2, BETA3 = 0, 1, 2, 3, 4, 5

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from esoarm import kinds as _kinds
-from esoarm._limits import MAX_SAMPLES
+from esoarm._limits import COMPILED_STREAM_SAMPLES, MAX_SAMPLES
 from esoarm._schema import PER_JOINT_KEYS
 from esoarm.plants.backlash import contact_frequency, step_limit
 from esoarm.plants.noise import check_noise
@@ -212,7 +212,36 @@ def scenario_warnings(scn: Scenario) -> list[str]:
     >>> scenario_warnings(load_scenario("test-1"))
     []
     """
-    return [*_kinds.observer_warnings(scn), *timing_warnings(scn), *angle_key_warnings(scn)]
+    return [*_kinds.observer_warnings(scn), *timing_warnings(scn), *angle_key_warnings(scn),
+            *actuator_warnings(scn)]
+
+
+#: Coarsest PWM drive without a warning: below this many bits the torque's steps are so
+#: coarse (≥ torque_limit/7) that a small command is rounded to nothing.
+MIN_QUIET_PWM_BITS = 4
+
+
+def actuator_warnings(scn: Scenario) -> list[str]:
+    """A PWM drive so coarse that small commands are rounded to zero torque.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    list of str
+        One message when ``actuator.pwm_bits`` is 1 … :data:`MIN_QUIET_PWM_BITS` − 1.
+    """
+    bits = scn.actuator.pwm_bits
+    if not 0 < bits < MIN_QUIET_PWM_BITS or scn.motor is not None:
+        return []
+    limit = scn.actuator.torque_limit
+    step = limit / (2**bits - 1)
+    return [f"actuator.pwm_bits = {bits}: the torque steps by torque_limit/(2^{bits} − 1) = "
+            f"{step:.3g} N·m, so a command below {step / 2:.3g} N·m is rounded to 0 and the arm "
+            "gets no torque at all (Arduino analogWrite has 8 bits)"]
 
 
 def angle_key_warnings(scn: Scenario) -> list[str]:
@@ -296,12 +325,14 @@ def timing_warnings(scn: Scenario) -> list[str]:
                        "the loop sees an aliased reference")
     steps = n * scn.substeps
     if scn.substeps > 10_000 or steps > 100_000_000:
-        hours = steps * 40e-6 / 3600  # ~40 µs a step on the reference engine
+        # ~40 µs a step on the reference engine; a long run of compiled kinds is streamed
+        # through the compiled engine (COMPILED_STREAM_SAMPLES): ~0.5-1 µs a step, measured
+        compiled = n > COMPILED_STREAM_SAMPLES and _kinds.kinds_of(scn).jit
+        hours = steps * (1e-6 if compiled else 40e-6) / 3600
         if scn.substeps > 20:
             fix = f"a step of about Ts/20 = {ts / 20:g} s is usually enough"
         else:  # the step is already coarse: the run itself is long
-            fix = ("shorten duration, or get its metrics from the compiled engine: "
-                   f"esoarm sweep SCENARIO --vary duration={scn.duration:g}")
+            fix = "shorten duration"
         out.append(f"rig.step = {scn.rig.step:g} s is {scn.substeps:,} RK4 steps per sample, "
                    f"{steps:,} for the run: that takes about {hours:,.1f} h in esoarm simulate; "
                    f"{fix}")

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any, Literal, TypeAlias
 from pydantic import BaseModel, Field, ValidationError
 
 from esoarm import kinds as _kinds
+from esoarm._limits import MAX_BACKLASH_DEG
 from esoarm._schema import PER_JOINT_KEYS
 from esoarm._schema import Section as _Section
 from esoarm._schema import unit as _unit
@@ -89,9 +90,10 @@ class Rig(_Section):
         json_schema_extra=_unit("rad/s"),
     )
     backlash_deg: float = Field(
-        0.0, ge=0, description="total play 2α of the gear between motor and arm, a two-mass "
-        "dead-zone model (0: rigid gear); plausible 0.5 … 3 for small spur/planetary "
-        "gearmotors, < 0.25 for precision gearheads (docs/noise-model.md)",
+        0.0, ge=0, le=MAX_BACKLASH_DEG, description="total play 2α of the gear between motor "
+        "and arm, a two-mass dead-zone model (0: rigid gear); plausible 0.5 … 3 for small "
+        "spur/planetary gearmotors, < 0.25 for precision gearheads, a few degrees for a worn "
+        f"toy gear train; at most {MAX_BACKLASH_DEG:g} (docs/noise-model.md)",
         json_schema_extra=_unit("deg"),
     )
     motor_inertia: float = Field(
@@ -519,6 +521,9 @@ def _check_key(key: str, source: str) -> None:
         shown = ", ".join(inside[:6]) + (", ..." if len(inside) > 6 else "")
         raise ScenarioError(f"{source}: key '{key}' is a table; set its keys one at a time "
                             f"({shown})")
+    section, _, name = key.partition(".")
+    if section in KIND_SECTIONS and name and "." not in name:
+        return  # a kind's key: judged once the kind in force is known (validation)
     close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
     hint = f"; did you mean '{close[0]}'?" if close else ""
     raise ScenarioError(f"{source}: unknown key '{key}'{hint}")
@@ -579,6 +584,13 @@ def _format_validation_error(exc: ValidationError, source: str,
             model = tags[tag_in_loc[0]]
             return (f"{source}: key '{key}' does not apply to {section} kind "
                     f"'{tag_in_loc[0]}' (its keys: {', '.join(model.model_fields)}){tail}")
+        if tag_in_loc:  # suggest only the keys of the kind in force
+            model = tags[tag_in_loc[0]]
+            own = list(model.model_fields)
+            close = difflib.get_close_matches(key.rsplit(".", 1)[-1], own, n=1, cutoff=0.5)
+            hint = (f"; did you mean '{section}.{close[0]}'?" if close
+                    else f"; {section} kind '{tag_in_loc[0]}' has the keys {', '.join(own)}")
+            return f"{source}: unknown key '{key}'{hint}{tail}"
         close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
         hint = f"; did you mean '{close[0]}'?" if close else ""
         return f"{source}: unknown key '{key}'{hint}{tail}"

@@ -51,6 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm._limits import STREAM_SAMPLES
 from esoarm.controllers import flc as _ctl
 from esoarm.engines import packing as _packing
 from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache, _chunked_metrics, _renumbered
@@ -422,6 +423,13 @@ def run_metrics(
             raise ValueError(
                 f"scenario '{scn.name}' has {why}, which the fast engine does not model; "
                 "use the exact engine (--engine exact)")
+    if any(scn.n_samples > STREAM_SAMPLES for scn in points):
+        # a run this long keeps its whole log in the kernel's memory; the exact engine
+        # streams it block by block (esoarm.engines.stream), in constant memory
+        from esoarm.engines import batch as _batch
+
+        return _batch.run_metrics(points, seeds, workers=workers, chunk=chunk,
+                                  progress=progress, _noise_cache=_noise_cache)
     try:
         lib = load_kernel()
     except FastEngineUnavailable as exc:

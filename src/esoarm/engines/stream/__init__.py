@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from esoarm import _limits
 from esoarm.engines.metrics import ERR, METRICS, NROW, OM, SAT, Z2, Z3, F, U, combine_joints
 from esoarm.engines.sample import Sampling
 from esoarm.engines.stream.block import stream_block
@@ -42,7 +43,7 @@ from esoarm.result import SimResult
 from esoarm.scenario import Scenario
 
 __all__ = ["BLOCK", "PYTHON_BLOCK", "STREAM_SAMPLES", "StreamInterrupted", "StreamedRun",
-           "stream", "stream_block"]
+           "stream", "stream_block", "streamed_metrics", "worth_compiling"]
 
 #: Samples per block when the block runs compiled (~0.1 s at 1-2 µs per sample).
 BLOCK = 1 << 16
@@ -51,7 +52,7 @@ BLOCK = 1 << 16
 PYTHON_BLOCK = 1 << 12
 #: ``esoarm simulate`` streams runs of more samples than this (memory: the reference engine
 #: keeps ~200 bytes per sample; time: the compiled blocks are ~50 times quicker).
-STREAM_SAMPLES = 500_000
+STREAM_SAMPLES = _limits.STREAM_SAMPLES
 
 
 # ---------------------------------------------------------------------------
@@ -217,7 +218,8 @@ def _compiled_runner(inp: Any) -> Callable[..., int] | None:
 
 
 class _SigintFlag:
-    """Ctrl-C sets a flag (checked between blocks) instead of raising mid-block."""
+    """Ctrl-C sets a flag (checked between blocks) instead of raising mid-block; a second
+    Ctrl-C raises KeyboardInterrupt at once."""
 
     def __init__(self) -> None:
         self.hit = False
@@ -229,6 +231,8 @@ class _SigintFlag:
         return self
 
     def _set(self, signum: int, frame: Any) -> None:
+        if self.hit:  # a second Ctrl-C: at once (a block being compiled takes a minute)
+            raise KeyboardInterrupt
         self.hit = True
 
     def __exit__(self, *exc: object) -> None:
@@ -268,7 +272,7 @@ def stream(scn: Scenario, *, sink: Callable[[SimResult], None] | None = None,
     ------
     esoarm.engines.simulation.SimulationDiverged
         The state left the finite range; its ``result`` holds the rows of the last block
-        (the earlier ones went to ``sink``).
+        (the earlier ones went to ``sink``), its ``metrics`` those of the whole run.
     StreamInterrupted
         Ctrl-C: the run stopped at the end of a block; every row up to it went to ``sink``.
     """
@@ -324,8 +328,10 @@ def stream(scn: Scenario, *, sink: Callable[[SimResult], None] | None = None,
             sums.add(log[:, off: off + done])
             if rows < 0:
                 kd = k0 + done - 1
-                raise SimulationDiverged(diverged_message(scn.name, kd * inp.ts, kd, part),
+                exc = SimulationDiverged(diverged_message(scn.name, kd * inp.ts, kd, part),
                                          part)
+                exc.metrics = sums.metrics(True)[0]  # type: ignore[attr-defined]
+                raise exc
             if sink is not None:
                 sink(part)
             if stride:
@@ -351,3 +357,43 @@ def _joint_names(scn: Scenario, nj: int) -> tuple[str, ...]:
     from esoarm.result import _joint_names as names
 
     return names(scn, nj) if nj > 1 else ()
+
+
+def streamed_metrics(scn: Scenario) -> dict[str, float]:
+    """:data:`~esoarm.engines.metrics.METRICS` of one run, streamed (a diverged run does not
+    raise: its metrics up to the divergence, ``diverged`` = 1).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    dict of str to float
+        The run's metrics.
+    """
+    from esoarm.engines.simulation import SimulationDiverged
+
+    try:
+        return stream(scn, compiled=worth_compiling(scn)).metrics
+    except SimulationDiverged as exc:
+        return dict(exc.metrics)  # type: ignore[attr-defined]
+
+
+def worth_compiling(scn: Scenario) -> bool | None:
+    """None (compiled where the kinds allow it) for a run of more than
+    :data:`esoarm._limits.COMPILED_STREAM_SAMPLES` samples, else False (plain Python: compiling
+    the block the first time would take longer than the run).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    bool or None
+        The ``compiled`` argument of :func:`stream`.
+    """
+    return None if scn.n_samples > _limits.COMPILED_STREAM_SAMPLES else False

@@ -273,13 +273,21 @@ class Recommendation:
     disturbance_peak: float
 
 
+#: The ε range :func:`recommend_eps` searches [s]: from 0.55·Ts (the Euler ESO's
+#: stability edge is near Ts/2) up to this.
+RECOMMEND_EPS_MAX = 5.0
+
+
 def recommend_eps(scn: Scenario, bandwidth: float,
-                  kinds: tuple[str, ...] = ("linear", "cascade")) -> list[Recommendation]:
+                  kinds: tuple[str, ...] = ("linear", "cascade"),
+                  why: list[str] | None = None) -> list[Recommendation]:
     """For each observer kind, the ε whose f → ẑ3 bandwidth is ``bandwidth`` [rad/s].
 
     Sorted by the noise-driven RMS Δu of the budget (the first is the recommendation:
     the least control chatter at that disturbance-rejection bandwidth).  A kind that
-    cannot reach the bandwidth below the Nyquist frequency (or stay stable) is left out.
+    cannot reach the bandwidth with ε in [0.55·Ts, :data:`RECOMMEND_EPS_MAX`] (or stay
+    stable there) is left out; ``why``, if given, receives one phrase per kind left out,
+    with the bandwidths it does reach.
 
     Parameters
     ----------
@@ -289,6 +297,8 @@ def recommend_eps(scn: Scenario, bandwidth: float,
         The f → ẑ3 bandwidth wanted [rad/s].
     kinds : tuple of str
         The observer kinds to try.
+    why : list of str, optional
+        Receives one phrase per kind left out, with the bandwidths it does reach.
 
     Returns
     -------
@@ -306,15 +316,29 @@ def recommend_eps(scn: Scenario, bandwidth: float,
             bw = perturbation_bandwidth(base.with_overrides({"observer.eps": math.exp(log_eps)}))
             return (bw if math.isfinite(bw) else math.pi / ts) - bandwidth
 
-        lo, hi = math.log(0.55 * ts), math.log(5.0)
+        lo, hi = math.log(0.55 * ts), math.log(RECOMMEND_EPS_MAX)
         try:
-            if gap(lo) < 0 or gap(hi) > 0:
+            g_lo, g_hi = gap(lo), gap(hi)
+            if g_lo < 0:
+                if why is not None:
+                    why.append(f"{kind}: at most {g_lo + bandwidth:.3g} rad/s (at the smallest "
+                               f"ε = 0.55·Ts = {0.55 * ts:.3g} s; Ts = {ts:g} s: raise "
+                               "sensor.rate_hz or ask for less)")
+                continue
+            if g_hi > 0:
+                if why is not None:
+                    why.append(f"{kind}: at least {g_hi + bandwidth:.3g} rad/s (at the largest "
+                               f"ε searched, {RECOMMEND_EPS_MAX:g} s: ask for more)")
                 continue
             eps = math.exp(brentq(gap, lo, hi, xtol=1e-6))
-        except (ValueError, np.linalg.LinAlgError):
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            if why is not None:
+                why.append(f"{kind}: the bandwidth could not be computed ({exc})")
             continue
         point = base.with_overrides({"observer.eps": eps})
         b = noise_budget(point)
+        if not b.stable and why is not None:
+            why.append(f"{kind}: reaches it at ε = {eps:.4g} s, but the loop is unstable there")
         if b.stable:
             from esoarm.studies.frequency.margins import analyze
 

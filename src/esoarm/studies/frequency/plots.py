@@ -34,6 +34,11 @@ def _nyquist(ax: Any, wn: float) -> None:
     ax.axvline(wn, color="0.5", linestyle=":", linewidth=1.0)
 
 
+#: The box behind a margin's label (readable over grid lines and curves).
+_LABEL_BOX = {"facecolor": "white", "edgecolor": "0.8", "boxstyle": "round,pad=0.3",
+              "alpha": 0.9}
+
+
 def _draw(axes: Any, a: FrequencyAnalysis, color: str, label: str, marks: bool) -> None:
     c = a.curves
     keep = slice(0, -1)  # drop ω = π/Ts itself, where the phase of a real L is ambiguous
@@ -57,18 +62,22 @@ def _draw(axes: Any, a: FrequencyAnalysis, color: str, label: str, marks: bool) 
         if math.isfinite(a.gain_crossover):
             ax_m.plot([a.gain_crossover], [0.0], "o", color=color)
             ax_p.plot([a.gain_crossover], [-180.0 + a.phase_margin], "o", color=color)
-            ax_p.annotate(f"PM {a.phase_margin:.1f}°\nDM {a.delay_margin * 1e3:.1f} ms",
-                          (a.gain_crossover, -180.0 + a.phase_margin),
-                          textcoords="offset points", xytext=(8, 8), fontsize=8)
+            # the margins' labels in the axes' lower-left corner (inside the axes, on a white
+            # box: a label beside the marker ran off the axes when the marker sat at an edge)
+            ax_p.text(0.02, 0.03, f"● PM {a.phase_margin:.1f}° at {a.gain_crossover:.3g} "
+                      f"rad/s\nDM {a.delay_margin * 1e3:.1f} ms", transform=ax_p.transAxes,
+                      fontsize=8, ha="left", va="bottom", color=color, bbox=_LABEL_BOX)
         if math.isfinite(a.gain_margin) and math.isfinite(a.phase_crossover):
             ax_m.plot([a.phase_crossover], [-20.0 * math.log10(a.gain_margin)], "s",
                       color=color)
-            ax_m.annotate(f"GM {a.gain_margin:.2f} ({20 * math.log10(a.gain_margin):.1f} dB)",
-                          (a.phase_crossover, -20.0 * math.log10(a.gain_margin)),
-                          textcoords="offset points", xytext=(8, -14), fontsize=8)
+            ax_m.text(0.02, 0.03, f"■ GM {a.gain_margin:.2f} "
+                      f"({20 * math.log10(a.gain_margin):.1f} dB) at {a.phase_crossover:.3g} "
+                      "rad/s", transform=ax_m.transAxes, fontsize=8, ha="left", va="bottom",
+                      color=color, bbox=_LABEL_BOX)
         ax_s.plot([a.ms_frequency], [20 * math.log10(a.ms)], "v", color=color)
-        ax_s.annotate(f"Ms {a.ms:.2f}", (a.ms_frequency, 20 * math.log10(a.ms)),
-                      textcoords="offset points", xytext=(6, 4), fontsize=8)
+        ax_s.text(0.02, 0.03, f"▼ Ms {a.ms:.2f} at {a.ms_frequency:.3g} rad/s",
+                  transform=ax_s.transAxes, fontsize=8, ha="left", va="bottom", color=color,
+                  bbox=_LABEL_BOX)
 
 
 def _finish_axes(axes: Any, wn: float) -> None:

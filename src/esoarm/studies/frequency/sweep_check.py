@@ -228,9 +228,11 @@ def match_tracking(scn: Scenario, bandwidth: float,
     """
     from esoarm.studies.frequency.noise import noise_budget
 
-    linear = [r for r in recommend_eps(scn, bandwidth, ("linear",))]
+    why: list[str] = []
+    linear = [r for r in recommend_eps(scn, bandwidth, ("linear",), why)]
     if not linear:
-        raise ValueError(f"bandwidth {bandwidth:g} rad/s: not reached by the linear ESO")
+        raise ValueError(f"bandwidth {bandwidth:g} rad/s: not reached by the linear ESO"
+                         + (f" ({why[0].partition(': ')[2]})" if why else ""))
     eps_lin = linear[0].eps
     others = [k for k in kinds if k != "linear"]
     cells = [("linear", eps_lin)] + [(k, eps_lin * f) for k in others for f in MATCH_FACTORS]

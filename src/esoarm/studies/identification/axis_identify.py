@@ -80,10 +80,16 @@ def physical_names(motion: str, names: tuple[str, ...]) -> list[str]:
     return [("inertia" if n == "mass" and motion == "rotary" else n) for n in names]
 
 
-def unit_of(motion: str, name: str) -> str:
-    """The SI unit of a physical parameter (a direction's friction has its friction's)."""
-    u = units(motion)
-    return u[name.removesuffix("_pos").removesuffix("_neg")]
+def unit_of(motion: str, name: str, input_unit: str = "") -> str:
+    """The SI unit of a physical parameter (a direction's friction has its friction's); with
+    ``input_unit`` (the logged u in, e.g., V instead of N or N·m) the units that follow from
+    it: inertia V·s²/rad, mass V·s²/m, viscous friction V·s/rad, friction and offset V."""
+    key = name.removesuffix("_pos").removesuffix("_neg")
+    if input_unit:
+        per = "rad" if motion == "rotary" else "m"
+        return {"mass": f"{input_unit}·s²/{per}", "inertia": f"{input_unit}·s²/{per}",
+                "viscous_friction": f"{input_unit}·s/{per}"}.get(key, input_unit)
+    return units(motion)[key]
 
 
 #: What the JSON says of the Coulomb friction's asymmetry.
@@ -207,17 +213,33 @@ def _agree(idim: IdimResult, oe: OeResult, i: int, factor: float = 1.0) -> bool:
     return bool(abs(float(idim.values[j]) - float(oe.values[i])) <= factor * half)
 
 
-def _halves(logs: list[IdentLog]) -> tuple[list[tuple[np.ndarray, np.ndarray]], ...]:
+def _halves(logs: list[IdentLog], ts: float,
+            cutoff_hz: float) -> tuple[list[tuple[np.ndarray, np.ndarray]], ...]:
+    """The fitting data cut in two where half of its *motion* lies, not half of its samples.
+
+    The cut is at the sample where the cumulative Σ q̇² (the filtered velocity squared, the
+    information a stretch carries about inertia and friction) reaches half its total, so that
+    a step followed by rest is compared over the step: the rest carries no information, and
+    a half made only of it would make the halves "disagree" about nothing.  Each half keeps at
+    least a quarter of the samples (the filters' borders)."""
+    from esoarm.studies.identification.idim import filtered_derivatives
+
     first, second = [], []
     for log in logs:
+        _q, dq, _ddq = filtered_derivatives(log.y, ts, cutoff_hz)
+        energy = np.cumsum(dq * dq)
         mid = log.n // 2
+        if energy[-1] > 0:
+            mid = int(np.searchsorted(energy, 0.5 * energy[-1]))
+        mid = min(max(mid, log.n // 4), log.n - log.n // 4)
         first.append((log.y[:mid], log.u[:mid]))
         second.append((log.y[mid:], log.u[mid:]))
     return first, second
 
 
 def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog],
-                  segment: float = 2.0, validate_fraction: float = 0.25) -> AxisIdentResult:
+                  segment: float = 2.0, validate_fraction: float = 0.25,
+                  cutoff: float | None = None) -> AxisIdentResult:
     """Identify the axis of ``scn`` from ``logs`` (see the module docstring).
 
     Raises
@@ -230,9 +252,9 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
     ts = logs[0].ts
     for log in [*logs, *validation]:
         if abs(log.ts - scn.sample_time) > 1e-9 * scn.sample_time:
-            raise ScenarioError(f"log '{log.path}': sampled every {log.ts:g} s but "
-                                f"sensor.rate_hz = {scn.sensor.rate_hz:g}; use --set "
-                                f"sensor.rate_hz={1.0 / log.ts:g}")
+            from esoarm.studies.identification.identify import rate_mismatch
+
+            raise ScenarioError(rate_mismatch(log.path, log.ts, scn.sensor.rate_hz))
         if np.isnan(log.y).any():
             raise ScenarioError(f"log '{log.path}': lost samples (y = nan); IDIM-LS needs "
                                 "every sample (fill or cut them)")
@@ -246,7 +268,7 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
     gravity = p.motion == "rotary" and p.gravity != 0.0
     motion = p.motion
     parts = [(lg.y, lg.u) for lg in logs]
-    est = idim_ls(parts, ts, gravity=gravity)
+    est = idim_ls(parts, ts, cutoff, gravity=gravity)  # cutoff None: the input's band
     # the viscous friction split by direction, kept when the data support it (Wald, HAC)
     asymmetry: dict = {}
     split = idim_ls(parts, ts, est.cutoff_hz, gravity, asymmetric=True)
@@ -263,7 +285,7 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
             est = split
     names = physical_names(motion, est.names)
     halves = tuple(idim_ls(h, ts, est.cutoff_hz, gravity, est.asymmetric)
-                   for h in _halves(logs))
+                   for h in _halves(logs, ts, est.cutoff_hz))
     h1, h2 = halves
     for i, name in enumerate(names):
         if name in ("offset", "gravity"):
@@ -272,8 +294,9 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
         half = 1.96 * math.hypot(float(h1.se_hac[i]), float(h2.se_hac[i]))
         if gap > half:
             raise AxisFitRefused(
-                f"the estimate is not consistent: {name} is {h1.values[i]:.5g} "
-                f"{unit_of(motion, name)} on the first half of the fitting data and "
+                f"the halves disagree (IDIM-LS), the estimate is not consistent: {name} is "
+                f"{h1.values[i]:.5g} "
+                f"{unit_of(motion, name)} on the first half of the fitting data's motion and "
                 f"{h2.values[i]:.5g} on the second (apart by {gap:.3g}, more than their "
                 f"combined 95 % half-width {half:.3g}): the axis changed during the log, or "
                 "the model does not describe it")

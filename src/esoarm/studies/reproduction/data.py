@@ -174,7 +174,10 @@ class Reproduction:
         The tables, the paper's claims checked, Theorem 1 and 2 checks, and what
         the discretization comparison means for choosing ε (sentences).
     n_simulated : int
-        Runs simulated (identical scenarios run once).
+        Runs simulated for this set (identical scenarios run once).
+    n_simulated_all : int
+        Runs the whole command simulated, the other twins and the noise scan compared
+        included (0: not counted; ``esoarm reproduce`` sets it, as its progress counts).
     """
 
     scenarios: dict[str, Scenario]
@@ -189,6 +192,20 @@ class Reproduction:
     findings: list[str] = field(default_factory=list)
     baselines: dict[str, SimResult] = field(default_factory=dict)
     n_simulated: int = 0
+    n_simulated_all: int = 0
+
+    def runs_text(self) -> str:
+        """"N simulated runs", with the command's total when it ran more (the twins compared).
+
+        Returns
+        -------
+        str
+        """
+        text = f"{self.n_simulated} simulated runs"
+        if self.n_simulated_all > self.n_simulated:
+            text += (f" for these tables and claims ({self.n_simulated_all} in all, with the "
+                     "other twins and the noise scan compared)")
+        return text
 
     def metric(self, test: str, eps: float, key: str, compensation: str = "eso") -> float:
         """One metric of one experiment.

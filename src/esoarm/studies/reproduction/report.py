@@ -381,7 +381,7 @@ def _assumptions_section(rep: Reproduction) -> str:
 
 def _scenarios_section(rep: Reproduction) -> str:
     parts = [f"<p>esoarm {_e(__version__)}, Python {_e(platform.python_version())}, "
-             f"{rep.n_simulated} simulated runs. The paper's set below; the discretization "
+             f"{rep.runs_text()}. The paper's set below; the discretization "
              "comparison and the ε sweep use the same scenarios with "
              "<code>observer.discretization</code> and <code>observer.eps</code> changed. "
              "Run one again with <code>esoarm simulate test-1 --set observer.eps=0.05</code> "
@@ -442,7 +442,7 @@ def render_report(rep: Reproduction, pngs: Mapping[str, bytes],
         "</h1>"
         f'<p class="meta">esoarm {_e(__version__)} · paper\'s experiment set '
         f"(test-1 and test-2 at ε = 0.05, 0.09, 0.2 s, and the Fig. 7 ablation) · "
-        f"{rep.n_simulated} simulated runs</p>"
+        f"{rep.runs_text()}</p>"
         f'<p class="summary">{n_ok} of {len(rep.claims)} of the paper\'s qualitative claims '
         "are reproduced on the twin. The twin's numbers are not the paper's hardware numbers; "
         "see the assumptions below.</p>"
