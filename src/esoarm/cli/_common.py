@@ -512,7 +512,19 @@ SETTLE_SECONDS = 3.0
 
 def settled(fraction: float, seconds: float) -> bool:
     """Whether a time-left estimate made after ``fraction`` of the work, ``seconds`` [s]
-    after it started, is worth showing (:data:`SETTLE_FRACTION`, :data:`SETTLE_SECONDS`)."""
+    after it started, is worth showing (:data:`SETTLE_FRACTION`, :data:`SETTLE_SECONDS`).
+
+    Parameters
+    ----------
+    fraction : float
+        The share of the work done, 0 … 1.
+    seconds : float
+        Time since the work started [s].
+
+    Returns
+    -------
+    bool
+    """
     return fraction >= SETTLE_FRACTION and seconds >= SETTLE_SECONDS
 
 

@@ -118,7 +118,18 @@ def c_source(module: Kind | ModuleType) -> str | None:
 
 
 def scenario_hash(scn: Scenario) -> str:
-    """First 16 hex digits of the SHA-256 of the resolved scenario's JSON."""
+    """First 16 hex digits of the SHA-256 of the resolved scenario's JSON.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario (with its overrides).
+
+    Returns
+    -------
+    str
+        16 lower-case hex digits; the same for the same resolved scenario.
+    """
     return hashlib.sha256(scn.model_dump_json().encode()).hexdigest()[:16]
 
 
@@ -374,7 +385,23 @@ _PREFIX = re.compile(r"[a-z][a-z0-9_]{0,23}")
 
 
 def check_prefix(prefix: str) -> str:
-    """``prefix`` if it is a lower-case C identifier of at most 24 characters."""
+    """``prefix`` if it is a lower-case C identifier of at most 24 characters.
+
+    Parameters
+    ----------
+    prefix : str
+        The prefix of the generated C names (``--prefix``).
+
+    Returns
+    -------
+    str
+        ``prefix`` itself.
+
+    Raises
+    ------
+    CodegenError
+        Not such an identifier (one line naming ``--prefix``).
+    """
     if not _PREFIX.fullmatch(prefix):
         raise CodegenError(f"--prefix '{prefix}': a lower-case C identifier (a-z, 0-9, _; "
                            "starting with a letter, at most 24 characters)")
