@@ -55,6 +55,9 @@ KINDS = [
                                              "controller.compensation": "eso"}),
     ("error-based ADRC (euler; + linear ESO beside)", {"controller.kind": "adrc-error"}),
     ("ADRC TF form (euler; + linear ESO beside)", {"controller.kind": "adrc-tf"}),
+    ("linear ESO + switch PID → FLC at 2 s, back at 11 s",
+     {"controller.kind": "switch", "controller.switch_at": 2.0,
+      "controller.switch_back": 11.0}),
 ]
 #: (target, precision, compensated observer sums); avr-gcc's double is 32 bits, so the
 #: AVR has no float64 row (``codegen`` refuses it), its plain sums are listed instead.

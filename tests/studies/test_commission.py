@@ -167,3 +167,30 @@ def test_a_refusal_stops_with_what_to_change(tmp_path: Path) -> None:
     assert out["refused"]["step"] == "excite" and out["measured"] is None
     assert "Stopped at <b>excite</b>" in (work / "report.html").read_text(encoding="utf-8")
     assert not (work / "01-excite.json").exists()
+
+
+@needs_hil  # the AVR toolchain and simavr: the PIL timing and the firmware build
+def test_on_a_port_flashing_is_checked_by_the_boards_hash(tmp_path: Path) -> None:
+    """--port: the excitation through the serial link (the emulated rig in lockstep), the
+    identification, design and code; then the board on the port runs no controller of its
+    own, so the flash step stops with the make command to flash it and --resume."""
+    emu = subprocess.Popen([*ESOARM, "emulate", "uno-rig", "--lockstep"],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    work = tmp_path / "w"
+    try:
+        assert emu.stdout is not None
+        device = emu.stdout.readline().split(": ", 1)[1].strip()
+        run = subprocess.run([*ESOARM, "commission", "uno-rig", "--port", device, "--json",
+                              "--workdir", str(work), "--excite-seconds", "20"],
+                             capture_output=True, text=True, timeout=600)
+    finally:
+        emu.terminate()
+        emu.wait(10)
+    assert run.returncode == 1, run.stderr
+    out = json.loads(run.stdout)
+    assert out["refused"]["step"] == "flash"
+    assert "runs no controller of its own" in out["refused"]["reason"]
+    assert "make -C firmware upload ONBOARD=" in out["refused"]["advice"]
+    assert "--resume" in out["refused"]["advice"]
+    assert out["identified"] and out["design"] and out["codegen"] and out["measured"] is None
+    assert (work / "04-codegen" / "esoarm_controller.c").exists()

@@ -53,8 +53,8 @@ COMMANDS: dict[str, str] = {
     "log": "esoarm.cli.log:log",
     "codegen": "esoarm.cli.codegen:codegen",
     "pil": "esoarm.cli.pil:pil",
-    "flash": "esoarm.cli.flash:flash",
     "compare": "esoarm.cli.compare:compare",
+    "flash": "esoarm.cli.flash:flash",
     "commission": "esoarm.cli.commission:commission",
 }
 

@@ -490,7 +490,9 @@ def lever_only(scn: Scenario, command: str) -> None:
     BadInput
         ``scn`` is not a lever arm (exit status 2).
     """
-    if scn.plant.kind != "lever-arm":
+    from esoarm.kinds import can
+
+    if not can(scn, "RIG"):  # what the plant kind declares
         raise BadInput(f"scenario '{scn.name}': '{command}' works on the lever-arm rig (one "
                        f"joint); plant.kind '{scn.plant.kind}' runs in simulate, sweep, tune, "
                        "replay and arm-study")

@@ -76,6 +76,9 @@ def hil_cortex_m(scenario: str, overrides: tuple[str, ...], faults: tuple[str, .
         server.close()
     if server.run_started:
         _say(f"twin: {server.samples} samples served")
+    if server.host_waits:
+        _say(f"the twin waited for the host at {server.host_waits} samples (its heartbeat more "
+             "than 50 ms of samples behind: the machine is busy)")
     if server.lags:
         warn_line(f"the simulation fell more than {LAG_S * 1e3:.0f} ms behind the wall clock "
                   f"at {server.lags} samples (worst {server.worst_lag * 1e3:.0f} ms; the machine "

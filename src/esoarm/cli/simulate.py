@@ -129,12 +129,15 @@ def _simulate_streamed(scn, out_path, plot_path, as_json: bool) -> None:  # type
 
     from esoarm._io import atomic_path
     from esoarm.engines.simulation import SimulationDiverged
-    from esoarm.engines.stream import StreamInterrupted, stream
+    from esoarm.engines.stream import StreamInterrupted, stream, worth_compiling
 
     note(f"{scn.n_samples:,} samples: run block by block (memory stays flat), the "
          "metrics accumulated as it goes" + (f", the rows streamed to {out_path}"
                                              if out_path is not None else ""))
-    state = {"rows": 0, "started": False}
+    from esoarm.kinds import kinds_of
+
+    compiled = worth_compiling(scn) is None and kinds_of(scn).jit
+    state = {"rows": 0, "started": not compiled}
     slow = threading.Timer(3.0, lambda: None if state["started"] else note(
         "preparing the compiled engine for long runs (the first time only, about a "
         "minute; cached for the next runs)"))
@@ -167,7 +170,8 @@ def _simulate_streamed(scn, out_path, plot_path, as_json: bool) -> None:  # type
             slow.start()
             try:
                 run = stream(scn, sink=sink if fh is not None else None, progress=step,
-                             figure_rows=FIGURE_ROWS if plot_path is not None else 0)
+                             figure_rows=FIGURE_ROWS if plot_path is not None else 0,
+                             compiled=worth_compiling(scn))
             except (StreamInterrupted, SimulationDiverged) as exc:
                 failure = exc
                 if isinstance(exc, SimulationDiverged) and fh is not None:

@@ -66,7 +66,7 @@ import numpy as np
 
 from esoarm import __version__
 from esoarm.contract import Kind
-from esoarm.kinds import kinds_of
+from esoarm.kinds import hook, kinds_of
 from esoarm.plants.actuator import actuator_vector
 from esoarm.reference import Multisine, QuinticSteps
 
@@ -496,7 +496,7 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
         limit=repr(scn.actuator.torque_limit),
         eps=repr(eps), b0=repr(b0), k1=repr(k1), k2=repr(k2),
         k_note=("flc: alpha = accel_d - k1 (zhat2 - omega_d) - k2 (zhat1 - theta_d)"
-                if kinds.controller.KIND == "flc" else
+                if hook(kinds.controller, "FLC_LAW") else
                 f"not used by controller '{kinds.controller.KIND}': a change is refused")))
     local_real = ("" if p == "esoarm" else "#ifndef ESOARM_LOCAL_REAL\n#define ESOARM_LOCAL_REAL\n"
                   f"typedef {p}_real esoarm_real;\n#endif\n")

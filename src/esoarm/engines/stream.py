@@ -55,7 +55,7 @@ from esoarm.result import SimResult
 from esoarm.scenario import Scenario
 
 __all__ = ["BLOCK", "PYTHON_BLOCK", "STREAM_SAMPLES", "StreamInterrupted", "StreamedRun",
-           "stream", "stream_block", "streamed_metrics"]
+           "stream", "stream_block", "streamed_metrics", "worth_compiling"]
 
 #: Samples per block when the block runs compiled (~0.1 s at 1-2 µs per sample).
 BLOCK = 1 << 16
@@ -466,6 +466,24 @@ def streamed_metrics(scn: Scenario) -> dict[str, float]:
     from esoarm.engines.simulation import SimulationDiverged
 
     try:
-        return stream(scn).metrics
+        return stream(scn, compiled=worth_compiling(scn)).metrics
     except SimulationDiverged as exc:
         return dict(exc.metrics)  # type: ignore[attr-defined]
+
+
+def worth_compiling(scn: Scenario) -> bool | None:
+    """None (compiled where the kinds allow it) for a run of more than
+    :data:`esoarm._limits.COMPILED_STREAM_SAMPLES` samples, else False (plain Python: compiling
+    the block the first time would take longer than the run).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    bool or None
+        The ``compiled`` argument of :func:`stream`.
+    """
+    return None if scn.n_samples > _limits.COMPILED_STREAM_SAMPLES else False

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from esoarm import kinds as _kinds
-from esoarm._limits import MAX_SAMPLES, STREAM_SAMPLES
+from esoarm._limits import COMPILED_STREAM_SAMPLES, MAX_SAMPLES
 from esoarm._schema import PER_JOINT_KEYS
 from esoarm.plants.backlash import contact_frequency, step_limit
 from esoarm.plants.noise import check_noise
@@ -326,8 +326,8 @@ def timing_warnings(scn: Scenario) -> list[str]:
     steps = n * scn.substeps
     if scn.substeps > 10_000 or steps > 100_000_000:
         # ~40 µs a step on the reference engine; a long run of compiled kinds is streamed
-        # through the compiled engine (STREAM_SAMPLES): ~0.5-1 µs a step, measured
-        compiled = n > STREAM_SAMPLES and _kinds.kinds_of(scn).jit
+        # through the compiled engine (COMPILED_STREAM_SAMPLES): ~0.5-1 µs a step, measured
+        compiled = n > COMPILED_STREAM_SAMPLES and _kinds.kinds_of(scn).jit
         hours = steps * (1e-6 if compiled else 40e-6) / 3600
         if scn.substeps > 20:
             fix = f"a step of about Ts/20 = {ts / 20:g} s is usually enough"

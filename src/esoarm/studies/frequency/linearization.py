@@ -82,7 +82,7 @@ from scipy.linalg import expm
 from scipy.optimize import brentq
 
 from esoarm.contract import ObserverLinearization
-from esoarm.kinds import hook, kinds_of
+from esoarm.kinds import can, hook, kinds_of
 from esoarm.plants.actuator import motor_of
 from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario, ScenarioError, load_scenario
@@ -248,14 +248,15 @@ def _reduced_gains(scn: Scenario, theta0: float) -> np.ndarray:
 
 def check_supported(scn: Scenario) -> None:
     """Refuse, in one line, a scenario whose kinds this linearization does not model."""
-    if scn.plant.kind != "lever-arm":
+    if not can(scn, "RIG"):  # what the plant kind declares
         raise ScenarioError(
             f"plant.kind: the frequency-domain analysis models the lever arm (one joint), not "
             f"'{scn.plant.kind}'; simulate, sweep and tune run it")
-    if scn.controller.kind != "flc":
+    if not can(scn, "FLC_LAW"):  # what the controller kind declares
         raise ScenarioError(
-            f"controller.kind: the frequency-domain analysis models the FLC (controller.kind = "
-            f"'flc'), not '{scn.controller.kind}'; simulate, sweep and tune run it")
+            f"controller.kind: the frequency-domain analysis models the feedback-linearizing "
+            f"law of eq. 14-16 (a controller kind with FLC_LAW), not '{scn.controller.kind}'; "
+            "simulate, sweep and tune run it")
     observer_linearization(scn)  # refuses an observer kind without one
 
 

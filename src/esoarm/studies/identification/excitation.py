@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from esoarm._limits import MAX_SAMPLES
 from esoarm.controllers.flc import saturate
 from esoarm.engines.stepper import Stepper
 from esoarm.scenario import Scenario, ScenarioError
@@ -86,7 +87,10 @@ class ExcitationPlan:
         """Raise :class:`ScenarioError` (one line naming the argument) for a bad plan."""
         nyquist = 0.5 / ts
         checks = [  # (option, value, ok, allowed)
-            ("duration", self.duration, self.duration > 0, "> 0 s"),
+            ("duration", self.duration,
+             0 < self.duration and self.duration / ts <= MAX_SAMPLES,
+             f"> 0 s and at most {MAX_SAMPLES / (1 / ts):.4g} s ({MAX_SAMPLES:.0e} samples at "
+             f"{1 / ts:g} Hz)"),
             ("amplitude", self.amplitude, self.amplitude >= 0, ">= 0 N·m"),
             ("f_min", self.f_min, self.f_min > 0, "> 0 Hz"),
             ("f_max", self.f_max, self.f_min < self.f_max < nyquist,

@@ -55,6 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm._limits import MAX_SAMPLES
 from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.identification.excitation import (
     ExcitationController,
@@ -221,15 +222,17 @@ class ProbingExcitation:
 
     def __init__(self, scn: Scenario, plan: ExcitationPlan,
                  probe_s: float = PROBE_SECONDS) -> None:
-        if not (math.isfinite(probe_s) and probe_s >= 0):
-            raise ScenarioError(f"probe {probe_s:g}: must be >= 0 s")
         rate = scn.sensor.rate_hz
+        plan.check(scn.sample_time)
+        if not (math.isfinite(probe_s) and 0 <= probe_s
+                and (probe_s + plan.duration) * rate <= MAX_SAMPLES):
+            raise ScenarioError(f"probe {probe_s:g}: must be >= 0 s, and with the duration at "
+                                f"most {MAX_SAMPLES:.0e} samples at {rate:g} Hz")
         self.n_probe = int(round(probe_s * rate))
         self.window = window = motion_window(scn)
         if 0 < self.n_probe < 2 * (window + 5):
             raise ScenarioError(f"probe {probe_s:g} s: at least {2 * (window + 5) / rate:.3g} s "
                                 f"at {rate:g} Hz (or 0: no probe)")
-        plan.check(scn.sample_time)
         self.plan = plan
         self.inner = ExcitationController(scn, replace(plan, duration=plan.duration + probe_s))
         self.n_samples = self.inner.n_samples
