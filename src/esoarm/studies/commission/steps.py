@@ -543,8 +543,8 @@ class Commission:
             "excitation": r.get("excite"),
             "identified": None if not ident else {
                 "parameters": {k: {"value": v["value"], "ci95": v["ci95"], "unit": v["unit"],
-                                   "fitted": v["fitted"], **({"advice": v["advice"]}
-                                                             if v.get("advice") else {})}
+                                   "fitted": v["fitted"],
+                                   **{w: v[w] for w in ("withheld", "advice") if v.get(w)}}
                                for k, v in ident["parameters"].items()},
                 "fit_percent": ident["fit"]["fit_percent"],
                 "validation_fit_percent": ident["validation"].get("fit_percent"),
