@@ -219,3 +219,33 @@ def test_report_of_a_refused_run_with_a_withheld_interval(tmp_path: Path) -> Non
     assert "Stopped at <b>design</b>: no kind reaches it" in text and "To go on: lower it" in text
     assert "withheld" in text and "rig.stiction: the residual is not white" in text
     assert "[0.54, 0.56]" in text
+
+
+def test_a_watchdog_on_the_simulated_board_is_tried_again(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """On --hil a run a watchdog ended (a busy machine) is tried again, with a fresh
+    controller, and said; a limit is not; on a port nothing is tried again."""
+    said: list[str] = []
+    made: list[int] = []
+    outcomes = [CommissionRefused("excite", "the device reported a fault: command watchdog "
+                                  "(detail 626): stop sent, motor off", "x"), "done"]
+
+    def once(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        out = outcomes.pop(0)
+        if isinstance(out, Exception):
+            raise out
+        return out
+
+    monkeypatch.setattr(Commission, "_drive_once", once)
+    job = Commission(_opts(tmp_path), say=said.append)
+    assert job._drive(None, None, tmp_path / "l.csv", "excite", None, "advice",  # type: ignore[arg-type]
+                      controller=lambda: made.append(1)) == "done"
+    assert len(made) == 2 and "attempt 2 of 3" in said[0] and "command watchdog" in said[0]
+    outcomes[:] = [CommissionRefused("excite", "angle limit: θ = 0.06 rad", "x")]
+    with pytest.raises(CommissionRefused, match="angle limit"):
+        job._drive(None, None, tmp_path / "l.csv", "excite", None, "advice")  # type: ignore[arg-type]
+    outcomes[:] = [CommissionRefused("run", "watchdog: no sample", "x"), "done"]
+    port = Commission(CommissionOptions("uno-rig", (), tmp_path, port="/dev/null"),
+                      say=said.append)
+    with pytest.raises(CommissionRefused, match="watchdog"):
+        port._drive(None, None, tmp_path / "l.csv", "run", None, "advice")  # type: ignore[arg-type]
