@@ -194,3 +194,58 @@ def test_on_a_port_flashing_is_checked_by_the_boards_hash(tmp_path: Path) -> Non
     assert "--resume" in out["refused"]["advice"]
     assert out["identified"] and out["design"] and out["codegen"] and out["measured"] is None
     assert (work / "04-codegen" / "esoarm_controller.c").exists()
+
+
+def test_report_of_a_refused_run_with_a_withheld_interval(tmp_path: Path) -> None:
+    """The page is written for a commissioning stopped early, and says an interval the
+    identification withheld in words (its JSON has ci95 null then)."""
+    from esoarm.studies.commission.report import write_report
+
+    summary = {
+        "scenario": "uno-rig", "workdir": str(tmp_path), "rig": "simulated Uno (--hil)",
+        "steps": {"excite": {"status": "done", "file": "01-excite.json", "elapsed_s": 1.0},
+                  "identify": {"status": "done", "file": "02-identify.json", "elapsed_s": 2.0}},
+        "identified": {"parameters": {
+            "rig.stiction": {"value": 0.007, "ci95": None, "unit": "N·m", "fitted": True,
+                             "withheld": "the residual is not white"},
+            "plant.m2": {"value": 0.55, "ci95": [0.54, 0.56], "unit": "kg", "fitted": True}},
+            "fit_percent": 99.0, "validation_fit_percent": 98.0, "residual_white": False,
+            "poorly_identifiable": [], "at_bound": [], "noise": "not written",
+            "scenario": "02-fitted.toml"},
+        "design": None, "predicted": None, "measured": None, "agreement": None}
+    page = write_report(summary, tmp_path / "report.html",
+                        {"step": "design", "reason": "no kind reaches it", "advice": "lower it"})
+    text = page.read_text(encoding="utf-8")
+    assert "Stopped at <b>design</b>: no kind reaches it" in text and "To go on: lower it" in text
+    assert "withheld" in text and "rig.stiction: the residual is not white" in text
+    assert "[0.54, 0.56]" in text
+
+
+def test_a_watchdog_on_the_simulated_board_is_tried_again(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """On --hil a run a watchdog ended (a busy machine) is tried again, with a fresh
+    controller, and said; a limit is not; on a port nothing is tried again."""
+    said: list[str] = []
+    made: list[int] = []
+    outcomes = [CommissionRefused("excite", "the device reported a fault: command watchdog "
+                                  "(detail 626): stop sent, motor off", "x"), "done"]
+
+    def once(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        out = outcomes.pop(0)
+        if isinstance(out, Exception):
+            raise out
+        return out
+
+    monkeypatch.setattr(Commission, "_drive_once", once)
+    job = Commission(_opts(tmp_path), say=said.append)
+    assert job._drive(None, None, tmp_path / "l.csv", "excite", None, "advice",  # type: ignore[arg-type]
+                      controller=lambda: made.append(1)) == "done"
+    assert len(made) == 2 and "attempt 2 of 3" in said[0] and "command watchdog" in said[0]
+    outcomes[:] = [CommissionRefused("excite", "angle limit: θ = 0.06 rad", "x")]
+    with pytest.raises(CommissionRefused, match="angle limit"):
+        job._drive(None, None, tmp_path / "l.csv", "excite", None, "advice")  # type: ignore[arg-type]
+    outcomes[:] = [CommissionRefused("run", "watchdog: no sample", "x"), "done"]
+    port = Commission(CommissionOptions("uno-rig", (), tmp_path, port="/dev/null"),
+                      say=said.append)
+    with pytest.raises(CommissionRefused, match="watchdog"):
+        port._drive(None, None, tmp_path / "l.csv", "run", None, "advice")  # type: ignore[arg-type]
