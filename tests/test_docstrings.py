@@ -64,8 +64,6 @@ PENDING = {
     "esoarm.hardware.logfile": 1,
     "esoarm.hardware.logimport": 6,
     "esoarm.hardware.protocol": 9,
-    "esoarm.hardware.realtime": 3,
-    "esoarm.hardware.replay": 8,
     "esoarm.hardware.scope": 8,
     "esoarm.plotting.arms": 3,
     "esoarm.plotting.run": 7,
