@@ -47,11 +47,26 @@ KINDS = [
     ("cascade ESO (euler, 2 levels) + FLC", {"observer.kind": "cascade"}),
     ("cascade ESO (euler, 3 levels) + FLC", {"observer.kind": "cascade", "observer.levels": 3}),
     ("cascade ESO (2 levels) + PID", {"observer.kind": "cascade", "controller.kind": "pid"}),
+    ("linear ESO (euler, half-gain) + FLC", {"observer.tuning": "half-gain"}),
+    ("linear ESO (euler), input delay 2, predictor + FLC",
+     {"observer.input_delay": 2, "observer.delay_form": "predictor",
+      "actuator.delay_samples": 2}),
+    ("linear ESO + PID + ESO compensation", {"controller.kind": "pid",
+                                             "controller.compensation": "eso"}),
+    ("error-based ADRC (euler; + linear ESO beside)", {"controller.kind": "adrc-error"}),
+    ("ADRC TF form (euler; + linear ESO beside)", {"controller.kind": "adrc-tf"}),
+    ("linear ESO + switch PID → FLC at 2 s, back at 11 s",
+     {"controller.kind": "switch", "controller.switch_at": 2.0,
+      "controller.switch_back": 11.0}),
 ]
 #: (target, precision, compensated observer sums); avr-gcc's double is 32 bits, so the
 #: AVR has no float64 row (``codegen`` refuses it), its plain sums are listed instead.
 TARGETS = [("avr", "float32", True), ("avr", "float32", False), ("cortex-m4", "float32", True),
            ("cortex-m4", "float64", False)]
+
+
+#: label substrings of the rows to measure (--kinds; empty: every row)
+ONLY_KINDS: list[str] = []
 
 
 def machine() -> str:
@@ -101,6 +116,8 @@ def cycles_table() -> str:
             "| forced max | % of 1 kHz | flash [B] | static RAM [B] | max \\|Δu\\|/limit |",
             "|---|---|---|---|---|---|---|---|---|---|"]
     for label, over in KINDS:
+        if ONLY_KINDS and not any(w in label for w in ONLY_KINDS):
+            continue
         scn = load_scenario("uno-rig", over)
         for target, precision, comp in TARGETS:
             gen = generate(scn, target, precision, comp)
@@ -169,7 +186,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--update", type=Path, help="markdown file with bench_pil markers")
     parser.add_argument("--only", choices=["cycles", "precision"])
+    parser.add_argument("--kinds", default="", help="comma-separated label substrings: measure "
+                        "only those rows (printed; the markers are not updated)")
     args = parser.parse_args()
+    ONLY_KINDS.extend(k for k in args.kinds.split(",") if k)
+    if ONLY_KINDS and args.update:
+        raise SystemExit("--kinds measures a part of the table: print it, do not --update")
     tables = {}
     if args.only in (None, "cycles"):
         tables["cycles"] = cycles_table()

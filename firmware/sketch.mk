@@ -23,7 +23,8 @@ $(OBJDIR)/esoarm_rig.ino.o: CPPFLAGS += -Wextra -Werror $(SKETCH_DEFINES)
 # compiled into the sketch; it is rebuilt when the generated files change.
 ifneq ($(ONBOARD),)
 $(OBJDIR)/esoarm_rig.ino.o: $(abspath $(ONBOARD))/esoarm_controller.c \
-  $(abspath $(ONBOARD))/esoarm_controller.h
+  $(abspath $(ONBOARD))/esoarm_controller.h $(abspath $(ONBOARD))/esoarm_reference.c \
+  $(abspath $(ONBOARD))/esoarm_reference.h
 endif
 
 # The settings are part of the build: the file changes (and the sketch is rebuilt) only when

@@ -10,8 +10,10 @@ answer.
 from __future__ import annotations
 
 import csv
+import inspect
 import math
 import types
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -286,7 +288,9 @@ def test_excite_runs_an_added_observer(luen, run_cli, tmp_path) -> None:  # type
     res = run_cli("excite", "test-1", *LUEN, "--twin", "--log", str(tmp_path / "x.csv"),
                   "--duration", "1")
     assert res.exit_code == 0, res.stdout + res.stderr
-    z2 = np.genfromtxt(tmp_path / "x.csv", delimiter=",", names=True)["z2"]
+    from esoarm.hardware.logfile import read_log_columns  # skips the '# esoarm excite:' line
+
+    z2 = read_log_columns(tmp_path / "x.csv", ["z2"], "need z2")[1][:, 0]
     assert np.all(np.isfinite(z2)) and np.any(z2 != 0.0)
 
 
@@ -318,3 +322,70 @@ def test_where_things_live_matches_the_tree() -> None:
             if ln.startswith("| `")]
     named = {cell.strip("`") for cell in rows}
     assert named == tree, (sorted(tree - named), sorted(named - tree))
+
+
+def _comments(path) -> int:  # type: ignore[no-untyped-def]
+    """Lines starting with '#' before a log's header (excite writes its probe's result)."""
+    lines = open(path).read().splitlines()
+    return next(i for i, line in enumerate(lines) if not line.startswith("#"))
+
+
+# -- no consumer names a kind ----------------------------------------------------------------
+
+#: Places outside the registry and the kinds' own modules that still compare with a kind's
+#: name, each with why it stays for now (a new one fails the test below).
+NAMED_KIND_ALLOWED = {
+    # identify's axis fit is a study of its own (the trust helpers' file): a plant
+    # capability for "which identification" is still to be declared
+    ("esoarm/cli/identify.py", "axis"),
+    # the bandwidth criterion is stated against the linear ESO's recommendation
+    ("esoarm/studies/frequency/sweep_check.py", "linear"),
+}
+
+
+def _kind_files() -> set[Path]:
+    files = set()
+    for component in (kinds.PLANTS, kinds.OBSERVERS, kinds.CONTROLLERS):
+        for module in component:
+            files.add(Path(inspect.getfile(module)).resolve())
+    return files
+
+
+def test_no_consumer_names_a_kind() -> None:
+    """AST walk of the package: a comparison of a ``.kind``/``KIND`` with a registered kind's
+    name (``scn.controller.kind != "flc"``) outside kinds.py and the kinds' own modules is a
+    consumer knowing a kind; it must ask the registry (a capability: ``kinds.can``,
+    ``kinds.hook``) instead."""
+    import ast
+
+    root = Path(kinds.__file__).resolve().parent
+    names = {m.KIND for c in (kinds.PLANTS, kinds.OBSERVERS, kinds.CONTROLLERS) for m in c}
+    skip = _kind_files() | {Path(kinds.__file__).resolve()}
+    found = set()
+    for path in sorted(root.rglob("*.py")):
+        if path.resolve() in skip:
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.Compare):
+                continue
+            sides = [node.left, *node.comparators]
+            if not any(isinstance(s, ast.Attribute) and s.attr in ("kind", "KIND")
+                       for s in sides):
+                continue
+            consts = [c.value for s in sides for c in ast.walk(s)
+                      if isinstance(c, ast.Constant) and isinstance(c.value, str)]
+            for value in consts:
+                if value in names:
+                    rel = path.relative_to(root.parent).as_posix()
+                    found.add((rel, value, node.lineno))
+    offenders = sorted(f for f in found if (f[0], f[1]) not in NAMED_KIND_ALLOWED)
+    assert not offenders, offenders
+    assert {(f, n) for f, n, _ in found} == NAMED_KIND_ALLOWED  # the list stays honest
+
+
+def test_capabilities_come_from_the_kinds() -> None:
+    assert kinds.can(load_scenario("test-1"), "RIG")
+    assert not kinds.can(load_scenario("emps"), "RIG")
+    assert kinds.can(load_scenario("test-1"), "FLC_LAW")
+    assert not kinds.can(load_scenario("test-1", {"controller.kind": "pid"}), "FLC_LAW")

@@ -3,8 +3,9 @@ each of its parameters under ``Parameters`` and what it gives back under ``Retur
 
 A function documents a parameter when its name starts a line of the ``Parameters`` section
 (``name : type``; ``*args``/``**kwargs`` as such). A function returning None, a property and a
-dunder need no ``Returns``. The covered modules grow as they are documented: the public API
-(scenario, reference, result, analysis) and the kinds and engines.
+dunder need no ``Returns``. The modules are found by walking the package: every one is held
+to it but those in :data:`PENDING`, whose counts of functions still lacking a section may only
+fall.
 """
 
 from __future__ import annotations
@@ -12,46 +13,81 @@ from __future__ import annotations
 import importlib
 import inspect
 import re
+from pathlib import Path
 
 import pytest
 
-COVERED = [
-    "esoarm.scenario.checks",
-    "esoarm.scenario.keys_doc",
-    "esoarm.scenario.loading",
-    "esoarm.scenario.schema",
-    "esoarm.reference",
-    "esoarm.result",
-    "esoarm.observers.stability",
-    "esoarm.observers.cascade",
-    "esoarm.observers.linear",
-    "esoarm.observers.nonlinear",
-    "esoarm.controllers.computed_torque",
-    "esoarm.engines.batch",
-    "esoarm.engines.diagnosis",
-    "esoarm.engines.fast",
-    "esoarm.engines.loop",
-    "esoarm.engines.metrics",
-    "esoarm.engines.packing",
-    "esoarm.engines.sample",
-    "esoarm.engines.simulation",
-    "esoarm.controllers.flc",
-    "esoarm.controllers.pid",
-    "esoarm.kinds",
-    "esoarm.contract",
-    "esoarm.plants.actuator",
-    "esoarm.plants.axis",
-    "esoarm.plants.elementary",
-    "esoarm.plants.lever_arm",
-    "esoarm.plants.model",
-    "esoarm.plants.motor",
-    "esoarm.plants.arms.rigid_body",
-    "esoarm.plants.sensor",
-    "esoarm.plants.arms.urdf",
-    "esoarm.plants.arms.compiled",
-    "esoarm.plants.arms.model",
-    "esoarm.plants.arms.twin",
-]
+import esoarm
+
+PACKAGE = Path(esoarm.__file__).resolve().parent
+
+
+def package_modules() -> list[str]:
+    """Every module of the package, found by walking its folders (``__main__`` aside)."""
+    out = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        if parts[-1] == "__main__":
+            continue
+        out.append(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
+    return out
+
+
+#: Modules not yet fully documented: how many of their public functions still lack a
+#: section (counted when the list was derived from the package, 2026-12-06).  Every other
+#: module must have none; a count may only fall, and a module that has none leaves.
+PENDING = {
+    "esoarm._io": 7,
+    "esoarm._jit": 3,
+    "esoarm._schema": 3,
+    "esoarm._toml": 1,
+    "esoarm.codegen.avr": 4,
+    "esoarm.codegen.cortex_m4": 2,
+    "esoarm.codegen.host": 1,
+    "esoarm.codegen.lockstep": 1,
+    "esoarm.codegen.onboard": 1,
+    "esoarm.codegen.pil": 2,
+    "esoarm.codegen.toolchain": 1,
+    "esoarm.envs": 1,
+    "esoarm.envs.lever_arm": 4,
+    "esoarm.envs.render": 1,
+    "esoarm.hardware.device": 4,
+    "esoarm.hardware.emulator": 6,
+    "esoarm.hardware.excite": 1,
+    "esoarm.hardware.flash": 4,
+    "esoarm.hardware.hil.board": 9,
+    "esoarm.hardware.hil.build": 3,
+    "esoarm.hardware.hil.qemu": 2,
+    "esoarm.hardware.hil.server": 3,
+    "esoarm.hardware.host_control": 9,
+    "esoarm.hardware.link": 4,
+    "esoarm.hardware.logfile": 1,
+    "esoarm.hardware.logimport": 6,
+    "esoarm.hardware.protocol": 9,
+    "esoarm.hardware.scope": 8,
+    "esoarm.plotting.arms": 3,
+    "esoarm.plotting.run": 7,
+    "esoarm.plotting.style": 5,
+    "esoarm.studies.commission.board": 2,
+    "esoarm.studies.commission.steps": 5,
+    "esoarm.studies.identification.axis_fit": 3,
+    "esoarm.studies.identification.axis_identify": 6,
+    "esoarm.studies.identification.calibration": 4,
+    "esoarm.studies.identification.data": 5,
+    "esoarm.studies.identification.excitation": 13,
+    "esoarm.studies.identification.fit": 13,
+    "esoarm.studies.identification.identify": 11,
+    "esoarm.studies.identification.idim": 14,
+    "esoarm.studies.identification.lever_checks": 5,
+    "esoarm.studies.identification.noise_ar": 1,
+    "esoarm.studies.identification.plots": 1,
+    "esoarm.studies.identification.probe": 14,
+    "esoarm.studies.identification.report": 3,
+    "esoarm.studies.reproduction.paper_twin": 13,
+    "esoarm.studies.reproduction.twins": 13,
+}
+
+COVERED = [m for m in package_modules() if m not in PENDING]
 
 
 def _public_functions(module_name: str) -> list[tuple[str, object]]:
@@ -131,3 +167,23 @@ def test_the_check_sees_a_missing_parameter() -> None:
         return a + b
 
     assert problems(documented) == ["parameter 'b' not documented"]
+
+
+def _lacking(module_name: str) -> int:
+    return sum(1 for _, func in _public_functions(module_name) if problems(func))
+
+
+@pytest.mark.parametrize("module_name", sorted(PENDING))
+def test_pending_modules_only_get_better(module_name: str) -> None:
+    lacking = _lacking(module_name)
+    allowed = PENDING[module_name]
+    assert lacking <= allowed, (f"{module_name}: {lacking} public functions lack a numpydoc "
+                                f"section, more than the {allowed} pending")
+    assert lacking, f"{module_name}: every public function is documented: remove it from PENDING"
+
+
+def test_the_walk_finds_the_package() -> None:
+    modules = package_modules()
+    assert {"esoarm.kinds", "esoarm.engines.batch", "esoarm.plants.arms.urdf",
+            "esoarm.studies.sweeps.tune", "esoarm.cli"} <= set(modules)
+    assert set(PENDING) <= set(modules), "PENDING names a module that is gone"

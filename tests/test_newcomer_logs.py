@@ -167,3 +167,28 @@ def test_ctrl_c_during_excite_twin_says_what_was_kept(run_cli, tmp_path, monkeyp
     lines = log.read_text(encoding="utf-8").splitlines()
     assert lines[0].startswith("# esoarm excite:") and len(lines) == 2 + 122
     assert all(len(ln.split(",")) == 16 for ln in lines[1:])
+
+
+def test_a_binary_file_named_csv_says_it_is_not_text(tmp_path):
+    src = tmp_path / "data.csv"
+    src.write_bytes(b"t,y,u\n" + bytes(range(128, 256)))
+    with pytest.raises(ScenarioError, match="not a text file .* export it as CSV"):
+        import_log(src, {"t": "t", "y": "y", "u": "u"})
+
+
+def test_a_scale_that_overflows_is_named_without_a_numpy_warning(tmp_path, recwarn):
+    src = tmp_path / "big.json"
+    src.write_text('{"t": [0, 0.01, 0.02], "y": [1e308, 1, 2], "u": [0, 0, 0]}')
+    with pytest.raises(ScenarioError, match=r"y \(for y\) is inf at row 1"):
+        import_log(src, {"t": "t", "y": "y", "u": "u"}, {"y": 1e10})
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (("--probe", "1e9"), "--probe 1e+09: must be >= 0 s, and with the duration at most 1e+08"),
+    (("--duration", "1e9"), "--duration 1e+09: must be > 0 s and at most 2e+06 s"),
+])
+def test_an_experiment_too_long_to_hold_is_bad_input(run_cli, args, said):
+    """Was "failed: out of memory", exit 1."""
+    res = run_cli("excite", "test-1", "--plan", *args)
+    assert res.exit_code == 2 and said in _one_line(res.stderr)

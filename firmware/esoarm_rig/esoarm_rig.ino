@@ -74,7 +74,9 @@ static const int8_t QUAD_TABLE[16] = {0, +1, -1, QUAD_BAD, -1, 0, QUAD_BAD, +1,
  * frames behind the stream: the chip cannot step and stream in a period), the encoder check,
  * a bad command. */
 #include "esoarm_controller.c"
+#include "esoarm_reference.c"
 static esoarm_state ctl;
+static esoarm_reference ref;  /* the scenario's moves, from START */
 static const esoarm_real COUNT_TO_RAD = (esoarm_real)(6.283185307179586 / COUNTS_PER_REV);
 
 /* A CHIP_SAMPLE frame is 37 bytes of 10 bits on the wire; stream every STREAM_EVERY-th
@@ -210,7 +212,9 @@ ISR(TIMER2_COMPA_vect)
     uint32_t k = sample_k++;
     step_busy = true;
     sei();  /* the encoder and the UART keep running while the controller steps */
-    esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD);
+    esoarm_real r[3];
+    esoarm_reference_next(&ref, r);
+    esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD, r[0], r[1], r[2]);
     int16_t duty = (int16_t)ctl.duty;
     cli();
     if (running && !halted) {
@@ -354,6 +358,7 @@ static void handle_frame(const eso_frame_t *f)
         watchdog_tripped = false;
 #ifdef ESOARM_ONBOARD
         esoarm_init(&ctl);
+        esoarm_reference_init(&ref);
         noInterrupts();
         halted = false;
         pending_fault = 0;

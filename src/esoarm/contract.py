@@ -490,6 +490,13 @@ PRISMATIC_UNITS = Units(position="m", velocity="m/s", acceleration="m/s²", forc
 #: ``MOTOR`` (plants; default False)
 #:     driven by the actuator's motor when the scenario has a ``[motor]`` table (else the
 #:     table is refused);
+#: ``RIG`` (plants; default False)
+#:     the one-joint rig of the serial protocol: ``run``, ``emulate``, ``excite`` and
+#:     ``identify`` drive it, and the frequency-domain analysis (``analyze``) models it;
+#: ``FLC_LAW`` (controllers; default False)
+#:     its law is the feedback linearization of eq. 14-16 with the gains ``k1``, ``k2``
+#:     and ``compensation`` of its table: the frequency-domain analysis and κ (eq. 17)
+#:     model it (a controller without it is refused there in one line);
 #: ``FAST`` (default False)
 #:     the opt-in fast engine (:mod:`esoarm.engines.fast`, a C kernel) models it;
 #: ``C_SOURCE`` (default None)
@@ -519,6 +526,8 @@ PRISMATIC_UNITS = Units(position="m", velocity="m/s", acceleration="m/s²", forc
 OPTIONAL: dict[str, Any] = {
     "FAST": False,
     "MOTOR": False,
+    "RIG": False,
+    "FLC_LAW": False,
     "C_SOURCE": None,
     "check": None,
     "label": None,

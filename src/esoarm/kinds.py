@@ -47,7 +47,7 @@ from esoarm.contract import (
     Units,
     read_only,
 )
-from esoarm.controllers import adrc_error, adrc_tf, computed_torque, flc, pid
+from esoarm.controllers import adrc_error, adrc_tf, computed_torque, flc, pid, switch
 from esoarm.observers import cascade, linear, nonlinear
 from esoarm.plants import axis, lever_arm
 from esoarm.plants.arms import urdf
@@ -55,7 +55,8 @@ from esoarm.plants.arms import urdf
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "check_kind", "check_steps",
+__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "can", "check_kind",
+           "check_steps",
            "compile_only", "compiled_selection", "covers", "hook",
            "kind_labels", "kinds_of", "observer_summary", "on_dispatch_change",
            "observer_warnings", "on_change", "register", "registry_stamp",
@@ -65,7 +66,8 @@ __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "check_kind
 #: against its component's protocol, :class:`esoarm.contract.PlantKind` etc.)
 PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis)
 OBSERVERS: tuple[ObserverKind, ...] = (linear, nonlinear, cascade)
-CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque, adrc_error, adrc_tf)
+CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque, adrc_error, adrc_tf,
+                                            switch)
 
 #: What was registered at import: the kinds of the package itself.
 _BUILTIN: dict[str, tuple[Any, ...]] = {
@@ -112,7 +114,7 @@ def check_kind(component: str, module: Any, others: tuple[Any, ...] = ()) -> Non
         raise ImportError(f"esoarm.kinds: {who}: KIND must be a non-empty str")
     if isinstance(code, bool) or not isinstance(code, int) or code < 0:
         raise ImportError(f"esoarm.kinds: {who}: CODE must be an int >= 0, got {code!r}")
-    for flag in ("JIT", "FAST", "MOTOR"):
+    for flag in ("JIT", "FAST", "MOTOR", "RIG", "FLC_LAW"):
         if not isinstance(getattr(module, flag, False), bool):
             raise ImportError(f"esoarm.kinds: {who}: {flag} must be True or False")
     steps = tuple(n for n in required
@@ -251,6 +253,39 @@ class Kinds(NamedTuple):
     def fast(self) -> bool:
         """The fast engine models all three (each declares ``FAST = True``)."""
         return all(bool(hook(m, "FAST")) for m in self)
+
+
+def can(scn: Scenario, capability: str) -> bool:
+    """Whether the scenario's kinds declare ``capability`` (a flag of :data:`OPTIONAL`).
+
+    The way a consumer asks what a kind can do, never by its name: ``"RIG"`` and
+    ``"MOTOR"`` of the plant, ``"FLC_LAW"`` of the controller, ``"FAST"`` of all three.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+    capability : str
+        The flag's name.
+
+    Returns
+    -------
+    bool
+        True when the component that carries the flag declares it.
+
+    Examples
+    --------
+    >>> from esoarm.scenario import load_scenario
+    >>> can(load_scenario("test-1"), "RIG"), can(load_scenario("emps"), "RIG")
+    (True, False)
+    >>> can(load_scenario("test-1", {"controller.kind": "pid"}), "FLC_LAW")
+    False
+    """
+    k = kinds_of(scn)
+    if capability == "FAST":
+        return k.fast
+    module = k.controller if capability == "FLC_LAW" else k.plant
+    return bool(hook(module, capability))
 
 
 def kinds_of(scn: Scenario) -> Kinds:

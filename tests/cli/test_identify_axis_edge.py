@@ -8,6 +8,8 @@ instead of blaming a change of the axis during the log.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -65,7 +67,9 @@ def test_cli_refuses_with_exit_1_and_writes_nothing(run_cli, tmp_path):
                    header="t,y,u", comments="", fmt="%.17g")
         logs.append(str(path))
     out = tmp_path / "fitted.toml"
-    res = run_cli("identify", *logs, "--validate", logs[0], "--scenario", "emps", "--set",
+    val = tmp_path / "val.csv"  # a validation log of its own (one also fitted is refused)
+    val.write_bytes(Path(logs[0]).read_bytes())
+    res = run_cli("identify", *logs, "--validate", str(val), "--scenario", "emps", "--set",
                   "plant.motion=rotary", "--set", "plant.mass=1.2e-4", "--set",
                   "plant.viscous_friction=1e-4", "--set", "plant.coulomb_friction=0.03",
                   "--set", "plant.offset=0", "--set", "actuator.torque_limit=0.3",

@@ -139,9 +139,10 @@ def test_cli(tmp_path) -> None:
                           "observer.eps=0.01", "--set", "sensor.rate_hz=10000", "--set",
                           "rig.step=1e-4", "--set", "observer.discretization=zoh", "--set",
                           "duration=5"], capture_output=True, text=True, timeout=300)
-    assert res.returncode == 0, res.stderr
-    assert "float32 does not hold" in res.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["esoarm_controller.c", "esoarm_controller.h"]
+    assert res.returncode == 1, res.stderr  # one policy with `esoarm pil`: exit 1, files kept
+    assert "float32 does not hold" in res.stderr and "kept" in res.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["esoarm_controller.c", "esoarm_controller.h",
+                                                     "esoarm_reference.c", "esoarm_reference.h"]
     for args, word in ((["test-1", "--target", "avr", "--precision", "float64"], "float64"),
                        (["test-1-urdf", "--target", "host"], "urdf")):
         bad = tmp_path / "bad"

@@ -26,7 +26,8 @@ def test_project_files_and_settings(tmp_path: Path) -> None:
     names = sorted(str(p.relative_to(tmp_path / "p")) for p in (tmp_path / "p").rglob("*")
                    if p.is_file())
     assert names == ["Makefile", "README.md", "src/esoarm_board.h", "src/esoarm_controller.c",
-                     "src/esoarm_controller.h", "src/esoarm_protocol.h", "src/main.c",
+                     "src/esoarm_controller.h", "src/esoarm_protocol.h",
+                     "src/esoarm_reference.c", "src/esoarm_reference.h", "src/main.c",
                      "src/startup_stm32f401.c", "stm32f401re.ld"]
     board = (tmp_path / "p" / "src" / "esoarm_board.h").read_text()
     assert "#define SAMPLE_PERIOD_US 1000UL" in board

@@ -182,6 +182,7 @@ if _MISSING and os.environ.get("ESOARM_REQUIRE_HIL"):
     ("observer.input_delay=2",),
     ("observer.input_delay=2", "observer.delay_form=predictor", "actuator.delay_samples=2"),
     ("controller.kind=pid", "controller.compensation=eso"),
+    ("controller.kind=switch", "controller.switch_at=2", "controller.switch_back=6"),
 ])
 def test_pil_on_avr(sets: tuple[str, ...]) -> None:
     """esoarm pil test-1 --target avr agrees to 1e-4 of the torque limit within the budget."""
@@ -193,3 +194,102 @@ def test_pil_on_avr(sets: tuple[str, ...]) -> None:
     data = json.loads(res.stdout)
     assert data["ok"] and data["max_rel_du"] <= 1e-4
     assert data["cycles"]["max"] < data["budget_cycles"]
+
+
+# -- esoarm compare --------------------------------------------------------------------
+
+
+def test_compare_refuses_an_unknown_form(run_cli) -> None:  # type: ignore[no-untyped-def]
+    res = run_cli("compare", "test-1", "--kinds", "eso+flc,lqr")
+    assert res.exit_code == 2
+    assert "--kinds: unknown form lqr" in res.stderr and "Traceback" not in res.stderr
+    res = run_cli("compare", "test-1", "--delays", "1:4")
+    assert res.exit_code == 2 and "--delays" in res.stderr
+
+
+@pytest.mark.slow
+def test_compare_runs_the_forms(run_cli) -> None:  # type: ignore[no-untyped-def]
+    """Two seconds of test-1: the TF form commands what the ESO + FLC does (same metrics);
+    the delay search answers for every form."""
+    res = run_cli("compare", "test-1", "--set", "duration=2", "--seeds", "1", "--kinds",
+                  "eso+flc,adrc-tf,delay-input", "--delays", "0,1,2", "--json")
+    assert res.exit_code == 0, res.stderr
+    data = json.loads(res.stdout)
+    rows = {r["form"]: r for r in data["forms"]}
+    assert rows["adrc-tf"]["rms_error"] == pytest.approx(rows["eso+flc"]["rms_error"], rel=1e-6)
+    assert all(r["delay_held"] >= 0 for r in data["forms"])
+
+
+# -- PID → ESO + FLC and back, bumpless ---------------------------------------------------
+
+_SWITCH = {"controller.kind": "switch", "controller.switch_at": 2.0,
+           "controller.switch_back": 11.0}
+
+
+def test_switch_is_bumpless_both_ways() -> None:
+    """Mid-move (test-1's first move runs 1-3 s): the command does not jump at either switch
+    with the bumpless transfer, and does with the hard one; before the switch the kind is the
+    PID, bit for bit."""
+    bump = _run({**_SWITCH, "controller.transfer": "bumpless"})
+    hard = _run({**_SWITCH, "controller.transfer": "hard",
+                 "sensor.noise_deg": 0.0})
+    ks, kb = 100, 550
+    u = np.asarray(bump.u)
+    assert u[ks] == u[ks - 1]  # the FLC entered from the PID's last command
+    assert abs(u[kb] - u[kb - 1]) < 1e-12  # the PID restarted from the FLC's last command
+    uh = np.asarray(hard.u)
+    assert abs(uh[ks] - uh[ks - 1]) > 0.03 and abs(uh[kb] - uh[kb - 1]) > 0.03
+    pid_alone = _run({"controller.kind": "pid"})
+    np.testing.assert_array_equal(u[:ks], np.asarray(pid_alone.u)[:ks])
+
+
+def test_switch_over_the_emulated_device() -> None:
+    """The rig loop's host controller (esoarm run's) over the emulated device commands what
+    simulate does, through both switches."""
+    import math
+
+    from esoarm.hardware.emulator import Twin
+    from esoarm.hardware.host_control import DeploymentController
+
+    scn = load_scenario("test-1", {**_SWITCH, "controller.switch_at": 0.5,
+                                   "controller.switch_back": 1.5, "duration": 2.0})
+    ref = run_reference(scn, prepare(scn))
+    ctl, twin = DeploymentController(scn), Twin(scn)
+    q = math.radians(scn.sensor.resolution_deg)
+    u_log = []
+    for k in range(ctl.n_samples):
+        u, _ = ctl.actuate(ctl.step(k, q * twin.count()))
+        ctl.commit(u)
+        twin.advance(u)
+        u_log.append(u)
+    assert np.array_equal(u_log, ref.u)
+
+
+def test_run_switch_at_is_checked(run_cli) -> None:  # type: ignore[no-untyped-def]
+    res = run_cli("run", "test-1", "--port", "/dev/null", "--switch-at", "-1")
+    assert res.exit_code == 2 and "--switch-at" in res.stderr
+
+
+def test_kind_switch_does_not_carry_a_key_of_another_meaning() -> None:
+    """The FLC's compensation = "eso" (β̂ = ẑ3) is not the PID's; "none" is no FLC value."""
+    assert load_scenario("test-1", {"controller.kind": "pid"}).controller.compensation == "none"
+    pid = load_scenario("test-1", {"controller.kind": "pid", "controller.compensation": "eso"})
+    assert pid.controller.compensation == "eso"
+    back = load_scenario(load_scenario("test-1", {"controller.kind": "pid"}),
+                         {"controller.kind": "flc"})
+    assert back.controller.compensation == "eso"  # the FLC's default, not the PID's "none"
+    tf = load_scenario("test-1", {"controller.k1": 12.0, "controller.kind": "adrc-tf"})
+    assert tf.controller.k1 == 12.0  # same meaning: carried
+
+
+@pytest.mark.slow
+@pytest.mark.hil
+@pytest.mark.skipif(bool(_MISSING), reason=f"not installed: {', '.join(_MISSING)}")
+def test_compare_on_the_chip(run_cli) -> None:  # type: ignore[no-untyped-def]
+    res = run_cli("compare", "test-1", "--set", "duration=2", "--seeds", "1", "--kinds",
+                  "eso+flc,adrc-tf", "--chip", "avr", "--json")
+    assert res.exit_code == 0, res.stderr
+    rows = {r["form"]: r for r in json.loads(res.stdout)["forms"]}
+    for r in rows.values():
+        assert r["chip"]["max_rel_du"] <= 1e-4 and r["chip"]["median"] > 0
+    assert rows["adrc-tf"]["chip"]["flash_bytes"] > 0

@@ -115,3 +115,17 @@ def test_excite_plan_shows_the_probe_and_the_log_has_the_header(run_esoarm, tmp_
     assert first.startswith("# esoarm excite: probe_s=2.0 ")
     res = run_esoarm("excite", "test-1", "--plan", "--probe", "0.05")
     assert res.exit_code == 2 and "probe 0.05 s: at least" in res.stderr
+
+
+def test_the_stuck_share_means_the_same_speed_at_any_rate():
+    """The window is 0.1 s (5 samples at 50 Hz, 100 at 1 kHz): the same sticking twin gives
+    the same stuck share at both rates (a window of 5 samples at 1 kHz would call the arm
+    stuck unless it moved 0.85° in 5 ms, 170°/s)."""
+    plan = ExcitationPlan(duration=20.0)
+    _c, slow = _run(["rig.coulomb_friction=0.2"], plan, probe=0.0)
+    _c, fast = _run(["rig.coulomb_friction=0.2", "sensor.rate_hz=1000"], plan, probe=0.0)
+    assert slow.window == 5 and fast.window == 100
+    assert slow.threshold_rad == fast.threshold_rad
+    assert abs(slow.stuck_fraction - fast.stuck_fraction) < 0.1, (slow.stuck_fraction,
+                                                                   fast.stuck_fraction)
+    assert slow.stuck_fraction > 0.5

@@ -92,7 +92,8 @@ def test_test1_1khz_on_the_cortex_m4(tmp_path: Path) -> None:
     assert np.isnan(rows["duty"]).all()  # an ideal torque source (test-1 has no [motor])
     assert abs(got["rms_error"] / sim["rms_error"] - 1) < 0.1, (got, sim)
     assert abs(got["rms_u"] / sim["rms_u"] - 1) < 1e-4, (got, sim)
-    assert "twin: 5001 samples served" in out, out  # 5000 and the one asked before STOP
+    served = int(out.split("twin: ")[1].split(" samples")[0])
+    assert 5000 <= served <= 5010, out  # the chip steps on until STOP reaches it
 
 
 @needs_qemu
@@ -134,4 +135,6 @@ def test_host_killed_the_chip_stops_the_motor(tmp_path: Path) -> None:
     assert "device fault: watchdog" in out, out
     off = [ln for ln in out.splitlines() if ln.startswith("motor off at")][-1]
     ms = float(off.split("(")[1].split(" ms")[0])
-    assert 100 <= ms <= 400, off  # 100 samples of the chip's clock, paced to the wall clock
+    # the chip's watchdog: more than 100 samples (1 ms each) after the last heartbeat reached
+    # it (the twin's count when it passed the frame on may be one sample off the chip's)
+    assert 100 <= ms <= 103, off

@@ -47,13 +47,15 @@ COMMANDS: dict[str, str] = {
     "replay": "esoarm.cli.rig:replay",
     "arm-study": "esoarm.cli.arms:arm_study",
     "analyze": "esoarm.cli.analyze:analyze",
-    "hil": "esoarm.cli.hil:hil",
+    "hil": "esoarm.cli.board.hil:hil",
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
     "log": "esoarm.cli.log:log",
-    "codegen": "esoarm.cli.codegen:codegen",
-    "pil": "esoarm.cli.pil:pil",
-    "commission": "esoarm.cli.commission:commission",
+    "codegen": "esoarm.cli.board.codegen:codegen",
+    "pil": "esoarm.cli.board.pil:pil",
+    "compare": "esoarm.cli.compare:compare",
+    "flash": "esoarm.cli.board.flash:flash",
+    "commission": "esoarm.cli.board.commission:commission",
 }
 
 
@@ -61,6 +63,7 @@ COMMANDS: dict[str, str] = {
 # importing the command (tests/test_cli_startup.py checks they match the
 # commands' own help). A command missing here is imported to ask it.
 SUMMARIES: dict[str, str] = {
+    "compare": "Run the ADRC forms on SCENARIO: RMS error and RMS Δu, means over the seeds.",
     "commission": "Commission a rig: excite, identify, design, generate, flash and run on "
                   "board.",
     "codegen": "Generate self-contained C99 for SCENARIO's observer and controller on a target.",
@@ -69,6 +72,7 @@ SUMMARIES: dict[str, str] = {
     "emulate": "Serve the digital twin of SCENARIO as a device behind a new pseudo-terminal.",
     "excite": "Record an identification experiment on the rig at PORT or on the twin of "
               "SCENARIO.",
+    "flash": "Build SCENARIO's on-board firmware and write it to the Uno on PORT.",
     "hil": "Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its "
            "pins.",
     "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "
@@ -90,10 +94,30 @@ class LazyGroup(click.Group):
     """A click group that imports each subcommand's module on first use."""
 
     def list_commands(self, ctx: click.Context) -> list[str]:
+        """The subcommands' names, sorted (none is imported).
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The group's context.
+
+        Returns
+        -------
+        list of str
+            The names of :data:`COMMANDS`.
+        """
         return sorted(COMMANDS)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
-        """The command list of ``--help`` from :data:`SUMMARIES` (no subcommand imported)."""
+        """The command list of ``--help`` from :data:`SUMMARIES` (no subcommand imported).
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The group's context.
+        formatter : click.HelpFormatter
+            Where the help text is written.
+        """
         names = self.list_commands(ctx)
         if not names:
             return
@@ -112,6 +136,20 @@ class LazyGroup(click.Group):
             formatter.write_dl(rows)
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        """The subcommand ``cmd_name``, its module imported now, with ``--quiet``/``--verbose``.
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The group's context.
+        cmd_name : str
+            A name of :data:`COMMANDS`.
+
+        Returns
+        -------
+        click.Command or None
+            The command; None for an unknown name.
+        """
         target = COMMANDS.get(cmd_name)
         if target is None:
             return None
@@ -120,10 +158,46 @@ class LazyGroup(click.Group):
         return add_verbosity_options(getattr(importlib.import_module(module), attr))
 
     def make_context(self, info_name, args, parent=None, **extra):  # type: ignore[no-untyped-def]
+        """A context for one invocation, at the normal verbosity.
+
+        Parameters
+        ----------
+        info_name : str
+            The program's name as invoked.
+        args : list of str
+            The command-line arguments.
+        parent : click.Context, optional
+            The parent context.
+        **extra
+            Passed on to :meth:`click.Group.make_context`.
+
+        Returns
+        -------
+        click.Context
+        """
         reset_verbosity()  # each invocation starts at the normal level
         return super().make_context(info_name, args, parent=parent, **extra)
 
     def resolve_command(self, ctx, args):  # type: ignore[no-untyped-def]
+        """The subcommand the arguments name; an unknown one is bad input, with a close match.
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The group's context.
+        args : list of str
+            The arguments after the program's options.
+
+        Returns
+        -------
+        tuple
+            (name, command, remaining arguments), as :meth:`click.Group.resolve_command`.
+
+        Raises
+        ------
+        BadInput
+            An unknown command (exit status 2), naming the nearest one.
+        """
         name = args[0] if args else ""
         if name and not name.startswith("-") and name not in COMMANDS:
             import difflib
@@ -172,6 +246,11 @@ def main(argv: list[str] | None = None) -> None:
     ``PYDANTIC_DISABLE_PLUGINS`` is set already): esoarm uses none, and finding them
     reads the entry points of every installed package when the first scenario
     model is built, about 15 ms of every command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after the program's name; None: the process's own (``sys.argv``).
     """
     if argv is None:
         os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")

@@ -36,6 +36,16 @@ def one_line(text: str) -> str:
     """``text`` with control characters escaped, so that a message is one line whatever it quotes.
 
     (A key given as ``'0\\r0'`` must not break the one-line error in two.)
+
+    Parameters
+    ----------
+    text : str
+        A message, or a piece of one quoting user input.
+
+    Returns
+    -------
+    str
+        ``text`` itself when it is printable, else with each control character as its escape.
     """
     if text.isprintable():
         return text
@@ -48,6 +58,13 @@ class BadInput(click.ClickException):
     exit_code = 2
 
     def show(self, file: Any = None) -> None:
+        """Print the one-line error on stderr.
+
+        Parameters
+        ----------
+        file : optional
+            Unused (click's signature): the line always goes to stderr.
+        """
         click.echo(f"esoarm: error: {one_line(self.format_message())}", err=True)
 
 
@@ -57,6 +74,13 @@ class RunFailure(click.ClickException):
     exit_code = 1
 
     def show(self, file: Any = None) -> None:
+        """Print the one-line failure on stderr.
+
+        Parameters
+        ----------
+        file : optional
+            Unused (click's signature): the line always goes to stderr.
+        """
         click.echo(f"esoarm: failed: {one_line(self.format_message())}", err=True)
 
 
@@ -66,6 +90,13 @@ class Interrupted(click.ClickException):
     exit_code = 130
 
     def show(self, file: Any = None) -> None:
+        """Print the one-line interruption, with what was kept, on stderr.
+
+        Parameters
+        ----------
+        file : optional
+            Unused (click's signature): the line always goes to stderr.
+        """
         click.echo(f"esoarm: interrupted: {one_line(self.format_message())}", err=True)
 
 
@@ -82,7 +113,13 @@ def reset_verbosity() -> None:
 
 
 def verbosity() -> int:
-    """The current level: :data:`QUIET`, :data:`NORMAL` or :data:`VERBOSE`."""
+    """The current level.
+
+    Returns
+    -------
+    int
+        :data:`QUIET`, :data:`NORMAL` or :data:`VERBOSE`.
+    """
     return int(_state["level"])
 
 
@@ -102,7 +139,13 @@ VERBOSE_HELP = ("Also print what is done, step by step, on stderr (progress line
 
 
 def verbosity_params() -> list[click.Option]:
-    """Fresh ``-q/--quiet`` and ``-v/--verbose`` options (they only set the level)."""
+    """Fresh ``-q/--quiet`` and ``-v/--verbose`` options (they only set the level).
+
+    Returns
+    -------
+    list of click.Option
+        The two options, eager, exposing no value to the command.
+    """
     return [
         click.Option(["-q", "--quiet"], is_flag=True, expose_value=False, is_eager=True,
                      callback=_set_level, help=QUIET_HELP),
@@ -112,32 +155,79 @@ def verbosity_params() -> list[click.Option]:
 
 
 def add_verbosity_options(cmd: click.Command) -> click.Command:
-    """Give ``cmd`` the ``--quiet``/``--verbose`` options (once)."""
+    """Give ``cmd`` the ``--quiet``/``--verbose`` options (once).
+
+    Parameters
+    ----------
+    cmd : click.Command
+        A command of the group.
+
+    Returns
+    -------
+    click.Command
+        ``cmd`` itself, its options extended where it had none of the two.
+    """
     if not any(p.name in ("quiet", "verbose") for p in cmd.params):
         cmd.params.extend(verbosity_params())
     return cmd
 
 
 def note(message: str) -> None:
-    """An informational line on stderr (not shown with --quiet)."""
+    """An informational line on stderr (not shown with --quiet).
+
+    Parameters
+    ----------
+    message : str
+        The text, without the ``esoarm:`` prefix.
+    """
     if verbosity() >= NORMAL:
         click.echo(f"esoarm: {message}", err=True)
 
 
 def detail(message: str) -> None:
-    """A line shown only with --verbose, on stderr."""
+    """A line shown only with --verbose, on stderr.
+
+    Parameters
+    ----------
+    message : str
+        The text, without the ``esoarm:`` prefix.
+    """
     if verbosity() >= VERBOSE:
         click.echo(f"esoarm: {message}", err=True)
 
 
 def warn_line(message: str) -> None:
-    """A one-line warning on stderr (not shown with --quiet)."""
+    """A one-line warning on stderr (not shown with --quiet).
+
+    Parameters
+    ----------
+    message : str
+        The warning, without the ``esoarm: warning:`` prefix.
+    """
     if verbosity() >= NORMAL:
         click.echo(f"esoarm: warning: {one_line(message)}", err=True)
 
 
 def show_warning(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
-    """Print warnings as one line on stderr (ScenarioWarning without a location)."""
+    """Print warnings as one line on stderr (ScenarioWarning without a location).
+
+    Installed as :func:`warnings.showwarning`; nothing is shown with --quiet.
+
+    Parameters
+    ----------
+    message : Warning or str
+        The warning.
+    category : type
+        Its class (a :class:`~esoarm.scenario.ScenarioWarning` is printed without its name).
+    filename : str
+        Unused: no location is printed.
+    lineno : int
+        Unused.
+    file : optional
+        Unused: the line always goes to stderr.
+    line : str, optional
+        Unused.
+    """
     from esoarm.scenario import ScenarioWarning
 
     if verbosity() < NORMAL:
@@ -149,7 +239,19 @@ def show_warning(message, category, filename, lineno, file=None, line=None):  # 
 
 
 def bad_input_guard(func: F) -> F:
-    """Turn :class:`ScenarioError` raised inside a command into exit status 2."""
+    """Turn :class:`ScenarioError` raised inside a command into exit status 2.
+
+    Parameters
+    ----------
+    func : callable
+        A command's function.
+
+    Returns
+    -------
+    callable
+        ``func`` wrapped: a ScenarioError becomes :class:`BadInput`, worded for the command
+        line (:func:`cli_wording`).
+    """
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -164,7 +266,18 @@ def bad_input_guard(func: F) -> F:
 
 
 def set_option(func: F) -> F:
-    """The repeatable ``--set KEY=VALUE`` option."""
+    """The repeatable ``--set KEY=VALUE`` option.
+
+    Parameters
+    ----------
+    func : callable
+        A command's function.
+
+    Returns
+    -------
+    callable
+        ``func`` with the option (its values reach the parameter ``overrides``).
+    """
     return click.option(
         "--set",
         "overrides",
@@ -176,7 +289,18 @@ def set_option(func: F) -> F:
 
 
 def scenario_argument(func: F) -> F:
-    """The positional SCENARIO argument (built-in name or TOML path)."""
+    """The positional SCENARIO argument (built-in name or TOML path).
+
+    Parameters
+    ----------
+    func : callable
+        A command's function.
+
+    Returns
+    -------
+    callable
+        ``func`` with the argument (its value reaches the parameter ``scenario``).
+    """
     return click.argument("scenario", metavar="SCENARIO")(func)
 
 
@@ -193,6 +317,16 @@ def cli_wording(message: str) -> str:
     key``, ``max_runs 0: …``); the command line names the option that carries
     them (``--set …``, ``--max-runs 0: …``): :data:`CLI_FLAGS`, else an option
     of the running command whose parameter has that name.
+
+    Parameters
+    ----------
+    message : str
+        A library's one-line message.
+
+    Returns
+    -------
+    str
+        The message with its leading argument name replaced by the option, where one is found.
     """
     match = _LEAD.match(message)
     if match is None:
@@ -209,7 +343,25 @@ def cli_wording(message: str) -> str:
 
 
 def resolve_scenario(name: str, overrides: tuple[str, ...] | list[str]) -> Scenario:
-    """Load a scenario with overrides and print its warnings (one line each)."""
+    """Load a scenario with overrides and print its warnings (one line each).
+
+    Parameters
+    ----------
+    name : str
+        A built-in scenario's name or a TOML file.
+    overrides : sequence of str
+        ``KEY=VALUE`` items of ``--set``.
+
+    Returns
+    -------
+    Scenario
+        The validated scenario.
+
+    Raises
+    ------
+    ScenarioError
+        Bad input: an unknown scenario, key or value.
+    """
     from esoarm.kinds import observer_summary
     from esoarm.scenario import ScenarioWarning, load_scenario, scenario_warnings
 
@@ -247,7 +399,24 @@ def _motor_added(name: str, overrides: tuple[str, ...] | list[str], scn: Scenari
 def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Path | None:
     """Check an output file before any work: allowed suffix, a place that can be written.
 
-    Raises :class:`BadInput` (exit status 2) naming the option and the path.
+    Parameters
+    ----------
+    value : str, optional
+        The path given; None: the option was not given.
+    option : str
+        The option's name, for the error (``--out``).
+    suffixes : tuple of str
+        The allowed suffixes, lower case with the dot.
+
+    Returns
+    -------
+    Path or None
+        The path; None when ``value`` is None.
+
+    Raises
+    ------
+    BadInput
+        Exit status 2, naming the option and the path.
     """
     if value is None:
         return None
@@ -262,7 +431,25 @@ def output_path(value: str | None, option: str, suffixes: tuple[str, ...]) -> Pa
 
 
 def output_dir(value: str, option: str) -> Path:
-    """Check an output directory before any work (it may not exist yet; not the empty path)."""
+    """Check an output directory before any work (it may not exist yet; not the empty path).
+
+    Parameters
+    ----------
+    value : str
+        The directory given.
+    option : str
+        The option's name, for the error (``--out``).
+
+    Returns
+    -------
+    Path
+        The directory.
+
+    Raises
+    ------
+    BadInput
+        Exit status 2, naming the option and the path.
+    """
     if not value:
         raise BadInput(f"{option} '': give a directory name (. for the current directory)")
     path = Path(value)
@@ -278,13 +465,34 @@ def _check(path: Path, option: str, directory: bool) -> None:
 
 
 def stderr_is_tty() -> bool:
-    """Whether live progress displays should be drawn (a terminal, and not --quiet)."""
+    """Whether live progress displays should be drawn.
+
+    Returns
+    -------
+    bool
+        stderr is a terminal and the level is not --quiet.
+    """
     return sys.stderr.isatty() and verbosity() >= NORMAL
 
 
 def lever_only(scn: Scenario, command: str) -> None:
-    """The rig protocol, its emulator and identification drive one lever arm: refuse others."""
-    if scn.plant.kind != "lever-arm":
+    """The rig protocol, its emulator and identification drive one lever arm: refuse others.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario loaded.
+    command : str
+        The command's name, for the error.
+
+    Raises
+    ------
+    BadInput
+        ``scn`` is not a lever arm (exit status 2).
+    """
+    from esoarm.kinds import can
+
+    if not can(scn, "RIG"):  # what the plant kind declares
         raise BadInput(f"scenario '{scn.name}': '{command}' works on the lever-arm rig (one "
                        f"joint); plant.kind '{scn.plant.kind}' runs in simulate, sweep, tune, "
                        "replay and arm-study")
@@ -306,7 +514,19 @@ SETTLED_SHARE = 0.25
 
 def settled(fraction: float, seconds: float) -> bool:
     """Whether a time-left estimate made after ``fraction`` of the work, ``seconds`` [s]
-    after it started, is worth showing (:data:`SETTLE_FRACTION`, :data:`SETTLE_SECONDS`)."""
+    after it started, is worth showing (:data:`SETTLE_FRACTION`, :data:`SETTLE_SECONDS`).
+
+    Parameters
+    ----------
+    fraction : float
+        The share of the work done, 0 … 1.
+    seconds : float
+        Time since the work started [s].
+
+    Returns
+    -------
+    bool
+    """
     return fraction >= SETTLE_FRACTION and seconds >= SETTLE_SECONDS
 
 
@@ -320,6 +540,22 @@ def progress(total: float, label: str, unit: str, fmt: Callable[[float], str] = 
     every :data:`PROGRESS_LINE_S` seconds (every :data:`PROGRESS_LINE_VERBOSE_S` with
     --verbose), none for work that ends sooner, and a last line once any was printed.
     Nothing with --quiet.
+
+    Parameters
+    ----------
+    total : float
+        The amount of work, in ``unit``.
+    label : str
+        What is done (``sweep``), the line's first word.
+    unit : str
+        The unit of the count (``runs``).
+    fmt : callable
+        Formats a count for the line (default: a whole number with thousands separators).
+
+    Yields
+    ------
+    callable
+        ``advance(n)``: ``n`` more units done.
     """
     if verbosity() < NORMAL:
         yield lambda n: None
@@ -406,6 +642,13 @@ def require_extra(module: str, what: str) -> None:
 
     A set-up problem, not a run-time failure: exit status 2, one line naming the extra
     (``esoarm: error: esoarm run needs pyserial: pip install 'esoarm[rig]'``).
+
+    Parameters
+    ----------
+    module : str
+        The module to look for (``serial``), a key of :data:`EXTRAS`.
+    what : str
+        The command, the line's start (``esoarm run``).
     """
     import importlib.util
 

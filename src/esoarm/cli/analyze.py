@@ -356,7 +356,9 @@ def _print_budget(b: dict[str, Any]) -> None:
 
 def _not_modelled(scn: Any) -> str | None:
     """Why the recommendation cannot be made for this scenario, or None."""
-    if scn.plant.kind != "lever-arm":
+    from esoarm.kinds import can
+
+    if not can(scn, "RIG"):  # what the plant kind declares
         return (f"the recommendation models the lever arm only (plant.kind = "
                 f"'{scn.plant.kind}')")
     if getattr(scn, "motor", None) is not None:

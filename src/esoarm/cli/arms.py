@@ -67,7 +67,9 @@ def arm_study(scenario: str, overrides: tuple[str, ...], out_dir: str, eps: str 
     out = output_dir(out_dir, "--out")  # before the runs: an unwritable DIR is bad input
     grid = _eps_list(eps)
     scn = resolve_scenario(scenario, overrides)
-    if scn.plant.kind != "urdf":
+    from esoarm.kinds import hook, kinds_of
+
+    if hook(kinds_of(scn).plant, "joint_names") is None:  # an arm declares its joints
         raise BadInput(f"scenario '{scn.name}': arm-study needs plant.kind = 'urdf' "
                        f"(got '{scn.plant.kind}'); for the lever arm use 'esoarm reproduce'")
     if "eps" not in type(scn.observer).model_fields:  # what the observer kind declares

@@ -209,11 +209,17 @@ def _excite_rig(scn, ctl, port: str, log_path: Path, limits, baud: int) -> None:
               "residual and its autocorrelation (.png, .pdf or .svg).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object: parameters "
               "{scenario key: {value, ci95}}, fit and validation quality.")
+@click.option("--cutoff", type=float, default=None, metavar="HZ",
+              help="Cut-off of the IDIM-LS derivative filter [Hz] (default: from the band of "
+              "the logged input, so the estimate does not depend on the sample rate).")
+@click.option("--input-unit", "input_unit", default="", metavar="UNIT",
+              help="Unit of the logged u when it is not a force/torque (e.g. V for a drive "
+              "voltage): the axis fit's units follow (V·s²/rad instead of kg·m²).")
 @bad_input_guard
 def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
              validate: tuple[str, ...], validate_fraction: float, segment: float,
              max_delay: int, fix: tuple[str, ...], out: str | None, plot: str | None,
-             as_json: bool) -> None:
+             as_json: bool, cutoff: float | None, input_unit: str) -> None:
     """Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output error).
 
     Fits the true inertia (rig.inertia_scale), gravity (plant.m2), Coulomb and
@@ -236,11 +242,6 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
     validated on the force (cross-test) and the simulated position. --json
     has "physical": {name: {value, ci95, unit}} in SI names for every plant.
     """
-    from esoarm.plants.actuator import motor_of
-    from esoarm.studies.identification.data import read_ident_log
-    from esoarm.studies.identification.identify import FitFailed
-    from esoarm.studies.identification.identify import identify as run_fit
-
     out_path = output_path(out, "--out", (".toml",))
     plot_path = output_path(plot, "--plot", PLOT_SUFFIXES)
     if not (0.0 <= validate_fraction <= 0.5):
@@ -249,23 +250,49 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
         raise BadInput(f"--segment {segment:g}: must be a finite number of seconds > 0")
     if not 0 <= max_delay <= 20:
         raise BadInput(f"--max-delay {max_delay}: must be in 0 … 20 samples")
+    if cutoff is not None and not (math.isfinite(cutoff) and cutoff > 0):
+        raise BadInput(f"--cutoff {cutoff:g}: must be a finite frequency > 0 [Hz]")
+    _check_log_paths(logs, validate)
     scn = resolve_scenario(scenario, overrides)
+    _check_rotary_log(scn, logs)
+    with _numpy_quiet():
+        _identify(scn, logs, validate, validate_fraction, segment, max_delay, fix, out_path,
+                  plot, plot_path, as_json, cutoff, input_unit)
+
+
+def _identify(scn, logs, validate, validate_fraction, segment, max_delay, fix, out_path,  # type: ignore[no-untyped-def]
+              plot, plot_path, as_json, cutoff, input_unit) -> None:
+    from esoarm.plants.actuator import motor_of
+    from esoarm.studies.identification.data import read_ident_log
+    from esoarm.studies.identification.identify import FitFailed
+    from esoarm.studies.identification.identify import identify as run_fit
+
     if scn.plant.kind == "axis":
         if plot_path is not None:
             raise BadInput(f"--plot {plot}: the axis fit (plant.kind = \"axis\") draws no "
                            "figure; its residual and validation are in --json")
-        _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_path, as_json)
+        _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_path, as_json,
+                       cutoff, input_unit)
         return
     lever_only(scn, "identify")
+    if input_unit:
+        raise BadInput(f"--input-unit {input_unit}: the lever arm's u is a torque [N·m] (the "
+                       "twin's model); --input-unit is for plant.kind = \"axis\"")
     limit = scn.actuator.torque_limit
     motor = motor_of(scn)
     fit_logs = [read_ident_log(p, limit, motor) for p in logs]
     val_logs = [read_ident_log(p, limit, motor) for p in validate]
+    from esoarm.studies.identification.identify import rate_mismatch
+
+    for lg in (*fit_logs, *val_logs):  # before the segment's check: it counts in samples
+        if abs(lg.ts - scn.sample_time) > 1e-9 * scn.sample_time:
+            raise BadInput(rate_mismatch(lg.path, lg.ts, scn.sensor.rate_hz))
+    _check_segment(segment, fit_logs, val_logs, validate_fraction)
     say: Any = _progress() if stderr_is_tty() and not as_json else status_lines("identify")
     try:
         res = run_fit(scn, fit_logs, validation=val_logs or None,
                       validate_fraction=validate_fraction, segment=segment, max_delay=max_delay,
-                      fix=fix, progress=say)
+                      fix=fix, progress=say, cutoff=cutoff)
     except FitFailed as exc:
         raise RunFailure(str(exc)) from None
     finally:
@@ -293,8 +320,106 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
             click.echo(f"{label}: {path}")
 
 
+#: At most this many segments: each adds two initial states to the fit, whose normal
+#: equations grow with their square (a 60 s log in 0.1 s segments took 216 s).
+MAX_SEGMENTS = 200
+#: A segment has at least this many samples.
+MIN_SEGMENT_SAMPLES = 5
+
+
+def _check_segment(segment: float, fit_logs, val_logs, fraction: float) -> None:  # type: ignore[no-untyped-def]
+    """Refuse a --segment shorter than :data:`MIN_SEGMENT_SAMPLES` samples, or one that cuts
+    the fitting data into more than :data:`MAX_SEGMENTS` pieces (bad input, exit 2)."""
+    ts = fit_logs[0].ts
+    if segment < MIN_SEGMENT_SAMPLES * ts * (1 - 1e-9):
+        raise BadInput(f"--segment {segment:g}: shorter than {MIN_SEGMENT_SAMPLES} samples "
+                       f"({MIN_SEGMENT_SAMPLES * ts:g} s at {1 / ts:g} Hz); give at least "
+                       f"{MIN_SEGMENT_SAMPLES * ts:g} s")
+    n = sum(lg.n for lg in fit_logs)
+    if not val_logs and len(fit_logs) == 1:
+        n = int(round(n * (1.0 - fraction)))
+    elif not val_logs:
+        n -= fit_logs[-1].n
+    count = n * ts / segment
+    if count > MAX_SEGMENTS:
+        shortest = n * ts / MAX_SEGMENTS
+        raise BadInput(f"--segment {segment:g}: cuts the {n * ts:.3g} s of fitting data into "
+                       f"{count:.0f} segments (at most {MAX_SEGMENTS}: each adds two initial "
+                       f"states and the fit's time grows with their square); give --segment "
+                       f"{shortest:.2g} or more")
+
+
+def _check_log_paths(logs: tuple[str, ...], validate: tuple[str, ...]) -> None:
+    """Refuse a validation log that is also fitted, and a MATLAB file (bad input)."""
+    for p in (*logs, *validate):
+        path = Path(p)
+        head = b""
+        if path.is_file():
+            with open(path, "rb") as fh:
+                head = fh.read(128)
+        if path.suffix.lower() == ".mat" or head.startswith(b"MATLAB"):
+            raise BadInput(f"log '{p}': a MATLAB file; identify reads CSV logs: convert it "
+                           f"with 'esoarm log import {p} --map t=…,y=…,u=… --out LOG.csv'")
+    def key(p: str) -> str:
+        return str(Path(p).resolve())
+
+    fitted = [key(p) for p in logs]
+    for p in validate:
+        if key(p) in fitted:
+            raise BadInput(f"--validate {p}: also given to fit; validation needs a log not "
+                           "used for fitting (or leave --validate out: the last "
+                           "--validate-fraction of the log is kept apart)")
+    if not validate and len(logs) > 1 and key(logs[-1]) in fitted[:-1]:
+        raise BadInput(f"log '{logs[-1]}' is given twice: the last log is the validation log "
+                       "and must not be fitted as well; give it once")
+    if len(set(fitted)) < len(fitted):
+        dup = next(p for p in logs if fitted.count(key(p)) > 1)
+        raise BadInput(f"log '{dup}' is given twice; give each log once")
+
+
+def _check_rotary_log(scn, logs: tuple[str, ...]) -> None:  # type: ignore[no-untyped-def]
+    """Refuse a lever-arm log (the columns of 'esoarm run'/'excite': theta [rad], the ESO's
+    z1 … z3) fitted as a prismatic axis (bad input)."""
+    if scn.plant.kind != "axis" or getattr(scn.plant, "motion", "") != "prismatic":
+        return
+    for p in logs:
+        try:
+            with open(p, encoding="utf-8") as fh:
+                header = next((ln for ln in fh if not ln.startswith("#")), "")
+        except (OSError, UnicodeDecodeError):
+            return
+        cols = {c.strip() for c in header.split(",")}
+        if {"theta", "z1", "z2"} <= cols:
+            raise BadInput(f"log '{p}': a log of the lever arm (the columns of 'esoarm run' or "
+                           f"'esoarm excite': theta [rad], z1, z2): a rotary arm, but "
+                           f"scenario '{scn.name}' is a prismatic axis (plant.motion = "
+                           "\"prismatic\"); identify it with its own scenario (--scenario "
+                           "test-1, or plant.motion=rotary)")
+
+
+class _numpy_quiet:  # noqa: N801 - a context manager
+    """No numpy RuntimeWarning reaches the user: overflow and invalid values are caught by
+    the checks and refusals themselves (a log with u scaled by 1e200 is refused)."""
+
+    def __enter__(self) -> None:
+        import warnings
+
+        import numpy as np
+
+        self._err = np.seterr(all="ignore")
+        self._w = warnings.catch_warnings()
+        self._w.__enter__()
+        warnings.simplefilter("ignore", RuntimeWarning)
+
+    def __exit__(self, *exc: Any) -> None:
+        import numpy as np
+
+        self._w.__exit__(*exc)
+        np.seterr(**self._err)
+
+
 def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_path,  # type: ignore[no-untyped-def]
-                   as_json) -> None:
+                   as_json, cutoff=None, input_unit="") -> None:
     """``identify`` for plant.kind = "axis": IDIM-LS, output error beside it (SI units)."""
     from esoarm.scenario import ScenarioError
     from esoarm.studies.identification.axis_identify import (
@@ -314,9 +439,16 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     if flat is not None:
         raise RunFailure(flat)
     try:
-        res = identify_axis(scn, fit_logs, val_logs, segment, validate_fraction)
+        res = identify_axis(scn, fit_logs, val_logs, segment, validate_fraction, cutoff)
     except AxisFitRefused as exc:
         raise RunFailure(str(exc)) from None
+    if input_unit:  # u in volts (or counts): every printed unit follows
+        from esoarm.studies.identification.axis_identify import unit_of as _unit
+
+        for name, e in res.physical.items():
+            e["unit"] = _unit(scn.plant.motion, name, input_unit)
+        if res.asymmetry:
+            res.asymmetry["unit"] = _unit(scn.plant.motion, "viscous_friction", input_unit)
     try:  # the estimate must make a valid axis (friction ≥ 0 each way, mass > 0)
         fitted = res.fitted_scenario()
     except ScenarioError as exc:  # not bad input: the fit's result is not a physical axis
@@ -334,8 +466,10 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
 
         head = [f"# Fitted by esoarm identify (IDIM-LS) from: {', '.join(res.fit_logs)}",
                 "# 95 % intervals (HAC):"]
-        head += [f"#   {name} = {e['value']:.6g} [{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}] "
-                 f"{e['unit']}" for name, e in res.physical.items()]
+        head += [f"#   {name} = {e['value']:.6g} "
+                 + (f"(interval withheld: {e['withheld']})" if e.get("ci95") is None else
+                    f"[{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}]") + f" {e['unit']}"
+                 for name, e in res.physical.items()]
         with atomic_path(out_path) as tmp:
             tmp.write_text("\n".join(head) + "\n\n" + fitted.to_toml(),
                            encoding="utf-8")
@@ -350,8 +484,9 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     oe_by_name = ({} if oe is None else
                   {n: i for i, n in enumerate(physical_names(motion, oe.names))})
     for name, e in res.physical.items():
-        line = (f"  {name:21s} {e['value']:12.6g} {unit_of(motion, name):10s} 95 % "
-                f"[{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}]")
+        line = (f"  {name:21s} {e['value']:12.6g} {unit_of(motion, name, input_unit):10s} 95 % "
+                + ("withheld" if e.get("ci95") is None else
+                   f"[{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}]"))
         if oe is not None and name in oe_by_name:
             i = oe_by_name[name]
             line += (f"   output error {oe.values[i]:.6g}" if res.oe_warning else
@@ -368,6 +503,8 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     lines.append(f"  relative force error {v['estimation_force_error_percent']:.3g} % "
                  "(estimation)" + (f", {v['cross_test_force_error_percent']:.3g} % (cross-test)"
                                    if "cross_test_force_error_percent" in v else ""))
+    if "not_validated" in v:
+        lines.append(f"  not validated: {v['not_validated']}")
     if "simulated_fit_percent" in v:
         lines.append(f"  simulated validation: fit {v['simulated_fit_percent']:.4g} % over "
                      f"{v['simulated_segment_s']:g} s segments")

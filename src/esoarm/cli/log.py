@@ -28,7 +28,7 @@ def log() -> None:
                    "position [rad or m], u applied torque or force [N·m or N]; optional "
                    "theta_ref (reference), theta, duty. E.g. --map t=t,y=qm,u=vir,theta_ref=qg. "
                    "A column of a .mat matrix: NAME:J (J from 1, MATLAB's NAME(:, J)), e.g. "
-                   "--map t=data:1,y=data:3,u=data:5.")
+                   "--map t=data:1,y=data:3,u=data:5. A field of a .mat struct: NAME.FIELD.")
 @click.option("--rate", "rate_hz", type=float, default=None, metavar="HZ",
               help="Sample rate [Hz] of a FILE without time stamps (then map no t): "
                    "t = k / HZ (1e-3 to 1e6 Hz).")

@@ -32,7 +32,18 @@ def _say(line: str) -> None:
 
 
 def scope_options(func):  # type: ignore[no-untyped-def]
-    """--scope, --scope-port, --scope-window (the live page)."""
+    """--scope, --scope-port, --scope-window (the live page).
+
+    Parameters
+    ----------
+    func : callable
+        A command's function.
+
+    Returns
+    -------
+    callable
+        ``func`` with the three options.
+    """
     func = click.option("--scope-window", type=float, default=10.0, show_default=True,
                         metavar="SECONDS",
                         help="Seconds of data the scope keeps and shows [s].")(func)
@@ -171,11 +182,16 @@ def emulate(scenario: str, overrides: tuple[str, ...], lockstep: bool, faults: t
               "starts and stops it, feeds its watchdog, keeps the safety limits and logs the "
               "chip's samples (y, u, z1..z3, duty) -- every sample where the link carries them, "
               "else every n-th, said on screen and in the log's first line.")
+@click.option("--switch-at", "switch_at", type=float, default=None, metavar="SECONDS",
+              help="Run a PID (the scenario's gains if its controller is one) until SECONDS, "
+              "then the ESO + FLC, without a bump in u (controller.kind = \"switch\", "
+              "docs/adrc.md); with --set controller.switch_back=T back to the PID at T.")
 @scope_options
 @bad_input_guard
 def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, as_json: bool,
         angle_limit: float, max_jump: float, watchdog: float, max_error: float,
-        baud: int, onboard: bool, scope: bool, scope_port: int, scope_window: float) -> None:
+        baud: int, onboard: bool, switch_at: float | None, scope: bool, scope_port: int,
+        scope_window: float) -> None:
     """Drive the rig on PORT through SCENARIO at its rate for its duration.
 
     The ESO + FLC of the scenario runs on this host, one sample at a time; the
@@ -199,6 +215,11 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
         raise BadInput(f"--baud {baud}: must be > 0")
     if scope:
         _check_scope(scope_port, scope_window)
+    if switch_at is not None:
+        if not (math.isfinite(switch_at) and switch_at >= 0):
+            raise BadInput(f"--switch-at {switch_at:g}: must be a finite time >= 0 [s]")
+        overrides = ("controller.kind=switch", f"controller.switch_at={switch_at!r}",
+                     *overrides)
     require_extra("serial", "'esoarm run' (the serial link)")
     scn = resolve_scenario(scenario, overrides)
     lever_only(scn, "run")
@@ -230,8 +251,16 @@ def run(scenario: str, port: str, overrides: tuple[str, ...], log: str | None, a
                           monitor=page.push if page is not None else None, onboard=onboard,
                           notice=_stream_notice)
     except RigFault as exc:
+        if as_json:  # one JSON object on stdout, as a run that ended well prints
+            click.echo(json.dumps({"scenario": scn.name, **exc.summary.to_dict(),
+                                   "wall_clock_s": round(time.monotonic() - started, 3),
+                                   "fault": str(exc)}))
         raise RunFailure(str(exc)) from None
     except RigInterrupted as exc:
+        if as_json:
+            click.echo(json.dumps({"scenario": scn.name, **exc.summary.to_dict(),
+                                   "wall_clock_s": round(time.monotonic() - started, 3),
+                                   "interrupted": str(exc)}))
         raise Interrupted(str(exc)) from None
     except LinkError as exc:
         raise RunFailure(str(exc)) from None

@@ -6,7 +6,7 @@ built against libsimavr like the hil harness) runs it until the shell writes
 GPIOR0 (data address 0x3E): between the writes 2 and 3 the step runs, and the
 difference of ``avr->cycle`` at the two writes is the step's cycle count
 (simavr counts the AVR's cycles per instruction; the two ``out`` instructions
-add 1 cycle).  The measured angle is written into the shell's ``pil_y`` and the
+add 1 cycle).  The measured angle and the reference are written into the shell's ``pil_in`` and the
 command read from ``pil_out`` directly in SRAM, addresses from ``avr-nm``.
 """
 
@@ -105,7 +105,7 @@ class AvrChip:
         self.elf = avr_image(gen)
         self.flash_bytes, self.ram_bytes = image_sizes(self.elf, "avr-size")
         syms = symbols(self.elf, "avr-nm")
-        self._y = syms["pil_y"] - 0x800000
+        self._y = syms["pil_in"] - 0x800000
         self._out = syms["pil_out"] - 0x800000
         self._lib = _harness()
         self._h = self._lib.pil_open(str(self.elf).encode(), F_CPU)
@@ -122,9 +122,10 @@ class AvrChip:
             raise RuntimeError("the AVR " + ("crashed" if rc == -1 else
                                              f"did not finish a step in {self.limit} cycles"))
 
-    def step(self, y: float) -> tuple[float, float, float]:
-        """One sample: y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty)."""
-        raw = struct.pack("<f", y)
+    def step(self, y: float, ref: tuple[float, float, float] = (0.0, 0.0, 0.0)
+             ) -> tuple[float, float, float]:
+        """One sample: y_k [rad] and (θd, θ̇d, θ̈d) -> (u_k [N·m], drive [N·m], duty)."""
+        raw = struct.pack("<4f", y, *ref)
         for i, b in enumerate(raw):
             self._data[self._y + i] = b
         self._wait(2)

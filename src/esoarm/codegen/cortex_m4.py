@@ -4,7 +4,8 @@ The PIL image is the generated source and a bare-metal shell
 (``chip/m4_startup.c``, ``chip/m4.ld``: vector table at 0x0, FPU enabled in the
 reset handler, CMSDK UART0 at 0x40004000) built with arm-none-eabi-gcc ``-O2
 -mfpu=fpv4-sp-d16 -mfloat-abi=hard`` and newlib's libm.  QEMU runs it with the
-UART on its standard input and output; per sample the host writes y and reads
+UART on its standard input and output; per sample the host writes y and the
+reference (θd, θ̇d, θ̈d) and reads
 (u, drive, SysTick ticks).
 
 Timing is an **instruction-count proxy**, not cycles: QEMU models no cycle
@@ -110,10 +111,11 @@ class CortexM4Chip:
             buf += chunk
         return buf
 
-    def step(self, y: float) -> tuple[float, float, float]:
-        """One sample: y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty)."""
+    def step(self, y: float, ref: tuple[float, float, float] = (0.0, 0.0, 0.0)
+             ) -> tuple[float, float, float]:
+        """One sample: y_k [rad] and (θd, θ̇d, θ̈d) -> (u_k [N·m], drive [N·m], duty)."""
         assert self._proc is not None and self._proc.stdin is not None
-        self._proc.stdin.write(struct.pack(self._fmt, y))
+        self._proc.stdin.write(struct.pack(self._fmt[0] + 4 * self._fmt[1], y, *ref))
         self._proc.stdin.flush()
         raw = self._read(3 * self._size + 4)
         u, drive, duty = struct.unpack(self._fmt[0] + 3 * self._fmt[1], raw[:3 * self._size])

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from esoarm.codegen.avr import image_sizes
 from esoarm.codegen.cortex_m4 import CFLAGS, CLOCK_HZ, ICOUNT_SHIFT
-from esoarm.codegen.generate import HEADER, SOURCE, Generated, generate
+from esoarm.codegen.generate import Generated, generate
 from esoarm.codegen.toolchain import build
 from esoarm.hardware.hil.build import ToolchainMissing, default_firmware_dir
 from esoarm.scenario import Scenario, ScenarioError
@@ -115,7 +115,7 @@ def m4_onboard_firmware(scn: Scenario, compensated: bool | None = None) -> M4Fir
                f"-DICOUNT_SHIFT={ICOUNT_SHIFT}", f"-DONBOARD_FLAGS=({flags})",
                "-DONBOARD_SUMS=" + ("ESO_SUMS_COMPENSATED" if gen.compensated
                                     else "ESO_SUMS_PLAIN")]
-    files = {HEADER: gen.header, SOURCE: gen.source, "esoarm_protocol.h": _protocol_header(),
+    files = {**gen.files, "esoarm_protocol.h": _protocol_header(),
              "mps2_onboard.c": _chip("mps2_onboard.c"), "m4.ld": _chip("m4.ld", "chip")}
     elf = build("arm-none-eabi-gcc", files, [*CFLAGS, *defines], "onboard.elf",
                 "esoarm-onboard-m4", ["-lm"])

@@ -3,7 +3,9 @@
 Per sample k (the sampled-data loop of :mod:`esoarm.engines.loop`):
 
 1. the twin's measurement y_k = Q(θ(t_k) + σ n_k) (the simulators' noise and quantizer);
-2. the chip steps the generated controller on y_k and answers (u_k, drive_k);
+2. the chip steps the generated controller on y_k and the reference r_k = (θd, θ̇d, θ̈d)
+   sent by the host (the Python reference's, :mod:`esoarm.reference`) and answers
+   (u_k, drive_k);
 3. the Python reference in float64 (:class:`esoarm.hardware.host_control.DeploymentController`,
    the step functions every engine calls) steps on the same y_k: u_ref,k;
 4. the chip's drive is held over [t_k, t_{k+1}) after the transport delay and the
@@ -24,6 +26,7 @@ differs otherwise is left alone and shows in Δu.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -49,8 +52,10 @@ class Chip(Protocol):
     flash_bytes: int
     ram_bytes: int
 
-    def step(self, y: float) -> tuple[float, float, float]:
-        """y_k [rad] -> (u_k [N·m], torque driving the plant [N·m], duty [counts] or 0)."""
+    def step(self, y: float, ref: tuple[float, float, float] = (0.0, 0.0, 0.0)
+             ) -> tuple[float, float, float]:
+        """y_k [rad] and the reference (θd [rad], θ̇d [rad/s], θ̈d [rad/s²]) at sample k
+        -> (u_k [N·m], torque driving the plant [N·m], duty [counts] or 0)."""
 
     def close(self) -> None:
         """Release the emulator."""
@@ -101,8 +106,36 @@ class LockstepRun:
         """max |Δu| / torque_limit [1]."""
         return self.max_abs_du / self.torque_limit
 
+    @property
+    def ref_finite(self) -> bool:
+        """The float64 Python reference's command stayed finite (else the design diverges)."""
+        return bool(np.all(np.isfinite(self.u_ref)))
 
-def lockstep(scn: Scenario, chip: Chip, steps: int | None = None) -> LockstepRun:
+    @property
+    def ref_diverged_at(self) -> int | None:
+        """First sample where the reference's command is not finite (None: never)."""
+        bad = np.flatnonzero(~np.isfinite(self.u_ref))
+        return int(bad[0]) if bad.size else None
+
+    @property
+    def first_move(self) -> int | None:
+        """First sample where the reference θd (or θ̇d) leaves its starting value, None if
+        it does not within the run (the arm is not asked to move)."""
+        if not self.steps:
+            return None
+        moving = np.flatnonzero(self.theta_ref != self.theta_ref[0])
+        return int(moving[0]) if moving.size else None
+
+    @property
+    def covers_motion(self) -> bool:
+        """The run reaches the moving part: the reference moves within it and the command
+        is not identically zero (an agreement over a resting arm proves little)."""
+        return self.first_move is not None and bool(np.any(self.u_ref != 0.0))
+
+
+def lockstep(scn: Scenario, chip: Chip, steps: int | None = None,
+             progress: Callable[[int], None] | None = None,
+             stop: Callable[[int, Chip], bool] | None = None) -> LockstepRun:
     """Run ``chip`` in the loop with the twin of ``scn`` for ``steps`` samples (default: all).
 
     Parameters
@@ -113,6 +146,11 @@ def lockstep(scn: Scenario, chip: Chip, steps: int | None = None) -> LockstepRun
         A started target (:class:`esoarm.codegen.host.HostChip`, the AVR or the Cortex-M4).
     steps : int, optional
         Samples to run (at most N).
+    progress : callable, optional
+        Called with the samples done every 100 samples (say what a long check is doing).
+    stop : callable, optional
+        Called with (k, chip) after each sample; True ends the run there (the first step
+        over the chip's budget: no need to run the rest to refuse).
 
     Returns
     -------
@@ -135,7 +173,8 @@ def lockstep(scn: Scenario, chip: Chip, steps: int | None = None) -> LockstepRun
     k_done = ties = 0
     for k in range(n):
         y = measure(x[0], inp.noise[k], inp.sigma, inp.q)
-        u_c, d_c, duty_c = chip.step(y)
+        u_c, d_c, duty_c = chip.step(y, (float(inp.refs[0, k]), float(inp.refs[1, k]),
+                                         float(inp.refs[2, k])))
         u_r = ref.step(k, y)
         u_app, duty_r = ref.actuate(u_r)
         if motor is not None and duty_c != duty_r and math.isfinite(duty_c):
@@ -147,7 +186,11 @@ def lockstep(scn: Scenario, chip: Chip, steps: int | None = None) -> LockstepRun
         ref.commit(u_app)
         ys[k], theta[k], u_chip[k], u_ref[k] = y, x[0], u_c, u_r
         k_done = k + 1
-        if not (math.isfinite(u_c) and math.isfinite(d_c)):
+        if not (math.isfinite(u_c) and math.isfinite(d_c) and math.isfinite(u_r)):
+            break
+        if progress is not None and k_done % 100 == 0:
+            progress(k_done)
+        if stop is not None and stop(k, chip):
             break
         drive[0] = d_c
         delayed_input(hist, k, inp.delay, drive, applied)

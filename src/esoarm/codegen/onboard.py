@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,7 +31,7 @@ from esoarm.hardware.hil.build import ToolchainMissing, _cache_dir, default_firm
 from esoarm.scenario import Scenario
 
 __all__ = ["OVERHEAD_CYCLES", "OnboardRun", "SumsChoice", "choose_sums", "onboard_firmware",
-           "onboard_run", "stream_every"]
+           "onboard_run", "stream_every", "sums_fit"]
 
 #: Baud rate of the on-board builds: a 37-byte CHIP_SAMPLE frame (370 bits) every 1 ms
 #: needs 370 kbit/s; 115200 would carry one sample in four at 1 kHz.
@@ -51,6 +52,12 @@ HEARTBEAT_S = 0.02
 #: interrupt's entry, the encoder, the motor pins, the CHIP_SAMPLE frame (CRC, queue, 37 UART
 #: interrupts) and the step running slower inside the interrupt than alone in PIL (the UART
 #: interrupts land in it).
+#: Since the reference left the step (the C API takes θd, θ̇d, θ̈d; the firmware evaluates
+#: the scenario's moves with esoarm_reference_next), PIL no longer times the reference, and
+#: this overhead, measured before, holds it: uno-rig's PIL median with compensated sums was
+#: 7271 cycles with the reference in the step and is 7238 without it at 50 Hz (the tunable
+#: gains now read from RAM cost about what its two moves did).  A reference with many moves
+#: costs more on board than this allows for: re-measure with benchmarks/bench_onboard.py.
 OVERHEAD_CYCLES = 9400
 #: The share of the period the predicted median load may use (the rest: bursts, heartbeats).
 LOAD_LIMIT = 0.97
@@ -77,10 +84,16 @@ class SumsChoice:
         return "compensated" if self.compensated else "plain"
 
 
-def _pil_cycles(scn: Scenario, compensated: bool) -> dict:
-    """PIL on the AVR for ``scn`` (cycles, agreement), cached by the generated C."""
+def _pil_cycles(scn: Scenario, compensated: bool,
+                say: Callable[[str], None] | None = None) -> dict:
+    """PIL on the AVR for ``scn`` (cycles, agreement), cached by the generated C.
+
+    The run ends at the first step over the sample period (it cannot fit: no need to run
+    the rest); ``say`` gets a progress line every 5 s.
+    """
     import hashlib
     import json
+    import time
 
     from esoarm.codegen.pil import run_pil
 
@@ -91,9 +104,23 @@ def _pil_cycles(scn: Scenario, compensated: bool) -> dict:
         return dict(json.loads(path.read_text()))
     except (OSError, ValueError):
         pass
-    rep = run_pil(scn, "avr", "float32", compensated)
+    name = "compensated" if compensated else "plain"
+    start = time.monotonic()
+    last = [start]
+    if say is not None:
+        say(f"timing the {name} observer sums with PIL on the simulated ATmega328P "
+            f"({scn.n_samples} samples at most; cached for the next run)")
+
+    def progress(k: int) -> None:
+        now = time.monotonic()
+        if say is not None and now - last[0] >= 5.0:
+            last[0] = now
+            say(f"  PIL ({name}): {k} of {scn.n_samples} samples ({now - start:.0f} s)")
+
+    rep = run_pil(scn, "avr", "float32", compensated, stop_over_budget=True,
+                  progress=progress)
     out = {"cycles": rep.cycles, "agrees": rep.agrees, "max_rel_du": rep.run.max_rel_du,
-           "budget": rep.budget_cycles}
+           "budget": rep.budget_cycles, "steps": rep.run.steps}
     try:
         path.write_text(json.dumps(out))
     except OSError:
@@ -101,20 +128,64 @@ def _pil_cycles(scn: Scenario, compensated: bool) -> dict:
     return out
 
 
-def choose_sums(scn: Scenario) -> SumsChoice:
+def _judge(scn: Scenario, compensated: bool, say: Callable[[str], None] | None
+           ) -> tuple[bool, str]:
+    """(fits, one line of numbers) for one observer sum on board."""
+    from esoarm.hardware.hil.board import F_CPU
+
+    budget = round(F_CPU * scn.sample_time)
+    r = _pil_cycles(scn, compensated, say)
+    c = r["cycles"]
+    load = c["median"] + OVERHEAD_CYCLES
+    name = "compensated" if compensated else "plain"
+    steps = r.get("steps", scn.n_samples)
+    fits = bool(r["agrees"]) and c["max"] <= budget and load <= LOAD_LIMIT * budget
+    text = (f"{name}: PIL median {c['median']} + {OVERHEAD_CYCLES} on-board = {load}"
+            f" {'≤' if load <= LOAD_LIMIT * budget else '>'} {LOAD_LIMIT:g} × "
+            f"{budget} cycles, worst step {c['max']}"
+            + (f" (over the period at step {steps - 1}: PIL stopped there)"
+               if c["max"] > budget and steps < scn.n_samples else "")
+            + ("" if r["agrees"] else f", max_rel_du {r['max_rel_du']:.2g} too large"))
+    return fits, text
+
+
+def sums_fit(scn: Scenario, compensated: bool,
+             say: Callable[[str], None] | None = None) -> tuple[bool, str]:
+    """Whether one observer sum fits the ATmega328P's period on board, and the numbers.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario to build.
+    compensated : bool
+        The sums to judge.
+    say : callable, optional
+        Gets progress lines while PIL times the code (not cached yet).
+
+    Returns
+    -------
+    (bool, str)
+        Fits, and one line with the PIL numbers.
+    """
+    return _judge(scn, compensated, say)
+
+
+def choose_sums(scn: Scenario, say: Callable[[str], None] | None = None) -> SumsChoice:
     """Compensated sums where they fit the ATmega328P's period on board, else plain.
 
     Each variant is timed by PIL (``esoarm pil SCENARIO --target avr [--plain-sums]``,
-    cached).  A variant fits when it agrees with the float64 reference, its worst step
-    fits the period, and its median step plus :data:`OVERHEAD_CYCLES` stays within
-    :data:`LOAD_LIMIT` of the period.  Measured at 1 kHz on uno-rig: compensated
-    7271 + 9400 > 0.97 · 16 000 (and on board it overran when the first move began), plain
-    5398 + 9400 fits (and held over the 20 s run).
+    cached, ended at the first step over the period).  A variant fits when it agrees with
+    the float64 reference, its worst step fits the period, and its median step plus
+    :data:`OVERHEAD_CYCLES` stays within :data:`LOAD_LIMIT` of the period.  Measured at
+    1 kHz on uno-rig: compensated 7271 + 9400 > 0.97 · 16 000 (and on board it overran when
+    the first move began), plain 5398 + 9400 fits (and held over the 20 s run).
 
     Parameters
     ----------
     scn : Scenario
         The scenario to build (its ``sensor.rate_hz`` sets the period).
+    say : callable, optional
+        Gets progress lines while PIL runs.
 
     Returns
     -------
@@ -125,20 +196,10 @@ def choose_sums(scn: Scenario) -> SumsChoice:
     CodegenError
         Neither variant fits: the rate is too high for this chip on board.
     """
-    from esoarm.hardware.hil.board import F_CPU
-
-    budget = round(F_CPU * scn.sample_time)
     notes = []
     for compensated in (True, False):
-        r = _pil_cycles(scn, compensated)
-        c = r["cycles"]
-        load = c["median"] + OVERHEAD_CYCLES
-        name = "compensated" if compensated else "plain"
-        fits = bool(r["agrees"]) and c["max"] <= budget and load <= LOAD_LIMIT * budget
-        notes.append(f"{name}: PIL median {c['median']} + {OVERHEAD_CYCLES} on-board = {load}"
-                     f" {'≤' if load <= LOAD_LIMIT * budget else '>'} {LOAD_LIMIT:g} × "
-                     f"{budget} cycles, worst step {c['max']}"
-                     + ("" if r["agrees"] else f", max_rel_du {r['max_rel_du']:.2g} too large"))
+        fits, text = _judge(scn, compensated, say)
+        notes.append(text)
         if fits:
             return SumsChoice(compensated, "; ".join(notes))
     raise CodegenError(f"at {scn.sensor.rate_hz:g} Hz neither observer sum fits the "

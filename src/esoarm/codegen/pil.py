@@ -7,6 +7,7 @@ in a :class:`PilReport`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -82,6 +83,12 @@ class PilReport:
         """max |Δu| / torque_limit ≤ :data:`esoarm.codegen.AGREEMENT` over every sample."""
         return self.run.max_rel_du <= AGREEMENT
 
+    @property
+    def covers_motion(self) -> bool:
+        """The run reached the moving part (:attr:`LockstepRun.covers_motion`): an agreement
+        over a resting arm, before the first move, is not a check of the code."""
+        return self.run.covers_motion
+
     def as_dict(self) -> dict[str, Any]:
         """The ``--json`` object."""
         return {
@@ -96,12 +103,15 @@ class PilReport:
             "budget_used": (self.cycles["max"] / self.budget_cycles
                             if self.cycles and self.budget_cycles else None),
             "flash_bytes": self.flash_bytes, "ram_bytes": self.ram_bytes,
-            "ok": self.fits and self.agrees,
+            "covers_motion": self.covers_motion, "first_move": self.run.first_move,
+            "ok": self.fits and self.agrees and self.covers_motion,
         }
 
 
 def run_pil(scn: Scenario, target: str, precision: str = "float32",
-            compensated: bool | None = None, steps: int | None = None) -> PilReport:
+            compensated: bool | None = None, steps: int | None = None,
+            stop_over_budget: bool = False,
+            progress: Callable[[int], None] | None = None) -> PilReport:
     """Generate, build and run ``scn``'s controller on ``target`` in lockstep with the twin.
 
     Parameters
@@ -116,6 +126,11 @@ def run_pil(scn: Scenario, target: str, precision: str = "float32",
         Observer sums (default: compensated for float32).
     steps : int, optional
         Samples to run (default: the whole run).
+    stop_over_budget : bool
+        End the run at the first step that takes more than one sample period (the
+        report then says it does not fit without running the rest).
+    progress : callable, optional
+        Called with the samples done, every 100 samples.
 
     Returns
     -------
@@ -130,10 +145,15 @@ def run_pil(scn: Scenario, target: str, precision: str = "float32",
     """
     gen = generate(scn, target, precision, compensated)
     chip = open_chip(gen)
+    clock = float(getattr(chip, "clock_hz", 0.0))
+    budget = round(clock * scn.sample_time)
+
+    def over(k: int, c: Chip) -> bool:
+        return bool(budget) and bool(c.cycles) and c.cycles[-1] > budget
+
     try:
-        run = lockstep(scn, chip, steps)
+        run = lockstep(scn, chip, steps, progress=progress,
+                       stop=over if stop_over_budget else None)
     finally:
         chip.close()
-    clock = float(getattr(chip, "clock_hz", 0.0))
-    return PilReport(run, gen, chip.timing, clock, round(clock * scn.sample_time),
-                     chip.flash_bytes, chip.ram_bytes)
+    return PilReport(run, gen, chip.timing, clock, budget, chip.flash_bytes, chip.ram_bytes)

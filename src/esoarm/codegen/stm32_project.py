@@ -19,7 +19,7 @@ from pathlib import Path
 
 from esoarm import __version__
 from esoarm.codegen.cortex_m_onboard import _protocol_header
-from esoarm.codegen.generate import HEADER, SOURCE, generate
+from esoarm.codegen.generate import generate
 from esoarm.scenario import Scenario, ScenarioError
 
 __all__ = ["BAUD", "write_stm32_project"]
@@ -93,7 +93,7 @@ def write_stm32_project(scn: Scenario, folder: Path, compensated: bool | None = 
              "#endif\n")
     src = folder / "src"
     src.mkdir(parents=True, exist_ok=True)
-    files = {src / HEADER: gen.header, src / SOURCE: gen.source,
+    files = {**{src / name: text for name, text in gen.files.items()},
              src / "esoarm_protocol.h": _protocol_header(), src / "esoarm_board.h": board,
              src / "main.c": _template("main.c"),
              src / "startup_stm32f401.c": _template("startup_stm32f401.c"),

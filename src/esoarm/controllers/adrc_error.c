@@ -12,13 +12,14 @@ static void ctl_initialize(esoarm_real c[], esoarm_real y)
     c[0] = R(0.0); c[1] = R(0.0); c[2] = R(0.0);
 }
 
-static esoarm_real ctl_control(esoarm_real c[], const esoarm_real zhat[], esoarm_real y,
-                               const esoarm_real ref[3], uint32_t k)
+static esoarm_real ctl_control(const esoarm_real T[], esoarm_real c[],
+                               const esoarm_real zhat[], esoarm_real y,
+                               const esoarm_real ref[3], uint8_t first)
 {
     esoarm_real e = ref[0] - y;
     esoarm_real z1, z2, z3, inno, h1, h2, h3, u, us, ts = CTL_P[1], limit = CTL_P[12];
-    (void)zhat;
-    if (k == 0) { c[0] = e; c[1] = R(0.0); c[2] = R(0.0); }
+    (void)zhat; (void)T;
+    if (first) { c[0] = e; c[1] = R(0.0); c[2] = R(0.0); }
     z1 = c[0]; z2 = c[1]; z3 = c[2];
     inno = e - z1;
     h1 = z1; h2 = z2; h3 = z3;

@@ -32,14 +32,16 @@ from esoarm.plants.model import gravity_coefficient, gravity_torque
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CODE", "FAST", "JIT", "KIND", "FLCParams", "Params", "control", "design", "flc_command",
-           "flc_control", "initialize", "label", "saturate"]
+__all__ = ["CODE", "FAST", "FLC_LAW", "JIT", "KIND", "FLCParams", "Params", "control", "design",
+           "flc_command", "flc_control", "initialize", "label", "saturate"]
 
 KIND = "flc"
 CODE = 0
 JIT = True
 #: The fast engine's C kernel models this controller.
 FAST = True
+#: The law of eq. 14-16: the frequency-domain analysis and κ (eq. 17) model it.
+FLC_LAW = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "flc.c"
 

@@ -221,22 +221,19 @@ class EsoFlcPolicy:
         if not isinstance(base, LeverArmEnv) or not base.observe_estimates:
             raise ValueError("EsoFlcPolicy needs a LeverArmEnv with observe_estimates=True")
         inp = base._inp
-        self._kind = inp.kinds.controller
-        self._p = inp.controller.vector
-        self._c = np.zeros(max(inp.controller.n_state, 1))
+        self._refs = np.zeros((3, 2))  # (θd, θ̇d, θ̈d) of the observation, twice
+        self._st = Stepper(inp.kinds, inp.plant, inp.observer, inp.controller, inp.actuator,
+                           self._refs, inp.sampling)
         self._k = 0
-        self._started = False
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         y0, ref, dref, ddref, z1, z2, z3 = (float(v) for v in obs)
-        y = np.array([y0])
-        if not self._started:
-            self._kind.initialize(self._c, y, self._p)
-            self._started = True
-        u = np.zeros(1)
-        self._kind.control(self._c, np.array([z1, z2, z3]), y,
-                           np.array([[ref, ref], [dref, dref], [ddref, ddref]]),
-                           0 if self._k == 0 else 1,
-                           self._p, u)
+        st = self._st
+        if self._k == 0:
+            st.start(y0)  # the controller's own state from the first measurement
+        st.y[0] = y0
+        st.zhat[:3] = (z1, z2, z3)
+        self._refs[:, 0] = self._refs[:, 1] = (ref, dref, ddref)
+        u = st.control(0 if self._k == 0 else 1).copy()
         self._k += 1
         return u

@@ -325,7 +325,11 @@ def _read_csv(p: Path, src: str) -> _Source:
                     raise ScenarioError(f"{src}: line {reader.line_num}: {len(row)} values, "
                                         f"the header names {len(header)}")
                 rows.append(row)
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{src}: not a text file (byte 0x{exc.object[exc.start]:02x} at "
+                            f"position {exc.start} is not UTF-8); a CSV is text: export it as "
+                            "CSV (UTF-8), or give the .mat or .json file it came from") from None
+    except (OSError, csv.Error) as exc:
         raise ScenarioError(f"{src}: cannot read: {exc}") from None
     if not rows:
         raise ScenarioError(f"{src}: no data rows (only the header)")
@@ -484,18 +488,20 @@ def import_log(path: str | Path, mapping: Mapping[str, str],
                             + hint)
     source = _read(path)
     vectors, scalars = source.vectors, source.scalars
+    for col, value in (signs or {}).items():
+        if str(value).strip() not in ("1", "+1", "-1", "1.0", "+1.0", "-1.0"):
+            raise ScenarioError(f"sign {col}={value}: must be +1 or -1 (use --scale for a "
+                                "factor)")
     factors = _per_column(scales, "scale", mapping, scalars, src, nonzero=True)
     shifts = _per_column(offsets, "offset", mapping, scalars, src, nonzero=False)
     flips = _per_column(signs, "sign", mapping, {}, src, nonzero=True)
-    for col, f in flips.items():
-        if f not in (1.0, -1.0):
-            raise ScenarioError(f"sign {col}={f:g}: must be +1 or -1 (use --scale for a factor)")
     columns: dict[str, np.ndarray] = {}
     for col, var in mapping.items():
         if var not in vectors:
             _missing_variable(source, var, col, src, rate_hz)
-        values = vectors[var] * (flips.get(col, 1.0) * factors.get(col, 1.0)) \
-            + shifts.get(col, 0.0)
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is named below
+            values = vectors[var] * (flips.get(col, 1.0) * factors.get(col, 1.0)) \
+                + shifts.get(col, 0.0)
         bad = ~np.isfinite(values)
         if bad.any():
             k = int(np.argmax(bad))

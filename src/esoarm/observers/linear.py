@@ -106,7 +106,7 @@ DISCRETIZATIONS: tuple[str, ...] = ("euler", "zoh", "current")
 TUNINGS: tuple[str, ...] = ("bandwidth", "half-gain")
 DELAY_FORMS: tuple[str, ...] = ("input", "predictor")
 #: the largest ``input_delay`` [samples]
-MAX_INPUT_DELAY = 50
+MAX_INPUT_DELAY = 200
 
 # Layout of the packed observer vector (see ESODesign.vector).
 DISC, TS, B0, BETA1, BETA2, BETA3 = 0, 1, 2, 3, 4, 5
@@ -743,8 +743,18 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
 
 def state_size(params: Params) -> int:
-    """States per joint: 3 (angle, rate, total perturbation), then the ``input_delay``
-    commands held for the delayed input."""
+    """States per joint: 3 (angle, rate, total perturbation) and the commands held.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+
+    Returns
+    -------
+    int
+        3 + ``input_delay`` (the N last commands held for the delayed input).
+    """
     return 3 + int(params.input_delay)
 
 

@@ -405,8 +405,10 @@ def estimation_error(result: SimResult) -> np.ndarray:
         κ_k [rad/s²].
     """
     scn = result.scenario
-    if scn.controller.kind != "flc":
-        raise ValueError(f"κ (eq. 17) is defined for the FLC, not for controller.kind = "
+    from esoarm.kinds import can
+
+    if not can(scn, "FLC_LAW"):  # what the controller kind declares
+        raise ValueError(f"κ (eq. 17) is defined for the FLC's law, not for controller.kind = "
                          f"{scn.controller.kind!r}")
     k1, k2 = scn.controller.k1, scn.controller.k2
     z1, z2, z3 = result.z[:, 0], result.z[:, 1], result.z[:, 2]

@@ -43,7 +43,7 @@ from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["BACKLASH_MODEL", "CODE", "FAST", "JIT", "KIND", "MOTOR", "Params", "RigParams",
+__all__ = ["BACKLASH_MODEL", "CODE", "FAST", "JIT", "KIND", "MOTOR", "Params", "RIG", "RigParams",
            "acceleration", "advance", "geared_advance", "geared_derivative_at",
            "advance_block", "design", "observer_input", "rig_acceleration", "rig_advance",
            "rig_derivative", "rig_rk4_step"]
@@ -56,6 +56,8 @@ FAST = True
 #: Driven by the actuator's motor when the scenario has a ``[motor]`` table (its back-EMF
 #: damping, :func:`esoarm.plants.actuator.back_emf_damping`, joins the viscous friction).
 MOTOR = True
+#: The one-joint rig of the serial protocol (run, emulate, excite, identify, analyze).
+RIG = True
 #: Models gear backlash (``rig.backlash_deg``, :mod:`esoarm.plants.backlash`).
 BACKLASH_MODEL = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module

@@ -106,7 +106,7 @@ def plot_run(result: SimResult, path: str | Path | None = None) -> Figure:
     eps = getattr(scn.observer, "eps", None)
     fig.suptitle(
         f"{scn.name}: " + (f"ε = {eps:g} s, " if eps is not None else "")
-        + (f"{obs_text} ESO" if scn.observer.kind == "linear" else obs_text)
+        + obs_text
         + f", {ctl_text}\nRMS error {result.rms_error:.4g} {u.position}, "
         f"RMS u {result.rms_u:.4g} {u.force}",
         fontsize=10,

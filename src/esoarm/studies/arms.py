@@ -107,7 +107,18 @@ def _map(scenarios: list[Scenario], workers: int | None) -> list[SimResult]:
 
 
 def default_eps(eps: float | list[float]) -> np.ndarray:
-    """Nine ε around the scenario's (largest) ε, geometric from ε/4 to 4ε [s]."""
+    """Nine ε around the scenario's (largest) ε, geometric from ε/4 to 4ε [s].
+
+    Parameters
+    ----------
+    eps : float or list of float
+        The scenario's ``observer.eps`` [s] (one per joint, or one for all).
+
+    Returns
+    -------
+    ndarray, shape (9,)
+        The ε values [s].
+    """
     center = max(eps) if isinstance(eps, list) else eps
     return np.geomspace(center / 4.0, center * 4.0, 9)
 
@@ -124,6 +135,11 @@ def run_arm_study(scn: Scenario, eps: Sequence[float] | None = None,
         ε values [s] to sweep (applied to every joint); default :func:`default_eps`.
     workers : int, optional
         Worker processes (default: all cores).
+
+    Returns
+    -------
+    ArmStudy
+        The controllers' runs, the model-over-ESO ratios and the ε sweep.
     """
     grid = np.asarray(eps if eps is not None else default_eps(scn.observer.eps), dtype=float)
     variants = [scn.with_overrides(over) for _, _, over in VARIANTS]
@@ -169,7 +185,19 @@ _CSS = ("body{font-family:system-ui,sans-serif;max-width:70rem;margin:2rem auto;
 
 
 def summary(study: ArmStudy) -> dict[str, Any]:
-    """The study's tables as JSON-ready data."""
+    """The study's tables as JSON-ready data.
+
+    Parameters
+    ----------
+    study : ArmStudy
+        From :func:`run_arm_study`.
+
+    Returns
+    -------
+    dict
+        The scenario, the joints, each controller's metrics, the model-over-ESO error
+        ratios and the ε sweep (RMS error [rad] and torque [N·m] per joint).
+    """
     names = study.names
     return {
         "scenario": study.scenario.name,
@@ -186,7 +214,20 @@ def summary(study: ArmStudy) -> dict[str, Any]:
 
 
 def render_arm_report(study: ArmStudy, pngs: dict[str, bytes]) -> str:
-    """The study as one self-contained HTML page (figures embedded)."""
+    """The study as one self-contained HTML page (figures embedded).
+
+    Parameters
+    ----------
+    study : ArmStudy
+        From :func:`run_arm_study`.
+    pngs : dict of str to bytes
+        The figures, PNG, by name.
+
+    Returns
+    -------
+    str
+        The page.
+    """
     names = study.names
     scn = study.scenario
     rows = []
@@ -228,7 +269,22 @@ def render_arm_report(study: ArmStudy, pngs: dict[str, bytes]) -> str:
 
 
 def write_arm_study(study: ArmStudy, out: str | Path, fmt: str = "png") -> list[Path]:
-    """Write report.html, summary.json, the tables, time series and figures into ``out``."""
+    """Write report.html, summary.json, the tables, time series and figures into ``out``.
+
+    Parameters
+    ----------
+    study : ArmStudy
+        From :func:`run_arm_study`.
+    out : str or Path
+        The folder (created).
+    fmt : str
+        The figures' format (``png``, ``pdf`` or ``svg``).
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
     from esoarm.plotting.arms import figure_arm_ablation, figure_arm_eps_sweep, plot_arm_run
     from esoarm.plotting.run import figure_bytes
 

@@ -3,7 +3,8 @@
  * enables the FPU (CPACR) before any float, the CMSDK UART0 at 0x40004000 as
  * the lockstep link, SysTick (processor clock) around the step.
  *
- * Per sample: the host sends y (sizeof(esoarm_real) bytes, little endian); the
+ * Per sample: the host sends y, theta_d, omega_d, accel_d (sizeof(esoarm_real) bytes
+ * each, little endian); the
  * shell steps the controller and answers u, drive, duty (esoarm_real each) and the
  * SysTick ticks the step took (uint32).  QEMU models no cycle counter (DWT
  * reads 0): run with -icount shift=N, the ticks count executed instructions
@@ -76,13 +77,13 @@ int main(void)
     SYST_CSR = 5u;                          /* enable, processor clock */
     esoarm_init(&S);
     for (;;) {
-        union { esoarm_real r; uint8_t b[sizeof(esoarm_real)]; } y;
+        union { esoarm_real r[4]; uint8_t b[4 * sizeof(esoarm_real)]; } in;
         uint32_t t0, t1, ticks;
         unsigned i;
         esoarm_real out[3];
-        for (i = 0; i < sizeof y.b; ++i) y.b[i] = getc_uart();
+        for (i = 0; i < sizeof in.b; ++i) in.b[i] = getc_uart();
         t0 = SYST_CVR;
-        esoarm_step(&S, y.r);
+        esoarm_step(&S, in.r[0], in.r[1], in.r[2], in.r[3]);
         t1 = SYST_CVR;
         ticks = (t0 - t1) & 0x00FFFFFFu;    /* SysTick counts down */
         out[0] = S.u;

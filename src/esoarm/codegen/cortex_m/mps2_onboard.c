@@ -24,6 +24,7 @@
 #include <string.h>
 #include "esoarm_protocol.h"
 #include "esoarm_controller.h"
+#include "esoarm_reference.h"
 
 #ifndef SAMPLE_PERIOD_US
 #error "SAMPLE_PERIOD_US is required"
@@ -110,6 +111,7 @@ static uint32_t instructions_since(uint32_t t0)
 }
 
 static esoarm_state ctl;
+static esoarm_reference ref;  /* the scenario's moves, from START */
 static eso_parser_t parser;
 static uint8_t frame_buf[ESO_MAX_FRAME];
 static uint8_t tx_seq;
@@ -169,6 +171,7 @@ static void handle_frame(const eso_frame_t *f)
         break;
     case ESO_START:
         esoarm_init(&ctl);
+        esoarm_reference_init(&ref);
         sample_k = 0;
         beat_k = 0;
         running = 1;
@@ -205,7 +208,11 @@ static void on_sample(int32_t count)
         fault(ESO_FAULT_WATCHDOG, k);
         return;
     }
-    esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD);
+    {
+        esoarm_real r[3];
+        esoarm_reference_next(&ref, r);
+        (void)esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD, r[0], r[1], r[2]);
+    }
     duty = (int16_t)ctl.duty;
     drive = (float)ctl.drive;
     pins_write(drive, duty, 1);

@@ -20,6 +20,7 @@
 #include <stdint.h>
 #include "esoarm_protocol.h"
 #include "esoarm_controller.h"
+#include "esoarm_reference.h"
 #include "esoarm_board.h"
 
 #define REG(a) (*(volatile uint32_t *)(a))
@@ -71,6 +72,7 @@
 #define RING 8u
 
 static esoarm_state ctl;
+static esoarm_reference ref;  /* the scenario's moves, from START */
 static const esoarm_real COUNT_TO_RAD = (esoarm_real)(6.283185307179586 / COUNTS_PER_REV);
 static const char SCENARIO_HASH8[8] = {ESOARM_SCENARIO_HASH[0], ESOARM_SCENARIO_HASH[1],
     ESOARM_SCENARIO_HASH[2], ESOARM_SCENARIO_HASH[3], ESOARM_SCENARIO_HASH[4],
@@ -193,7 +195,11 @@ void TIM4_IRQHandler(void)
     }
     stepping = 1u;
     count = (int32_t)(TIM_CNT(TIM2) - count0);
-    esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD);
+    {
+        esoarm_real r[3];
+        esoarm_reference_next(&ref, r);
+        (void)esoarm_step(&ctl, (esoarm_real)count * COUNT_TO_RAD, r[0], r[1], r[2]);
+    }
     duty = (int16_t)ctl.duty;
     motor_write(duty);
     if ((ring_head + 1u) % RING == ring_tail) {
@@ -260,6 +266,7 @@ static void handle_frame(const eso_frame_t *f)
         running = 0u;
         motor_write(0);
         esoarm_init(&ctl);
+        esoarm_reference_init(&ref);
         count0 = TIM_CNT(TIM2); /* the angle at START is theta = 0 */
         sample_k = 0u;
         beat_k = 0u;

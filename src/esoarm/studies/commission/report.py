@@ -151,7 +151,7 @@ def write_report(summary: dict[str, Any], path: Path, refused: dict[str, str] | 
     steps = summary.get("steps", {})
     p.append("<h2>Steps</h2>")
     p.append(_table(["step", "status", "time [s]", "file"],
-                    [[name, s["status"], s.get("elapsed_s"), s["file"]]
+                    [[name, s["status"], _f(s.get("elapsed_s"), ".1f"), s["file"]]
                      for name, s in steps.items()]))
 
     ex = summary.get("excitation")
@@ -174,9 +174,14 @@ def write_report(summary: dict[str, Any], path: Path, refused: dict[str, str] | 
                  f"{_f(ident['validation_fit_percent'], '.2f')} % on data not used for the "
                  f"fit; validation residual {'white' if ident['residual_white'] else 'NOT white'}"
                  f". Noise: {html.escape(ident['noise'])}.</p>")
-        rows = [[k, v["value"], f"[{_f(v['ci95'][0])}, {_f(v['ci95'][1])}]", v["unit"],
+        rows = [[k, v["value"], "withheld" if v["ci95"] is None
+                 else f"[{_f(v['ci95'][0])}, {_f(v['ci95'][1])}]", v["unit"],
                  "fitted" if v["fitted"] else "held"] for k, v in ident["parameters"].items()]
         p.append(_table(["key", "value", "95 % interval", "unit", ""], rows))
+        for k, v in ident["parameters"].items():
+            for why in (v.get("withheld"), v.get("advice")):
+                if why:
+                    p.append(f"<p class='note'>{html.escape(k)}: {html.escape(why)}.</p>")
         if ident["poorly_identifiable"] or ident["at_bound"]:
             p.append(f"<p class='note'>Poorly determined: "
                      f"{html.escape(', '.join(ident['poorly_identifiable']) or 'none')}; at a "
@@ -189,8 +194,9 @@ def write_report(summary: dict[str, Any], path: Path, refused: dict[str, str] | 
         p.append(f"<p>Perturbation-estimate bandwidth {d['bandwidth']:.4g} rad/s "
                  f"({html.escape(d['bandwidth_source'])}; Nyquist π/Ts = {d['nyquist']:.4g} "
                  f"rad/s). Chosen: <b>observer.kind = {d['observer_kind']}, observer.eps = "
-                 f"{d['eps']:.4g} s</b>, the kind with the least noise-driven control "
-                 "chatter at that bandwidth.</p>")
+                 f"{d['eps']:.4g} s</b>: the least noise-driven control chatter at that "
+                 "bandwidth among the kinds whose disturbance → error peak is within 1.5× of "
+                 "the smallest.</p>")
         p.append(_table(["kind", "ε [s]", "bandwidth [rad/s]", "noise RMS u [N·m]",
                          "noise RMS Δu [N·m]", "disturbance → error peak [rad/(N·m)]"],
                         [[r["kind"], r["eps"], r["bandwidth"], r["rms_u"], r["rms_du"],

@@ -47,6 +47,11 @@ __all__ = ["AGREEMENT", "STEPS", "Commission", "CommissionOptions", "CommissionR
 STEPS = ("excite", "identify", "design", "codegen", "flash", "run")
 #: Measured RMS error and RMS Δu must be within this fraction of the predicted ones.
 AGREEMENT = 0.25
+#: Attempts of a run on the simulated board that a watchdog ended (a busy machine).
+HIL_ATTEMPTS = 3
+#: The design takes the least chatter among the observer kinds whose disturbance -> error
+#: peak is within this factor of the smallest one.
+PEAK_RATIO = 1.5
 
 
 class CommissionRefused(RuntimeError):
@@ -203,8 +208,35 @@ class Commission:
                             max_error=0.5 if onboard else math.inf)
 
     def _drive(self, scn: Scenario, elf: Path | None, log: Path, name: str, limits: Any,
-               advice: str, baud: int | None = None, **run_kwargs: Any) -> Any:
-        """One run of ``scn`` on the rig (on ``hil``: ``elf`` on the simulated Uno)."""
+               advice: str, baud: int | None = None,
+               controller: Callable[[], Any] | None = None, **run_kwargs: Any) -> Any:
+        """One run of ``scn`` on the rig (on ``hil``: ``elf`` on the simulated Uno).
+
+        On ``hil`` a run that a watchdog ended (the simulated board's 100 ms command or
+        heartbeat watchdog, or the host's) is tried again, up to :data:`HIL_ATTEMPTS` times
+        in all, and said: the simulated chip's time runs at the wall clock's pace while the
+        host owes it an answer, so a host stalled by a busy machine trips it (measured: at
+        sample 626 of the excitation at a load of 14 on 2 cores).  ``controller`` makes a
+        fresh per-sample controller for each attempt.
+        """
+        attempts = HIL_ATTEMPTS if self.opts.hil else 1
+        for attempt in range(1, attempts + 1):
+            kwargs = dict(run_kwargs)
+            if controller is not None:
+                kwargs["controller"] = controller()
+            try:
+                return self._drive_once(scn, elf, log, name, limits, advice, baud, **kwargs)
+            except CommissionRefused as exc:
+                if attempt == attempts or "watchdog" not in exc.reason:
+                    raise
+                self.say(f"{name}: {exc.reason.split(': stop sent')[0]} on the simulated board "
+                         f"(the machine is busy: the host answered late); again, attempt "
+                         f"{attempt + 1} of {attempts}")
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    def _drive_once(self, scn: Scenario, elf: Path | None, log: Path, name: str, limits: Any,
+                    advice: str, baud: int | None = None, **run_kwargs: Any) -> Any:
+        """One attempt of :meth:`_drive`."""
         from esoarm.hardware.link import LinkError, SerialLink
         from esoarm.hardware.realtime import RigFault, run_rig
 
@@ -233,6 +265,9 @@ class Commission:
         try:
             return run_rig(scn, link, log, limits, **run_kwargs)
         except RigFault as exc:
+            if "watchdog" in str(exc):
+                advice = ("a sample or a command came too late: check the link to the board "
+                          "(USB cable, hub) and run the same command again with --resume")
             raise CommissionRefused(name, str(exc), advice) from None
         except LinkError as exc:
             raise CommissionRefused(name, str(exc), "check the link to the board") from None
@@ -262,11 +297,11 @@ class Commission:
                                                        ("ENCODER_PPR", ppr, 600))
                             if v != default}
                 elf = firmware_elf("l298n", settings=settings)
-            ctl = ExcitationController(rig, plan)
             s = self._drive(rig, elf, log, "excite", self._limits(),
                             "lower --amplitude, or raise --angle-limit if the arm is safe there; "
                             "check the sign of motor and encoder (docs: Running esoarm on a "
-                            "rig, First run)", controller=ctl)
+                            "rig, First run)",
+                            controller=lambda: ExcitationController(rig, plan))
             rows = np.genfromtxt(log, delimiter=",", names=True)
             return {"log": log.name, "samples": s.samples, "lost_samples": s.lost_samples,
                     "rms_u": s.rms_u, "max_abs_u": float(np.nanmax(np.abs(rows["u"]))),
@@ -358,7 +393,21 @@ class Commission:
                     "design", f"no observer kind reaches a perturbation-estimate bandwidth of "
                     f"{bw:.4g} rad/s below the Nyquist frequency ({nyquist:.4g} rad/s) with a "
                     "stable loop", "give a lower --bandwidth")
-            best = recs[0]
+            # The least chatter among the kinds that reject disturbances about as well as the
+            # best one: equal f -> z3 bandwidths are not equal rejection, and a kind with
+            # several times the disturbance -> error peak turns every model error the
+            # identification left into tracking error (uno-rig: the cascade ESO, 3.3x the
+            # linear one's peak, tracked 11-39 % worse on the rig than predicted).
+            least = min(recs, key=lambda r: r.disturbance_peak)
+            fair = [r for r in recs if r.disturbance_peak <= PEAK_RATIO * least.disturbance_peak]
+            best = min(fair, key=lambda r: r.budget.rms_du)
+            for r in recs:
+                if r is not best and r.budget.rms_du < best.budget.rms_du:
+                    notes.append(
+                        f"the {r.kind} ESO (ε = {r.eps:.4g} s) chatters less (noise RMS Δu "
+                        f"{r.budget.rms_du:.3g} against {best.budget.rms_du:.3g} N·m) but has "
+                        f"{r.disturbance_peak / best.disturbance_peak:.2g}× the disturbance → "
+                        f"error peak: not taken (--observer-kind {r.kind} takes it)")
             if o.observer_kind is not None:
                 chosen = [r for r in recs if r.kind == o.observer_kind]
                 if not chosen:
@@ -367,14 +416,6 @@ class Commission:
                         f"{bw:.4g} rad/s with a stable loop", "leave out --observer-kind, or "
                         "give another --bandwidth")
                 best = chosen[0]
-            least = min(recs, key=lambda r: r.disturbance_peak)
-            ratio = best.disturbance_peak / least.disturbance_peak
-            if ratio > 1.5:
-                notes.append(
-                    f"the {best.kind} ESO has the least chatter but {ratio:.2g}× the "
-                    f"disturbance → error peak of the {least.kind} one at this bandwidth: "
-                    "expect a larger tracking error (the prediction shows it); "
-                    f"--observer-kind {least.kind} takes the other")
             design = fitted.with_overrides({"name": f"{self.rig.name}-commissioned",
                                             "observer.kind": best.kind,
                                             "observer.eps": best.eps})
@@ -534,7 +575,8 @@ class Commission:
             "excitation": r.get("excite"),
             "identified": None if not ident else {
                 "parameters": {k: {"value": v["value"], "ci95": v["ci95"], "unit": v["unit"],
-                                   "fitted": v["fitted"]}
+                                   "fitted": v["fitted"],
+                                   **{w: v[w] for w in ("withheld", "advice") if v.get(w)}}
                                for k, v in ident["parameters"].items()},
                 "fit_percent": ident["fit"]["fit_percent"],
                 "validation_fit_percent": ident["validation"].get("fit_percent"),

@@ -52,7 +52,22 @@ __all__ = ["FrequencyAnalysis", "Margins", "analyze", "frequency_grid", "freqres
 
 
 def frequency_grid(ts: float, n: int = 2000, lowest: float | None = None) -> np.ndarray:
-    """Log-spaced frequencies [rad/s] up to the Nyquist frequency π/Ts (included)."""
+    """Log-spaced frequencies [rad/s] up to the Nyquist frequency π/Ts (included).
+
+    Parameters
+    ----------
+    ts : float
+        Sample time Ts [s].
+    n : int
+        Number of frequencies.
+    lowest : float, optional
+        The first frequency [rad/s]; default 1e-5 π/Ts.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The frequencies [rad/s], ascending.
+    """
     wn = math.pi / ts
     lo = wn * 1e-5 if lowest is None else lowest
     return np.geomspace(lo, wn, n)
@@ -89,6 +104,20 @@ def margins(lin: LinearLoop, w: np.ndarray | None = None) -> Margins:
     Crossings are bracketed on a dense log grid up to π/Ts and refined with
     Brent's method; the loop is real, so the Nyquist frequency itself is a
     −180° crossing whenever L(−1) < 0.
+
+    Parameters
+    ----------
+    lin : LinearLoop
+        The loop linearized (:func:`~esoarm.studies.frequency.linearization.linearize`).
+    w : ndarray, optional
+        The frequency grid [rad/s] that brackets the crossings; default
+        :func:`frequency_grid`.
+
+    Returns
+    -------
+    Margins
+        Gain margin, phase margin [deg], delay margin [s] and their crossover
+        frequencies [rad/s].
     """
     ts = lin.ts
     w = frequency_grid(ts) if w is None else w
@@ -189,7 +218,13 @@ class FrequencyAnalysis:
     curves: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready: no curves, non-finite numbers as None."""
+        """JSON-ready: no curves, non-finite numbers as None.
+
+        Returns
+        -------
+        dict
+            Every field but ``curves``.
+        """
         out = {k: v for k, v in asdict(self).items() if k != "curves"}
         return _clean(out)  # type: ignore[no-any-return]
 
@@ -206,6 +241,16 @@ def motor_terms(scn: Scenario) -> dict[str, Any]:
     the supply's limit at rest; ``pwm_step`` the arm torque of one duty count
     after the deadband pre-compensation, N·Kt·Vs/(R·(1 − δ)·pwm_max) [N·m];
     ``deadband`` δ; ``left_out`` the nonlinear parts (:data:`MOTOR_LEFT_OUT`).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario.
+
+    Returns
+    -------
+    dict
+        The terms above by name.
     """
     m = motor_of(scn)
     if m is None:
@@ -216,7 +261,19 @@ def motor_terms(scn: Scenario) -> dict[str, Any]:
 
 
 def motor_note(a: FrequencyAnalysis, values: bool = True) -> str:
-    """One line: the motor's linear terms in the loop and what is left out ('' without one)."""
+    """One line: the motor's linear terms in the loop and what is left out ('' without one).
+
+    Parameters
+    ----------
+    a : FrequencyAnalysis
+        An analysis (:func:`analyze`).
+    values : bool
+        Quote the terms' values (damping [N·m·s/rad], PWM step [N·m]); False: words only.
+
+    Returns
+    -------
+    str
+    """
     m = a.motor
     if not m:
         return ""
@@ -233,8 +290,18 @@ def motor_note(a: FrequencyAnalysis, values: bool = True) -> str:
 
 
 def eso_label(a: FrequencyAnalysis) -> str:
-    """The observer kind's name for its linear model ("ESO"; the nonlinear kind adds the
-    zone the linear analysis holds in)."""
+    """The observer kind's name for its linear model.
+
+    Parameters
+    ----------
+    a : FrequencyAnalysis
+        An analysis (:func:`analyze`).
+
+    Returns
+    -------
+    str
+        "ESO"; the nonlinear kind adds the zone the linear analysis holds in.
+    """
     return a.observer_label
 
 
@@ -353,6 +420,16 @@ def freqresp_dc(lin: LinearLoop) -> complex:
     Evaluated from the closed loop's state matrices, so plant poles at z = 1
     (the double integrator) are handled: e = θ for the input (0, …) at the
     plant input, i.e. C_cl (I − A_cl)⁻¹ B_cl.
+
+    Parameters
+    ----------
+    lin : LinearLoop
+        The loop linearized.
+
+    Returns
+    -------
+    complex
+        The gain [rad/(N·m)] (inf where I − A_cl is singular).
     """
     ap, bp, cp, _ = lin.plant
     a_cl = closed_loop_matrix(lin.plant, lin.controller)

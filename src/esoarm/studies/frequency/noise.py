@@ -78,7 +78,13 @@ class NoiseBudget:
     stable: bool
 
     def to_dict(self) -> dict[str, float | bool]:
-        """JSON-ready."""
+        """JSON-ready.
+
+        Returns
+        -------
+        dict
+            Every field, non-finite numbers as None.
+        """
         return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)  # type: ignore[misc]
                 for k, v in asdict(self).items()}
 
@@ -99,6 +105,12 @@ def noise_budget(scn: Scenario, *, theta0: float | None = None, friction: str = 
     noise_rms : float, optional
         σ [rad] of a white noise; default the scenario's noise model (``sensor.noise_deg``
         in radians, coloured with ``sensor.noise_ar`` / ``sensor.vibration_deg``).
+
+    Returns
+    -------
+    NoiseBudget
+        The noise-driven RMS of u and of Δu [N·m] and of the angle [rad], the noise-to-
+        control gain, and whether the loop is stable.
 
     Raises
     ------
@@ -212,7 +224,18 @@ def _coloured_budget(a: np.ndarray, b: np.ndarray, cu: np.ndarray, du: float, ce
 
 
 def perturbation_bandwidth(scn: Scenario) -> float:
-    """−3 dB bandwidth [rad/s] of the observer's perturbation estimate f → ẑ3 (nan: none)."""
+    """−3 dB bandwidth [rad/s] of the observer's perturbation estimate f → ẑ3.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario.
+
+    Returns
+    -------
+    float
+        The bandwidth [rad/s]; nan when the gain never falls 3 dB below π/Ts.
+    """
     from esoarm.studies.frequency.linearization import freqresp, perturbation_estimate
     from esoarm.studies.frequency.margins import _bandwidth, frequency_grid
 
@@ -265,6 +288,22 @@ def recommend_eps(scn: Scenario, bandwidth: float,
     cannot reach the bandwidth with ε in [0.55·Ts, :data:`RECOMMEND_EPS_MAX`] (or stay
     stable there) is left out; ``why``, if given, receives one phrase per kind left out,
     with the bandwidths it does reach.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario without ``[motor]``.
+    bandwidth : float
+        The f → ẑ3 bandwidth wanted [rad/s].
+    kinds : tuple of str
+        The observer kinds to try.
+    why : list of str, optional
+        Receives one phrase per kind left out, with the bandwidths it does reach.
+
+    Returns
+    -------
+    list of Recommendation
+        Per kind that reaches it: ε [s] and its noise budget, least RMS Δu first.
     """
     from scipy.optimize import brentq
 

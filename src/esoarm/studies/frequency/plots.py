@@ -101,7 +101,19 @@ def _finish_axes(axes: Any, wn: float) -> None:
 
 
 def figure_frequency(a: FrequencyAnalysis, path: str | Path | None = None) -> Figure:
-    """Bode diagram of L with its margins, |S| and |T|, and the disturbance transfer."""
+    """Bode diagram of L with its margins, |S| and |T|, and the disturbance transfer.
+
+    Parameters
+    ----------
+    a : FrequencyAnalysis
+        An analysis with its curves (:func:`~esoarm.studies.frequency.margins.analyze`).
+    path : str or Path, optional
+        Write the figure there too (PNG, PDF or SVG by suffix).
+
+    Returns
+    -------
+    Figure
+    """
     fig = Figure(figsize=(10, 7), layout="constrained")
     axes = fig.subplots(2, 2).ravel()
     _draw(axes, a, eps_color(a.eps), "", marks=True)
@@ -115,7 +127,23 @@ def figure_frequency(a: FrequencyAnalysis, path: str | Path | None = None) -> Fi
 
 def figure_vary(key: str, values: Sequence[Any], results: Sequence[FrequencyAnalysis],
                 path: str | Path | None = None) -> Figure:
-    """Bode of L and |S| for each value of ``key``, and the margins against it."""
+    """Bode of L and |S| for each value of ``key``, and the margins against it.
+
+    Parameters
+    ----------
+    key : str
+        The dotted scenario key varied.
+    values : sequence
+        Its values, one per analysis.
+    results : sequence of FrequencyAnalysis
+        The analyses, in the order of ``values``.
+    path : str or Path, optional
+        Write the figure there too (PNG, PDF or SVG by suffix).
+
+    Returns
+    -------
+    Figure
+    """
     fig = Figure(figsize=(11, 9), layout="constrained")
     grid = fig.subplots(3, 2)
     axes = grid[:2].ravel()

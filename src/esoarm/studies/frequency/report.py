@@ -38,7 +38,20 @@ def _base(rep: Reproduction) -> Scenario:
 
 
 def frequency_rows(base: Scenario, eps_values: Sequence[float]) -> list[FrequencyAnalysis]:
-    """The loop of ``base`` analyzed at each ε (linearized at rig.theta0, viscous friction)."""
+    """The loop of ``base`` analyzed at each ε (linearized at rig.theta0, viscous friction).
+
+    Parameters
+    ----------
+    base : Scenario
+        The lever-arm scenario.
+    eps_values : sequence of float
+        ε values [s].
+
+    Returns
+    -------
+    list of FrequencyAnalysis
+        One per ε, in order.
+    """
     from esoarm.studies.frequency.margins import analyze
 
     return [analyze(base.with_overrides({"observer.eps": float(e)}), over_range=False,
@@ -47,7 +60,20 @@ def frequency_rows(base: Scenario, eps_values: Sequence[float]) -> list[Frequenc
 
 def frequency_section(rep: Reproduction, eps_values: Sequence[float] = (0.05, 0.09, 0.2)
                       ) -> str:
-    """HTML of the section (table, figure, and the trade-off in numbers)."""
+    """HTML of the report's section (table, figure, and the trade-off in numbers).
+
+    Parameters
+    ----------
+    rep : Reproduction
+        The reproduction the report is of.
+    eps_values : sequence of float
+        ε values [s] analyzed.
+
+    Returns
+    -------
+    str
+        The section's HTML.
+    """
     from esoarm.plotting.run import figure_bytes
     from esoarm.studies.frequency.plots import figure_vary
 

@@ -92,7 +92,20 @@ class SweepCheck:
 
 
 def sweep_optimum(points: Sequence[Measured], error_limit: float) -> Measured | None:
-    """The point of least ``rms_du`` with ``rms_error <= error_limit`` [rad] (None: none)."""
+    """The point of least ``rms_du`` with ``rms_error <= error_limit``.
+
+    Parameters
+    ----------
+    points : sequence of Measured
+        Measured points of a sweep.
+    error_limit : float
+        The largest RMS tracking error allowed [rad].
+
+    Returns
+    -------
+    Measured or None
+        None when no point is within the limit.
+    """
     ok = [p for p in points if p.rms_error <= error_limit]
     return min(ok, key=lambda p: p.rms_du) if ok else None
 
@@ -255,6 +268,11 @@ def main(argv: Sequence[str] | None = None) -> None:  # pragma: no cover - thin 
     Prints the recommendation for bandwidth W [rad/s] (with ``--tracking``: that of
     :func:`match_tracking`), its measurement, and the sweep optimum over :data:`DOC_GRID` ×
     (linear, cascade), seeds 0-3.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments; default the process's own.
     """
     import sys
 

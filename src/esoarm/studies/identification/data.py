@@ -92,8 +92,10 @@ def check_supported(scn: object, what: str = "identification") -> None:
 
     Any registered observer kind runs (through the registry), so it is not checked.
     """
-    kind = getattr(getattr(scn, "plant", None), "kind", "lever-arm")
-    if kind != "lever-arm":
+    from esoarm.kinds import can
+
+    kind = getattr(getattr(scn, "plant", None), "kind", "?")
+    if not can(scn, "RIG"):  # type: ignore[arg-type]  # what the plant kind declares
         raise ScenarioError(f"plant.kind = {kind!r}: {what} supports the lever arm "
                             "(plant.kind = \"lever-arm\") only")
 

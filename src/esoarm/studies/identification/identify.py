@@ -46,8 +46,8 @@ two for all initial states (run together, in parallel over the columns).  The
 delay (integer) is chosen by the cost over 0 … ``max_delay``: the scenario's
 delay gets :data:`FIRST_ITER` iterations from the scenario's values, every
 other delay :data:`TRY_ITER` from there, and only the best is carried to
-convergence (a delay whose cost comes within :data:`CLOSE_DELAY` thresholds
-of it is tried again from the converged fit).  The lag is kept by a
+convergence (its neighbours, and a delay whose cost comes within
+:data:`CLOSE_DELAY` thresholds of it, are tried again from the converged fit).  The lag is kept by a
 likelihood-ratio test of T > 0 against T = 0, after a screen (a quarter-sample
 lag with everything else held must lower the cost, else T = 0 is kept without
 a fit).  95 % intervals: ±1.96 standard
@@ -135,6 +135,9 @@ class Estimate:
     #: How the bound the value ended at was set ("" inside the bounds; see
     #: :func:`esoarm.studies.identification.fit.limits_from_data`).
     bound_why: str = ""
+    #: Why the 95 % interval is withheld ("" when it is written): the evidence rejects the
+    #: model and no interval valid under model error could be given for this parameter.
+    withheld: str = ""
 
     @property
     def bound_text(self) -> str:
@@ -151,8 +154,10 @@ class Estimate:
 
     def to_dict(self) -> dict:
         """JSON-ready."""
-        return {"value": self.value, "ci95": list(self.ci95), "unit": self.unit,
+        return {"value": self.value,
+                "ci95": None if self.withheld else list(self.ci95), "unit": self.unit,
                 "fitted": self.fitted, "identifiable": self.identifiable,
+                **({"withheld": self.withheld} if self.withheld else {}),
                 "at_bound": self.at_bound, "ci95_clipped": self.ci_clipped,
                 **({"bound": self.bound} if self.bound else {}),
                 **({"bound_set_by": self.bound_why} if self.bound_why else {}),
@@ -180,6 +185,14 @@ class IdentResult:
     #: The IDIM-LS estimate of the fitting logs (esoarm.studies.identification.lever_checks),
     #: reported beside the output-error fit; empty when it could not be computed.
     idim: dict = field(default_factory=dict)
+    #: The evidence that the model does not describe the log (empty: none), each a sentence;
+    #: with any, the intervals are from :func:`_model_error_intervals` or withheld.
+    model_error: list[str] = field(default_factory=list)
+    #: How the written intervals were computed.
+    interval_method: str = "white noise: σ̂² (JᵀJ)⁻¹"
+    #: What the excitation achieved, from the ``# esoarm excite:`` header of each fitting log
+    #: that has one (:func:`esoarm.studies.identification.probe.read_header`).
+    excitation: dict = field(default_factory=dict)
 
     def value(self, key: str) -> float:
         """Fitted value of a scenario key."""
@@ -208,6 +221,10 @@ class IdentResult:
                       "input)" if self.coloured_noise() is not None
                       else "not written: the validation residual is not white, so it is model "
                       "error, not sensor noise; sensor.noise_deg stays as given"),
+            "model_error": self.model_error,
+            "excitation": self.excitation,
+            "interval_method": self.interval_method,
+            "withheld": [k for k, e in self.estimates.items() if e.withheld],
             "poorly_identifiable": [k for k, e in self.estimates.items() if not e.identifiable],
             "at_bound": [k for k, e in self.estimates.items() if e.at_bound],
         }
@@ -320,6 +337,21 @@ class IdentResult:
         return scn.with_overrides(over)
 
 
+def rate_mismatch(path: str, ts: float, rate_hz: float) -> str:
+    """The message for a log sampled every ``ts`` [s] against ``sensor.rate_hz``: time stamps
+    in ms or µs (a step 1000 or 10⁶ times the scenario's) are named as such, with the
+    rescaling; any other rate is set with --set sensor.rate_hz."""
+    ratio = ts * rate_hz
+    for factor, unit in ((1e3, "milliseconds"), (1e6, "microseconds")):
+        if abs(ratio / factor - 1.0) < 0.02:
+            return (f"log '{path}': the time column steps by {ts:g}, {factor:g}× the "
+                    f"scenario's {1.0 / rate_hz:g} s at sensor.rate_hz = {rate_hz:g}: t looks "
+                    f"like {unit}; rescale it to seconds ('esoarm log import {path} --map "
+                    f"t=t,y=…,u=u --scale t={1.0 / factor:g} --out LOG.csv')")
+    return (f"log '{path}': sampled every {ts:g} s but sensor.rate_hz = {rate_hz:g}; use "
+            f"--set sensor.rate_hz={1.0 / ts:g}")
+
+
 def _values(scn: Scenario) -> dict[str, float]:
     """The scenario's values of every fittable key (the starting point of the fit)."""
     motor = scn.motor
@@ -343,7 +375,8 @@ def _split(logs: list[IdentLog], validation: list[IdentLog] | None,
 
 def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] | None = None,
              validate_fraction: float = 0.25, segment: float = 2.0, max_delay: int = 2,
-             fix: tuple[str, ...] = (), progress=None) -> IdentResult:  # type: ignore[no-untyped-def]
+             fix: tuple[str, ...] = (), progress=None,
+             cutoff: float | None = None) -> IdentResult:  # type: ignore[no-untyped-def]
     """Fit the rig model of ``scn`` to logs (see the module docstring).
 
     Parameters
@@ -363,6 +396,9 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         Keys held at the scenario's values.
     progress : callable, optional
         Called with a one-line description before each fit.
+    cutoff : float, optional
+        Cut-off of the IDIM-LS derivative filter [Hz] (default: from the input's band,
+        :func:`esoarm.studies.identification.idim.band_cutoff`).
 
     Raises
     ------
@@ -381,9 +417,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     ts = logs[0].ts
     for log in [*logs, *(validation or [])]:
         if abs(log.ts - scn.sample_time) > 1e-9 * scn.sample_time:
-            raise ScenarioError(f"log '{log.path}': sampled every {log.ts:g} s but "
-                                f"sensor.rate_hz = {scn.sensor.rate_hz:g}; use --set "
-                                f"sensor.rate_hz={1.0 / log.ts:g}")
+            raise ScenarioError(rate_mismatch(log.path, log.ts, scn.sensor.rate_hz))
     if scn.motor is not None and not {"rig.inertia_scale", "motor.torque_constant"} & set(fix):
         fix = (*fix, "rig.inertia_scale")  # see MOTOR_SCALE_NOTE
     fit_logs, val_logs = _split(logs, validation, validate_fraction)
@@ -394,7 +428,7 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
             lever_idim,
         )
 
-        idim = lever_idim(scn, fit_logs)
+        idim = lever_idim(scn, fit_logs, cutoff)
         why = check_log_against_scenario(scn, idim, fit_logs[0].path)
         if why:
             raise FitFailed(why)
@@ -459,8 +493,12 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         if not sol.converged:
             break  # reported below as a fit that did not converge
         m = int(prob.mask.sum())
+        # the neighbouring delays always (a delay of one sample more or less trades off with
+        # a lag and the friction: at 200 Hz a 4-iteration upper bound missed the true delay
+        # by more than the threshold), the others when their upper bound comes close
         close = [d for d in delays if d != d_best and d not in refined
-                 and m * math.log(cost[d] / cost[d_best]) <= CLOSE_DELAY * CHI2_95]
+                 and (abs(d - d_best) == 1
+                      or m * math.log(cost[d] / cost[d_best]) <= CLOSE_DELAY * CHI2_95)]
         if not close:
             break
         for d in close:
@@ -579,10 +617,207 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
         iterations=int(sol.iterations), fit_logs=sorted({lg.path for lg in fit_logs}),
         validation_logs=sorted({lg.path for lg in val_logs}), curves=curves,
         idim=idim.to_dict() if idim is not None else {})
-    why = res.untrustworthy() or _methods_disagree(res, idim)
+    why = res.untrustworthy() or _methods_disagree(res, idim) or _validation_failed(res)
     if why:
         raise FitFailed(why, res)
+    res.excitation = _excitation_headers(fit_logs)
+    res.model_error = _model_rejected(res, prob, sol, idim)
+    if res.model_error:
+        _model_error_intervals(res, prob, sol, idim)
+    res.elapsed = time.perf_counter() - t_start
     return res
+
+
+#: IDIM-LS and output error disagree when their inertias are further apart than this many
+#: combined standard errors (and than MILD_SHARE of the IDIM-LS inertia).
+MILD_Z = 1.96
+MILD_SHARE = 0.05
+#: Keys with an IDIM-LS counterpart (lever_checks.NAMES) whose interval can be checked there.
+IDIM_OF = {"rig.inertia_scale": "inertia", "rig.viscous_friction": "viscous_friction",
+           "rig.coulomb_friction": "coulomb_friction", "plant.m2": "gravity"}
+
+
+def _validation_failed(res: IdentResult) -> str:
+    """Why the validation refuses the fit ("" if it does not): the fitted rig simulated over
+    the validation logs explains none of the angle's variation (fit ≤ 0 %, or nan)."""
+    fit = res.validation.get("fit_percent") if res.validation else None
+    if fit is None or fit > 0.0:
+        return ""
+    return (f"validation failed (output error): the fitted rig simulated over "
+            f"{', '.join(res.validation_logs)} fits {fit:.4g} % of the measured angle's "
+            "variation (0 % is its mean: the model predicts nothing there); nothing written")
+
+
+#: A log whose excitation left the arm stuck more than this share of the time (the header of
+#: ``esoarm excite``) is evidence against white-noise intervals.
+MAX_STUCK = 0.5
+
+
+def _excitation_headers(logs: list[IdentLog]) -> dict[str, dict[str, float]]:
+    """{path: header} of the fitting logs that carry an ``# esoarm excite:`` header."""
+    from esoarm.studies.identification.probe import read_header
+
+    out = {}
+    for path in sorted({lg.path for lg in logs}):
+        head = read_header(path)
+        if head:
+            out[path] = head
+    return out
+
+
+def _whiteness(r: np.ndarray) -> dict:
+    """The residual's autocorrelation at lags 1 … 20 against ±1.96/√M (white: ≤ 2 outside)."""
+    lags = np.arange(1, 21)
+    r = r - np.mean(r)
+    denom = float(np.dot(r, r)) or 1.0
+    rho = np.array([float(np.dot(r[:-k], r[k:])) / denom for k in lags])
+    band = 1.96 / math.sqrt(len(r))
+    outside = int(np.sum(np.abs(rho) > band))
+    return {"lags": len(lags), "band": band, "outside": outside,
+            "max_abs_autocorrelation": float(np.max(np.abs(rho))), "white": outside <= 2}
+
+
+def _model_rejected(res: IdentResult, prob: Problem, sol, idim) -> list[str]:  # type: ignore[no-untyped-def]
+    """The evidence that the model does not describe the log, each in words (empty: none).
+
+    * the validation residual (the fit's, without validation) is not white and not sensor
+      noise by its spectrum (:meth:`IdentResult.coloured_noise`);
+    * IDIM-LS and the output-error fit disagree on the inertia (beyond :data:`MILD_Z`
+      combined standard errors and :data:`MILD_SHARE`);
+    * the delay ended at the longest one tried (``--max-delay``);
+    * the log's ``esoarm excite`` header says the arm was stuck more than :data:`MAX_STUCK`
+      of the time, or never broke away.
+    A non-white residual also voids the likelihood-ratio tests of the delay, the lag and the
+    stiction (a cost ratio friction error alone can produce).
+    """
+    out = []
+    w: dict = res.validation["whiteness"] if res.validation else _whiteness(-sol.fun)
+    if not w["white"] and res.coloured_noise() is None:
+        where = "validation" if res.validation else "fit"
+        out.append(f"the {where} residual is not white ({w['outside']} of {w['lags']} "
+                   f"autocorrelation lags outside ±{w['band']:.3g}, max |ρ| "
+                   f"{w['max_abs_autocorrelation']:.2f}) and is not sensor noise by its "
+                   "spectrum")
+    for path, head in res.excitation.items():
+        stuck = head.get("stuck_fraction", math.nan)
+        if stuck > MAX_STUCK:
+            out.append(f"the excitation left the arm stuck {stuck:.0%} of the time ({path}'s "
+                       "header): the log says little about the inertia, the delay and the lag")
+        elif head.get("broke_away", 1.0) == 0.0:
+            out.append(f"the excitation's probe did not break the arm away in both directions "
+                       f"({path}'s header)")
+    delay = res.estimates.get(DELAY_KEY)
+    if delay is not None and delay.bound == "upper":
+        out.append(f"the delay ended at the longest one tried ({delay.value:g} samples, "
+                   "--max-delay): a longer one would move every other parameter")
+    if idim is not None and res.scenario.motor is None:
+        est = res.estimates["rig.inertia_scale"]
+        i0 = res.scenario.plant.inertia
+        k = idim.names.index("inertia")
+        ls, se_ls = float(idim.values[k]), float(idim.se[k])
+        oe, se_oe = est.value * i0, (est.ci95[1] - est.ci95[0]) / 3.92 * i0
+        if est.fitted and abs(oe - ls) > max(MILD_Z * math.hypot(se_oe, se_ls),
+                                             MILD_SHARE * abs(ls)):
+            out.append(f"IDIM-LS gives an inertia of {ls:.4g} ± {1.96 * se_ls:.2g} kg·m², the "
+                       f"output-error fit {oe:.4g} ± {1.96 * se_oe:.2g} kg·m² "
+                       f"({100 * (oe / ls - 1):+.0f} %)")
+    return out
+
+
+def _segment_covariance(prob: Problem, sol) -> tuple[np.ndarray, int]:  # type: ignore[no-untyped-def]
+    """Cluster-robust covariance of the rig parameters with the segments as clusters
+    (a sandwich with HAC over segments: valid under model error and any correlation within
+    a segment), with the small-sample factor G/(G − p); and the number of segments G."""
+    jac = sol.jac
+    r = -sol.fun
+    a_inv = np.linalg.pinv(jac.T @ jac)
+    pos = np.cumsum(prob.mask) - 1
+    b = np.zeros_like(a_inv)
+    g = 0
+    for k0, n in zip(prob.seg_start, prob.seg_len, strict=True):
+        rows = np.arange(k0, k0 + n)
+        rows = pos[rows[prob.mask[rows]]]
+        if len(rows) == 0:
+            continue
+        score = jac[rows].T @ r[rows]
+        b += np.outer(score, score)
+        g += 1
+    p = prob.n_phys
+    cov = a_inv @ b @ a_inv * (g / max(g - p, 1))
+    return cov[:p, :p], g
+
+
+def _model_error_intervals(res: IdentResult, prob: Problem, sol, idim) -> None:  # type: ignore[no-untyped-def]
+    """Replace the white-noise intervals of a rejected model (``res.model_error``).
+
+    Inertia, friction and gravity: the segment-cluster sandwich (:func:`_segment_covariance`,
+    Student t with G − 1 degrees of freedom) joined with the IDIM-LS interval of the same
+    quantity (HAC); where the two do not overlap, the methods disagree and the interval is
+    withheld.  Delay, lag, stiction and the noise are decided by likelihood-ratio tests and a
+    residual variance that assume the model: their intervals are withheld.
+    """
+    from scipy.stats import t as student_t
+
+    cov, g = _segment_covariance(prob, sol)
+    q = float(student_t.ppf(0.975, max(g - 1, 1)))
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    pl = res.scenario.plant
+    because_short = ("decided by a likelihood-ratio test or a residual variance that assume "
+                     "the model, which the evidence rejects")
+    idim_vals = {}
+    if idim is not None:
+        for n, v, s in zip(idim.names, idim.values, idim.se, strict=True):
+            idim_vals[n] = (float(v), 1.96 * float(s))
+
+    def to_key(key: str, v: float) -> float:  # IDIM-LS quantity -> the scenario key's value
+        if key == "rig.inertia_scale":
+            return v / pl.inertia
+        if key == "plant.m2":
+            return (pl.m1 * pl.l1 - v / pl.g) / pl.l2
+        return v
+
+    lower, upper = prob.bounds()
+    for key, est in list(res.estimates.items()):
+        if not est.fitted:
+            continue
+        if key in prob.free and key in IDIM_OF:
+            i = prob.free.index(key)
+            half = q * float(se[i])
+            lo, hi = est.value - half, est.value + half
+            name = IDIM_OF[key]
+            if name in idim_vals:
+                v, h = idim_vals[name]
+                a, b = sorted((to_key(key, v - h), to_key(key, v + h)))
+                if b < lo or a > hi:
+                    res.estimates[key] = _withhold(
+                        est, f"the methods disagree: output error {est.value:.4g} "
+                        f"[{lo:.4g}, {hi:.4g}], IDIM-LS {to_key(key, v):.4g} [{a:.4g}, "
+                        f"{b:.4g}] {est.unit}")
+                    continue
+                lo, hi = min(lo, a), max(hi, b)
+            ci = (max(lo, float(lower[i])), min(hi, float(upper[i])))
+            res.estimates[key] = Estimate(
+                key, est.value, ci, est.unit, est.label, True,
+                est.identifiable and (ci[1] - ci[0]) / 2 <= POOR_REL * max(abs(est.value), 1e-12),
+                est.advice, est.bound, est.ci_clipped or ci != (lo, hi), est.bound_why)
+        else:
+            res.estimates[key] = _withhold(est, because_short)
+    m2 = res.estimates["plant.m2"]
+    g_of = lambda mass: gravity_coefficient(pl.m1, mass, pl.l1, pl.l2, pl.g)  # noqa: E731
+    gv = sorted((g_of(m2.ci95[0]), g_of(m2.ci95[1])))
+    res.gravity = Estimate("gravity_coefficient", g_of(m2.value), (gv[0], gv[1]), "N·m",
+                           res.gravity.label, m2.fitted, m2.identifiable, m2.advice,
+                           withheld=m2.withheld)
+    res.interval_method = ("model error: segment-cluster sandwich (t, G − 1 = "
+                           f"{g - 1}) joined with IDIM-LS (HAC); delay, lag, stiction and "
+                           "noise withheld")
+
+
+def _withhold(est: Estimate, why: str) -> Estimate:
+    """``est`` with its interval withheld for ``why``."""
+    return Estimate(est.key, est.value, est.ci95, est.unit, est.label, est.fitted,
+                    est.identifiable, est.advice, est.bound, est.ci_clipped, est.bound_why,
+                    withheld=why)
 
 
 #: The output-error inertia and IDIM-LS's further apart than this share, and than

@@ -12,11 +12,12 @@ no bounds, in whatever units the log is written.  The estimation is the data
 set's own (Gautier 1997; the EMPS scripts ``Script_IDIM_LS.m``):
 
 1. *band-pass filtered derivatives*: q filtered forward and backward by a
-   Butterworth low-pass (order 4, cut-off ``cutoff_hz``, default a tenth of the
-   sample rate: the rule ω_fq ≥ 5 ω_dyn), then q̇ and q̈ by central differences
-   (MATLAB's ``diffcent``), :data:`BORDER` samples dropped at each end;
+   Butterworth low-pass (order 4, cut-off ``cutoff_hz``, default :func:`band_cutoff`:
+   where the motion's spectrum meets the encoder's noise, at most a tenth of the sample
+   rate, so that it follows the motion, not the rate), then q̇ and q̈
+   by central differences (MATLAB's ``diffcent``), :data:`BORDER` samples dropped at each end;
 2. *decimation*: every column of φ and the force τ low-pass filtered and
-   resampled by ``nd`` = round(fs/``cutoff_hz``) (:func:`scipy.signal.decimate`,
+   resampled by ``nd`` = round(fs/(4 ``cutoff_hz``)) (:func:`scipy.signal.decimate`,
    the order-8 Chebyshev filter run forward and backward as MATLAB's
    ``decimate``), which removes the force ripple the loop rejects;
 3. θ̂ = argmin ‖y − Φ θ‖ (:func:`numpy.linalg.lstsq`).
@@ -40,9 +41,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ASYMMETRY_Z", "BORDER", "NAMES", "NAMES_ASYMMETRIC", "IdimResult", "cross_test",
-           "decimation_factor", "filtered_derivatives", "force_error", "hac_bandwidth",
-           "hac_covariance", "idim_ls", "idim_system", "regressors", "viscous_asymmetry"]
+__all__ = ["ASYMMETRY_Z", "BORDER", "NAMES", "NAMES_ASYMMETRIC", "IdimResult", "band_cutoff",
+           "cross_test", "decimation_factor", "filtered_derivatives", "force_error",
+           "hac_bandwidth", "hac_covariance", "idim_ls", "idim_system", "regressors",
+           "staged_decimate", "viscous_asymmetry"]
 
 #: Samples dropped at each end after the filters (their edge effects; EMPS: 50).
 BORDER = 50
@@ -79,9 +81,65 @@ def filtered_derivatives(y: np.ndarray, ts: float,
     return q, dq, _diffcent(dq, ts)
 
 
-def decimation_factor(ts: float, cutoff_hz: float) -> int:
-    """nd = round(fs / cutoff) (EMPS: 1 kHz / 100 Hz = 10), at least 1."""
-    return max(1, int(round(1.0 / (ts * cutoff_hz))))
+#: The motion's band ends where the position's spectrum falls below this many times the
+#: encoder's noise floor (its median density over the top half of the band).
+BAND_SNR = 10.0
+
+
+def band_cutoff(y: np.ndarray, ts: float) -> float:
+    """The derivative filter's cut-off [Hz]: where the measured motion ``y`` leaves the noise.
+
+    The highest frequency at which the position's Welch spectrum (4 s windows, linear trend
+    removed) exceeds :data:`BAND_SNR` times its noise floor (the median density over the top
+    half of the band), at most a tenth of the sample rate (the EMPS scripts' fs/10) and at
+    least 20 bins of the log.  It follows the motion, not the sample rate: a 1 kHz log of a
+    step and its 100 Hz down-sample get about the same filter (the fixed fs/10 gave
+    100 Hz and 10 Hz, and inertias 40 % apart).
+    """
+    from scipy.signal import welch
+
+    x = np.asarray(y, dtype=float)
+    n = len(x)
+    fs = 1.0 / ts
+    if n < 64 or not np.all(np.isfinite(x)):
+        return 0.1 * fs
+    f, p = welch(x, fs, nperseg=min(n, int(round(4.0 * fs))), detrend="linear")
+    floor = float(np.median(p[f >= 0.25 * fs]))
+    above = np.flatnonzero(p[1:] > BAND_SNR * floor)
+    band = float(f[1:][above[-1]]) if above.size and floor > 0 else 0.1 * fs
+    return float(min(0.1 * fs, max(band, 20.0 * fs / n)))
+
+
+def staged_decimate(x: np.ndarray, nd: int) -> np.ndarray:
+    """:func:`scipy.signal.decimate` by ``nd`` along axis 0 (zero phase), in stages of at
+    most 10 (scipy's advice for its IIR filter beyond 13)."""
+    from scipy.signal import decimate
+
+    stages = []
+    rest = nd
+    while rest > 10:
+        f = next((f for f in range(10, 1, -1) if rest % f == 0), rest)
+        stages.append(f)
+        rest //= f
+    stages.append(rest)
+    for f in stages:
+        if f > 1:
+            x = decimate(x, f, axis=0, zero_phase=True)
+    return x
+
+
+#: Rows where the filtered speed is below this share of its peak are rest (left out).
+MOVING_SHARE = 0.05
+#: The decimated rate is this many times the cut-off (its Nyquist frequency twice the
+#: cut-off: the filtered band is kept whole, whatever the log's rate).
+DECIMATED_RATE = 4.0
+
+
+def decimation_factor(ts: float, cutoff_hz: float, rate: float = DECIMATED_RATE) -> int:
+    """nd = round(fs / (:data:`DECIMATED_RATE` · cutoff)), at least 1 (EMPS, 1 kHz with the
+    scripts' 100 Hz cut-off: 2; the scripts' own nd = fs/cutoff = 10 left the decimated
+    Nyquist frequency at half the cut-off, and a 100 Hz log of a 1 s step with ten rows)."""
+    return max(1, int(round(1.0 / (ts * cutoff_hz * rate))))
 
 
 def regressors(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
@@ -106,11 +164,7 @@ def regressors(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
 
 
 def _decimate(x: np.ndarray, nd: int) -> np.ndarray:
-    if nd == 1:
-        return x
-    from scipy.signal import decimate
-
-    return decimate(x, nd, axis=0, zero_phase=True)
+    return x if nd == 1 else staged_decimate(x, nd)
 
 
 def force_error(y: np.ndarray, yhat: np.ndarray) -> float:
@@ -216,30 +270,45 @@ class IdimResult:
 
 def idim_system(y: np.ndarray, u: np.ndarray, ts: float, cutoff_hz: float | None = None,
                 gravity: bool = False,
-                asymmetric: bool = False) -> tuple[np.ndarray, np.ndarray, int, float]:
+                asymmetric: bool = False, rate: float = DECIMATED_RATE,
+                moving_only: bool = True) -> tuple[np.ndarray, np.ndarray, int, float]:
     """(Φ, y_F, nd, cutoff): the decimated observation matrix and force of one log.
 
     ``y`` the measured position, ``u`` the force/torque [N or N·m], ``ts`` [s];
     ``asymmetric`` splits the viscous column by direction (:func:`regressors`).
+    With ``moving_only`` the rows where the axis is at rest (filtered speed below
+    :data:`MOVING_SHARE` of its peak) are left out: there sign(q̇) is the sign of noise
+    and the force is whatever static friction holds, so a rest carries no information
+    about the model, only model error (a step followed by rest is fitted on the step).
     """
-    cutoff = cutoff_hz if cutoff_hz is not None else 0.1 / ts
+    cutoff = cutoff_hz if cutoff_hz is not None else band_cutoff(y, ts)
     q, dq, ddq = filtered_derivatives(y, ts, cutoff)
     keep = slice(BORDER - 1, len(y))  # as the EMPS script: samples n_border … N
     x = regressors(q, dq, ddq, gravity, asymmetric)[keep]
-    nd = decimation_factor(ts, cutoff)
-    return _decimate(x, nd), _decimate(u[keep], nd), nd, cutoff
+    nd = decimation_factor(ts, cutoff, rate)
+    xd, fd = _decimate(x, nd), _decimate(u[keep], nd)
+    if moving_only:
+        speed = np.abs(_decimate(dq[keep], nd))
+        moving = speed >= MOVING_SHARE * float(np.max(speed, initial=0.0))
+        if moving.sum() >= 10 * x.shape[1]:
+            xd, fd = xd[moving], fd[moving]
+    return xd, fd, nd, cutoff
 
 
 def idim_ls(parts: list[tuple[np.ndarray, np.ndarray]], ts: float,
             cutoff_hz: float | None = None, gravity: bool = False,
-            asymmetric: bool = False) -> IdimResult:
+            asymmetric: bool = False, rate: float = DECIMATED_RATE,
+            moving_only: bool = True) -> IdimResult:
     """IDIM-LS over one or more logs (``parts``: (position, force) pairs), see the module.
 
     The logs' observation matrices are stacked (each filtered on its own);
     ``asymmetric`` fits the viscous friction of each direction
     (:data:`NAMES_ASYMMETRIC`).
     """
-    systems = [idim_system(y, u, ts, cutoff_hz, gravity, asymmetric) for y, u in parts]
+    if cutoff_hz is None:  # one filter for every log: the widest band among them
+        cutoff_hz = max(band_cutoff(y, ts) for y, _u in parts)
+    systems = [idim_system(y, u, ts, cutoff_hz, gravity, asymmetric, rate, moving_only)
+               for y, u in parts]
     x = np.vstack([s[0] for s in systems])
     f = np.concatenate([s[1] for s in systems])
     theta, *_ = np.linalg.lstsq(x, f, rcond=None)
@@ -281,9 +350,10 @@ def viscous_asymmetry(est: IdimResult) -> tuple[float, float, float]:
 
 
 def cross_test(y: np.ndarray, u: np.ndarray, ts: float, values: np.ndarray,
-               cutoff_hz: float, gravity: bool = False, asymmetric: bool = False) -> float:
+               cutoff_hz: float, gravity: bool = False, asymmetric: bool = False,
+               rate: float = DECIMATED_RATE, moving_only: bool = True) -> float:
     """The relative force error [%] of parameters ``values`` on a log not used to estimate
     them (the benchmark's cross-test), with the same filters."""
-    x, f, _nd, _c = idim_system(y, u, ts, cutoff_hz, gravity, asymmetric)
+    x, f, _nd, _c = idim_system(y, u, ts, cutoff_hz, gravity, asymmetric, rate, moving_only)
     return force_error(f, x @ values)
 

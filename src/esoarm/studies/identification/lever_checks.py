@@ -71,12 +71,15 @@ class LeverIdim:
                 "force_error_percent": self.force_error, "rows": self.rows}
 
 
-def lever_idim(scn: Scenario, logs: list[IdentLog]) -> LeverIdim | None:
+def lever_idim(scn: Scenario, logs: list[IdentLog],
+               cutoff_hz: float | None = None) -> LeverIdim | None:
     """IDIM-LS of the lever arm over ``logs``; None when a log is too short or has lost
-    samples (the output-error fit handles those)."""
+    samples (the output-error fit handles those).  ``cutoff_hz`` [Hz] is the derivative
+    filter's cut-off (default a tenth of the sample rate, decimated to it: the EMPS scripts'
+    filter, on which the lever arm's checks were set; --cutoff sets it)."""
     ts = logs[0].ts
-    cutoff = 0.1 / ts
-    nd = decimation_factor(ts, cutoff)
+    cutoff = cutoff_hz if cutoff_hz is not None else 0.1 / ts
+    nd = decimation_factor(ts, cutoff, 1.0)
     w = scn.rig.disturbance.frequency
     with_d = w > 0 and scn.rig.disturbance.amplitude != 0.0
     xs, fs = [], []
@@ -88,12 +91,12 @@ def lever_idim(scn: Scenario, logs: list[IdentLog]) -> LeverIdim | None:
         if with_d:
             cols.append(np.sin(w * log.t))
         keep = slice(BORDER - 1, log.n)
-        from scipy.signal import decimate
-
         x = np.column_stack(cols)[keep]
         f = log.u[keep]
         if nd > 1:
-            x, f = decimate(x, nd, axis=0), decimate(f, nd)
+            from esoarm.studies.identification.idim import staged_decimate
+
+            x, f = staged_decimate(x, nd), staged_decimate(f, nd)
         xs.append(x)
         fs.append(f)
     x, f = np.vstack(xs), np.concatenate(fs)

@@ -12,11 +12,11 @@ the experiment measure that, as it runs, on a rig as on the twin:
   e0 = :data:`PROBE_START` · torque_limit up to :data:`PROBE_TOP` ·
   torque_limit, first positive, then (in the second half) negative.  The arm
   has *broken away* when it moves faster than the motion threshold h (below)
-  per :data:`WINDOW` samples -- the mean of its last 3 measured angles against
-  the mean of the 3 taken WINDOW samples before (a speed, not a displacement:
+  per window (below) -- the mean of its last 3 measured angles against
+  the mean of the 3 taken a window before (a speed, not a displacement:
   a smoothed friction law lets an arm creep under any torque); the
   breakaway torque of that direction is the applied torque u at the last
-  sample at which it moved less than h/2 per WINDOW samples (the onset, not
+  sample at which it moved less than h/2 per window (the onset, not
   the detection, which comes later by the time needed to speed up).  Once it
   has moved, the torque returns to 0 and the guard loop brings the arm back.
 * **Scaling**: the multisine's RMS becomes
@@ -25,16 +25,17 @@ the experiment measure that, as it runs, on a rig as on the twin:
   peak/RMS, so that its peak stays within ``actuator.torque_limit``.  When the
   cap binds (or the arm never broke away) the header and ``--plan`` say so.
 * **Motion statistics** (:class:`MotionStats`, over the multisine phase): the
-  share of samples at which the arm is *stuck* -- it moved less than h over
-  the last :data:`WINDOW` samples, i.e. slower than one encoder count per
-  sample, or within what the sensor noise alone moves it -- and the number
-  of *velocity reversals* (the angle turns back by more than 2h from its last
-  extreme: a hysteresis of 2h, so noise at rest is not counted).
+  share of samples at which the arm is *stuck* -- over the last window it
+  moved less than h: less than one encoder count, or than the sensor noise
+  alone moves it -- and the number of *velocity reversals* (the angle turns
+  back by more than 2h from its last extreme: a hysteresis of 2h, so noise at
+  rest is not counted).
 
-The motion threshold h [rad] over :data:`WINDOW` samples is
-max(WINDOW · q, 3·√2 · σ) with q the encoder count (``sensor.resolution_deg``)
-and σ the white noise (``sensor.noise_deg``): the difference of two noisy
-readings exceeds 3√2σ with probability 0.3 %.
+The window is W = max(:data:`WINDOW`, rate · :data:`WINDOW_S`) samples (5 at
+50 Hz, 100 at 1 kHz: 0.1 s, so that the stuck share means the same speed at any
+rate), and h = max(q, 3·√2·σ) [rad] with q the encoder count
+(``sensor.resolution_deg``) and σ the white noise (``sensor.noise_deg``): the
+difference of two noisy readings exceeds 3√2σ with probability 0.3 %.
 
 The log header
 --------------
@@ -54,6 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
+from esoarm._limits import MAX_SAMPLES
 from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.identification.excitation import (
     ExcitationController,
@@ -65,8 +67,11 @@ __all__ = ["BREAKAWAY_FACTOR", "HEADER_KEYS", "HEADER_PREFIX", "MotionStats", "P
            "ProbingExcitation", "format_header", "motion_threshold", "probe_text",
            "read_header", "write_header"]
 
-#: Samples over which the motion is measured (stuck or moving).
+#: Least number of samples over which the motion is measured (stuck or moving) ...
 WINDOW = 5
+#: ... or over this long [s], whichever holds more samples (a fast sensor's noise needs a
+#: longer look to tell slow motion from none).
+WINDOW_S = 0.1
 #: Target RMS of the multisine in breakaway torques.
 BREAKAWAY_FACTOR = 2.0
 #: Probe torque at the start of each direction, in torque limits.
@@ -98,11 +103,16 @@ HEADER_KEYS = {
 }
 
 
-def motion_threshold(scn: Scenario, window: int = WINDOW) -> float:
-    """The motion threshold h [rad] over ``window`` samples (see the module docstring)."""
+def motion_window(scn: Scenario) -> int:
+    """Samples over which motion is measured: max(:data:`WINDOW`, rate · :data:`WINDOW_S`)."""
+    return max(WINDOW, int(round(WINDOW_S * scn.sensor.rate_hz)))
+
+
+def motion_threshold(scn: Scenario) -> float:
+    """The motion threshold h [rad] over a window (see the module docstring)."""
     q = math.radians(scn.sensor.resolution_deg)
     sigma = math.radians(scn.sensor.noise_deg)
-    return max(window * q, 3.0 * math.sqrt(2.0) * sigma, 1e-12)
+    return max(q, 3.0 * math.sqrt(2.0) * sigma, 1e-12)
 
 
 class MotionStats:
@@ -212,14 +222,17 @@ class ProbingExcitation:
 
     def __init__(self, scn: Scenario, plan: ExcitationPlan,
                  probe_s: float = PROBE_SECONDS) -> None:
-        if not (math.isfinite(probe_s) and probe_s >= 0):
-            raise ScenarioError(f"probe {probe_s:g}: must be >= 0 s")
         rate = scn.sensor.rate_hz
-        self.n_probe = int(round(probe_s * rate))
-        if 0 < self.n_probe < 2 * (WINDOW + 2):
-            raise ScenarioError(f"probe {probe_s:g} s: at least {2 * (WINDOW + 2) / rate:.3g} s "
-                                f"at {rate:g} Hz (or 0: no probe)")
         plan.check(scn.sample_time)
+        if not (math.isfinite(probe_s) and 0 <= probe_s
+                and (probe_s + plan.duration) * rate <= MAX_SAMPLES):
+            raise ScenarioError(f"probe {probe_s:g}: must be >= 0 s, and with the duration at "
+                                f"most {MAX_SAMPLES:.0e} samples at {rate:g} Hz")
+        self.n_probe = int(round(probe_s * rate))
+        self.window = window = motion_window(scn)
+        if 0 < self.n_probe < 2 * (window + 5):
+            raise ScenarioError(f"probe {probe_s:g} s: at least {2 * (window + 5) / rate:.3g} s "
+                                f"at {rate:g} Hz (or 0: no probe)")
         self.plan = plan
         self.inner = ExcitationController(scn, replace(plan, duration=plan.duration + probe_s))
         self.n_samples = self.inner.n_samples
@@ -233,7 +246,7 @@ class ProbingExcitation:
         self._crest = max(peak, 1e-12)
         self.zhat: tuple[float, float, float] = self.inner.zhat  # the guard loop's estimate
         self.threshold = motion_threshold(scn)
-        self.stats = MotionStats(self.threshold)
+        self.stats = MotionStats(self.threshold, window)
         half = self.n_probe // 2
         self._half = half
         top, start = PROBE_TOP * self.torque_limit, PROBE_START * self.torque_limit
@@ -252,7 +265,7 @@ class ProbingExcitation:
             probe_s=self.n_probe * self.ts, excitation_start_s=self.n_probe * self.ts,
             breakaway_pos=math.nan, breakaway_neg=math.nan, amplitude_planned=plan.amplitude,
             amplitude=plan.amplitude, torque_limit=self.torque_limit, limited=False,
-            share_above_breakaway=math.nan, threshold_rad=self.threshold, window=WINDOW)
+            share_above_breakaway=math.nan, threshold_rad=self.threshold, window=window)
         if self.n_probe == 0:
             self._scale()
 
@@ -295,7 +308,7 @@ class ProbingExcitation:
         direction = 1 if k < self._half else -1
         if direction != self._dir:
             self._dir, self._e, self._moved, self._hist = direction, self._start, False, []
-            self._recent: deque[float] = deque(maxlen=WINDOW + 3)
+            self._recent: deque[float] = deque(maxlen=self.window + 3)
             self._y0 = y if math.isfinite(y) else self._y0
         if math.isfinite(y):
             self._recent.append(y)
@@ -303,7 +316,7 @@ class ProbingExcitation:
             r = self._recent
             if len(r) == r.maxlen:
                 # speed, not displacement (a smoothed friction lets the arm creep): the mean
-                # of the last 3 angles against the mean of the 3 taken WINDOW samples
+                # of the last 3 angles against the mean of the 3 taken `window` samples
                 # before; the noise of that difference is 0.82 σ, the threshold >= 4.2 σ
                 dev = abs((r[-1] + r[-2] + r[-3]) - (r[0] + r[1] + r[2])) / 3.0
                 self._hist.append((dev, abs(self._u_last)))

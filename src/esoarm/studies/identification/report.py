@@ -8,7 +8,7 @@ from esoarm import __version__
 from esoarm.scenario import Scenario
 from esoarm.studies.identification.identify import IdentResult
 
-__all__ = ["result_text", "scenario_toml"]
+__all__ = ["result_text", "scenario_toml", "spectrum_line"]
 
 
 def _num(x: float) -> str:
@@ -26,16 +26,18 @@ def result_text(res: IdentResult) -> str:
     for key, est in res.estimates.items():
         if not est.fitted:
             note = "held"
+        elif est.withheld:
+            note = "INTERVAL WITHHELD"
         elif est.at_bound:
             note = f"AT THE {est.bound.upper()} BOUND"
         elif not est.identifiable:
             note = "POORLY DETERMINED"
         else:
             note = "interval clipped to the bounds" if est.ci_clipped else ""
-        rows.append((key, _num(est.value), f"[{_num(est.ci95[0])}, {_num(est.ci95[1])}]",
-                     est.unit, note))
+        rows.append((key, _num(est.value), "withheld" if est.withheld else
+                     f"[{_num(est.ci95[0])}, {_num(est.ci95[1])}]", est.unit, note))
     g = res.gravity
-    rows.append(("  = gravity coefficient", _num(g.value),
+    rows.append(("  = gravity coefficient", _num(g.value), "withheld" if g.withheld else
                  f"[{_num(g.ci95[0])}, {_num(g.ci95[1])}]", g.unit, ""))
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
     for r in rows:
@@ -53,8 +55,15 @@ def result_text(res: IdentResult) -> str:
             lines.append(f"  {e.key} = {_num(e.value)} {e.unit}, the {e.bound} bound"
                          + (f" ({e.bound_why})" if e.bound_why else "")
                          + (f"; {e.advice}" if e.advice else ""))
+    if res.model_error:
+        lines.append("")
+        lines.append("the evidence rejects the model (" + "; ".join(res.model_error) + "): "
+                     f"the intervals are {res.interval_method}")
+        for e in res.estimates.values():
+            if e.withheld:
+                lines.append(f"  {e.key}: interval withheld: {e.withheld}")
     poor = [e for e in res.estimates.values()
-            if e.fitted and not e.identifiable and not e.at_bound]
+            if e.fitted and not e.identifiable and not e.at_bound and not e.withheld]
     if poor:
         lines.append("")
         lines.append("poorly determined by this log (the interval is wider than ±25 % or the "
@@ -69,7 +78,7 @@ def result_text(res: IdentResult) -> str:
         w = v["whiteness"]
         verdict = "white" if w["white"] else "NOT white: sensor noise by its spectrum below " \
             "(the intervals are from its covariance)" if res.coloured_noise() is not None \
-            else "NOT white (model error or colored noise: the intervals are too optimistic)"
+            else "NOT white (model error: see the intervals above)"
         lines.append(f"validation on {', '.join(res.validation_logs)} (not used for fitting): "
                      f"fit {v['fit_percent']:.2f} %, residual RMS {v['residual_rms_rad']:.3g} "
                      f"rad")
@@ -85,20 +94,45 @@ def result_text(res: IdentResult) -> str:
                     else "model error: the validation residual is well above the fit's"
                     if spec["sensor_noise"]
                     else spec["meaning"])
-            cis = spec.get("noise_ar_ci95", [])
-            nan, wkey = float("nan"), "innovation_autocorrelation_chi2"
-            coef = ", ".join(f"{c:.3f} [{lo:.3f}, {hi:.3f}]" for c, (lo, hi)
-                             in zip(spec["noise_ar"], cis, strict=False)) or "white"
-            lines.append(f"residual spectrum (fit and validation segments): AR({spec['order']}) "
-                         f"by BIC, φ = {coef} (95 %), σ = {spec.get('noise_std_deg', 0.0):.3g}° "
-                         f"[{', '.join(f'{v:.3g}' for v in spec.get('noise_std_ci95_deg', []))}]; "
-                         f"innovation whiteness χ² {spec.get(wkey, nan):.3g} "
-                         f"(95 %: {spec.get('innovation_chi2_95', nan):.3g}), past-input χ² "
-                         f"{spec['input_cross_correlation_chi2']:.3g} (95 %: "
-                         f"{spec['chi2_95']:.3g}): {what}")
+            lines.append(spectrum_line(spec, what))
     else:
         lines.append("validation: none (--validate-fraction 0 and a single log)")
     return "\n".join(lines)
+
+
+def spectrum_line(spec: dict, what: str) -> str:
+    """The "residual spectrum" line from the keys ``spec`` has: the segments' restricted
+    likelihood (coefficients with 95 % intervals, σ with its interval, the innovation's χ²)
+    or the plain Yule-Walker verdict of long segments (coefficients, AIC, the residual's σ,
+    the innovation's lags outside)."""
+    phi = [float(c) for c in spec.get("noise_ar", [])]
+    cis = spec.get("noise_ar_ci95") or []
+    if cis:
+        coef = ", ".join(f"{c:.3f} [{lo:.3f}, {hi:.3f}]" for c, (lo, hi)
+                         in zip(phi, cis, strict=True)) + " (95 %)"
+    else:
+        coef = ", ".join(f"{c:.3f}" for c in phi)
+    coef = coef or "white"
+    crit = "BIC" if "bic" in spec else "AIC"
+    where = "fit and validation segments" if "bic" in spec else "validation residual"
+    parts = [f"residual spectrum ({where}): AR({spec.get('order', len(phi))}) by {crit}, "
+             f"φ = {coef}"]
+    if "noise_std_deg" in spec:
+        ci = spec.get("noise_std_ci95_deg") or []
+        parts.append(f"σ = {spec['noise_std_deg']:.3g}°"
+                     + (f" [{ci[0]:.3g}, {ci[1]:.3g}]" if len(ci) == 2 else ""))
+    elif "residual_std_deg" in spec:
+        parts.append(f"σ = {spec['residual_std_deg']:.3g}°")
+    if "innovation_autocorrelation_chi2" in spec:
+        parts.append(f"innovation whiteness χ² {spec['innovation_autocorrelation_chi2']:.3g} "
+                     f"(95 %: {spec.get('innovation_chi2_95', float('nan')):.3g})")
+    elif "innovation_autocorrelation_outside" in spec:
+        parts.append(f"innovation: {spec['innovation_autocorrelation_outside']} of "
+                     f"{spec.get('lags', 20)} lags outside ±1.96")
+    if "input_cross_correlation_chi2" in spec:
+        parts.append(f"past-input χ² {spec['input_cross_correlation_chi2']:.3g} (95 %: "
+                     f"{spec.get('chi2_95', float('nan')):.3g})")
+    return "; ".join(parts) + f": {what}"
 
 
 def scenario_toml(res: IdentResult, fitted: Scenario) -> str:
@@ -111,7 +145,10 @@ def scenario_toml(res: IdentResult, fitted: Scenario) -> str:
             "rig.inertia_scale = 1) and the plant model is updated to the fit.",
             "# 95 % intervals:"]
     for key, est in res.estimates.items():
-        if est.fitted:
+        if est.fitted and est.withheld:
+            head.append(f"#   {key} = {est.value:.6g} (interval withheld: {est.withheld}) "
+                        f"{est.unit}")
+        elif est.fitted:
             head.append(f"#   {key} = {est.value:.6g} [{est.ci95[0]:.6g}, {est.ci95[1]:.6g}] "
                         f"{est.unit}" + (f"  (at the {est.bound} bound of the fit)"
                                          if est.at_bound else "" if est.identifiable

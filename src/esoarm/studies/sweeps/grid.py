@@ -60,6 +60,21 @@ def parse_vary(item: str, base: Scenario | None = None, max_values: int = MAX_RU
     integers when they are whole numbers.  A ``lin``/``geom`` NUM above
     ``max_values`` is rejected before anything is allocated.
 
+    Parameters
+    ----------
+    item : str
+        ``KEY=SPEC``: a dotted scenario key and its values (a list, ``lin:`` or ``geom:``),
+        each in the key's own unit.
+    base : Scenario, optional
+        The scenario the key belongs to (integer keys stay integers).
+    max_values : int
+        The most values a ``lin``/``geom`` SPEC may ask for.
+
+    Returns
+    -------
+    VarySpec
+        The key and its values, in the order given.
+
     Raises
     ------
     ScenarioError
@@ -154,7 +169,18 @@ class GridPoints(Sequence[Scenario]):
         return self._n
 
     def combo(self, index: int) -> tuple[Any, ...]:
-        """Values of the varied keys at grid point ``index`` (first key slowest)."""
+        """Values of the varied keys at grid point ``index`` (first key slowest).
+
+        Parameters
+        ----------
+        index : int
+            A grid point, 0 … len − 1.
+
+        Returns
+        -------
+        tuple
+            One value per varied key, in the order of ``--vary``.
+        """
         out = []
         for size, values in zip(reversed(self._sizes), reversed(self._values), strict=True):
             index, j = divmod(index, size)
@@ -208,18 +234,36 @@ class SweepGrid:
         return len(self.points) * max(len(self.seeds), 1)
 
     def point_values(self) -> Iterator[tuple[Any, ...]]:
-        """Values of the varied keys at each grid point, in grid order."""
+        """Values of the varied keys at each grid point, in grid order.
+
+        Returns
+        -------
+        iterator of tuple
+            One tuple per grid point, a value per varied key.
+        """
         return itertools.product(*(v.values for v in self.vary))
 
     def point_seeds(self) -> Iterator[tuple[int, ...]]:
-        """The seeds each grid point runs with, in grid order."""
+        """The seeds each grid point runs with, in grid order.
+
+        Returns
+        -------
+        iterator of tuple of int
+            Per grid point, its noise seeds (``sensor.seed``): 0 … K−1, or the varied seed.
+        """
         if self.seeds:
             return itertools.repeat(self.seeds, len(self.points))
         i = self.keys.index("sensor.seed")
         return ((int(values[i]),) for values in self.point_values())
 
     def warnings(self) -> list[str]:
-        """Distinct risky-setting warnings over the grid (one per message)."""
+        """Distinct risky-setting warnings over the grid (one per message).
+
+        Returns
+        -------
+        list of str
+            One line each, in the order first met.
+        """
         return list(self.risky)
 
 
@@ -241,6 +285,11 @@ def build_grid(base: Scenario, vary: Sequence[str], seeds: int = 1, *,
         building anything (default :data:`MAX_RUNS`).
     progress : callable, optional
         Called with the number of grid points checked since the last call.
+
+    Returns
+    -------
+    SweepGrid
+        The varied keys and values, the seeds, and every grid point's validated scenario.
 
     Raises
     ------

@@ -17,7 +17,7 @@ from esoarm._io import OutputError, atomic_path, describe_os_error, target_file,
 from esoarm.engines.metrics import METRICS
 
 if TYPE_CHECKING:
-    from esoarm.studies.sweeps.sweep import SweepGrid
+    from esoarm.studies.sweeps.grid import SweepGrid
 
 __all__ = ["DIVERGED_SHOWN", "SweepResult", "SweepWriter", "write_rows_atomic"]
 
@@ -93,7 +93,15 @@ class SweepWriter:
                 self._fail(exc)
 
     def add(self, start: int, values: np.ndarray) -> None:
-        """Take the metric rows of runs ``start`` … ``start + len(values) − 1``."""
+        """Take the metric rows of runs ``start`` … ``start + len(values) − 1``.
+
+        Parameters
+        ----------
+        start : int
+            Index of the chunk's first run (runs in grid order, seed fastest).
+        values : ndarray, shape (runs, len(METRICS))
+            The chunk's metric rows.
+        """
         self.n_done += len(values)
         self.diverged += int(np.count_nonzero(values[:, -1]))
         self._note_diverged(start // self._per_point, values)
@@ -136,9 +144,15 @@ class SweepWriter:
         self.first_diverged = sorted(self.first_diverged + hit)[:DIVERGED_SHOWN]
 
     def divergence_warning(self) -> str | None:
-        """One line: how many runs diverged, at which grid points (the first few), and the
-        likely cause at the first of them (:func:`esoarm.engines.diagnosis.divergence_causes`);
-        None when no run diverged."""
+        """One line on the runs that diverged, or None when none did.
+
+        How many runs diverged, at which grid points (the first few), and the likely cause at
+        the first of them (:func:`esoarm.engines.diagnosis.divergence_causes`).
+
+        Returns
+        -------
+        str or None
+        """
         if not self.diverged:
             return None
         from esoarm.engines.diagnosis import divergence_causes
@@ -175,7 +189,18 @@ class SweepWriter:
         del self._best[self._keep:]
 
     def best(self, n: int = 5) -> list[dict[str, Any]]:
-        """The best grid points seen so far (lowest seed-mean ``by``), with their mean metrics."""
+        """The best grid points seen so far (lowest seed-mean ``by``), with their mean metrics.
+
+        Parameters
+        ----------
+        n : int
+            How many (at most the ``best`` given to the writer).
+
+        Returns
+        -------
+        list of dict
+            Per grid point, best first: the varied keys' values and the seed-mean metrics.
+        """
         out = []
         for _, p, row in self._best[:n]:
             entry: dict[str, Any] = dict(zip(self.grid.keys, self.grid.points.combo(p),
@@ -185,10 +210,20 @@ class SweepWriter:
         return out
 
     def close(self, complete: bool = True) -> int:
-        """Finish the CSV (also the rows held for an earlier unfinished chunk); rows written.
+        """Finish the CSV (also the rows held for an earlier unfinished chunk).
 
         With ``complete=False`` (interrupted, or a chunk failed) the file keeps
         every finished row in grid order, with gaps where runs did not finish.
+
+        Parameters
+        ----------
+        complete : bool
+            Every run finished.
+
+        Returns
+        -------
+        int
+            Rows written (0 without a file).
         """
         if self._fh is None:
             return 0
@@ -251,12 +286,31 @@ class SweepResult:
 
     @classmethod
     def empty(cls, grid: SweepGrid) -> SweepResult:
-        """A result with no run finished yet."""
+        """A result with no run finished yet.
+
+        Parameters
+        ----------
+        grid : SweepGrid
+            The sweep's grid.
+
+        Returns
+        -------
+        SweepResult
+            Every metric NaN, no run done.
+        """
         return cls(grid, np.full((grid.n_runs, len(METRICS)), np.nan),
                    np.zeros(grid.n_runs, dtype=bool))
 
     def add(self, start: int, values: np.ndarray) -> None:
-        """Store the rows of one finished chunk."""
+        """Store the rows of one finished chunk.
+
+        Parameters
+        ----------
+        start : int
+            Index of the chunk's first run (runs in grid order, seed fastest).
+        values : ndarray, shape (runs, len(METRICS))
+            The chunk's metric rows.
+        """
         self.values[start : start + len(values)] = values
         self.done[start : start + len(values)] = True
 
@@ -271,11 +325,28 @@ class SweepResult:
         return int(self.done.sum())
 
     def header(self) -> list[str]:
-        """CSV columns: varied keys, ``seed``, then :data:`METRICS`."""
+        """CSV columns.
+
+        Returns
+        -------
+        list of str
+            The varied keys, ``seed``, then :data:`~esoarm.engines.metrics.METRICS`.
+        """
         return [*self.grid.keys, "seed", *METRICS]
 
     def rows(self, finished_only: bool = True) -> Iterator[list[Any]]:
-        """Rows in grid order: varied values, seed, metrics (counts as int)."""
+        """Rows in grid order: varied values, seed, metrics (counts as int).
+
+        Parameters
+        ----------
+        finished_only : bool
+            Leave out the runs that did not finish.
+
+        Returns
+        -------
+        iterator of list
+            One row per run, the columns of :meth:`header`.
+        """
         n_float = len(METRICS) - 2  # samples, diverged are counts
         i = 0
         for values, seeds in zip(self.grid.point_values(), self.grid.point_seeds(), strict=True):
@@ -287,12 +358,37 @@ class SweepResult:
                 i += 1
 
     def point_metric(self, name: str) -> np.ndarray:
-        """Metric ``name`` as an array (points, seeds) (NaN where unfinished)."""
+        """Metric ``name`` per grid point and seed (NaN where unfinished).
+
+        Parameters
+        ----------
+        name : str
+            A name of :data:`~esoarm.engines.metrics.METRICS`.
+
+        Returns
+        -------
+        ndarray, shape (points, seeds)
+            In the metric's unit.
+        """
         per_point = max(len(self.grid.seeds), 1)
         return self.values[:, METRICS.index(name)].reshape(len(self.grid.points), per_point)
 
     def best(self, n: int = 5, by: str = "rms_error") -> list[dict[str, Any]]:
-        """The ``n`` grid points with the lowest seed-mean ``by``, with their mean metrics."""
+        """The ``n`` grid points with the lowest seed-mean ``by``, with their mean metrics.
+
+        Parameters
+        ----------
+        n : int
+            How many grid points.
+        by : str
+            The metric that ranks them (a name of :data:`~esoarm.engines.metrics.METRICS`);
+            points with a diverged run come last.
+
+        Returns
+        -------
+        list of dict
+            Per grid point, best first: the varied keys' values and the seed-mean metrics.
+        """
         means = {m: _nanmean_rows(self.point_metric(m)) for m in METRICS}
         order = [i for i in np.lexsort((means[by], means["diverged"] > 0))
                  if np.isfinite(means[by][i])]  # diverged points last
@@ -305,7 +401,18 @@ class SweepResult:
         return out
 
     def write_csv(self, path: str | Path) -> int:
-        """Write the finished rows (atomic: the file appears only complete); returns rows."""
+        """Write the finished rows (atomic: the file appears only complete).
+
+        Parameters
+        ----------
+        path : str or Path
+            The CSV file.
+
+        Returns
+        -------
+        int
+            Rows written.
+        """
         return write_rows_atomic(path, self.header(), self.rows())
 
 
@@ -317,7 +424,22 @@ def _nanmean_rows(a: np.ndarray) -> np.ndarray:
 
 
 def write_rows_atomic(path: str | Path, header: Sequence[str], rows: Iterator[list[Any]]) -> int:
-    """Write a CSV table; the file appears only once complete.  Returns rows written."""
+    """Write a CSV table; the file appears only once complete.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    header : sequence of str
+        The column names.
+    rows : iterator of list
+        The rows, a cell per column.
+
+    Returns
+    -------
+    int
+        Rows written.
+    """
     count = 0
     with atomic_path(path) as tmp, tmp.open("w", encoding="utf-8", newline="") as fh:
         writer = csv.writer(fh, lineterminator="\n")

@@ -65,6 +65,18 @@ def _metric_label(name: str, quantity: str, units: Units) -> str:
 def figure_sweep(result: SweepResult, path: str | Path | None = None) -> Figure:
     """Draw a sweep of one or two varied keys (see the module docstring).
 
+    Parameters
+    ----------
+    result : SweepResult
+        The sweep's rows (unfinished runs are left out).
+    path : str or Path, optional
+        Write the figure there too (PNG, PDF or SVG by suffix).
+
+    Returns
+    -------
+    Figure
+        Curves with the spread over seeds for one key, heat maps for two.
+
     Raises
     ------
     ValueError
@@ -175,7 +187,19 @@ def _fmt(value: Any) -> str:
 
 
 def pareto_mask(cost_a: np.ndarray, cost_b: np.ndarray) -> np.ndarray:
-    """Points not dominated in (a, b), both minimized (ties kept once)."""
+    """Points not dominated in (a, b), both minimized (ties kept once).
+
+    Parameters
+    ----------
+    cost_a, cost_b : ndarray
+        The two costs of each point (e.g. RMS control [N·m] and RMS error [rad]); points
+        where either is not finite are never on the front.
+
+    Returns
+    -------
+    ndarray of bool
+        True for the points on the Pareto front.
+    """
     a = np.asarray(cost_a, dtype=float)
     b = np.asarray(cost_b, dtype=float)
     mask = np.zeros(len(a), dtype=bool)

@@ -108,6 +108,22 @@ def metrics_runner(engine: str = "exact") -> Callable[..., MetricsTable]:
     "exact" is :func:`esoarm.engines.batch.run_metrics`, except that a call of
     at most :data:`REFERENCE_RUNS` runs uses the reference engine (identical
     numbers, no compiled kernel to load).
+
+    Parameters
+    ----------
+    engine : {"exact", "fast"}
+        A name of :data:`ENGINES`.
+
+    Returns
+    -------
+    callable
+        ``run_metrics(points, seeds, *, workers, ...)`` giving a
+        :class:`~esoarm.engines.metrics.MetricsTable`.
+
+    Raises
+    ------
+    ValueError
+        An unknown engine.
     """
     if engine == "exact":
         return _run_exact
@@ -160,6 +176,11 @@ def iter_sweep(
         :data:`LOCAL_CHUNK` or :data:`DASK_CHUNK`.
     engine : {"exact", "fast"}
         :data:`ENGINES`; "fast" agrees with "exact" to round-off (:mod:`esoarm.engines.fast`).
+
+    Yields
+    ------
+    tuple
+        (index of the chunk's first run, its metric rows (runs, len(METRICS))).
     """
     run_metrics = metrics_runner(engine)
     per_point = max(len(grid.seeds), 1)
@@ -185,6 +206,16 @@ PROBE_TIMEOUT = 5.0
 
 def parse_scheduler(address: str) -> tuple[str, str, int]:
     """Split ``[tcp://|tls://]HOST:PORT`` into (scheme, host, port).
+
+    Parameters
+    ----------
+    address : str
+        A Dask scheduler's address (no scheme: tcp).
+
+    Returns
+    -------
+    tuple of (str, str, int)
+        The scheme, the host and the port.
 
     Raises
     ------
@@ -214,6 +245,13 @@ def probe_scheduler(address: str, timeout: float = PROBE_TIMEOUT) -> None:
     and one connected to a server that never answers waits for ever.  Over
     tcp:// the scheduler must send the first bytes of its handshake (it does
     on accepting); over tls:// only the connection is checked.
+
+    Parameters
+    ----------
+    address : str
+        ``[tcp://|tls://]HOST:PORT`` (:func:`parse_scheduler`).
+    timeout : float
+        The longest wait [s] for the connection and for the first bytes.
 
     Raises
     ------
@@ -347,6 +385,22 @@ def run_sweep(
 
     Pass your own ``result`` (from :meth:`SweepResult.empty`) to keep the
     finished rows if the run is interrupted (``KeyboardInterrupt``) or fails.
+
+    Parameters
+    ----------
+    grid : SweepGrid
+        From :func:`build_grid`.
+    workers, scheduler, chunk, engine
+        As for :func:`iter_sweep`.
+    progress : callable, optional
+        Called with the number of runs finished after each chunk.
+    result : SweepResult, optional
+        Where the rows go (default a new one).
+
+    Returns
+    -------
+    SweepResult
+        Every run's metrics, in grid order.
     """
     result = result if result is not None else SweepResult.empty(grid)
     start = time.perf_counter()

@@ -93,11 +93,33 @@ class Bound:
         return not self.integer and self.low > 0 and self.high / self.low >= 10.0
 
     def to_unit(self, value: float) -> float:
-        """Map a value to the search coordinate."""
+        """Map a value to the search coordinate.
+
+        Parameters
+        ----------
+        value : float
+            The key's value, in its own unit.
+
+        Returns
+        -------
+        float
+            log10 of it on a log-scale key, else itself.
+        """
         return math.log10(value) if self.log else value
 
     def from_unit(self, coord: float) -> float | int:
-        """Map a search coordinate back to a key value."""
+        """Map a search coordinate back to a key value.
+
+        Parameters
+        ----------
+        coord : float
+            The search coordinate (:meth:`to_unit`).
+
+        Returns
+        -------
+        float or int
+            The key's value within [low, high] (rounded on a whole-number key).
+        """
         if self.integer:
             return int(round(coord))
         value = 10.0**coord if self.log else float(coord)
@@ -111,6 +133,20 @@ class Bound:
 
 def parse_bound(item: str, base: Scenario, option: str = "vary") -> Bound:
     """Parse ``KEY=LOW:HIGH`` and check both ends on ``base``.
+
+    Parameters
+    ----------
+    item : str
+        ``KEY=LOW:HIGH``, in the key's own unit.
+    base : Scenario
+        The scenario the key belongs to (both ends are validated on it).
+    option : str
+        The option's name, for the error (``vary``, ``robust``).
+
+    Returns
+    -------
+    Bound
+        The key, its range, and whether it is searched on a log scale or as integers.
 
     Raises
     ------
@@ -552,6 +588,15 @@ def describe_baseline(res: TuneResult) -> str | None:
 
     It can only happen when the scenario's own values lie outside the bounds searched (within
     them they start the search, see :func:`tune`).
+
+    Parameters
+    ----------
+    res : TuneResult
+        A finished search.
+
+    Returns
+    -------
+    str or None
     """
     gap = res.best_metrics["objective"] - res.baseline["objective"]
     if not gap > 1e-9 * max(abs(res.baseline["objective"]), 1e-300):  # round-off is no news
@@ -563,7 +608,19 @@ def describe_baseline(res: TuneResult) -> str | None:
 
 
 def describe_nonfinite(res: TuneResult, objective: Objective) -> str | None:
-    """One warning line for the candidates whose objective was inf or nan, or None."""
+    """One warning line for the candidates whose objective was inf or nan, or None.
+
+    Parameters
+    ----------
+    res : TuneResult
+        A finished search.
+    objective : Objective
+        Its objective.
+
+    Returns
+    -------
+    str or None
+    """
     if not res.nonfinite or res.nonfinite_example is None:
         return None
     return (f"objective '{objective.text}' was not a finite number at {res.nonfinite} of "

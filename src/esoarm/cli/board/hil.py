@@ -24,6 +24,32 @@ def _say(line: str) -> None:
     print(line, flush=True)
 
 
+def _progress(line: str) -> None:
+    """Progress before the device exists: on stderr ('device: PATH' stays stdout's first line)."""
+    click.echo(f"esoarm: {line}", err=True)
+
+
+#: ELF e_machine of the AVR.
+EM_AVR = 83
+
+
+def _check_avr_elf(path: Path) -> None:
+    """Bad input (exit 2) unless ``path`` is an ELF file for the AVR."""
+    if not path.is_file():
+        raise BadInput(f"--elf '{path}': no such file")
+    try:
+        head = path.read_bytes()[:20]
+    except OSError as exc:
+        raise BadInput(f"--elf '{path}': cannot read it ({exc.strerror})") from None
+    if head[:4] != b"\x7fELF" or len(head) < 20:
+        raise BadInput(f"--elf '{path}': not an AVR ELF file (no ELF header; build one with "
+                       "make -C firmware, or drop --elf)")
+    machine = int.from_bytes(head[18:20], "little" if head[5] == 1 else "big")
+    if machine != EM_AVR:
+        raise BadInput(f"--elf '{path}': not an AVR ELF file (ELF machine {machine}, the AVR "
+                       f"is {EM_AVR}): build the Uno firmware with make -C firmware")
+
+
 @click.command()
 @scenario_argument
 @set_option
@@ -48,13 +74,13 @@ def _say(line: str) -> None:
               "controller (esoarm codegen ... --target avr; make -C firmware ONBOARD=DIR at the "
               "scenario's rate, 1 Mbit/s), which step in the chip's timer interrupt and drive "
               "the motor themselves; drive it with 'esoarm run SCENARIO --port PATH --onboard'.")
-@click.option("--sums", type=click.Choice(["auto", "plain", "compensated"]), default="auto",
-              show_default=True,
-              help="With --onboard: the generated observer's float32 sums. compensated (Kahan) "
+@click.option("--sums", type=click.Choice(["auto", "plain", "compensated"]), default=None,
+              help="With --onboard [default: auto]: the generated observer's float32 sums. "
+              "compensated (Kahan) "
               "is more accurate at high rates and costs about 1.9k more cycles a step on the "
               "ATmega328P; auto times both with PIL (esoarm pil SCENARIO --target avr, cached) "
               "and takes compensated where it fits the period on board, else plain, and says "
-              "which and why.")
+              "which and why; a forced choice that does not fit is warned about.")
 @click.option("--target", type=click.Choice(["avr", "cortex-m4"]), default="avr",
               show_default=True,
               help="The simulated chip: avr (the Uno firmware in simavr) or cortex-m4 (with "
@@ -65,7 +91,7 @@ def _say(line: str) -> None:
               "sent STOP (or the link is unplugged, or the host is silent for 5 s).")
 @bad_input_guard
 def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], realtime: bool,
-        elf: str | None, driver: str, onboard: bool, sums: str, target: str,
+        elf: str | None, driver: str, onboard: bool, sums: str | None, target: str,
         once: bool) -> None:
     """Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its pins.
 
@@ -82,16 +108,20 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
     from esoarm.hardware.hil.build import ToolchainMissing, firmware_elf
     from esoarm.hardware.hil.server import SLIP_S, HilServer, parse_hil_fault
 
+    if sums is not None and not onboard:
+        raise BadInput(f"--sums {sums} applies to the generated observer on board: add "
+                       "--onboard (the rig firmware without it runs no observer)")
+    sums = sums or "auto"
     if target == "cortex-m4":
-        from esoarm.cli.hil_cortex_m import hil_cortex_m
+        from esoarm.cli.board.hil_cortex_m import hil_cortex_m
 
         hil_cortex_m(scenario, overrides, faults, realtime, elf, onboard, sums, once)
         return
     specs = [parse_hil_fault(f) for f in faults]
     scn = resolve_scenario(scenario, overrides)
     lever_only(scn, "hil")  # before the [motor] check: an arm has the wrong kind, not no motor
-    if elf is not None and not Path(elf).is_file():
-        raise BadInput(f"--elf '{elf}': no such file")
+    if elf is not None:
+        _check_avr_elf(Path(elf))
     board_note = ""
     try:
         if onboard:
@@ -100,13 +130,19 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
 
             if elf is not None:
                 raise BadInput("--onboard builds its own firmware: drop --elf")
-            from esoarm.codegen.onboard import choose_sums
+            from esoarm.codegen.onboard import choose_sums, sums_fit
 
             try:
                 why = ""
                 if sums == "auto":
-                    choice = choose_sums(scn)
+                    choice = choose_sums(scn, say=_progress)
                     sums, why = choice.name, f" (auto: {choice.reason})"
+                else:
+                    fits, numbers = sums_fit(scn, sums == "compensated", say=_progress)
+                    if not fits:
+                        warn_line(f"--sums {sums} does not fit the ATmega328P's period on "
+                                  f"board at {scn.sensor.rate_hz:g} Hz ({numbers}): expect "
+                                  "OVERRUN faults; auto would not choose it")
                 elf_path = onboard_firmware(scn, compensated=sums == "compensated")
             except CodegenError as exc:
                 raise BadInput(str(exc)) from None

@@ -41,14 +41,22 @@ def pil(scenario: str, overrides: tuple[str, ...], target: str, precision: str,
     measurement. Reported: max |u_chip − u_ref| [N·m] and relative to the
     torque limit, per-step cycles (min, median, max) against one sample
     period at the chip's clock, and the PIL image's flash and static RAM.
-    Exit status 1 when the agreement is worse than 1e-4 of the torque limit
-    or the worst step does not fit in the sample period.
+    Exit status 1 when the agreement is worse than 1e-4 of the torque limit,
+    the worst step does not fit in the sample period, or the run ended before
+    the arm was asked to move (an agreement at rest checks nothing).
     """
     from esoarm.codegen import AGREEMENT, CodegenError
     from esoarm.codegen.pil import run_pil
     from esoarm.hardware.hil.build import ToolchainMissing
 
+    if plain_sums and precision != "float32":
+        raise BadInput("--plain-sums applies to float32: float64 already sums the observer's "
+                       "increments plainly")
     scn = resolve_scenario(scenario, overrides)
+    if steps is not None and steps > scn.n_samples:
+        raise BadInput(f"--steps {steps}: the scenario has {scn.n_samples} samples "
+                       f"({scn.duration:g} s at {scn.sensor.rate_hz:g} Hz); for a longer run "
+                       "raise duration (--set duration=...)")
     try:
         report = run_pil(scn, target, precision, False if plain_sums else None, steps)
     except CodegenError as exc:
@@ -73,6 +81,15 @@ def pil(scenario: str, overrides: tuple[str, ...], target: str, precision: str,
                    f"{report.clock_hz / 1e6:g} MHz ({100 * data['budget_used']:.1f} % used)")
         click.echo(f"image: {data['flash_bytes']} bytes flash, {data['ram_bytes']} bytes "
                    "static RAM")
+    if not report.covers_motion:
+        move = report.run.first_move
+        where = (f"the reference's first move starts at sample {move}" if move is not None
+                 else "the reference does not move within them")
+        hint = (f"; run at least --steps {min(scn.n_samples, 4 * move + 100)}"
+                if move is not None else "")
+        raise RunFailure(f"the check covered only the arm at rest: {data['steps']} samples, "
+                         f"{where}, so max |Δu| = {data['max_abs_du']:.3g} N·m says nothing "
+                         f"about the code while the arm moves{hint}")
     if not report.agrees:
         raise RunFailure(f"the chip does not agree with the float64 reference: max |Δu| / "
                          f"torque_limit = {data['max_rel_du']:.3g} > {AGREEMENT:g}")

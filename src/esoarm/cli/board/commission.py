@@ -37,8 +37,9 @@ from esoarm.cli._common import (
               help="Perturbation-estimate bandwidth to design the observer for (f → ẑ3, −3 dB) "
               "[rad/s]; default: proposed, the bandwidth of the scenario's own observer.")
 @click.option("--observer-kind", type=click.Choice(["linear", "cascade"]), default=None,
-              help="Take this observer kind's ε for the bandwidth instead of the kind with the "
-              "least noise-driven chatter (the report compares both).")
+              help="Take this observer kind's ε for the bandwidth instead of the one chosen "
+              "(the least noise-driven chatter among the kinds whose disturbance → error peak "
+              "is within 1.5× of the smallest; the report compares them).")
 @click.option("--amplitude", type=float, default=0.2, show_default=True, metavar="N·M",
               help="RMS torque of the excitation multisine [N·m] (saturated at "
               "actuator.torque_limit).")

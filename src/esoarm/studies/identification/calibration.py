@@ -1,0 +1,218 @@
+"""Calibration of ``esoarm identify``: seeded twins over wide ranges, fitted as a user would.
+
+Simulation-based calibration (Talts et al. 2018): a rig is drawn from a documented prior
+(:func:`draw_rig`), excited with the default plan of ``esoarm excite --twin``, and fitted by
+``esoarm identify LOG --json``, each run as a separate command exactly as a user types it.
+The result is sorted into one of four classes (:func:`classify`):
+
+* *recovered*: exit 0 and every fitted truth inside its written 95 % interval;
+* *refused*: exit 1 or 2, with the one-line reason;
+* *flagged*: exit 0, every written interval contains its truth, and every parameter whose
+  truth lies outside its interval is named in words (interval withheld, poorly determined,
+  or at a bound of the fit);
+* *confidently wrong*: exit 0 and a written interval, not flagged, that misses the truth.
+
+The prior (all of it applied to the twin of ``test-1``; the nominal scenario given to
+``identify`` stays ``test-1`` with only the sensor's rate and resolution, which a user
+knows, set):
+
+=========================  ==============================================================
+inertia scale              log-uniform 0.5 … 2 × plant.inertia
+viscous friction           log-uniform 0.1 … 10 × 0.01 N·m·s/rad
+Coulomb friction           uniform 0 … 1.5 × the excitation's RMS torque 0.2 N·m
+stiction                   half of the rigs: uniform 0 … 0.1 N·m above Coulomb
+backlash                   one rig in five: uniform 0 … 0.5°
+encoder noise              log-uniform 0.05 … 0.5°; one rig in four coloured, AR(1) φ 0.3 … 0.8
+vibration                  one rig in five: 0 … 0.3° at 3 … 0.4·fs Hz
+actuator lag               one rig in three: uniform 0 … 30 ms
+transport delay            uniform 0 … 3 samples
+PWM resolution             one rig in four: 8 … 12 bits
+gravity offset             plant.m2 uniform 0.5 … 0.6 kg (test-1: 0.55)
+sample rate                50 Hz (6 in 10), 100 (2 in 10), 200 or 1000 Hz; 60 s, at most
+                           12000 samples (1 kHz: 12 s)
+=========================  ==============================================================
+
+Rigs are rotary (the lever arm); ``esoarm excite`` drives only the lever arm, so prismatic
+axes are not part of the draw (see docs/benchmarks-identify-calibration.md).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig", "run_rig", "summary"]
+
+#: Seeds from this one on are held out of any tuning of the estimator (reported apart).
+#: (Seeds 1_000_000 … were held out first; the first of them, 1_000_001, a 200 Hz rig whose
+#: 2-sample delay was fitted as 1 sample and a lag, led to a change, so they are no longer.)
+HELD_OUT_START = 2_000_000
+#: RMS of the default plan's multisine [N·m] (``esoarm excite --amplitude``).
+EXCITATION_RMS = 0.2
+RATES = (50.0, 50.0, 50.0, 50.0, 50.0, 50.0, 100.0, 100.0, 200.0, 1000.0)
+#: At most this many samples per log: above 200 Hz the default plan's 60 s is shortened
+#: (1 kHz: 12 s), so that the study finishes in hours, not days.
+MAX_SAMPLES = 12_000
+
+
+@dataclass(frozen=True)
+class Rig:
+    """One drawn twin: its seed, the ``--set`` overrides of the twin and of ``identify``."""
+
+    seed: int
+    truth: dict[str, float]
+    twin_sets: tuple[str, ...]
+    identify_sets: tuple[str, ...]
+    #: Truth keys whose model the fit has (the others are model error it must survive).
+    judged: tuple[str, ...]
+
+    @property
+    def rate_hz(self) -> float:
+        """Sample rate of the log [Hz]."""
+        return self.truth["sensor.rate_hz"]
+
+
+def draw_rig(seed: int) -> Rig:
+    """The twin of seed ``seed`` (see the module docstring for the prior)."""
+    rng = np.random.default_rng([seed, 30])
+
+    def loguni(lo: float, hi: float) -> float:
+        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+    rate = float(RATES[int(rng.integers(len(RATES)))])
+    t: dict[str, float] = {
+        "rig.inertia_scale": loguni(0.5, 2.0),
+        "rig.viscous_friction": 0.01 * loguni(0.1, 10.0),
+        "rig.coulomb_friction": float(rng.uniform(0.0, 1.5 * EXCITATION_RMS)),
+        "rig.stiction": float(rng.uniform(0.0, 0.1)) if rng.random() < 0.5 else 0.0,
+        "rig.backlash_deg": float(rng.uniform(0.0, 0.5)) if rng.random() < 0.2 else 0.0,
+        "sensor.noise_deg": loguni(0.05, 0.5),
+        "actuator.lag": float(rng.uniform(0.0, 0.03)) if rng.random() < 1 / 3 else 0.0,
+        "actuator.delay_samples": float(rng.integers(0, 4)),
+        "actuator.pwm_bits": float(rng.integers(8, 13)) if rng.random() < 0.25 else 0.0,
+        "plant.m2": float(rng.uniform(0.5, 0.6)),
+        "sensor.rate_hz": rate,
+    }
+    phi = float(rng.uniform(0.3, 0.8)) if rng.random() < 0.25 else 0.0
+    vib = float(rng.uniform(0.0, 0.3)) if rng.random() < 0.2 else 0.0
+    vib_hz = float(rng.uniform(3.0, 0.4 * rate))
+    resolution = 0.05 if rate <= 100 else 0.01
+    sets = [f"{k}={int(v) if k in ('actuator.delay_samples', 'actuator.pwm_bits') else v!r}"
+            for k, v in t.items()]
+    sets += [f"sensor.noise_ar=[{phi!r}]" if phi else "sensor.noise_ar=[]",
+             f"sensor.vibration_deg={vib!r}", f"sensor.vibration_hz={vib_hz!r}",
+             f"sensor.resolution_deg={resolution}", f"sensor.seed={seed % 100_000}"]
+    judged = ["rig.inertia_scale", "plant.m2", "rig.coulomb_friction", "rig.viscous_friction",
+              "rig.stiction", "actuator.lag", "actuator.delay_samples"]
+    if not phi and not vib and not t["rig.backlash_deg"]:
+        judged.append("sensor.noise_deg")
+    return Rig(seed, {**t, "sensor.noise_ar_phi": phi, "sensor.vibration_deg": vib},
+               tuple(sets),
+               (f"sensor.rate_hz={rate:g}", f"sensor.resolution_deg={resolution}"),
+               tuple(judged))
+
+
+@dataclass
+class RigOutcome:
+    """What ``identify`` did with one rig."""
+
+    rig: Rig
+    verdict: str  # recovered | refused | flagged | wrong | excite-failed
+    exit_code: int
+    reason: str = ""
+    #: key -> (truth, value, lo, hi, written) for the judged keys.
+    params: dict[str, tuple[float, float, float, float, bool]] = field(default_factory=dict)
+    missed: list[str] = field(default_factory=list)
+    flagged: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    stuck_share: float = math.nan
+
+
+def _esoarm(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "esoarm", *args], capture_output=True,
+                          text=True, env=env, check=False)
+
+
+def run_rig(rig: Rig, workdir: Path | None = None) -> RigOutcome:
+    """Excite the twin of ``rig`` and identify it with the ``esoarm`` command (a subprocess)."""
+    env = dict(os.environ)
+    env.setdefault("MPLBACKEND", "Agg")
+    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+        log = Path(tmp) / f"rig{rig.seed}.csv"
+        sets = [a for s in rig.twin_sets for a in ("--set", s)]
+        duration = min(60.0, MAX_SAMPLES / rig.rate_hz)
+        ex = _esoarm(["excite", "test-1", "--twin", "--seed", str(rig.seed % 1000), "--log",
+                      str(log), "--duration", f"{duration:g}", *sets], env)
+        if ex.returncode != 0:
+            return RigOutcome(rig, "excite-failed", ex.returncode,
+                              (ex.stderr.strip().splitlines() or ["?"])[-1])
+        stuck = _stuck_share(log)
+        isets = [a for s in rig.identify_sets for a in ("--set", s)]
+        t0 = time.perf_counter()
+        res = _esoarm(["identify", str(log), "--json", *isets], env)
+        secs = time.perf_counter() - t0
+    if res.returncode != 0:
+        reason = (res.stderr.strip().splitlines() or ["?"])[-1]
+        return RigOutcome(rig, "refused", res.returncode, reason, seconds=secs,
+                          stuck_share=stuck)
+    out = classify(rig, json.loads(res.stdout))
+    out.seconds, out.stuck_share = secs, stuck
+    return out
+
+
+def _stuck_share(log: Path) -> float:
+    """Share of samples where the true arm moved less than 1e-4 rad (stuck) [1]."""
+    import csv
+
+    with open(log, encoding="utf-8") as fh:
+        rows = [r for r in csv.reader(line for line in fh if not line.startswith("#"))]
+    head = rows[0]
+    col = head.index("theta_true") if "theta_true" in head else head.index("theta")
+    th = np.array([float(r[col]) for r in rows[1:]])
+    return float(np.mean(np.abs(np.diff(th)) < 1e-4))
+
+
+def classify(rig: Rig, data: dict) -> RigOutcome:
+    """Sort an exit-0 ``identify --json`` answer for ``rig`` (see the module docstring)."""
+    params: dict[str, tuple[float, float, float, float, bool]] = {}
+    missed: list[str] = []
+    flagged: list[str] = []
+    for key in rig.judged:
+        e = data["parameters"].get(key)
+        if e is None or not e.get("fitted", True):
+            continue
+        truth = rig.truth[key]
+        lo, hi = e["ci95"] if e.get("ci95") is not None else (math.nan, math.nan)
+        written = (e.get("ci95") is not None and not e.get("withheld", False)
+                   and e.get("identifiable", True) and not e.get("at_bound", False))
+        params[key] = (truth, float(e["value"]), float(lo), float(hi), written)
+        inside = e.get("ci95") is not None and lo - 1e-12 <= truth <= hi + 1e-12
+        if inside:
+            continue
+        (missed if written else flagged).append(key)
+    verdict = "wrong" if missed else "flagged" if flagged else "recovered"
+    return RigOutcome(rig, verdict, 0, "", params, missed, flagged)
+
+
+def summary(outcomes: list[RigOutcome]) -> dict[str, float]:
+    """Counts of each class, shares [%], and the coverage of the written intervals [%]."""
+    n = len(outcomes)
+    count = {v: sum(o.verdict == v for o in outcomes)
+             for v in ("recovered", "refused", "flagged", "wrong", "excite-failed")}
+    written = [p for o in outcomes for p in o.params.values() if p[4]]
+    covered = sum(lo - 1e-12 <= truth <= hi + 1e-12 for truth, _v, lo, hi, _w in written)
+    out: dict[str, float] = {"rigs": n, **count}
+    for v in ("recovered", "refused", "flagged", "wrong"):
+        out[f"{v}_percent"] = 100.0 * count[v] / max(n, 1)
+    out["intervals_written"] = len(written)
+    out["coverage_percent"] = 100.0 * covered / max(len(written), 1)
+    return out
