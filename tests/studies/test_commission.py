@@ -172,8 +172,10 @@ def test_a_refusal_stops_with_what_to_change(tmp_path: Path) -> None:
 @needs_hil  # the AVR toolchain and simavr: the PIL timing and the firmware build
 def test_on_a_port_flashing_is_checked_by_the_boards_hash(tmp_path: Path) -> None:
     """--port: the excitation through the serial link (the emulated rig in lockstep), the
-    identification, design and code; then the board on the port runs no controller of its
-    own, so the flash step stops with the make command to flash it and --resume."""
+    identification, design and code; then the port answers neither with the design's hash
+    nor as an Uno bootloader (avrdude's probe), so the flash step stops with the make command
+    to flash it by hand and --resume.  (Writing through the bootloader is esoarm flash's,
+    tested in tests/hardware/test_flash.py.)"""
     emu = subprocess.Popen([*ESOARM, "emulate", "uno-rig", "--lockstep"],
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     work = tmp_path / "w"
@@ -189,7 +191,7 @@ def test_on_a_port_flashing_is_checked_by_the_boards_hash(tmp_path: Path) -> Non
     assert run.returncode == 1, run.stderr
     out = json.loads(run.stdout)
     assert out["refused"]["step"] == "flash"
-    assert "runs no controller of its own" in out["refused"]["reason"]
+    assert "does not answer as an Uno bootloader" in out["refused"]["reason"]  # avrdude's probe
     assert "make -C firmware upload ONBOARD=" in out["refused"]["advice"]
     assert "--resume" in out["refused"]["advice"]
     assert out["identified"] and out["design"] and out["codegen"] and out["measured"] is None

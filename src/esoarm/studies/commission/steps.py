@@ -492,28 +492,22 @@ class Commission:
             sums = self.results["codegen"]["observer_sums"]
             elf = onboard_firmware(design, compensated=sums == "compensated")
             flash, ram = image_sizes(elf, "avr-size")
-            out = {"elf": str(elf), "hex": str(elf.with_suffix(".hex")), "flash_bytes": flash,
-                   "ram_bytes": ram, "baud": BAUD, "hash": scenario_hash(design)[:8]}
+            digest = scenario_hash(design)[:8]
+            out: dict[str, Any] = {"elf": str(elf), "hex": str(elf.with_suffix(".hex")),
+                                   "flash_bytes": flash, "ram_bytes": ram, "baud": BAUD,
+                                   "hash": digest}
             if self.opts.hil:
                 out["board"] = ("the simulated Uno (simavr ATmega328P, 16 MHz): the image is "
                                 "loaded when the run starts")
                 return out
-            on_board = self._board_hash(BAUD)
-            if on_board != out["hash"]:
-                raise CommissionRefused(
-                    "flash", f"the board on {self.opts.port} runs "
-                    + (f"the controller of hash {on_board}" if on_board else
-                       "no controller of its own") + f", not the design's ({out['hash']})",
-                    f"flash {out['hex']} (make -C firmware upload ONBOARD="
-                    f"{self.dir / '04-codegen'} SAMPLE_PERIOD_US="
-                    f"{round(1e6 * design.sample_time)} BAUD={BAUD} PORT={self.opts.port}), "
-                    "then run the same command with --resume")
-            out["board"] = f"{self.opts.port}: answers with the design's hash {on_board}"
+            out.update(self._flash_port(elf.with_suffix(".hex"), digest, BAUD,
+                                        round(1e6 * design.sample_time)))
             return out
 
         return self._step("flash", {}, work)
 
     def _board_hash(self, baud: int) -> str:
+        """The scenario hash of the on-board firmware on the port ("" when none answers)."""
         from esoarm.hardware.link import LinkError, SerialLink
 
         assert self.opts.port is not None
@@ -524,10 +518,42 @@ class Commission:
         try:
             info = link.handshake()
             return link.chip_info().scenario_hash if info.onboard else ""
-        except LinkError as exc:
-            raise CommissionRefused("flash", str(exc), "check the port and the baud") from None
+        except LinkError:  # the rig firmware at another line rate, or a board in its bootloader
+            return ""
         finally:
             link.close()
+
+    def _flash_port(self, hex_path: Path, expected: str, baud: int, period_us: int
+                    ) -> dict[str, Any]:
+        """Put the design's firmware on the Uno at the port.
+
+        Already there (the port answers with the design's hash), or written with avrdude
+        through the Uno's bootloader and its hash read back (:func:`esoarm.hardware.flash.flash`).
+        """
+        port = self.opts.port
+        assert port is not None
+        by_hand = (f"flash {hex_path} by hand (make -C firmware upload ONBOARD="
+                   f"{self.dir / '04-codegen'} SAMPLE_PERIOD_US={period_us} BAUD={baud} "
+                   f"PORT={port}), then run the same command again with --resume")
+        on_board = self._board_hash(baud)
+        if on_board == expected:
+            return {"board": f"{port}: already runs the design's firmware (hash {on_board})"}
+        from esoarm.hardware.flash import NotABootloader, flash
+        from esoarm.hardware.hil.build import ToolchainMissing
+
+        try:
+            rep = flash(hex_path, port, expected, baud)
+        except NotABootloader as exc:
+            raise CommissionRefused("flash", str(exc), by_hand) from None
+        except (RuntimeError, ToolchainMissing, OSError) as exc:
+            raise CommissionRefused("flash", str(exc), by_hand) from None
+        if not rep.ok:
+            raise CommissionRefused("flash", f"after the write the board on {port} reports the "
+                                    f"scenario hash {rep.hash_read}, not the design's "
+                                    f"{expected}", by_hand)
+        return {"board": f"{port}: written with avrdude ({rep.flash_bytes} bytes verified, "
+                         f"signature {rep.signature}) in {rep.seconds:.1f} s; the firmware "
+                         f"reports the design's hash {rep.hash_read}"}
 
     # -- 6. the on-board run ------------------------------------------------------------------
     def _run(self) -> dict[str, Any]:

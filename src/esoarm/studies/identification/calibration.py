@@ -50,7 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig", "run_rig", "summary"]
+__all__ = ["HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig", "from_json",
+           "run_rig", "summary"]
 
 #: Seeds from this one on are held out of any tuning of the estimator (reported apart).
 #: (Seeds 1_000_000 … were held out first; the first of them, 1_000_001, a 200 Hz rig whose
@@ -204,15 +205,25 @@ def classify(rig: Rig, data: dict) -> RigOutcome:
 
 
 def summary(outcomes: list[RigOutcome]) -> dict[str, float]:
-    """Counts of each class, shares [%], and the coverage of the written intervals [%]."""
+    """Counts of each class, shares [%] of the rigs that reached identify (not those whose
+    excitation stopped), and the coverage of the written intervals [%]."""
     n = len(outcomes)
     count = {v: sum(o.verdict == v for o in outcomes)
              for v in ("recovered", "refused", "flagged", "wrong", "excite-failed")}
     written = [p for o in outcomes for p in o.params.values() if p[4]]
     covered = sum(lo - 1e-12 <= truth <= hi + 1e-12 for truth, _v, lo, hi, _w in written)
-    out: dict[str, float] = {"rigs": n, **count}
+    identified = n - count["excite-failed"]  # the shares are of the rigs identify saw
+    out: dict[str, float] = {"rigs": n, "identified": identified, **count}
     for v in ("recovered", "refused", "flagged", "wrong"):
-        out[f"{v}_percent"] = 100.0 * count[v] / max(n, 1)
+        out[f"{v}_percent"] = 100.0 * count[v] / max(identified, 1)
     out["intervals_written"] = len(written)
     out["coverage_percent"] = 100.0 * covered / max(len(written), 1)
     return out
+
+
+def from_json(items: list[dict]) -> list[RigOutcome]:
+    """Outcomes back from the ``--json`` dump of the benchmark (the rigs redrawn by seed)."""
+    return [RigOutcome(draw_rig(int(o["seed"])), o["verdict"], int(o["exit"]), o["reason"],
+                       {k: tuple(v) for k, v in o["params"].items()}, list(o["missed"]),
+                       list(o["flagged"]), float(o["seconds"]), float(o["stuck"]))
+            for o in items]
