@@ -65,12 +65,13 @@ def _row(o: RigOutcome) -> str:
 def _table(title: str, outs: list[RigOutcome]) -> list[str]:
     s = summary(outs)
     lines = [f"## {title}", "",
-             f"**{s['rigs']:.0f} rigs: {s['recovered']:.0f} recovered "
+             f"**{s['rigs']:.0f} rigs; {s['recovered']:.0f} recovered "
              f"({s['recovered_percent']:.1f} %), {s['flagged']:.0f} flagged "
              f"({s['flagged_percent']:.1f} %), {s['refused']:.0f} refused "
              f"({s['refused_percent']:.1f} %), {s['wrong']:.0f} confidently wrong "
-             f"({s['wrong_percent']:.1f} %)**"
-             + (f", {s['excite-failed']:.0f} where the excitation itself stopped"
+             f"({s['wrong_percent']:.1f} %)** of the {s['identified']:.0f} that reached "
+             "identify"
+             + (f"; {s['excite-failed']:.0f} more where the default excitation itself stopped"
                 if s["excite-failed"] else "")
              + f"; coverage of the {s['intervals_written']:.0f} written 95 % intervals "
              f"**{s['coverage_percent']:.1f} %**.", ""]
@@ -91,6 +92,9 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--out", default=str(ROOT / "docs" / "benchmarks-identify-calibration.md"))
     ap.add_argument("--json", dest="json_out", default="", help="also dump the outcomes")
+    ap.add_argument("--from-json", dest="from_json", default="",
+                    help="write the page from a --json dump of an earlier run (nothing is run)")
+    ap.add_argument("--note", default="", help="a sentence added under the page's header")
     args = ap.parse_args()
     seeds = [*range(args.tuning), *range(HELD_OUT_START, HELD_OUT_START + args.rigs)]
     load0 = os.getloadavg()[0]
@@ -116,7 +120,8 @@ def main() -> None:
                  + (f" --jobs {args.jobs}" if args.jobs > 1 else "")
                  + f"` from {start_utc} UTC, commit {commit}, {platform.machine()} with "
                  f"{os.cpu_count()} cores, load average {load0:.1f} at the start; "
-                 f"{elapsed / 60:.0f} min so far.{partial}", "",
+                 f"{elapsed / 60:.0f} min so far.{partial}"
+                 + (f" {args.note}" if args.note else ""), "",
                  "Each rig is a twin of test-1 drawn from the prior of "
                  "`esoarm.studies.identification.calibration` (inertia 0.5-2×, viscous friction "
                  "0.1-10×, Coulomb friction 0 to 1.5× the excitation's 0.2 N·m RMS, stiction, "
@@ -135,6 +140,8 @@ def main() -> None:
                  "default excitation itself stopped (`esoarm excite` refused, e.g. at the "
                  "angle limit) is counted apart: identify never saw it.", "",
                  f"Goals (issue 30, on the held-out seeds): {GOALS}.", ""]
+        if args.from_json:  # the run's own facts are in --note, not this re-render's
+            lines[2] = f"Written from {Path(args.from_json).name}, the dump of a run: {args.note}"
         lines += _table(f"Held-out seeds ({HELD_OUT_START} …)", held)
         if tuning:
             lines += _table("Tuning seeds (0 …): looked at while the estimator was changed",
@@ -156,6 +163,13 @@ def main() -> None:
             write()
         return o
 
+    if args.from_json:
+        from esoarm.studies.identification.calibration import from_json
+
+        done.extend(from_json(json.loads(Path(args.from_json).read_text(encoding="utf-8"))))
+        args.json_out = ""
+        write()
+        return
     with ThreadPoolExecutor(max(1, args.jobs)) as pool:
         outs = list(pool.map(one, seeds))
     held = [o for o in outs if o.rig.seed >= HELD_OUT_START]

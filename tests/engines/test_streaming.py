@@ -204,7 +204,7 @@ def test_ctrl_c_keeps_the_rows_streamed(python_blocks, monkeypatch, run_cli, tmp
 
 
 def test_only_runs_worth_the_compile_are_compiled():
-    short = load_scenario("test-1", {"duration": 2e4})  # 10⁶ samples: Python blocks
-    long = load_scenario("test-1", {"duration": 2.1e4})
+    short = load_scenario("test-1", {"duration": 1e4})  # 5·10⁵ samples: not streamed
+    long = load_scenario("test-1", {"duration": 1.1e4})
     assert streaming.worth_compiling(short) is False
     assert streaming.worth_compiling(long) is None

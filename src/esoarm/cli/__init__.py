@@ -47,16 +47,16 @@ COMMANDS: dict[str, str] = {
     "replay": "esoarm.cli.rig:replay",
     "arm-study": "esoarm.cli.arms:arm_study",
     "analyze": "esoarm.cli.analyze:analyze",
-    "hil": "esoarm.cli.hil:hil",
+    "hil": "esoarm.cli.board.hil:hil",
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
     "log": "esoarm.cli.log:log",
-    "codegen": "esoarm.cli.codegen:codegen",
-    "pil": "esoarm.cli.pil:pil",
+    "codegen": "esoarm.cli.board.codegen:codegen",
+    "pil": "esoarm.cli.board.pil:pil",
     "compare": "esoarm.cli.compare:compare",
     "learn-map": "esoarm.cli.learn_map:learn_map",
-    "flash": "esoarm.cli.flash:flash",
-    "commission": "esoarm.cli.commission:commission",
+    "flash": "esoarm.cli.board.flash:flash",
+    "commission": "esoarm.cli.board.commission:commission",
 }
 
 

@@ -466,8 +466,10 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
 
         head = [f"# Fitted by esoarm identify (IDIM-LS) from: {', '.join(res.fit_logs)}",
                 "# 95 % intervals (HAC):"]
-        head += [f"#   {name} = {e['value']:.6g} [{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}] "
-                 f"{e['unit']}" for name, e in res.physical.items()]
+        head += [f"#   {name} = {e['value']:.6g} "
+                 + (f"(interval withheld: {e['withheld']})" if e.get("ci95") is None else
+                    f"[{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}]") + f" {e['unit']}"
+                 for name, e in res.physical.items()]
         with atomic_path(out_path) as tmp:
             tmp.write_text("\n".join(head) + "\n\n" + fitted.to_toml(),
                            encoding="utf-8")
@@ -483,7 +485,8 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
                   {n: i for i, n in enumerate(physical_names(motion, oe.names))})
     for name, e in res.physical.items():
         line = (f"  {name:21s} {e['value']:12.6g} {unit_of(motion, name, input_unit):10s} 95 % "
-                f"[{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}]")
+                + ("withheld" if e.get("ci95") is None else
+                   f"[{e['ci95'][0]:.6g}, {e['ci95'][1]:.6g}]"))
         if oe is not None and name in oe_by_name:
             i = oe_by_name[name]
             line += (f"   output error {oe.values[i]:.6g}" if res.oe_warning else
@@ -500,6 +503,8 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     lines.append(f"  relative force error {v['estimation_force_error_percent']:.3g} % "
                  "(estimation)" + (f", {v['cross_test_force_error_percent']:.3g} % (cross-test)"
                                    if "cross_test_force_error_percent" in v else ""))
+    if "not_validated" in v:
+        lines.append(f"  not validated: {v['not_validated']}")
     if "simulated_fit_percent" in v:
         lines.append(f"  simulated validation: fit {v['simulated_fit_percent']:.4g} % over "
                      f"{v['simulated_segment_s']:g} s segments")

@@ -24,7 +24,7 @@ from esoarm.contract import ComponentDesign, PlantDesign
 from esoarm.engines.loop import DIVERGENCE_LIMIT, closed_loop, within_limits
 from esoarm.engines.metrics import METRICS, NROW, SAT, MetricsTable
 from esoarm.engines.sample import Designs, Sampling, Steps, steps_of
-from esoarm.kinds import Kinds, kinds_of
+from esoarm.kinds import Kinds, hook, kinds_of
 from esoarm.plants.actuator import actuator_vector, motor_refused
 from esoarm.plants.noise import draws, noise_model, sequence_scale
 from esoarm.reference import reference_rows
@@ -212,8 +212,8 @@ def joint_limits(scn: Scenario, kinds: Kinds) -> tuple[np.ndarray, np.ndarray] |
     (ndarray, ndarray) or None
         Lower and upper limits per joint (the ``range`` reference needs them).
     """
-    plant = kinds.plant
-    return plant.joint_limits(scn) if hasattr(plant, "joint_limits") else None
+    limits = hook(kinds.plant, "joint_limits")  # the documented optional hook
+    return None if limits is None else limits(scn)
 
 
 def prepare_designs(scn: Scenario) -> RunInputs:

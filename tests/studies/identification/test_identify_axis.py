@@ -155,15 +155,16 @@ def _emps(name: str) -> tuple[np.ndarray, np.ndarray]:
 def test_emps_idim_ls_reproduces_the_published_values_and_force_error():
     # the scripts' own filter: cut-off fs/10 and nd = fs/cutoff (a decimated rate of 1×
     # the cut-off; esoarm's default keeps 4× and reads the cut-off from the motion's band)
-    est = idim_ls([_emps("estimation.csv")], TS, 0.1 / TS, rate=1.0)
+    est = idim_ls([_emps("estimation.csv")], TS, 0.1 / TS, rate=1.0, moving_only=False)
     for name in ("mass", "viscous_friction", "coulomb_friction"):
         assert est.value(name) == pytest.approx(PUBLISHED[name], rel=0.01), name
     pub = np.array(list(PUBLISHED.values()))
     # the benchmark's metric, both parameter sets through the same filters
+    emps = {"rate": 1.0, "moving_only": False}
     assert est.force_error <= cross_test(*_emps("estimation.csv"), TS, pub, est.cutoff_hz,
-                                         rate=1.0)
-    ours = cross_test(*_emps("validation.csv"), TS, est.values, est.cutoff_hz, rate=1.0)
-    theirs = cross_test(*_emps("validation.csv"), TS, pub, est.cutoff_hz, rate=1.0)
+                                         **emps)
+    ours = cross_test(*_emps("validation.csv"), TS, est.values, est.cutoff_hz, **emps)
+    theirs = cross_test(*_emps("validation.csv"), TS, pub, est.cutoff_hz, **emps)
     assert ours <= theirs and ours == pytest.approx(5.98, abs=0.1)
     assert est.force_error == pytest.approx(4.08, abs=0.1)
     # the residual is coloured: the HAC intervals are wider than the white ones

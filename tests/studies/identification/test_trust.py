@@ -173,3 +173,45 @@ def test_the_spectrum_line_reads_the_keys_the_plain_verdict_has():
     assert "φ = 0.990" in line and "AIC" in line and "σ = 0.7°" in line
     assert "nan" not in line and "[]" not in line and "white" not in line
     assert "3 of 20 lags" in line
+
+
+def test_one_excited_stretch_has_no_halves_and_two_are_cut_between_them():
+    from esoarm.studies.identification.axis_identify import _halves
+    from esoarm.studies.identification.data import IdentLog
+
+    y, u = _step_then_rest(seconds=6.0)
+    t = np.arange(len(y)) * 1e-3
+    one = IdentLog("step.csv", t, y, u, None, 1e-3)
+    assert _halves([one], 1e-3, 15.0) is None
+    # the same step back down 3 s later: two stretches, cut in the rest between them
+    y2 = np.concatenate([y[:3000], 0.2 - (y[500:3500] - y[500])])
+    u2 = np.concatenate([u[:3000], -u[500:3500]])
+    two = IdentLog("steps.csv", np.arange(len(y2)) * 1e-3, y2, u2, None, 1e-3)
+    first, second = _halves([two], 1e-3, 15.0)  # type: ignore[misc]
+    assert 1500 < len(first[0][0]) < 3500 and len(first[0][0]) + len(second[0][0]) == 6000
+
+
+@pytest.mark.slow
+def test_a_step_then_rest_is_fitted_on_the_step_at_1khz_and_100hz():
+    """Issue 30: a closed-loop step followed by rest was refused ("the axis changed during
+    the log": the rest carries no information) and IDIM-LS's mass depended on the rate."""
+    from esoarm.scenario import load_scenario
+    from esoarm.studies.identification.axis_identify import identify_axis
+    from esoarm.studies.identification.data import IdentLog
+
+    y, u = _step_then_rest(seconds=8.0)
+    t = np.arange(len(y)) * 1e-3
+    scn = load_scenario("emps", ["plant.mass=0.2", "plant.viscous_friction=2",
+                                 "plant.coulomb_friction=0.3", "plant.offset=0",
+                                 "actuator.torque_limit=10"])
+    masses = []
+    for nd in (1, 10):
+        log = IdentLog("step.csv", t[::nd], y[::nd], u[::nd], None, 1e-3 * nd)
+        res = identify_axis(scn.with_overrides({"sensor.rate_hz": 1000.0 / nd}), [log], [],
+                            2.0, 0.25)
+        assert res.validation["halves"].startswith("not compared")
+        masses.append(res.physical["mass"])
+    (a, b) = masses
+    assert a["ci95"][0] <= b["value"] <= a["ci95"][1] or b["ci95"][0] <= a["value"] <= b["ci95"][1]
+    for m in masses:
+        assert abs(m["value"] - 0.229) < 0.03

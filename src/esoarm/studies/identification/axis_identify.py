@@ -125,7 +125,8 @@ class AxisIdentResult:
 
     scenario: Scenario
     idim: IdimResult
-    halves: tuple[IdimResult, IdimResult]
+    #: IDIM-LS of the two halves of the motion; empty with one excited stretch (not checked).
+    halves: tuple[IdimResult, ...]
     oe: OeResult | None
     validation: dict
     fit_logs: list[str]
@@ -207,33 +208,139 @@ class AxisIdentResult:
         }
 
 
+#: A log whose moving samples go the less frequent way less than this share of the time
+#: (a step's overshoot) cannot tell the Coulomb friction from the offset.
+ONE_WAY_SHARE = 0.1
+
+
+def _minority_direction(logs: list[IdentLog], ts: float, cutoff_hz: float) -> float:
+    """Share of the moving samples (filtered speed ≥ MOVING_SHARE of its peak) that go the
+    less frequent way [1]."""
+    from esoarm.studies.identification.idim import MOVING_SHARE, filtered_derivatives
+
+    pos = neg = 0
+    for lg in logs:
+        _q, dq, _ddq = filtered_derivatives(lg.y, ts, cutoff_hz)
+        moving = np.abs(dq) >= MOVING_SHARE * float(np.max(np.abs(dq), initial=0.0))
+        pos += int(np.sum(moving & (dq > 0)))
+        neg += int(np.sum(moving & (dq < 0)))
+    return min(pos, neg) / max(pos + neg, 1)
+
+
+def _peak_speed(logs: list[IdentLog], ts: float, cutoff_hz: float) -> float:
+    from esoarm.studies.identification.idim import filtered_derivatives
+
+    return max((float(np.max(np.abs(filtered_derivatives(lg.y, ts, cutoff_hz)[1]),
+                             initial=0.0)) for lg in logs), default=0.0)
+
+
+def _at_rest(validation: list[IdentLog], logs: list[IdentLog], ts: float,
+             cutoff_hz: float) -> str:
+    """Why the validation data cannot validate ("" if it can): it is at rest -- its peak
+    filtered speed below MOVING_SHARE of the fitting data's (the rest after a step, kept
+    as the last --validate-fraction of a single log)."""
+    from esoarm.studies.identification.idim import MOVING_SHARE
+
+    if not validation:
+        return ""
+    v, f = _peak_speed(validation, ts, cutoff_hz), _peak_speed(logs, ts, cutoff_hz)
+    if f > 0 and v < MOVING_SHARE * f:
+        return (f"the validation data ({', '.join(sorted({lg.path for lg in validation}))}) "
+                f"is at rest (peak speed {v:.3g}, under {MOVING_SHARE:.0%} of the fitting "
+                f"data's {f:.3g}): it carries no motion to validate on; give --validate LOG "
+                "with motion")
+    return ""
+
+
+def _collinear(est: IdimResult, a: str, b: str, limit: float = 0.99) -> bool:
+    """Whether IDIM-LS cannot tell ``a`` from ``b``: their estimates' correlation (HAC)
+    beyond ``limit`` (e.g. Coulomb friction and offset on a motion in one direction)."""
+    if est.cov_hac is None or a not in est.names or b not in est.names:
+        return False
+    i, j = est.names.index(a), est.names.index(b)
+    c = est.cov_hac
+    den = math.sqrt(max(float(c[i, i] * c[j, j]), 0.0))
+    return bool(den > 0 and abs(float(c[i, j])) / den > limit)
+
+
 def _agree(idim: IdimResult, oe: OeResult, i: int, factor: float = 1.0) -> bool:
     j = idim.names.index(oe.names[i])
     half = math.hypot(1.96 * float(idim.se_hac[j]), float(oe.ci95_half[i]))
     return bool(abs(float(idim.values[j]) - float(oe.values[i])) <= factor * half)
 
 
+#: Rest between two excited stretches lasts at least this long [s] (shorter pauses, such as a
+#: reversal, belong to the stretch).
+REST_GAP = 0.2
+
+
+def _stretches(y: np.ndarray, ts: float, cutoff_hz: float) -> list[tuple[int, int, float]]:
+    """The excited stretches of a log: (start, stop, Σ q̇²) of each run of samples where the
+    filtered speed is at least MOVING_SHARE of its peak, runs closer than REST_GAP merged."""
+    from esoarm.studies.identification.idim import MOVING_SHARE, filtered_derivatives
+
+    _q, dq, _ddq = filtered_derivatives(y, ts, cutoff_hz)
+    moving = np.abs(dq) >= MOVING_SHARE * float(np.max(np.abs(dq), initial=0.0))
+    idx = np.flatnonzero(moving)
+    if idx.size == 0:
+        return []
+    gap = max(1, int(round(REST_GAP / ts)))
+    breaks = np.flatnonzero(np.diff(idx) > gap)
+    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
+    stops = np.concatenate([idx[breaks] + 1, [idx[-1] + 1]])
+    return [(int(a), int(b), float(np.sum(dq[a:b] ** 2))) for a, b in zip(starts, stops,
+                                                                           strict=True)]
+
+
 def _halves(logs: list[IdentLog], ts: float,
-            cutoff_hz: float) -> tuple[list[tuple[np.ndarray, np.ndarray]], ...]:
-    """The fitting data cut in two where half of its *motion* lies, not half of its samples.
+            cutoff_hz: float) -> tuple[list[tuple[np.ndarray, np.ndarray]], ...] | None:
+    """The fitting data cut in two between its *excited stretches*, where half of the motion
+    (Σ q̇² of the filtered speed) lies; None when it has only one stretch.
 
-    The cut is at the sample where the cumulative Σ q̇² (the filtered velocity squared, the
-    information a stretch carries about inertia and friction) reaches half its total, so that
-    a step followed by rest is compared over the step: the rest carries no information, and
-    a half made only of it would make the halves "disagree" about nothing.  Each half keeps at
-    least a quarter of the samples (the filters' borders)."""
-    from esoarm.studies.identification.idim import filtered_derivatives
+    A step followed by rest is one short stretch: its rest carries no information, and the
+    tail of its transient alone makes mass, friction and offset collinear, so "halves" of it
+    would disagree about nothing; the check is then skipped (and said so).  One stretch that
+    is most of the data (a motion that keeps going) is cut where half its motion lies."""
+    runs = [(k, a, b, e) for k, lg in enumerate(logs)
+            for a, b, e in _stretches(lg.y, ts, cutoff_hz)]
+    if len(runs) == 1 and runs[0][2] - runs[0][1] >= 0.5 * logs[runs[0][0]].n:
+        # one stretch that is most of the data (a motion that keeps going): cut it where
+        # half of its motion lies
+        k, a, b, _e = runs[0]
+        from esoarm.studies.identification.idim import filtered_derivatives
 
+        _q, dq, _ddq = filtered_derivatives(logs[k].y, ts, cutoff_hz)
+        energy = np.cumsum(dq[a:b] ** 2)
+        mid = a + int(np.searchsorted(energy, 0.5 * energy[-1]))
+        n = logs[k].n
+        mid = min(max(mid, n // 4), n - n // 4)
+        runs = [(k, a, mid, 0.5), (k, mid, b, 0.5)]
+    if len(runs) < 2:
+        return None
+    total = sum(e for *_r, e in runs)
+    acc, cut = 0.0, 1
+    for i, (*_r, e) in enumerate(runs[:-1]):
+        acc += e
+        cut = i + 1
+        if acc >= 0.5 * total:
+            break
     first, second = [], []
-    for log in logs:
-        _q, dq, _ddq = filtered_derivatives(log.y, ts, cutoff_hz)
-        energy = np.cumsum(dq * dq)
-        mid = log.n // 2
-        if energy[-1] > 0:
-            mid = int(np.searchsorted(energy, 0.5 * energy[-1]))
-        mid = min(max(mid, log.n // 4), log.n - log.n // 4)
-        first.append((log.y[:mid], log.u[:mid]))
-        second.append((log.y[mid:], log.u[mid:]))
+    k_cut, a_cut = runs[cut][0], runs[cut][1]
+    b_prev = runs[cut - 1][2] if runs[cut - 1][0] == k_cut else 0
+    mid = (b_prev + a_cut) // 2  # in the rest between the two stretches
+    for k, lg in enumerate(logs):
+        if k < k_cut:
+            first.append((lg.y, lg.u))
+        elif k > k_cut:
+            second.append((lg.y, lg.u))
+        else:
+            if mid > 0:
+                first.append((lg.y[:mid], lg.u[:mid]))
+            second.append((lg.y[mid:], lg.u[mid:]))
+    from esoarm.studies.identification.idim import BORDER
+
+    if any(len(y) < 4 * BORDER for part in (first, second) for y, _u in part):
+        return None  # a stretch too short for the filters' borders
     return first, second
 
 
@@ -284,9 +391,12 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
         if kept:
             est = split
     names = physical_names(motion, est.names)
-    halves = tuple(idim_ls(h, ts, est.cutoff_hz, gravity, est.asymmetric)
-                   for h in _halves(logs, ts, est.cutoff_hz))
-    h1, h2 = halves
+    split_at = _halves(logs, ts, est.cutoff_hz)
+    if split_at is None:  # one excited stretch (a step then rest): nothing to compare
+        halves: tuple[IdimResult, ...] = ()
+    else:
+        halves = tuple(idim_ls(h, ts, est.cutoff_hz, gravity, est.asymmetric) for h in split_at)
+    h1, h2 = halves if halves else (est, est)
     for i, name in enumerate(names):
         if name in ("offset", "gravity"):
             continue
@@ -304,8 +414,19 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
     oe = fit_axis_oe(logs[0].y, logs[0].u, ts, est, segment, vs=p.friction_velocity,
                      lag=scn.actuator.lag, nsub=scn.substeps)
     oe_warning = ""
+    one_way = _collinear(est, "coulomb_friction", "offset") or \
+        _minority_direction(logs, ts, est.cutoff_hz) < ONE_WAY_SHARE
+    if one_way:
+        for key in ("coulomb_friction", "offset"):
+            if key in physical:
+                physical[key]["ci95"] = None
+                physical[key]["withheld"] = ("the axis moves (nearly) one way: only the sum "
+                                             "of Coulomb friction and offset is determined")
+        oe_warning = ("the axis moves (nearly) one way only: IDIM-LS cannot tell the "
+                      "Coulomb friction from the offset (their sum is determined, not each); "
+                      "the output error's Coulomb friction is not checked against it")
     for i, name in enumerate(physical_names(motion, oe.names)):
-        if name in ("offset", "gravity"):
+        if name in ("offset", "gravity") or (one_way and name == "coulomb_friction"):
             continue
         j = est.names.index(oe.names[i])
         if oe.at_bound[i]:
@@ -331,6 +452,10 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
                 "(noise only) do not cover, so they are withheld; the written estimate is "
                 "IDIM-LS, which does not depend on --segment")
     val: dict = {"estimation_force_error_percent": est.force_error}
+    still = _at_rest(validation, logs, ts, est.cutoff_hz)
+    if still:
+        val["not_validated"] = still
+        validation = []
     if validation:
         errors = [cross_test(lg.y, lg.u, ts, est.values, est.cutoff_hz, gravity,
                              est.asymmetric)
@@ -347,7 +472,10 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
         sim = _simulated_validation(validation[0], ts, est, segment, p.friction_velocity,
                                     scn.actuator.lag, scn.substeps)
         val.update(sim)
-    return AxisIdentResult(scn, est, (h1, h2), oe, val, sorted({lg.path for lg in logs}),
+    val["halves"] = ("compared: the fitting data cut between its excited stretches at half "
+                     "its motion" if halves else "not compared: the fitting data has one "
+                     "excited stretch (a step then rest), fitted on its motion only")
+    return AxisIdentResult(scn, est, halves, oe, val, sorted({lg.path for lg in logs}),
                            sorted({lg.path for lg in validation}), physical, asymmetry,
                            oe_warning)
 

@@ -128,6 +128,8 @@ def staged_decimate(x: np.ndarray, nd: int) -> np.ndarray:
     return x
 
 
+#: Rows where the filtered speed is below this share of its peak are rest (left out).
+MOVING_SHARE = 0.05
 #: The decimated rate is this many times the cut-off (its Nyquist frequency twice the
 #: cut-off: the filtered band is kept whole, whatever the log's rate).
 DECIMATED_RATE = 4.0
@@ -268,24 +270,35 @@ class IdimResult:
 
 def idim_system(y: np.ndarray, u: np.ndarray, ts: float, cutoff_hz: float | None = None,
                 gravity: bool = False,
-                asymmetric: bool = False,
-                rate: float = DECIMATED_RATE) -> tuple[np.ndarray, np.ndarray, int, float]:
+                asymmetric: bool = False, rate: float = DECIMATED_RATE,
+                moving_only: bool = True) -> tuple[np.ndarray, np.ndarray, int, float]:
     """(Φ, y_F, nd, cutoff): the decimated observation matrix and force of one log.
 
     ``y`` the measured position, ``u`` the force/torque [N or N·m], ``ts`` [s];
     ``asymmetric`` splits the viscous column by direction (:func:`regressors`).
+    With ``moving_only`` the rows where the axis is at rest (filtered speed below
+    :data:`MOVING_SHARE` of its peak) are left out: there sign(q̇) is the sign of noise
+    and the force is whatever static friction holds, so a rest carries no information
+    about the model, only model error (a step followed by rest is fitted on the step).
     """
     cutoff = cutoff_hz if cutoff_hz is not None else band_cutoff(y, ts)
     q, dq, ddq = filtered_derivatives(y, ts, cutoff)
     keep = slice(BORDER - 1, len(y))  # as the EMPS script: samples n_border … N
     x = regressors(q, dq, ddq, gravity, asymmetric)[keep]
     nd = decimation_factor(ts, cutoff, rate)
-    return _decimate(x, nd), _decimate(u[keep], nd), nd, cutoff
+    xd, fd = _decimate(x, nd), _decimate(u[keep], nd)
+    if moving_only:
+        speed = np.abs(_decimate(dq[keep], nd))
+        moving = speed >= MOVING_SHARE * float(np.max(speed, initial=0.0))
+        if moving.sum() >= 10 * x.shape[1]:
+            xd, fd = xd[moving], fd[moving]
+    return xd, fd, nd, cutoff
 
 
 def idim_ls(parts: list[tuple[np.ndarray, np.ndarray]], ts: float,
             cutoff_hz: float | None = None, gravity: bool = False,
-            asymmetric: bool = False, rate: float = DECIMATED_RATE) -> IdimResult:
+            asymmetric: bool = False, rate: float = DECIMATED_RATE,
+            moving_only: bool = True) -> IdimResult:
     """IDIM-LS over one or more logs (``parts``: (position, force) pairs), see the module.
 
     The logs' observation matrices are stacked (each filtered on its own);
@@ -294,7 +307,8 @@ def idim_ls(parts: list[tuple[np.ndarray, np.ndarray]], ts: float,
     """
     if cutoff_hz is None:  # one filter for every log: the widest band among them
         cutoff_hz = max(band_cutoff(y, ts) for y, _u in parts)
-    systems = [idim_system(y, u, ts, cutoff_hz, gravity, asymmetric, rate) for y, u in parts]
+    systems = [idim_system(y, u, ts, cutoff_hz, gravity, asymmetric, rate, moving_only)
+               for y, u in parts]
     x = np.vstack([s[0] for s in systems])
     f = np.concatenate([s[1] for s in systems])
     theta, *_ = np.linalg.lstsq(x, f, rcond=None)
@@ -337,9 +351,9 @@ def viscous_asymmetry(est: IdimResult) -> tuple[float, float, float]:
 
 def cross_test(y: np.ndarray, u: np.ndarray, ts: float, values: np.ndarray,
                cutoff_hz: float, gravity: bool = False, asymmetric: bool = False,
-               rate: float = DECIMATED_RATE) -> float:
+               rate: float = DECIMATED_RATE, moving_only: bool = True) -> float:
     """The relative force error [%] of parameters ``values`` on a log not used to estimate
     them (the benchmark's cross-test), with the same filters."""
-    x, f, _nd, _c = idim_system(y, u, ts, cutoff_hz, gravity, asymmetric, rate)
+    x, f, _nd, _c = idim_system(y, u, ts, cutoff_hz, gravity, asymmetric, rate, moving_only)
     return force_error(f, x @ values)
 

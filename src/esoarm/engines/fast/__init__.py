@@ -54,7 +54,7 @@ import numpy as np
 from esoarm._limits import STREAM_SAMPLES
 from esoarm.controllers import flc as _ctl
 from esoarm.engines import packing as _packing
-from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache
+from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache, _chunked_metrics, _renumbered
 from esoarm.engines.simulation import DIVERGENCE_LIMIT
 from esoarm.kinds import hook, kinds_of
 from esoarm.observers import linear as _obs
@@ -449,18 +449,11 @@ def run_metrics(
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     nthreads = workers or _default_workers()
-    if seeds is None:
-        runs = [(i, scn.sensor.seed) for i, scn in enumerate(points)]
-    else:
-        runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
-    out = np.empty((len(runs), len(METRICS)))
     noise_cache = _noise_cache or NoiseCache()
-    for start in range(0, len(runs), chunk):
-        part = runs[start : start + chunk]
-        used = sorted({pi for pi, _ in part})
-        local = {pi: j for j, pi in enumerate(used)}
-        chunk_points = [points[pi] for pi in used]
-        pack = _packing._pack(chunk_points, [(local[pi], s) for pi, s in part], noise_cache)
+
+    def run_chunk(part: list[tuple[int, int]]) -> np.ndarray:
+        used, local = _renumbered(part)
+        pack = _packing._pack([points[pi] for pi in used], local, noise_cache)
         res = _run_pack(lib, pack, nthreads)
         bad = np.flatnonzero(res[:, METRICS.index("diverged")] != 0.0)
         if len(bad):  # diverged: the exact engine gives the partial metrics
@@ -468,10 +461,9 @@ def run_metrics(
             from esoarm.engines import batch as _batch
 
             res[bad] = _batch.run_metrics(again, workers=workers).values
-        out[start : start + len(part)] = res
-        if progress is not None:
-            progress(len(part))
-    return MetricsTable(out)
+        return res
+
+    return _chunked_metrics(points, seeds, chunk, progress, run_chunk)
 
 
 if __name__ == "__main__":  # pragma: no cover - manual check: python -m esoarm.engines.fast
