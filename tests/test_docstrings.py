@@ -72,7 +72,6 @@ PENDING = {
     "esoarm.studies.commission.steps": 5,
     "esoarm.studies.identification.axis_fit": 3,
     "esoarm.studies.identification.axis_identify": 6,
-    "esoarm.studies.identification.calibration": 4,
     "esoarm.studies.identification.data": 5,
     "esoarm.studies.identification.excitation": 13,
     "esoarm.studies.identification.fit": 13,

@@ -458,6 +458,10 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     (:func:`_reference_files`).
     """
     compensated = _check_options(target, precision, compensated, prefix)
+    if getattr(scn.controller, "feedforward_map", None):
+        raise CodegenError("controller.feedforward_map: the generated C does not apply a "
+                           "learned feedforward table yet (the simulated engines do); set it "
+                           "to [] to generate")
     kinds = kinds_of(scn)
     texts = _kind_sources(kinds)
     plant = kinds.plant.design(scn)

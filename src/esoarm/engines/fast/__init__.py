@@ -277,6 +277,11 @@ def unsupported(scn: Scenario) -> str | None:
         return f"rig.disturbance.kind = {kind!r}"
     if getattr(scn.rig, "stiction", 0.0) != 0.0:
         return "rig.stiction > 0 (Stribeck friction)"
+    cogging = getattr(scn.rig, "cogging", None)
+    if cogging is not None and cogging.amplitude != 0.0:
+        return "rig.cogging.amplitude > 0 (a position-periodic torque)"
+    if getattr(scn.controller, "feedforward_map", None):
+        return "controller.feedforward_map (a learned feedforward table)"
     return None
 
 
