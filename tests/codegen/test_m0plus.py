@@ -29,11 +29,12 @@ MISSING = [tool for tool, ok in (
 if MISSING and os.environ.get("ESOARM_REQUIRE_HIL"):  # CI: the PIL tests must run
     raise RuntimeError(f"ESOARM_REQUIRE_HIL is set but not installed: {', '.join(MISSING)}")
 
-pytestmark = [
-    pytest.mark.slow,
-    pytest.mark.hil,
-    pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}"),
-]
+def _on_chip(test):  # type: ignore[no-untyped-def]
+    """slow, hil, skipped with the reason where a tool is missing."""
+    for mark in (pytest.mark.slow, pytest.mark.hil,
+                 pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")):
+        test = mark(test)
+    return test
 
 
 def _pil(*args: str, code: int = 0) -> dict:
@@ -43,6 +44,7 @@ def _pil(*args: str, code: int = 0) -> dict:
     return json.loads(res.stdout)
 
 
+@_on_chip
 def test_test1_on_cortex_m0plus_at_1khz() -> None:
     """float32, soft float: agrees with the float64 reference over the moving part, fits."""
     data = _pil("test-1", "--target", "cortex-m0plus", "--set", "sensor.rate_hz=1000",
@@ -57,6 +59,7 @@ def test_test1_on_cortex_m0plus_at_1khz() -> None:
     assert 0 < data["flash_bytes"] < 256 * 1024 and 0 < data["ram_bytes"] < 16 * 1024
 
 
+@_on_chip
 def test_cortex_m0plus_float64_repeats_python() -> None:
     """libgcc's soft double is IEEE binary64: the same numbers as Python's float64."""
     data = _pil("test-1", "--target", "cortex-m0plus", "--precision", "float64", "--steps",
@@ -64,6 +67,7 @@ def test_cortex_m0plus_float64_repeats_python() -> None:
     assert data["max_abs_du"] <= 1e-12
 
 
+@_on_chip
 def test_image_is_armv6m_without_fpu() -> None:
     """The PIL image is built for the M0+ (ARMv6-M, soft float), not for the board's M0 or
     an FPU: the ELF's build attributes say so."""
@@ -78,6 +82,7 @@ def test_image_is_armv6m_without_fpu() -> None:
     assert "Tag_FP_arch" not in attrs and "VFP registers" not in attrs
 
 
+@_on_chip
 def test_instruction_proxy_does_not_depend_on_the_icount_shift() -> None:
     """ticks · 62.5 ns / 2^shift is an instruction count only if it is the same for every
     shift."""
@@ -97,6 +102,7 @@ def test_instruction_proxy_does_not_depend_on_the_icount_shift() -> None:
     assert len(counts[0]) == scn.n_samples and counts[0] == counts[1]
 
 
+@_on_chip
 def test_instruction_proxy_matches_qemus_exec_trace(tmp_path) -> None:
     """The proxy ticks · 62.5 / 2^shift against an independent count: QEMU's own trace of
     every executed instruction (one instruction per translation block, ``-d exec,nochain``)
@@ -154,3 +160,32 @@ def test_instruction_proxy_matches_qemus_exec_trace(tmp_path) -> None:
     assert min(traced) > 500  # the soft-float calls are counted
     extra = {p - t for p, t in zip(proxy, traced, strict=True)}
     assert len(extra) == 1 and 0 < extra.pop() <= 12, (proxy, traced)
+
+
+def test_bench_replaces_only_the_measured_targets_rows() -> None:
+    """``bench_pil.py --targets cortex-m0plus --update``: the M0+ rows are replaced or added
+    in the kinds × targets order, every other row is kept word for word."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "benchmarks" / "bench_pil.py"
+    spec = importlib.util.spec_from_file_location("bench_pil", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    head = "| kind | target | precision | observer sums | run |\n|---|---|---|---|---|"
+    kind, other = bench.KINDS[0][0], bench.KINDS[1][0]
+    old = "\n".join([
+        "Measured on A.", "", head, f"| {kind} | avr | float32 | compensated | 7 |",
+        f"| {kind} | cortex-m0plus | float32 | compensated | 1 |",
+        f"| {kind} | cortex-m4 | float32 | compensated | 2 |",
+        f"| {other} | cortex-m4 | float32 | compensated | 3 |"])
+    new = "\n".join([
+        "Measured on B.", "", head, f"| {kind} | cortex-m0plus | float32 | compensated | 10 |",
+        f"| {other} | cortex-m0plus | float64 | plain | 11 |"])
+    merged = bench.merge_rows(old, new)
+    lines = merged.splitlines()
+    assert lines[:3] == ["Measured on A.", "", "The cortex-m0plus rows: Measured on B."]
+    assert lines[4:6] == head.splitlines()
+    assert [r.rsplit("|", 2)[1].strip() for r in lines[6:]] == ["7", "10", "2", "11", "3"]
+    assert bench.merge_rows(merged, new) == merged  # measuring again replaces its note

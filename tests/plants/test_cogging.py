@@ -82,6 +82,15 @@ def test_a_plant_without_the_model_refuses_cogging() -> None:
         load_scenario("test-1", {"plant.kind": "axis", "rig.cogging.amplitude": 0.1})
 
 
+def test_the_fast_kernel_refuses_cogging_and_a_table() -> None:
+    from esoarm.engines.fast import unsupported
+
+    assert unsupported(load_scenario("test-1")) is None
+    assert "rig.cogging" in str(unsupported(load_scenario("test-1", COG)))
+    table = load_scenario("test-1", {"controller.feedforward_map": [0.1, 0.2]})
+    assert "controller.feedforward_map" in str(unsupported(table))
+
+
 @pytest.mark.slow
 def test_reference_and_compiled_agree_with_cogging_and_a_table() -> None:
     from esoarm.engines.batch import run_metrics
