@@ -169,7 +169,15 @@ def test_the_counter_sees_a_big_folder(tmp_path: Path) -> None:
     assert folder_lines(pkg) == {"esoarm": 42, "esoarm/sub": 5}
 
 
+#: Folders over the limit for now, each with why and who brings it under.  A folder leaves
+#: as soon as it is under (the test below says so).
+OVER_FOR_NOW: dict[str, str] = {}
+
+
 def test_no_folder_holds_more_than_its_share() -> None:
-    big = {k: n for k, n in folder_lines(PACKAGE).items() if n > FOLDER_LINES}
+    lines = folder_lines(PACKAGE)
+    big = {k: n for k, n in lines.items() if n > FOLDER_LINES and k not in OVER_FOR_NOW}
     assert not big, (f"folders over {FOLDER_LINES} lines of source (give a part of them a "
                      f"sub-package of its own): {big}")
+    under = sorted(k for k in OVER_FOR_NOW if lines.get(k, 0) <= FOLDER_LINES)
+    assert not under, f"remove from OVER_FOR_NOW (now within {FOLDER_LINES} lines): {under}"

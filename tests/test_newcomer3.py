@@ -265,3 +265,17 @@ def test_ctrl_c_during_reproduce_says_what_was_kept(run_cli, monkeypatch, tmp_pa
     line, = res.stderr.strip().splitlines()
     assert "after 3 of about" in line and f"nothing written to {out}" in line
     assert not out.exists()
+
+
+def test_progress_gives_the_estimate_once_a_quarter_is_done(monkeypatch, capsys):
+    from esoarm.cli import _common
+
+    clock = [0.0]
+    monkeypatch.setattr("time.monotonic", lambda: clock[0])
+    monkeypatch.setattr(_common, "stderr_is_tty", lambda: False)
+    with _common.progress(1000, "simulating", "samples") as advance:
+        advance(1)
+        clock[0] = 12.0
+        advance(400)  # the first line, 40 % done: no earlier estimate to agree with
+        line = capsys.readouterr().err
+    assert "about 18 s left" in line, line

@@ -166,7 +166,9 @@ def test_host_killed_the_chip_stops_the_motor() -> None:
     log = Path(os.environ.get("TMPDIR", "/tmp")) / f"esoarm-onboard-kill-{os.getpid()}.csv"
     try:
         assert hil.stdout is not None
-        device = hil.stdout.readline().split(": ", 1)[1].strip()
+        # (stderr is merged here: progress lines of the PIL timing may come first)
+        first = next(ln for ln in iter(hil.stdout.readline, "") if ln.startswith("device:"))
+        device = first.split(": ", 1)[1].strip()
         run = subprocess.Popen([*esoarm, "run", "uno-rig", "--port", device, "--onboard",
                                 "--log", str(log), "--watchdog", "5"],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

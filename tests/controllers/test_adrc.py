@@ -268,3 +268,28 @@ def test_switch_over_the_emulated_device() -> None:
 def test_run_switch_at_is_checked(run_cli) -> None:  # type: ignore[no-untyped-def]
     res = run_cli("run", "test-1", "--port", "/dev/null", "--switch-at", "-1")
     assert res.exit_code == 2 and "--switch-at" in res.stderr
+
+
+def test_kind_switch_does_not_carry_a_key_of_another_meaning() -> None:
+    """The FLC's compensation = "eso" (β̂ = ẑ3) is not the PID's; "none" is no FLC value."""
+    assert load_scenario("test-1", {"controller.kind": "pid"}).controller.compensation == "none"
+    pid = load_scenario("test-1", {"controller.kind": "pid", "controller.compensation": "eso"})
+    assert pid.controller.compensation == "eso"
+    back = load_scenario(load_scenario("test-1", {"controller.kind": "pid"}),
+                         {"controller.kind": "flc"})
+    assert back.controller.compensation == "eso"  # the FLC's default, not the PID's "none"
+    tf = load_scenario("test-1", {"controller.k1": 12.0, "controller.kind": "adrc-tf"})
+    assert tf.controller.k1 == 12.0  # same meaning: carried
+
+
+@pytest.mark.slow
+@pytest.mark.hil
+@pytest.mark.skipif(bool(_MISSING), reason=f"not installed: {', '.join(_MISSING)}")
+def test_compare_on_the_chip(run_cli) -> None:  # type: ignore[no-untyped-def]
+    res = run_cli("compare", "test-1", "--set", "duration=2", "--seeds", "1", "--kinds",
+                  "eso+flc,adrc-tf", "--chip", "avr", "--json")
+    assert res.exit_code == 0, res.stderr
+    rows = {r["form"]: r for r in json.loads(res.stdout)["forms"]}
+    for r in rows.values():
+        assert r["chip"]["max_rel_du"] <= 1e-4 and r["chip"]["median"] > 0
+    assert rows["adrc-tf"]["chip"]["flash_bytes"] > 0

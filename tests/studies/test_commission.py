@@ -172,8 +172,10 @@ def test_a_refusal_stops_with_what_to_change(tmp_path: Path) -> None:
 @needs_hil  # the AVR toolchain and simavr: the PIL timing and the firmware build
 def test_on_a_port_flashing_is_checked_by_the_boards_hash(tmp_path: Path) -> None:
     """--port: the excitation through the serial link (the emulated rig in lockstep), the
-    identification, design and code; then the board on the port runs no controller of its
-    own, so the flash step stops with the make command to flash it and --resume."""
+    identification, design and code; then the port answers neither with the design's hash
+    nor as an Uno bootloader (avrdude's probe), so the flash step stops with the make command
+    to flash it by hand and --resume.  (Writing through the bootloader is esoarm flash's,
+    tested in tests/hardware/test_flash.py.)"""
     emu = subprocess.Popen([*ESOARM, "emulate", "uno-rig", "--lockstep"],
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     work = tmp_path / "w"
@@ -189,8 +191,63 @@ def test_on_a_port_flashing_is_checked_by_the_boards_hash(tmp_path: Path) -> Non
     assert run.returncode == 1, run.stderr
     out = json.loads(run.stdout)
     assert out["refused"]["step"] == "flash"
-    assert "runs no controller of its own" in out["refused"]["reason"]
+    assert "does not answer as an Uno bootloader" in out["refused"]["reason"]  # avrdude's probe
     assert "make -C firmware upload ONBOARD=" in out["refused"]["advice"]
     assert "--resume" in out["refused"]["advice"]
     assert out["identified"] and out["design"] and out["codegen"] and out["measured"] is None
     assert (work / "04-codegen" / "esoarm_controller.c").exists()
+
+
+def test_report_of_a_refused_run_with_a_withheld_interval(tmp_path: Path) -> None:
+    """The page is written for a commissioning stopped early, and says an interval the
+    identification withheld in words (its JSON has ci95 null then)."""
+    from esoarm.studies.commission.report import write_report
+
+    summary = {
+        "scenario": "uno-rig", "workdir": str(tmp_path), "rig": "simulated Uno (--hil)",
+        "steps": {"excite": {"status": "done", "file": "01-excite.json", "elapsed_s": 1.0},
+                  "identify": {"status": "done", "file": "02-identify.json", "elapsed_s": 2.0}},
+        "identified": {"parameters": {
+            "rig.stiction": {"value": 0.007, "ci95": None, "unit": "N·m", "fitted": True,
+                             "withheld": "the residual is not white"},
+            "plant.m2": {"value": 0.55, "ci95": [0.54, 0.56], "unit": "kg", "fitted": True}},
+            "fit_percent": 99.0, "validation_fit_percent": 98.0, "residual_white": False,
+            "poorly_identifiable": [], "at_bound": [], "noise": "not written",
+            "scenario": "02-fitted.toml"},
+        "design": None, "predicted": None, "measured": None, "agreement": None}
+    page = write_report(summary, tmp_path / "report.html",
+                        {"step": "design", "reason": "no kind reaches it", "advice": "lower it"})
+    text = page.read_text(encoding="utf-8")
+    assert "Stopped at <b>design</b>: no kind reaches it" in text and "To go on: lower it" in text
+    assert "withheld" in text and "rig.stiction: the residual is not white" in text
+    assert "[0.54, 0.56]" in text
+
+
+def test_a_watchdog_on_the_simulated_board_is_tried_again(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """On --hil a run a watchdog ended (a busy machine) is tried again, with a fresh
+    controller, and said; a limit is not; on a port nothing is tried again."""
+    said: list[str] = []
+    made: list[int] = []
+    outcomes = [CommissionRefused("excite", "the device reported a fault: command watchdog "
+                                  "(detail 626): stop sent, motor off", "x"), "done"]
+
+    def once(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        out = outcomes.pop(0)
+        if isinstance(out, Exception):
+            raise out
+        return out
+
+    monkeypatch.setattr(Commission, "_drive_once", once)
+    job = Commission(_opts(tmp_path), say=said.append)
+    assert job._drive(None, None, tmp_path / "l.csv", "excite", None, "advice",  # type: ignore[arg-type]
+                      controller=lambda: made.append(1)) == "done"
+    assert len(made) == 2 and "attempt 2 of 3" in said[0] and "command watchdog" in said[0]
+    outcomes[:] = [CommissionRefused("excite", "angle limit: θ = 0.06 rad", "x")]
+    with pytest.raises(CommissionRefused, match="angle limit"):
+        job._drive(None, None, tmp_path / "l.csv", "excite", None, "advice")  # type: ignore[arg-type]
+    outcomes[:] = [CommissionRefused("run", "watchdog: no sample", "x"), "done"]
+    port = Commission(CommissionOptions("uno-rig", (), tmp_path, port="/dev/null"),
+                      say=said.append)
+    with pytest.raises(CommissionRefused, match="watchdog"):
+        port._drive(None, None, tmp_path / "l.csv", "run", None, "advice")  # type: ignore[arg-type]

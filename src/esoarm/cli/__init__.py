@@ -47,15 +47,16 @@ COMMANDS: dict[str, str] = {
     "replay": "esoarm.cli.rig:replay",
     "arm-study": "esoarm.cli.arms:arm_study",
     "analyze": "esoarm.cli.analyze:analyze",
-    "hil": "esoarm.cli.hil:hil",
+    "hil": "esoarm.cli.board.hil:hil",
     "excite": "esoarm.cli.identify:excite",
     "identify": "esoarm.cli.identify:identify",
     "log": "esoarm.cli.log:log",
-    "codegen": "esoarm.cli.codegen:codegen",
-    "pil": "esoarm.cli.pil:pil",
+    "codegen": "esoarm.cli.board.codegen:codegen",
+    "pil": "esoarm.cli.board.pil:pil",
     "compare": "esoarm.cli.compare:compare",
-    "flash": "esoarm.cli.flash:flash",
-    "commission": "esoarm.cli.commission:commission",
+    "learn-map": "esoarm.cli.learn_map:learn_map",
+    "flash": "esoarm.cli.board.flash:flash",
+    "commission": "esoarm.cli.board.commission:commission",
 }
 
 
@@ -77,6 +78,8 @@ SUMMARIES: dict[str, str] = {
            "pins.",
     "identify": "Fit the rig model to logs of 'esoarm excite' or 'esoarm run' (grey-box, output "
                 "error).",
+    "learn-map": "Learn a position-periodic perturbation from LOG.csv into SCENARIO's "
+                 "feedforward table.",
     "log": "Bring logs recorded elsewhere into esoarm's CSV format.",
     "pil": "Run SCENARIO's generated controller on an emulated chip in lockstep with the twin.",
     "replay": "Run the ESO offline over LOG.csv to recover velocity and perturbation estimates.",

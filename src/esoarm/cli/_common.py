@@ -506,13 +506,27 @@ PROGRESS_LINE_VERBOSE_S = 1.0
 
 #: A time-left estimate is shown once this share of the work is done ...
 SETTLE_FRACTION = 0.05
-#: ... and this long [s] has passed since the first progress (a rate over less is noise).
+#: ... and this long [s] has passed since the first progress (a rate over less is noise),
+#: and it is within a factor 2 of the previous line's estimate, or this share is done.
 SETTLE_SECONDS = 3.0
+SETTLED_SHARE = 0.25
 
 
 def settled(fraction: float, seconds: float) -> bool:
     """Whether a time-left estimate made after ``fraction`` of the work, ``seconds`` [s]
-    after it started, is worth showing (:data:`SETTLE_FRACTION`, :data:`SETTLE_SECONDS`)."""
+    after it started, is worth showing (:data:`SETTLE_FRACTION`, :data:`SETTLE_SECONDS`).
+
+    Parameters
+    ----------
+    fraction : float
+        The share of the work done, 0 … 1.
+    seconds : float
+        Time since the work started [s].
+
+    Returns
+    -------
+    bool
+    """
     return fraction >= SETTLE_FRACTION and seconds >= SETTLE_SECONDS
 
 
@@ -592,8 +606,9 @@ def progress(total: float, label: str, unit: str, fmt: Callable[[float], str] = 
             rate = (done - d0) / max(now - t0, 1e-9)
             estimate = (total - done) / rate if rate > 0 else math.inf
             previous, state["estimate"] = state["estimate"], estimate
-            if (settled(done / total, now - t0) and math.isfinite(estimate)
-                    and previous is not None and 0.5 * previous <= estimate <= 2.0 * previous):
+            agrees = (previous is not None and 0.5 * previous <= estimate <= 2.0 * previous
+                      or done >= SETTLED_SHARE * total)  # a quarter done: a rate measured
+            if settled(done / total, now - t0) and math.isfinite(estimate) and agrees:
                 left = f", about {estimate:,.0f} s left"
             else:
                 left = ", estimating the time left"

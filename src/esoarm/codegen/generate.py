@@ -66,7 +66,7 @@ import numpy as np
 
 from esoarm import __version__
 from esoarm.contract import Kind
-from esoarm.kinds import hook, kinds_of
+from esoarm.kinds import Kinds, hook, kinds_of
 from esoarm.plants.actuator import actuator_vector
 from esoarm.reference import Multisine, QuinticSteps
 
@@ -118,7 +118,18 @@ def c_source(module: Kind | ModuleType) -> str | None:
 
 
 def scenario_hash(scn: Scenario) -> str:
-    """First 16 hex digits of the SHA-256 of the resolved scenario's JSON."""
+    """First 16 hex digits of the SHA-256 of the resolved scenario's JSON.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario (with its overrides).
+
+    Returns
+    -------
+    str
+        16 lower-case hex digits; the same for the same resolved scenario.
+    """
     return hashlib.sha256(scn.model_dump_json().encode()).hexdigest()[:16]
 
 
@@ -374,7 +385,23 @@ _PREFIX = re.compile(r"[a-z][a-z0-9_]{0,23}")
 
 
 def check_prefix(prefix: str) -> str:
-    """``prefix`` if it is a lower-case C identifier of at most 24 characters."""
+    """``prefix`` if it is a lower-case C identifier of at most 24 characters.
+
+    Parameters
+    ----------
+    prefix : str
+        The prefix of the generated C names (``--prefix``).
+
+    Returns
+    -------
+    str
+        ``prefix`` itself.
+
+    Raises
+    ------
+    CodegenError
+        Not such an identifier (one line naming ``--prefix``).
+    """
     if not _PREFIX.fullmatch(prefix):
         raise CodegenError(f"--prefix '{prefix}': a lower-case C identifier (a-z, 0-9, _; "
                            "starting with a letter, at most 24 characters)")
@@ -421,31 +448,22 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     CodegenError
         An unknown target, precision or prefix, a precision the target lacks, a
         kind without C, a reference kind without C, or more than one joint.
-    """
-    if target not in TARGETS:
-        raise CodegenError(f"--target '{target}': one of {', '.join(TARGETS)}")
-    if precision not in PRECISIONS:
-        raise CodegenError(f"--precision '{precision}': one of {', '.join(PRECISIONS)}")
-    if precision not in TARGETS[target]:
-        raise CodegenError(f"--precision {precision} is not available on {target} "
-                           f"(avr-gcc's double is 32 bits): use {TARGETS[target][0]}")
-    check_prefix(prefix)
-    if compensated is None:
-        compensated = precision == "float32"
-    kinds = kinds_of(scn)
-    texts = {}
-    for component, module in (("plant", kinds.plant), ("observer", kinds.observer),
-                              ("controller", kinds.controller)):
-        text = c_source(module)
-        if text is None:
-            from esoarm.kinds import CONTROLLERS, OBSERVERS, PLANTS
 
-            family = {"plant": PLANTS, "observer": OBSERVERS, "controller": CONTROLLERS}
-            with_c = ", ".join(m.KIND for m in family[component] if c_source(m))
-            raise CodegenError(f"{component}.kind = '{module.KIND}' has no C code: "
-                               "codegen, pil and the on-board modes run the "
-                               f"{component} kinds {with_c}")
-        texts[component] = text
+    Notes
+    -----
+    The steps: the options checked (:func:`_check_options`), the kinds' C
+    (:func:`_kind_sources`), their designs, the banner (:func:`_banner`), the header,
+    the source with the hooks of kinds without run-time tuning
+    (:func:`_fixed_gain_hooks`, :func:`_observer_defines`), and the reference's files
+    (:func:`_reference_files`).
+    """
+    compensated = _check_options(target, precision, compensated, prefix)
+    if getattr(scn.controller, "feedforward_map", None):
+        raise CodegenError("controller.feedforward_map: the generated C does not apply a "
+                           "learned feedforward table yet (the simulated engines do); set it "
+                           "to [] to generate")
+    kinds = kinds_of(scn)
+    texts = _kind_sources(kinds)
     plant = kinds.plant.design(scn)
     if plant.n_joints != 1:
         raise CodegenError(f"plant.kind = '{scn.plant.kind}' has {plant.n_joints} joints: "
@@ -465,22 +483,7 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     eps, b0, k1, k2 = _tunable(scn, kinds)
     p, up = prefix, prefix.upper()
     real = ("double" if target == "avr" or precision == "float64" else "float")
-    disc = getattr(scn.observer, "discretization", None)
-    summary = (f" * observer: {kinds.observer.KIND}" + (f" ({disc})" if disc else "")
-               + f", controller: {kinds.controller.KIND}, plant: {kinds.plant.KIND}"
-               + (", motor (torque -> duty)" if scn.motor is not None else "") + "\n"
-               + f" * Ts = {ts!r} s ({scn.sensor.rate_hz:g} Hz), "
-               f"torque limit {scn.actuator.torque_limit!r} N m\n")
-    command = (f"esoarm codegen {scn.name} --target {target} --precision {precision}"
-               + ("" if compensated == (precision == "float32") else
-                  (" --plain-sums" if not compensated else ""))
-               + ("" if prefix == DEFAULT_PREFIX else f" --prefix {prefix}"))
-    banner = (f"/* esoarm generated controller -- do not edit; regenerate with\n"
-              f" *   {command}\n"
-              f" * scenario: {scn.name}   sha256: {digest}   esoarm {__version__}\n"
-              f" * target: {target}   precision: {precision}   observer sums: "
-              f"{'compensated' if compensated else 'plain'}\n"
-              + summary + " */\n")
+    banner = _banner(scn, kinds, target, precision, compensated, prefix, digest)
     sub = {"@P@": p, "@U@": up}
 
     def fill(text: str) -> str:
@@ -501,25 +504,8 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     local_real = ("" if p == "esoarm" else "#ifndef ESOARM_LOCAL_REAL\n#define ESOARM_LOCAL_REAL\n"
                   f"typedef {p}_real esoarm_real;\n#endif\n")
     obs_text, ctl_text = texts["observer"], texts["controller"]
-    defaults = []
-    if "obs_retune" not in obs_text:
-        defaults.append("static int obs_retune(esoarm_real T[], esoarm_real eps, "
-                        "esoarm_real b0)\n{\n    (void)T; (void)eps; (void)b0;\n"
-                        "    return -1;  /* this kind's gains are fixed at generation */\n}\n")
-    if "obs_derive" not in obs_text:
-        defaults.append("static void obs_derive(esoarm_real T[])\n{\n    (void)T;\n}\n")
-    if "ctl_retune" not in ctl_text:
-        defaults.append("static int ctl_retune(esoarm_real T[], esoarm_real k1, "
-                        "esoarm_real k2, esoarm_real b0)\n{\n    (void)T; (void)k1; (void)k2;"
-                        " (void)b0;\n    return -1;\n}\n")
-    if "ctl_derive" not in ctl_text:
-        defaults.append("static void ctl_derive(esoarm_real T[])\n{\n    (void)T;\n}\n")
-    extra = ""
-    ratio = getattr(scn.observer, "ratio", None)
-    if ratio is not None:
-        extra += f"#define OBS_RATIO {_literal(float(ratio))}\n"
-    half = getattr(scn.observer, "tuning", "bandwidth") == "half-gain"
-    extra += f"#define OBS_GAIN_SCALE {_literal(0.5 if half else 1.0)}\n"
+    defaults = _fixed_gain_hooks(obs_text, ctl_text)
+    extra = _observer_defines(scn)
     parts = [banner, f'#include "{p}_controller.h"\n', local_real, _prelude(target, precision),
              f"#define ESOARM_COMPENSATED {1 if compensated else 0}\n",
              _array("OBS_P", obs.vector[1:]), _array("CTL_P", ctl.vector[1:]),
@@ -538,16 +524,108 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
              "".join(f"#define {up}_{name}0 {_literal(v)}\n" for name, v in
                      (("EPS", eps), ("B0", b0), ("K1", k1), ("K2", k2))),
              fill(_STEP)]
+    ref_header, ref_source = (fill(text) for text in _reference_files(
+        scn, banner, p, local_real, target, precision))
+    return Generated(header, "".join(parts), scn.name, digest, target, precision, compensated,
+                     prefix, ref_header, ref_source)
+
+
+def _check_options(target: str, precision: str, compensated: bool | None, prefix: str) -> bool:
+    """The target, precision and prefix checked (CodegenError), and the compensation to use."""
+    if target not in TARGETS:
+        raise CodegenError(f"--target '{target}': one of {', '.join(TARGETS)}")
+    if precision not in PRECISIONS:
+        raise CodegenError(f"--precision '{precision}': one of {', '.join(PRECISIONS)}")
+    if precision not in TARGETS[target]:
+        raise CodegenError(f"--precision {precision} is not available on {target} "
+                           f"(avr-gcc's double is 32 bits): use {TARGETS[target][0]}")
+    check_prefix(prefix)
+    if compensated is None:
+        return precision == "float32"
+    return compensated
+
+
+def _kind_sources(kinds: Kinds) -> dict[str, str]:
+    """The C of the plant, observer and controller kinds (CodegenError for a kind without)."""
+    texts = {}
+    for component, module in (("plant", kinds.plant), ("observer", kinds.observer),
+                              ("controller", kinds.controller)):
+        text = c_source(module)
+        if text is None:
+            from esoarm.kinds import CONTROLLERS, OBSERVERS, PLANTS
+
+            family = {"plant": PLANTS, "observer": OBSERVERS, "controller": CONTROLLERS}
+            with_c = ", ".join(m.KIND for m in family[component] if c_source(m))
+            raise CodegenError(f"{component}.kind = '{module.KIND}' has no C code: "
+                               "codegen, pil and the on-board modes run the "
+                               f"{component} kinds {with_c}")
+        texts[component] = text
+    return texts
+
+
+def _banner(scn: Scenario, kinds: Kinds, target: str, precision: str, compensated: bool,
+            prefix: str, digest: str) -> str:
+    """The comment heading the files: how to regenerate them, from what, with what."""
+    ts = scn.sample_time
+    disc = getattr(scn.observer, "discretization", None)
+    summary = (f" * observer: {kinds.observer.KIND}" + (f" ({disc})" if disc else "")
+               + f", controller: {kinds.controller.KIND}, plant: {kinds.plant.KIND}"
+               + (", motor (torque -> duty)" if scn.motor is not None else "") + "\n"
+               + f" * Ts = {ts!r} s ({scn.sensor.rate_hz:g} Hz), "
+               f"torque limit {scn.actuator.torque_limit!r} N m\n")
+    command = (f"esoarm codegen {scn.name} --target {target} --precision {precision}"
+               + ("" if compensated == (precision == "float32") else
+                  (" --plain-sums" if not compensated else ""))
+               + ("" if prefix == DEFAULT_PREFIX else f" --prefix {prefix}"))
+    return (f"/* esoarm generated controller -- do not edit; regenerate with\n"
+            f" *   {command}\n"
+            f" * scenario: {scn.name}   sha256: {digest}   esoarm {__version__}\n"
+            f" * target: {target}   precision: {precision}   observer sums: "
+            f"{'compensated' if compensated else 'plain'}\n"
+            + summary + " */\n")
+
+
+def _fixed_gain_hooks(obs_text: str, ctl_text: str) -> list[str]:
+    """The retune/derive hooks a kind's C lacks: its gains are fixed at generation."""
+    defaults = []
+    if "obs_retune" not in obs_text:
+        defaults.append("static int obs_retune(esoarm_real T[], esoarm_real eps, "
+                        "esoarm_real b0)\n{\n    (void)T; (void)eps; (void)b0;\n"
+                        "    return -1;  /* this kind's gains are fixed at generation */\n}\n")
+    if "obs_derive" not in obs_text:
+        defaults.append("static void obs_derive(esoarm_real T[])\n{\n    (void)T;\n}\n")
+    if "ctl_retune" not in ctl_text:
+        defaults.append("static int ctl_retune(esoarm_real T[], esoarm_real k1, "
+                        "esoarm_real k2, esoarm_real b0)\n{\n    (void)T; (void)k1; (void)k2;"
+                        " (void)b0;\n    return -1;\n}\n")
+    if "ctl_derive" not in ctl_text:
+        defaults.append("static void ctl_derive(esoarm_real T[])\n{\n    (void)T;\n}\n")
+    return defaults
+
+
+def _observer_defines(scn: Scenario) -> str:
+    """``OBS_RATIO`` (a cascade's) and ``OBS_GAIN_SCALE`` (0.5 for the half-gain tuning)."""
+    extra = ""
+    ratio = getattr(scn.observer, "ratio", None)
+    if ratio is not None:
+        extra += f"#define OBS_RATIO {_literal(float(ratio))}\n"
+    half = getattr(scn.observer, "tuning", "bandwidth") == "half-gain"
+    extra += f"#define OBS_GAIN_SCALE {_literal(0.5 if half else 1.0)}\n"
+    return extra
+
+
+def _reference_files(scn: Scenario, banner: str, p: str, local_real: str, target: str,
+                     precision: str) -> tuple[str, str]:
+    """The reference's header and source, their prefix placeholders not yet filled."""
     members, ref_body = _reference_c(scn)
     ref_banner = banner.replace("generated controller", "generated reference (the scenario's "
                                 "moves, for the example)")
-    ref_header = fill(ref_banner + _REF_HEADER.format(
-        members=members, kind=scn.reference.kind, n=scn.n_samples))
-    ref_source = fill("".join([
+    ref_header = ref_banner + _REF_HEADER.format(
+        members=members, kind=scn.reference.kind, n=scn.n_samples)
+    ref_source = "".join([
         ref_banner, f'#include "{p}_reference.h"\n', local_real, _prelude(target, precision),
-        f"#define REF_TS {_literal(ts)}\n", ref_body]))
-    return Generated(header, "".join(parts), scn.name, digest, target, precision, compensated,
-                     prefix, ref_header, ref_source)
+        f"#define REF_TS {_literal(scn.sample_time)}\n", ref_body])
+    return ref_header, ref_source
 
 
 _HEADER = """#ifndef @U@_CONTROLLER_H

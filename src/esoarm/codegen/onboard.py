@@ -52,6 +52,12 @@ HEARTBEAT_S = 0.02
 #: interrupt's entry, the encoder, the motor pins, the CHIP_SAMPLE frame (CRC, queue, 37 UART
 #: interrupts) and the step running slower inside the interrupt than alone in PIL (the UART
 #: interrupts land in it).
+#: Since the reference left the step (the C API takes θd, θ̇d, θ̈d; the firmware evaluates
+#: the scenario's moves with esoarm_reference_next), PIL no longer times the reference, and
+#: this overhead, measured before, holds it: uno-rig's PIL median with compensated sums was
+#: 7271 cycles with the reference in the step and is 7238 without it at 50 Hz (the tunable
+#: gains now read from RAM cost about what its two moves did).  A reference with many moves
+#: costs more on board than this allows for: re-measure with benchmarks/bench_onboard.py.
 OVERHEAD_CYCLES = 9400
 #: The share of the period the predicted median load may use (the rest: bursts, heartbeats).
 LOAD_LIMIT = 0.97

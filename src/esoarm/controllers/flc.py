@@ -56,6 +56,12 @@ class Params(Section):
     compensation: Literal["eso", "model"] = Field(
         "eso", description='"eso": β̂ = z3 (proposed) | "model": β̂ = −G(ẑ1)/I0 (Fig. 7 baseline)'
     )
+    feedforward_map: list[float] = Field(
+        default_factory=list, max_length=4096,
+        description="a learned position-periodic perturbation m(θ) (esoarm learn-map): N "
+        "values at θ_i = 2π i/N, interpolated; the drive gets −I0·m(ẑ1) added, the ESO is "
+        "fed the command without it and estimates what the table leaves ([] none)",
+        json_schema_extra=unit("rad/s²"))
 
 # Layout of the packed controller vector (FLCParams.vector).
 K1, K2, I0, GCOEF, COMP, LIMIT = 0, 1, 2, 3, 4, 5

@@ -15,8 +15,9 @@ not compile (``JIT = False``) is run by the reference engine in worker processes
 
 The kinds' parameter vectors reach the kernels as tuples (they live in
 registers) when they fit :data:`~esoarm.engines.packing.VECTOR_WIDTH`; longer
-ones -- an arm's carry its packed models -- as arrays, through a second set of
-kernels (``*_wide``) compiled the first time such a point is run.
+ones -- an arm's carry its packed models -- as arrays: the kernels are written
+once and compiled for each way (:class:`VectorsAs`), the arrays' the first time
+such a point is run.
 
 Two modes:
 
@@ -50,11 +51,18 @@ import numba
 import numpy as np
 from numba import njit, prange, types
 from numba.core import cgutils
-from numba.extending import intrinsic, overload
+from numba.extending import (
+    NativeValue,
+    intrinsic,
+    models,
+    overload,
+    register_model,
+    typeof_impl,
+    unbox,
+)
 
 from esoarm import _jit
 from esoarm import kinds as _kinds
-from esoarm._limits import STREAM_SAMPLES
 from esoarm.engines import loop as _loop
 from esoarm.engines.loop import closed_loop, closed_loop_block
 from esoarm.engines.metrics import (
@@ -63,6 +71,8 @@ from esoarm.engines.metrics import (
     NROW,
     MetricsTable,
     NoiseCache,
+    _chunked_metrics,
+    _renumbered,
     joints_metrics,
 )
 from esoarm.engines.packing import (  # packing needs no numba (the fast engine uses it alone)
@@ -286,6 +296,61 @@ def _cover(points: Sequence[Scenario]) -> None:
 # compiled kernels
 
 
+class VectorsAs:
+    """How the kernels hand the kinds' parameter vectors to the step functions: as tuples
+    (``wide = False``: in registers, no loads, no reference counting in the inner loops;
+    each within :data:`~esoarm.engines.packing.VECTOR_WIDTH`) or as the arrays themselves
+    (``wide = True``: a URDF arm's carry its rigid-body models).  The kernels are written
+    once; numba compiles them for each way (:class:`_VectorsAsType`) a point needs."""
+
+    def __init__(self, wide: bool) -> None:
+        self.wide = wide
+
+
+#: The two ways: every vector within VECTOR_WIDTH, and the rest (:attr:`_Pack.wide`).
+TUPLES, ARRAYS = VectorsAs(False), VectorsAs(True)
+
+
+class _VectorsAsType(types.Type):
+    """numba's type of a :class:`VectorsAs`: the way is in the type, the value is empty."""
+
+    def __init__(self, wide: bool) -> None:
+        self.wide = wide
+        super().__init__(name=f"VectorsAs({'arrays' if wide else 'tuples'})")
+
+
+@typeof_impl.register(VectorsAs)
+def _typeof_vectors_as(val, c):  # pragma: no cover - typing
+    return _VectorsAsType(val.wide)
+
+
+register_model(_VectorsAsType)(models.OpaqueModel)
+
+
+@unbox(_VectorsAsType)  # type: ignore[no-untyped-call]
+def _unbox_vectors_as(typ, obj, c):  # pragma: no cover - compiled
+    return NativeValue(c.context.get_dummy_value())  # type: ignore[no-untyped-call]
+
+
+def _vectors(how: VectorsAs, pp: Any, op: Any, cp: Any,
+             ap: Any) -> tuple[Any, ...]:  # pragma: no cover - the kernels use the overload
+    """The plant's, observer's, controller's and actuator's vectors as ``how`` says."""
+    raise NotImplementedError
+
+
+@overload(_vectors)
+def _vectors_compiled(how, pp, op, cp, ap):  # pragma: no cover - compiled
+    if how.wide:
+        return lambda how, pp, op, cp, ap: (pp, op, cp, ap)
+    return lambda how, pp, op, cp, ap: (_tuple16(pp), _tuple32(op), _tuple16(cp), _tuple16(ap))
+
+
+def _loaded(kernel: Any, how: VectorsAs) -> bool:
+    """``kernel`` is compiled (or loaded from the disk cache) in this process for ``how``."""
+    kind = numba.typeof(how)  # type: ignore[no-untyped-call]
+    return any(sig and sig[0] == kind for sig in kernel.overloads)
+
+
 @njit(cache=True, error_model="numpy")
 def _tuple16(a):  # pragma: no cover - compiled
     return (a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12],
@@ -300,139 +365,60 @@ def _tuple32(a):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _records(n, fpar, ipar, b0, pp, op, cp, ap):  # pragma: no cover - compiled
+def _records(how, n, fpar, ipar, b0, pp, op, cp, ap):  # pragma: no cover - compiled
     """The records of the sample functions for one point, with the registry's dispatch.
 
-    The parameter vectors are handed over as tuples (the physics indexes them
-    exactly like arrays, but tuples live in registers: no loads, no reference
-    counting in the inner loops).
+    The parameter vectors are handed over as ``how`` says (:class:`VectorsAs`; the
+    physics indexes tuples exactly like arrays).
     """
     sg = Sampling(n, fpar[_TS], fpar[_H], ipar[_NSUB], ipar[_DELAY], fpar[_SIGMA], fpar[_Q])
-    d = Designs(b0, _tuple16(pp), _tuple32(op), _tuple16(cp), _tuple16(ap), ipar[_NZ],
-                ipar[_NC])
+    vp, vo, vc, va = _vectors(how, pp, op, cp, ap)
+    d = Designs(b0, vp, vo, vc, va, ipar[_NZ], ipar[_NC])
     s = Steps(_kinds.plant_advance, _kinds.plant_advance_block, _kinds.plant_acceleration,
               _kinds.plant_observer_input, _kinds.observer_initialize, _kinds.observer_estimate,
               _kinds.observer_advance, _kinds.controller_initialize, _kinds.controller_control)
     return sg, d, s
-
-
-@njit(cache=True, error_model="numpy")
-def _records_wide(n, fpar, ipar, b0, pp, op, cp, ap):  # pragma: no cover - compiled
-    """:func:`_records` with the vectors as arrays: points whose vectors are longer than
-    :data:`VECTOR_WIDTH` (a URDF arm's carry its rigid-body models).  The kernels below
-    compile for them only when such a point is run."""
-    sg = Sampling(n, fpar[_TS], fpar[_H], ipar[_NSUB], ipar[_DELAY], fpar[_SIGMA], fpar[_Q])
-    d = Designs(b0, pp, op, cp, ap, ipar[_NZ], ipar[_NC])
-    s = Steps(_kinds.plant_advance, _kinds.plant_advance_block, _kinds.plant_acceleration,
-              _kinds.plant_observer_input, _kinds.observer_initialize, _kinds.observer_estimate,
-              _kinds.observer_advance, _kinds.controller_initialize, _kinds.controller_control)
-    return sg, d, s
-
-
-@njit(cache=True, error_model="numpy")
-def _run_wide(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp,
-              ap):  # pragma: no cover - compiled
-    """:func:`_run` with the vectors as arrays (:func:`_records_wide`)."""
-    x = x0.copy()
-    sg, d, s = _records_wide(n, fpar, ipar, b0, pp, op, cp, ap)
-    return closed_loop(log, x, noise, ref, sg, d, s)
-
-
-@njit(cache=True, error_model="numpy")
-def _run_block_wide(logs, rows, n, xs, noises, fpar, ipar, ref, b0, pp, op, cp,
-                    ap):  # pragma: no cover - compiled
-    """:func:`_run_block` with the vectors as arrays (:func:`_records_wide`)."""
-    sg, d, s = _records_wide(n, fpar, ipar, b0, pp, op, cp, ap)
-    closed_loop_block(logs, rows, xs, noises, ref, sg, d, s)
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def _blocked_metrics_kernel_wide(blk_point, blk_start, blk_len, run_noise, fpar, ipar, x0, b0,
-                                 pp, op, cp, ap, refs, noises,
-                                 out):  # pragma: no cover - compiled
-    """:func:`_blocked_metrics_kernel` with the vectors as arrays."""
-    for b in prange(blk_point.shape[0]):
-        p = blk_point[b]
-        r0 = blk_start[b]
-        m = blk_len[b]
-        n = ipar[p, _N]
-        nj = ipar[p, _NJ]
-        logs = np.empty((m, NROW * nj, max(n, 1)))
-        xs = np.empty((m, x0.shape[1]))
-        nz = np.empty((m, noises.shape[1]))
-        for i in range(m):
-            xs[i] = x0[p]
-            nz[i] = noises[run_noise[r0 + i]]
-        rows = np.empty(m, dtype=np.int64)
-        _run_block_wide(logs, rows, n, xs, nz, fpar[p], ipar[p], refs[ipar[p, _REFIDX]],
-                        b0[p, :nj], pp[p], op[p], cp[p], ap[p])
-        for i in range(m):
-            joints_metrics(logs[i], nj, abs(rows[i]), rows[i] < 0, out[r0 + i])
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def _metrics_kernel_wide(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
-                         out):  # pragma: no cover - compiled
-    """:func:`_metrics_kernel` with the vectors as arrays."""
-    nmax = refs.shape[2]
-    for r in prange(run_point.shape[0]):
-        p = run_point[r]
-        n = ipar[p, _N]
-        nj = ipar[p, _NJ]
-        log = np.empty((NROW * nj, nmax))
-        status = _run_wide(log, n, x0[p], noises[run_noise[r]], fpar[p], ipar[p],
-                           refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p], cp[p], ap[p])
-        joints_metrics(log, nj, abs(status), status < 0, out[r])
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def _series_kernel_wide(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
-                        logs, rows_out):  # pragma: no cover - compiled
-    """:func:`_series_runs` for the vectors as arrays (a parallel kernel over the runs)."""
-    for r in prange(run_point.shape[0]):
-        p = run_point[r]
-        nj = ipar[p, _NJ]
-        rows_out[r] = _run_wide(logs[r], ipar[p, _N], x0[p], noises[run_noise[r]], fpar[p],
-                                ipar[p], refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p],
-                                cp[p], ap[p])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _run(log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp, ap):  # pragma: no cover - compiled
+def _run(how, log, n, x0, noise, fpar, ipar, ref, b0, pp, op, cp,
+         ap):  # pragma: no cover - compiled
     """One run of :func:`closed_loop` with the registry's dispatch functions.
 
     Without the GIL: :func:`simulate_many` calls it from several threads.
     """
     x = x0.copy()
-    sg, d, s = _records(n, fpar, ipar, b0, pp, op, cp, ap)
+    sg, d, s = _records(how, n, fpar, ipar, b0, pp, op, cp, ap)
     return closed_loop(log, x, noise, ref, sg, d, s)
 
 
+@njit(cache=True, error_model="numpy")
+def _run_block(how, logs, rows, n, xs, noises, fpar, ipar, ref, b0, pp, op, cp,
+               ap):  # pragma: no cover - compiled
+    """A block of runs of one point through :func:`closed_loop_block` (records as in _run)."""
+    sg, d, s = _records(how, n, fpar, ipar, b0, pp, op, cp, ap)
+    closed_loop_block(logs, rows, xs, noises, ref, sg, d, s)
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
-def _metrics_kernel(run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
+def _metrics_kernel(how, run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
                     out):  # pragma: no cover - compiled
+    """The metrics of each run (one at a time, in parallel over the runs) into ``out``."""
     nmax = refs.shape[2]
     for r in prange(run_point.shape[0]):
         p = run_point[r]
         n = ipar[p, _N]
         nj = ipar[p, _NJ]
         log = np.empty((NROW * nj, nmax))
-        status = _run(log, n, x0[p], noises[run_noise[r]], fpar[p], ipar[p],
+        status = _run(how, log, n, x0[p], noises[run_noise[r]], fpar[p], ipar[p],
                       refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p], cp[p], ap[p])
         joints_metrics(log, nj, abs(status), status < 0, out[r])
 
 
-@njit(cache=True, error_model="numpy")
-def _run_block(logs, rows, n, xs, noises, fpar, ipar, ref, b0, pp, op, cp,
-               ap):  # pragma: no cover - compiled
-    """A block of runs of one point through :func:`closed_loop_block` (records as in _run)."""
-    sg, d, s = _records(n, fpar, ipar, b0, pp, op, cp, ap)
-    closed_loop_block(logs, rows, xs, noises, ref, sg, d, s)
-
-
 @njit(cache=True, parallel=True, error_model="numpy")
-def _blocked_metrics_kernel(blk_point, blk_start, blk_len, run_noise, fpar, ipar, x0, b0, pp, op,
-                            cp, ap, refs, noises, out):  # pragma: no cover - compiled
+def _blocked_metrics_kernel(how, blk_point, blk_start, blk_len, run_noise, fpar, ipar, x0, b0,
+                            pp, op, cp, ap, refs, noises, out):  # pragma: no cover - compiled
+    """The metrics of each run, the runs of a block (:func:`_blocks`) advanced together."""
     for b in prange(blk_point.shape[0]):
         p = blk_point[b]
         r0 = blk_start[b]
@@ -446,10 +432,22 @@ def _blocked_metrics_kernel(blk_point, blk_start, blk_len, run_noise, fpar, ipar
             xs[i] = x0[p]
             nz[i] = noises[run_noise[r0 + i]]
         rows = np.empty(m, dtype=np.int64)
-        _run_block(logs, rows, n, xs, nz, fpar[p], ipar[p], refs[ipar[p, _REFIDX]],
+        _run_block(how, logs, rows, n, xs, nz, fpar[p], ipar[p], refs[ipar[p, _REFIDX]],
                    b0[p, :nj], pp[p], op[p], cp[p], ap[p])
         for i in range(m):
             joints_metrics(logs[i], nj, abs(rows[i]), rows[i] < 0, out[r0 + i])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _series_kernel(how, run_point, run_noise, fpar, ipar, x0, b0, pp, op, cp, ap, refs, noises,
+                   logs, rows_out):  # pragma: no cover - compiled
+    """:func:`_series_runs` as a parallel kernel over the runs (run for the arrays only)."""
+    for r in prange(run_point.shape[0]):
+        p = run_point[r]
+        nj = ipar[p, _NJ]
+        rows_out[r] = _run(how, logs[r], ipar[p, _N], x0[p], noises[run_noise[r]], fpar[p],
+                           ipar[p], refs[ipar[p, _REFIDX]], b0[p, :nj], pp[p], op[p],
+                           cp[p], ap[p])
 
 
 def _blocks(run_point: np.ndarray, ipar: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -483,10 +481,13 @@ def _series_runs(pack: _Pack, logs: np.ndarray, rows: np.ndarray, workers: int |
     on top of :func:`_run` (63 s of its 231 s of compiling, load 14); ``_run``
     releases the GIL, so the threads share the cores the same way.
     """
+    how = ARRAYS if pack.wide else TUPLES
+
     def one(r: int) -> None:
         p = pack.run_point[r]
         nj = pack.ipar[p, _NJ]
-        rows[r] = _run(logs[r], pack.ipar[p, _N], pack.x0[p], pack.noises[pack.run_noise[r]],
+        rows[r] = _run(how, logs[r], pack.ipar[p, _N], pack.x0[p],
+                       pack.noises[pack.run_noise[r]],
                        pack.fpar[p], pack.ipar[p], pack.refs[pack.ipar[p, _REFIDX]],
                        pack.b0[p, :nj], pack.pp[p], pack.op[p], pack.cp[p], pack.ap[p])
 
@@ -568,55 +569,50 @@ def run_metrics(
         One row per run, columns :data:`METRICS`.  Diverged runs are rows with
         ``diverged = 1`` (they do not raise).
     """
-    if seeds is None:
-        runs = [(i, scn.sensor.seed) for i, scn in enumerate(points)]
-    else:
-        runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
-    out = np.empty((len(runs), NMETRIC))
     noise_cache = _noise_cache or NoiseCache()
     compiled = [_kinds.kinds_of(scn).jit for scn in points]
     _cover(points)
     if series is None:  # (a sweep's last, small chunk: the blocked kernel is loaded already)
-        series = blocked and len(runs) <= SERIES_RUNS and not _blocked_metrics_kernel.overloads
-    # a long run (more than STREAM_SAMPLES samples) block by block, in constant memory: a
-    # kernel here keeps its whole log (~90 bytes a sample)
-    long = [points[pi].n_samples > STREAM_SAMPLES for pi in range(len(points))]
-    with _threads(workers):
-        for start in range(0, len(runs), chunk):
-            part = runs[start : start + chunk]
-            jit_idx = [i for i, (pi, _) in enumerate(part) if compiled[pi] and not long[pi]]
-            py_idx = [i for i, (pi, _) in enumerate(part) if not compiled[pi] and not long[pi]]
-            for i, (pi, seed) in enumerate(part):
-                if long[pi]:
-                    from esoarm.engines.stream import streamed_metrics
+        nruns = len(points) * (1 if seeds is None else len(seeds))
+        series = (blocked and nruns <= SERIES_RUNS
+                  and not _loaded(_blocked_metrics_kernel, TUPLES))
+    def run_chunk(part: list[tuple[int, int]]) -> np.ndarray:
+        res = np.empty((len(part), NMETRIC))
+        jit_idx = [i for i, (pi, _) in enumerate(part) if compiled[pi]]
+        py_idx = [i for i, (pi, _) in enumerate(part) if not compiled[pi]]
+        if jit_idx:
+            res[jit_idx] = _compiled_metrics(points, [part[i] for i in jit_idx], noise_cache,
+                                             series, blocked, workers)
+        if py_idx:
+            jobs = [points[part[i][0]].with_overrides({"sensor.seed": part[i][1]})
+                    for i in py_idx]
+            res[py_idx] = _python_metrics(jobs, workers)
+        return res
 
-                    scn = points[pi]
-                    scn = (scn.with_overrides({"sensor.seed": seed})
-                           if seed != scn.sensor.seed else scn)
-                    got = streamed_metrics(scn)
-                    out[start + i] = [got[name] for name in METRICS]
-            if jit_idx:
-                used = sorted({part[i][0] for i in jit_idx})
-                local = {pi: j for j, pi in enumerate(used)}
-                pack = _pack([points[pi] for pi in used],
-                             [(local[part[i][0]], part[i][1]) for i in jit_idx], noise_cache)
-                res = np.empty((len(jit_idx), NMETRIC))
-                if series and not pack.wide:
-                    _series_metrics(pack, [points[part[i][0]] for i in jit_idx], res, workers)
-                elif blocked:
-                    blk = _blocks(pack.run_point, pack.ipar)
-                    kernel = _blocked_metrics_kernel_wide if pack.wide else _blocked_metrics_kernel
-                    kernel(*blk, *pack.args()[1:], res)  # type: ignore[call-arg]
-                else:
-                    (_metrics_kernel_wide if pack.wide else _metrics_kernel)(*pack.args(), res)  # type: ignore[call-arg]
-                out[start + np.array(jit_idx)] = res
-            if py_idx:
-                jobs = [points[part[i][0]].with_overrides({"sensor.seed": part[i][1]})
-                        for i in py_idx]
-                out[start + np.array(py_idx)] = _python_metrics(jobs, workers)
-            if progress is not None:
-                progress(len(part))
-    return MetricsTable(out)
+    with _threads(workers):
+        return _chunked_metrics(points, seeds, chunk, progress, run_chunk)
+
+
+def _compiled_metrics(points: Sequence[Scenario], runs: list[tuple[int, int]],
+                      noise_cache: NoiseCache, series: bool, blocked: bool,
+                      workers: int | None) -> np.ndarray:
+    """Metrics rows of ``runs`` ((point index, seed), every point's kinds compiled).
+
+    Through the time-series kernel (``series``), the blocked metrics kernel, or the
+    one-run-at-a-time metrics kernel; vectors as tuples or arrays as the points need.
+    """
+    used, local = _renumbered(runs)
+    pack = _pack([points[pi] for pi in used], local, noise_cache)
+    res = np.empty((len(runs), NMETRIC))
+    how = ARRAYS if pack.wide else TUPLES
+    if series and not pack.wide:
+        _series_metrics(pack, [points[pi] for pi, _ in runs], res, workers)
+    elif blocked:
+        blk = _blocks(pack.run_point, pack.ipar)
+        _blocked_metrics_kernel(how, *blk, *pack.args()[1:], res)  # type: ignore[call-arg]
+    else:
+        _metrics_kernel(how, *pack.args(), res)  # type: ignore[call-arg]
+    return res
 
 
 def _series_metrics(pack: _Pack, scenarios: list[Scenario], out: np.ndarray,
@@ -700,7 +696,7 @@ def simulate_many(
             logs = np.empty((len(part), NROW * int(pack.ipar[:, _NJ].max()), nmax))
             rows = np.empty(len(part), dtype=np.int64)  # rows logged, < 0: diverged
             if pack.wide:
-                _series_kernel_wide(*pack.args(), logs, rows)  # type: ignore[call-arg]
+                _series_kernel(ARRAYS, *pack.args(), logs, rows)  # type: ignore[call-arg]
             else:
                 _series_runs(pack, logs, rows, workers)
             for i, scn in enumerate(part):

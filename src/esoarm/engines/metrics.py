@@ -32,6 +32,7 @@ run diverged):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -43,6 +44,7 @@ from esoarm.plants.sensor import noise_sequence
 
 if TYPE_CHECKING:
     from esoarm.contract import Units
+    from esoarm.scenario import Scenario
 
 __all__ = ["LOG_ROWS", "METRICS", "METRIC_QUANTITY", "SERIES_COLUMNS", "MetricsTable",
            "NoiseCache", "combine_joints", "log_metrics", "metric_units", "series_metrics"]
@@ -476,6 +478,36 @@ class MetricsTable:
 
     def __len__(self) -> int:
         return int(self.values.shape[0])
+
+
+#: A run of a table: (index of its point, noise seed).
+Run = tuple[int, int]
+
+
+def _chunked_metrics(points: Sequence[Scenario], seeds: Sequence[int] | None, chunk: int,
+                     progress: Callable[[int], None] | None,
+                     run_chunk: Callable[[list[Run]], np.ndarray]) -> MetricsTable:
+    """Both engines' ``run_metrics``: every point × every seed (point-major; None: each point
+    with its own ``sensor.seed``), ``chunk`` runs at a time through ``run_chunk`` (a chunk's
+    runs -> their rows of :data:`METRICS`), ``progress`` after each chunk."""
+    if seeds is None:
+        runs = [(i, scn.sensor.seed) for i, scn in enumerate(points)]
+    else:
+        runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
+    out = np.empty((len(runs), NMETRIC))
+    for start in range(0, len(runs), chunk):
+        part = runs[start : start + chunk]
+        out[start : start + len(part)] = run_chunk(part)
+        if progress is not None:
+            progress(len(part))
+    return MetricsTable(out)
+
+
+def _renumbered(runs: Sequence[Run]) -> tuple[list[int], list[Run]]:
+    """The points ``runs`` use (ascending), and the runs with those points numbered 0, 1, …."""
+    used = sorted({pi for pi, _ in runs})
+    local = {pi: j for j, pi in enumerate(used)}
+    return used, [(local[pi], s) for pi, s in runs]
 
 
 class NoiseCache:

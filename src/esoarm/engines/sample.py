@@ -53,7 +53,7 @@ import numpy as np
 from esoarm._jit import jitable
 from esoarm.contract import Vector
 from esoarm.engines.metrics import ERR, NROW, OM, REF, SAT, TH, Z1, Z2, Z3, F, U, Y
-from esoarm.plants.actuator import LIMIT, actuate, delayed_input, saturate
+from esoarm.plants.actuator import FF_BINS, LIMIT, actuate, delayed_input, feedforward, saturate
 from esoarm.plants.sensor import measure
 
 __all__ = ["DIVERGENCE_LIMIT", "Designs", "Sampling", "Steps", "Work", "actuate_into",
@@ -457,6 +457,8 @@ def actuate_into(u: np.ndarray, drive: np.ndarray, duty: np.ndarray, zhat: np.nd
     """
     for j in range(len(u)):
         u[j], drive[j], duty[j] = actuate(u[j], zhat[3 * j + 1], a)
+        if len(a) > FF_BINS and a[FF_BINS] > 0.0:  # a learned table: in the drive, not in u
+            drive[j] = saturate(drive[j] + feedforward(zhat[3 * j], a), a[LIMIT])
 
 
 @jitable

@@ -129,7 +129,13 @@ class RunSummary:
     observer_sums: str = ""
 
     def to_dict(self) -> dict:
-        """JSON-ready (NaN as None)."""
+        """JSON-ready (NaN as None).
+
+        Returns
+        -------
+        dict
+            Every field by name.
+        """
         return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
                 for k, v in asdict(self).items()}
 
@@ -153,8 +159,23 @@ class RigInterrupted(RuntimeError):
 def check_device(info: P.Info, scn: Scenario) -> float:
     """Check the device against the scenario; return the quantization step q [rad].
 
-    Raises :class:`ScenarioError` (bad input) when the device's sample period or
-    encoder resolution differs from ``sensor.rate_hz`` / ``sensor.resolution_deg``.
+    Parameters
+    ----------
+    info : Info
+        The device's INFO frame (its sample period and encoder counts per revolution).
+    scn : Scenario
+        The scenario run.
+
+    Returns
+    -------
+    float
+        q = radians(``sensor.resolution_deg``) [rad per count].
+
+    Raises
+    ------
+    ScenarioError
+        Bad input: the device's sample period or encoder resolution differs from
+        ``sensor.rate_hz`` / ``sensor.resolution_deg``.
     """
     ts = scn.sample_time
     if abs(info.period_us * 1e-6 - ts) > 1e-6:
@@ -420,7 +441,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
         What computes u_k from y_k (``step``, ``commit``, ``predict``, ``zhat``,
         ``reference``, ``t``, ``n_samples``, ``ts``, ``torque_limit``); default the
         scenario's ESO + FLC.  The identification experiment passes its
-        :class:`~esoarm.studies.identification.excitation.ExcitationController`.
+        :class:`~esoarm.studies.identification.experiment.excitation.ExcitationController`.
     monitor : callable, optional
         Receives every log row (the CSV line of :data:`LOG_COLUMNS`) as it is
         written, e.g. :meth:`esoarm.hardware.scope.Scope.push`; it must not block.
@@ -521,7 +542,19 @@ def _chip_check(scn: Scenario, link: SerialLink, info: P.Info) -> P.ChipInfo:
 
 
 def stream_notice(scn: Scenario, chip: P.ChipInfo) -> str:
-    """One line: what an on-board run logs, and whether it is every sample."""
+    """One line: what an on-board run logs, and whether it is every sample.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario run.
+    chip : ChipInfo
+        The chip's CHIP_INFO (its scenario hash, observer sums and ``stream_every``).
+
+    Returns
+    -------
+    str
+    """
     rate = scn.sensor.rate_hz
     what = (f"the chip's samples (y, u, z1..z3, duty; float32 {chip.sums_name} observer sums, "
             f"scenario '{scn.name}' hash {chip.scenario_hash})")

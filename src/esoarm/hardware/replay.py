@@ -63,11 +63,23 @@ class ReplayResult:
     scenario: Scenario | None = field(default=None, compare=False)
 
     def table(self) -> np.ndarray:
-        """(N, 6) array in :data:`REPLAY_COLUMNS` order."""
+        """The estimates as a table.
+
+        Returns
+        -------
+        ndarray (N, 6)
+            :data:`REPLAY_COLUMNS` in order.
+        """
         return np.column_stack([self.t, self.theta, self.u, self.z])
 
     def to_csv(self, path: str | Path) -> None:
-        """Write :data:`REPLAY_COLUMNS` (atomic)."""
+        """Write :data:`REPLAY_COLUMNS` (atomic).
+
+        Parameters
+        ----------
+        path : str or Path
+            The CSV file.
+        """
         write_csv_atomic(path, REPLAY_COLUMNS, self.table())
 
 
@@ -80,6 +92,18 @@ def read_log(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, floa
     :class:`ScenarioError` (one line naming the file) for a missing file,
     missing columns, bad numbers or a non-uniform time column
     (:mod:`esoarm.hardware.logfile`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV log.
+
+    Returns
+    -------
+    t, theta, u : ndarray (N,)
+        Times [s], measured angle [rad] (NaN: lost), torque [N·m].
+    ts : float
+        Sample period [s].
     """
     def pick(header: list[str]) -> list[str]:
         return ["t", "y" if "y" in header else "theta", "u"]
@@ -114,20 +138,38 @@ class ArmReplay:
     ts: float
 
     def columns(self) -> list[str]:
-        """``t`` then ``theta_i, u_i, z1_i, z2_i, z3_i`` per joint i = 1 … n."""
+        """The column names.
+
+        Returns
+        -------
+        list of str
+            ``t`` then ``theta_i, u_i, z1_i, z2_i, z3_i`` per joint i = 1 … n.
+        """
         n = self.theta.shape[1]
         return ["t", *(f"{c}_{i}" for i in range(1, n + 1)
                        for c in ("theta", "u", "z1", "z2", "z3"))]
 
     def table(self) -> np.ndarray:
-        """The estimates in :meth:`columns` order."""
+        """The estimates as a table.
+
+        Returns
+        -------
+        ndarray (N, 1 + 5n)
+            :meth:`columns` in order.
+        """
         blocks = [self.t[:, None]]
         for j in range(self.theta.shape[1]):
             blocks.append(np.column_stack([self.theta[:, j], self.u[:, j], self.z[:, j]]))
         return np.column_stack(blocks)
 
     def to_csv(self, path: str | Path) -> None:
-        """Write :meth:`columns` (atomic)."""
+        """Write :meth:`columns` (atomic).
+
+        Parameters
+        ----------
+        path : str or Path
+            The CSV file.
+        """
         write_csv_atomic(path, self.columns(), self.table())
 
 
@@ -139,6 +181,22 @@ def read_arm_log(path: str | Path, n: int) -> tuple[np.ndarray, np.ndarray, np.n
     unsuffixed ``theta`` (or ``y``) and ``u``.  Raises :class:`ScenarioError`
     (one line naming the file) for a missing file, missing columns, bad
     numbers or a non-uniform time column (:mod:`esoarm.hardware.logfile`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV log.
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    t : ndarray (N,)
+        Times [s].
+    theta, u : ndarray (N, n)
+        Measured angles [rad] (NaN: lost) and torques [N·m].
+    ts : float
+        Sample period [s].
     """
     joints = range(1, n + 1)
 
@@ -349,7 +407,15 @@ def replay_arm(scn: Scenario, t: np.ndarray, theta: np.ndarray, u: np.ndarray,
 
 
 def plot_replay(result: ReplayResult, path: str | Path) -> None:
-    """Draw the replay; see :func:`esoarm.plotting.run.figure_replay`."""
+    """Draw the replay; see :func:`esoarm.plotting.run.figure_replay`.
+
+    Parameters
+    ----------
+    result : ReplayResult
+        The estimates.
+    path : str or Path
+        The figure (.png, .pdf or .svg).
+    """
     from esoarm.plotting.run import figure_replay
 
     figure_replay(result, path)

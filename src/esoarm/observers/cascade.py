@@ -285,7 +285,17 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
 
 def state_size(params: Params) -> int:
-    """States per joint: 3 per level (angle, rate, perturbation of each cascaded ESO)."""
+    """States per joint: 3 per level (angle, rate, perturbation of each cascaded ESO).
+
+    Parameters
+    ----------
+    params : Params
+        The kind's validated ``[observer]`` table.
+
+    Returns
+    -------
+    int
+    """
     return 3 * params.levels
 
 

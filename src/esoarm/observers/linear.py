@@ -743,8 +743,18 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
 
 def state_size(params: Params) -> int:
-    """States per joint: 3 (angle, rate, total perturbation), then the ``input_delay``
-    commands held for the delayed input."""
+    """States per joint: 3 (angle, rate, total perturbation) and the commands held.
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+
+    Returns
+    -------
+    int
+        3 + ``input_delay`` (the N last commands held for the delayed input).
+    """
     return 3 + int(params.input_delay)
 
 

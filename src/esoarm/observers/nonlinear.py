@@ -262,7 +262,18 @@ def predict(z: np.ndarray, zhat: np.ndarray, p: Vector, y: np.ndarray) -> None:
 
 
 def state_size(params: Params) -> int:
-    """States per joint: 3 (angle, rate, total perturbation)."""
+    """States per joint: 3 (angle, rate, total perturbation).
+
+    Parameters
+    ----------
+    params : Params
+        The ``[observer]`` table.
+
+    Returns
+    -------
+    int
+        3.
+    """
     return 3
 
 

@@ -42,13 +42,16 @@ from esoarm.plants.motor import MotorParams, duty_to_torque, source_torque, torq
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["actuate", "actuator_vector", "back_emf_damping", "delayed_input", "motor_of",
-           "motor_refused", "saturate"]
+__all__ = ["FF_BINS", "actuate", "actuator_vector", "back_emf_damping", "delayed_input",
+           "feedforward", "motor_of", "motor_refused", "saturate"]
 
 LIMIT, MOTOR, MOTOR_BLOCK = 0, 1, 2
 #: PWM levels per sign, 2^pwm_bits − 1 (0: an ideal torque source), after the motor block.
 PWM_LEVELS = 6
 VECTOR_SIZE = 7
+#: With a learned feedforward table (``controller.feedforward_map``): its number of bins N
+#: at FF_BINS, then the N feedforward torques −I0·m_i [N·m] at θ_i = 2π i / N.
+FF_BINS = 7
 
 
 def motor_of(scn: Scenario) -> MotorParams | None:
@@ -136,7 +139,52 @@ def actuator_vector(scn: Scenario) -> np.ndarray:
     bits = getattr(scn.actuator, "pwm_bits", 0)
     if bits > 0:
         vec[PWM_LEVELS] = float(2**bits - 1)
+    table = getattr(scn.controller, "feedforward_map", None)
+    if table:
+        # −I0·m(θ): the map is in the units of ẑ3 [rad/s²], the nominal I0 = 1/b0 makes it
+        # a torque (the FLC's u = I0 (α − β̂) with the map's part of β̂)
+        i0 = scn.plant.inertia
+        vec = np.concatenate([vec, [float(len(table))], [-i0 * m for m in table]])
     return read_only(vec)
+
+
+@jitable
+def feedforward(angle: float, a: Vector) -> float:
+    """The learned feedforward torque at angle θ̂ [N·m]: the table −I0·m linearly interpolated.
+
+    The table's N values sit at θ_i = 2π i / N, i = 0 … N − 1, and wrap around
+    (position-periodic); without a table (a vector of :data:`VECTOR_SIZE` values) 0.
+
+    Parameters
+    ----------
+    angle : float
+        Estimated arm angle ẑ1 [rad] (any value; taken modulo 2π).
+    a : ndarray
+        :func:`actuator_vector`.
+
+    Returns
+    -------
+    float
+        The feedforward torque [N·m], added to the drive (not to the command the observer is
+        fed: the ESO then estimates the perturbation the table leaves).
+
+    Examples
+    --------
+    >>> a = np.array([2.0, 0, 0, 0, 0, 0, 0, 4.0, 1.0, 2.0, 3.0, 4.0])
+    >>> float(feedforward(0.0, a)), float(feedforward(np.pi / 4, a))
+    (1.0, 1.5)
+    """
+    if len(a) <= FF_BINS or a[FF_BINS] == 0.0:  # no table (or one zero-padded away)
+        return 0.0
+    n = int(a[FF_BINS])
+    x = angle / (2.0 * np.pi) * n
+    x = x - n * np.floor(x / n)  # in [0, n)
+    i = int(np.floor(x))
+    if i >= n:  # round-off at the top
+        i = n - 1
+    frac = x - i
+    j = i + 1 if i + 1 < n else 0
+    return float((1.0 - frac) * a[FF_BINS + 1 + i] + frac * a[FF_BINS + 1 + j])
 
 
 @jitable

@@ -4,6 +4,7 @@
     F(θ̇) = (Fc + Fst exp(−(θ̇/vst)²)) tanh(θ̇/vs) + b θ̇      (Stribeck friction)
     τ̇ = (u_applied − τ) / T      (actuator lag T > 0; τ = u_applied when T = 0)
     d(t) = amplitude · sin(frequency · t)                  (paper eq. 6)
+    τ_cog(θ) = A cos(n θ + φ)      (``rig.cogging``: cogging, gear eccentricity; added to τ)
 
 Fst (``rig.stiction``, default 0) is the breakaway torque above Coulomb
 friction, decaying over the Stribeck velocity vst; with Fst = 0 the friction is
@@ -37,7 +38,7 @@ from esoarm._schema import Section, unit
 from esoarm.contract import PlantDesign, Vector, read_only
 from esoarm.plants.actuator import back_emf_damping
 from esoarm.plants.backlash import gear_torque
-from esoarm.plants.elementary import exp_neg, tanh
+from esoarm.plants.elementary import cos, exp_neg, tanh
 from esoarm.plants.model import gravity_coefficient, gravity_torque, input_gain
 
 if TYPE_CHECKING:
@@ -60,6 +61,8 @@ MOTOR = True
 RIG = True
 #: Models gear backlash (``rig.backlash_deg``, :mod:`esoarm.plants.backlash`).
 BACKLASH_MODEL = True
+#: Models a position-periodic torque (``rig.cogging``, :func:`cogging_torque`).
+COGGING_MODEL = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "lever_arm.c"
 
@@ -82,7 +85,10 @@ INERTIA, GCOEF, FC, VS, VISC, DAMP, DFREQ, LAG, FST, VST = range(10)
 #: Gear backlash (:mod:`esoarm.plants.backlash`): half-play α [rad], motor-side inertia Jm
 #: [kg·m²], contact stiffness k [N·m/rad] and damping c [N·m·s/rad]; α = 0: a rigid gear.
 BACKLASH, JM, KGEAR, CGEAR = range(10, 14)
-VECTOR_SIZE = 14
+#: Position-periodic torque τ_cog = A cos(n θ + φ) (``rig.cogging``): amplitude A [N·m],
+#: periods per revolution n, phase φ [rad]; A = 0: none.
+COG_AMP, COG_PERIODS, COG_PHASE = range(14, 17)
+VECTOR_SIZE = 17
 
 #: Runs per vector in :func:`advance_block` (8 doubles: AVX-512; a multiple of AVX2's 4).
 LANES = 8
@@ -107,6 +113,37 @@ def disturbance(t: float, rig: Vector) -> float:
         d(t) [rad/s²], added to θ̈.
     """
     return rig[DAMP] * math.sin(rig[DFREQ] * t)
+
+
+@jitable
+def cogging_torque(theta: float, amplitude: float, periods: float, phase: float) -> float:
+    """Position-periodic torque on the arm τ_cog = A cos(n θ + φ) [N·m].
+
+    Cogging of a permanent-magnet motor, gear eccentricity or a gravity-model error:
+    a torque that repeats n times per revolution of the arm.
+
+    Parameters
+    ----------
+    theta : float
+        Arm angle θ [rad].
+    amplitude : float
+        A [N·m], positive along increasing θ at n θ + φ = 0.
+    periods : float
+        n, periods per revolution [1].
+    phase : float
+        φ [rad].
+
+    Returns
+    -------
+    float
+        τ_cog [N·m] (the cos of :mod:`esoarm.plants.elementary`: same bits in every engine).
+
+    Examples
+    --------
+    >>> float(cogging_torque(0.0, 0.1, 6.0, 0.0))
+    0.1
+    """
+    return amplitude * cos(periods * theta + phase)
 
 
 @jitable
@@ -140,7 +177,10 @@ def rig_acceleration_at(theta: float, omega: float, tau: float, d: float,
         x = omega / rig[VST]
         coulomb = rig[FC] + rig[FST] * exp_neg(x * x)
     friction = coulomb * tanh(omega / rig[VS]) + rig[VISC] * omega
-    return (tau - gravity_torque(theta, rig[GCOEF]) - friction) / rig[INERTIA] + d
+    torque = tau
+    if len(rig) > COG_PHASE:  # a rig given with its cogging entries (see advance)
+        torque = tau + cogging_torque(theta, rig[COG_AMP], rig[COG_PERIODS], rig[COG_PHASE])
+    return (torque - gravity_torque(theta, rig[GCOEF]) - friction) / rig[INERTIA] + d
 
 
 @jitable
@@ -406,7 +446,7 @@ def geared_derivative_at(theta: float, omega: float, tau: float, theta_m: float,
     d : float
         Disturbance d(t) [rad/s²].
     rig : ndarray or tuple of float
-        The rig vector :attr:`RigParams.vector` (all 14 entries).
+        The rig vector :attr:`RigParams.vector` (all 17 entries).
 
     Returns
     -------
@@ -445,7 +485,7 @@ def geared_advance(theta: float, omega: float, tau: float, theta_m: float, omega
     nsub : int
         Number of RK4 steps.
     rig : ndarray or tuple of float
-        The rig vector :attr:`RigParams.vector` (all 14 entries).
+        The rig vector :attr:`RigParams.vector` (all 17 entries).
 
     Returns
     -------
@@ -511,6 +551,12 @@ class RigParams:
         Contact stiffness k [N·m/rad] (with backlash).
     gear_damping : float
         Contact damping c [N·m·s/rad] (with backlash).
+    cogging_amplitude : float
+        A of τ_cog = A cos(n θ + φ) [N·m]; 0 for none.
+    cogging_periods : float
+        n, periods per revolution [1].
+    cogging_phase : float
+        φ [rad].
     """
 
     inertia: float
@@ -527,6 +573,9 @@ class RigParams:
     motor_inertia: float = 1e-3
     gear_stiffness: float = 50.0
     gear_damping: float = 0.05
+    cogging_amplitude: float = 0.0
+    cogging_periods: float = 1.0
+    cogging_phase: float = 0.0
 
     @classmethod
     def from_scenario(cls, scn: Scenario) -> RigParams:
@@ -558,6 +607,9 @@ class RigParams:
             motor_inertia=r.motor_inertia,
             gear_stiffness=r.gear_stiffness,
             gear_damping=r.gear_damping,
+            cogging_amplitude=r.cogging.amplitude,
+            cogging_periods=float(r.cogging.periods),
+            cogging_phase=r.cogging.phase,
         )
 
     @cached_property
@@ -566,10 +618,10 @@ class RigParams:
 
         Returns
         -------
-        ndarray, shape (14,)
+        ndarray, shape (17,)
             Read-only (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s], b [N·m·s/rad],
             amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s],
-            α [rad], Jm [kg·m²], k [N·m/rad], c [N·m·s/rad]).
+            α [rad], Jm [kg·m²], k [N·m/rad], c [N·m·s/rad], cogging A [N·m], n, φ [rad]).
         """
         vec = np.array(
             [
@@ -587,6 +639,9 @@ class RigParams:
                 self.motor_inertia,
                 self.gear_stiffness,
                 self.gear_damping,
+                self.cogging_amplitude,
+                self.cogging_periods,
+                self.cogging_phase,
             ]
         )
         vec.setflags(write=False)
@@ -608,9 +663,9 @@ def design(scn: Scenario) -> PlantDesign:
     Returns
     -------
     PlantDesign
-        vector = (CODE, rig vector), x0 = (θ0 [rad], 0, 0) — with backlash
-        (θ0, 0, 0, θ0, 0), the motor side's angle and rate appended —, n_joints = 1,
-        b0 = 1/I0 [1/(kg·m²)] (the nominal inertia, not the rig's).
+        vector = (CODE, rig vector; its cogging entries only with cogging), x0 = (θ0 [rad],
+        0, 0) — with backlash (θ0, 0, 0, θ0, 0), the motor side's angle and rate
+        appended —, n_joints = 1, b0 = 1/I0 [1/(kg·m²)] (the nominal inertia, not the rig's).
 
     ``vector`` = (CODE, :attr:`RigParams.vector`); with a ``[motor]`` table the
     motor's back-EMF damping (N·Kt)²/R, which the actuator supplies
@@ -619,6 +674,8 @@ def design(scn: Scenario) -> PlantDesign:
     (:func:`esoarm.plants.motor.source_torque`) integrates the motor law.
     """
     rig = np.array(RigParams.from_scenario(scn).vector)
+    if rig[COG_AMP] == 0.0:  # no cogging: the vector without its entries (the kernels' width)
+        rig = rig[:COG_AMP]
     damping = back_emf_damping(scn)
     if damping is not None:
         rig[VISC] += damping
@@ -661,11 +718,18 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
     # quicker than NumPy scalars for the same IEEE operations; compiled, a no-op.
     th, om, ta, u0 = float(x[0]), float(x[1]), float(x[2]), float(u[0])
     if len(p) > 1 + BACKLASH and p[1 + BACKLASH] > 0.0:  # the two-mass drive train
-        rig14 = (float(p[1]), float(p[2]), float(p[3]), float(p[4]), float(p[5]),
-                 float(p[6]), float(p[7]), float(p[8]), float(p[9]), float(p[10]),
-                 float(p[11]), float(p[12]), float(p[13]), float(p[14]))
-        x[0], x[1], x[2], x[3], x[4] = geared_advance(th, om, ta, float(x[3]), float(x[4]),
-                                                      u0, t0, h, nsub, rig14)
+        if len(p) > 1 + COG_PHASE:
+            x[0], x[1], x[2], x[3], x[4] = geared_advance(th, om, ta, float(x[3]),
+                                                          float(x[4]), u0, t0, h, nsub,
+                                                          _full_rig(p))
+        else:
+            rig14 = (float(p[1]), float(p[2]), float(p[3]), float(p[4]), float(p[5]),
+                     float(p[6]), float(p[7]), float(p[8]), float(p[9]), float(p[10]),
+                     float(p[11]), float(p[12]), float(p[13]), float(p[14]))
+            x[0], x[1], x[2], x[3], x[4] = geared_advance(th, om, ta, float(x[3]),
+                                                          float(x[4]), u0, t0, h, nsub, rig14)
+    elif len(p) > 1 + COG_PHASE and p[1 + COG_AMP] != 0.0:  # cogging: the rig with its entries
+        x[0], x[1], x[2] = rig_advance(th, om, ta, u0, t0, h, nsub, _full_rig(p))
     elif p[1 + FST] == 0.0:
         rig8 = (float(p[1]), float(p[2]), float(p[3]), float(p[4]), float(p[5]),
                 float(p[6]), float(p[7]), float(p[8]))
@@ -674,6 +738,23 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
         rig = (float(p[1]), float(p[2]), float(p[3]), float(p[4]), float(p[5]),
                float(p[6]), float(p[7]), float(p[8]), float(p[9]), float(p[10]))
         x[0], x[1], x[2] = rig_advance(th, om, ta, u0, t0, h, nsub, rig)
+
+
+@jitable
+def _full_rig(p: np.ndarray) -> tuple[float, ...]:
+    """The whole rig vector of design vector ``p`` as a tuple (backlash and cogging entries)."""
+    # the cogging entries by a run-time index: a design vector the compiled engine hands over
+    # as a tuple zero-padded to its width (no cogging) still types (never called with it)
+    k = 1 + COG_AMP
+    return (float(p[1]), float(p[2]), float(p[3]), float(p[4]), float(p[5]), float(p[6]),
+            float(p[7]), float(p[8]), float(p[9]), float(p[10]), float(p[11]), float(p[12]),
+            float(p[13]), float(p[14]), _entry(p, k), _entry(p, k + 1), _entry(p, k + 2))
+
+
+@jitable
+def _entry(p: Vector, k: int) -> float:
+    """``p[k]`` as a float, k a run-time index."""
+    return float(p[k])
 
 
 @jitable
@@ -702,7 +783,9 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
     p : ndarray
         The design vector shared by the block, p[0] = CODE.
     """
-    if len(p) > 1 + BACKLASH and p[1 + BACKLASH] > 0.0:  # two masses: run by run
+    # (a vector zero-padded to the compiled engine's width has its entries but A = 0)
+    cogged = len(p) > 1 + COG_PHASE and p[1 + COG_AMP] != 0.0
+    if (len(p) > 1 + BACKLASH and p[1 + BACKLASH] > 0.0) or cogged:  # run by run
         for i in range(xs.shape[0]):
             if live[i]:
                 advance(xs[i], us[i], t0, h, nsub, p)

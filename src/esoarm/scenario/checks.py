@@ -109,6 +109,10 @@ def _check_drive(scn: Scenario, fail: Callable[[str, str], None]) -> None:
     """Gear backlash only on a plant kind that models it, with a step that resolves it;
     a PWM resolution only without a motor (whose pwm_max is the resolution)."""
     rig = scn.rig
+    if rig.cogging.amplitude > 0.0 and not getattr(_kinds.kinds_of(scn).plant, "COGGING_MODEL",
+                                                   False):
+        fail("rig.cogging.amplitude", f"plant.kind = '{scn.plant.kind}' does not model a "
+             "position-periodic torque (plant kinds that do: 'lever-arm'); set it to 0")
     if rig.backlash_deg > 0.0:
         plant = _kinds.kinds_of(scn).plant
         if not getattr(plant, "BACKLASH_MODEL", False):

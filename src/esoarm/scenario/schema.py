@@ -65,6 +65,16 @@ class Disturbance(_Section):
     )
 
 
+class Cogging(_Section):
+    """A position-periodic torque on the arm τ_cog = A cos(n θ + φ) (cogging, gear eccentricity)."""
+
+    amplitude: float = Field(0.0, ge=0, description="amplitude A (0: none)",
+                             json_schema_extra=_unit("N·m"))
+    periods: int = Field(1, ge=1, le=1000, description="n, periods per revolution of the arm",
+                         json_schema_extra=_unit("1"))
+    phase: float = Field(0.0, description="phase φ", json_schema_extra=_unit("rad"))
+
+
 class Rig(_Section):
     """The true system: the digital twin of the paper's rig (the sampled-data loop)."""
 
@@ -111,6 +121,7 @@ class Rig(_Section):
     step: float = Field(0.001, gt=0, description="RK4 step h", json_schema_extra=_unit("s"))
     theta0: float = Field(0.0, description="initial angle θ(0)", json_schema_extra=_unit("rad"))
     disturbance: Disturbance = Field(default_factory=Disturbance)
+    cogging: Cogging = Field(default_factory=Cogging)
 
 
 class Sensor(_Section):

@@ -21,8 +21,8 @@ import numpy as np
 
 from esoarm.scenario import Scenario, load_scenario
 
-__all__ = ["DELAY_AWARE", "FORMS", "PREVIEW", "FormResult", "compare", "delay_tolerance",
-           "form_keys"]
+__all__ = ["DELAY_AWARE", "FORMS", "PREVIEW", "ChipResult", "FormResult", "compare",
+           "delay_tolerance", "form_keys", "on_chip"]
 
 #: The forms by name: the scenario keys each sets.
 FORMS: dict[str, dict[str, Any]] = {
@@ -246,4 +246,61 @@ def _preview_errors(scn: Scenario, form: str, delays: Sequence[int],
             theta = np.asarray(res.theta).ravel()
             rms.append(float(np.sqrt(np.mean((theta - theta_ref[:len(theta)]) ** 2))))
         out[j] = float(np.mean(rms))
+    return out
+
+
+@dataclass(frozen=True)
+class ChipResult:
+    """One form's generated controller on an emulated chip (processor in the loop).
+
+    Attributes
+    ----------
+    form : str
+        The form's name.
+    median, maximum : int
+        Cycles (AVR) or executed instructions (Cortex-M4) per step.
+    flash, ram : int
+        The PIL image's flash and static RAM [bytes].
+    max_rel_du : float
+        max |u_chip − u_ref| / torque limit.
+    """
+
+    form: str
+    median: int
+    maximum: int
+    flash: int
+    ram: int
+    max_rel_du: float
+
+
+def on_chip(base: Scenario | str, forms: Sequence[str], target: str = "avr",
+            steps: int | None = None) -> list[ChipResult]:
+    """Each form's generated C on ``target`` in lockstep with the twin (``esoarm pil``).
+
+    Parameters
+    ----------
+    base : Scenario or str
+        The scenario.
+    forms : sequence of str
+        Names of :data:`FORMS`.
+    target : {"avr", "cortex-m4"}
+        The emulated chip.
+    steps : int, optional
+        Samples to run (default: the whole run).
+
+    Returns
+    -------
+    list of ChipResult
+        One per form, in order.
+    """
+    from esoarm.codegen.pil import run_pil
+
+    scn = _scenario(base, {})
+    out = []
+    for f in forms:
+        rep = run_pil(_scenario(scn, form_keys(f, scn)), target, steps=steps)
+        data = rep.as_dict()
+        out.append(ChipResult(f, int(data["cycles"]["median"]), int(data["cycles"]["max"]),
+                              int(data["flash_bytes"]), int(data["ram_bytes"]),
+                              float(data["max_rel_du"])))
     return out

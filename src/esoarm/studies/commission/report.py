@@ -174,12 +174,14 @@ def write_report(summary: dict[str, Any], path: Path, refused: dict[str, str] | 
                  f"{_f(ident['validation_fit_percent'], '.2f')} % on data not used for the "
                  f"fit; validation residual {'white' if ident['residual_white'] else 'NOT white'}"
                  f". Noise: {html.escape(ident['noise'])}.</p>")
-        rows = [[k, v["value"], f"[{_f(v['ci95'][0])}, {_f(v['ci95'][1])}]", v["unit"],
+        rows = [[k, v["value"], "withheld" if v["ci95"] is None
+                 else f"[{_f(v['ci95'][0])}, {_f(v['ci95'][1])}]", v["unit"],
                  "fitted" if v["fitted"] else "held"] for k, v in ident["parameters"].items()]
         p.append(_table(["key", "value", "95 % interval", "unit", ""], rows))
         for k, v in ident["parameters"].items():
-            if v.get("advice"):
-                p.append(f"<p class='note'>{html.escape(k)}: {html.escape(v['advice'])}.</p>")
+            for why in (v.get("withheld"), v.get("advice")):
+                if why:
+                    p.append(f"<p class='note'>{html.escape(k)}: {html.escape(why)}.</p>")
         if ident["poorly_identifiable"] or ident["at_bound"]:
             p.append(f"<p class='note'>Poorly determined: "
                      f"{html.escape(', '.join(ident['poorly_identifiable']) or 'none')}; at a "

@@ -132,7 +132,17 @@ def _load(scenario: Scenario | str | Path, overrides: dict | list[str] | None) -
 
 
 def motor_damping(scn: Scenario) -> float:
-    """The motor's back-EMF damping (N·Kt)²/R at the arm [N·m·s/rad]; 0 without ``[motor]``."""
+    """The motor's back-EMF damping (N·Kt)²/R at the arm [N·m·s/rad]; 0 without ``[motor]``.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario with the FLC.
+
+    Returns
+    -------
+    float
+    """
     motor = motor_of(scn)
     return 0.0 if motor is None else motor.damping
 
@@ -144,6 +154,25 @@ def continuous_plant(scn: Scenario, theta0: float, friction: str = "viscous"
     States (δθ, δθ̇) or, with an actuator lag T > 0, (δθ, δθ̇, δτ).  With a
     ``[motor]`` table the back-EMF damping :func:`motor_damping` is added to the
     friction's, and the input is the motor's source torque.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario with the FLC.
+    theta0 : float
+        Operating angle [rad].
+    friction : {"viscous", "slope", "none"}
+        Friction in the linear plant (module docstring).
+
+    Returns
+    -------
+    tuple of ndarray
+        (A, B, C).
+
+    Raises
+    ------
+    ValueError
+        An unknown friction model.
     """
     if friction not in FRICTION_MODELS:
         raise ValueError(f"friction must be one of {', '.join(FRICTION_MODELS)}; got {friction!r}")
@@ -190,7 +219,28 @@ def sampled_plant(scn: Scenario, theta0: float, friction: str = "viscous",
         x_{k+1} = Φ x_k + Γ0 u_{k−m} + Γ1 u_{k−m−1},
         Φ = e^{A Ts},  Γ0 = ∫0^{Ts−δ} e^{As} ds B,  Γ1 = e^{A (Ts−δ)} ∫0^δ e^{As} ds B,
 
-    the past inputs held in a shift register.  Returns (A, B, C, D) with D = 0.
+    the past inputs held in a shift register.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario with the FLC.
+    theta0 : float
+        Operating angle [rad].
+    friction : {"viscous", "slope", "none"}
+        Friction in the linear plant (module docstring).
+    extra_delay : float
+        Input delay [s] added to ``actuator.delay_samples``·Ts.
+
+    Returns
+    -------
+    Matrices
+        (A, B, C, D) with D = 0.
+
+    Raises
+    ------
+    ValueError
+        A delay that is negative or not finite.
     """
     ts = scn.sample_time
     a, b, c = continuous_plant(scn, theta0, friction)
@@ -247,7 +297,18 @@ def _reduced_gains(scn: Scenario, theta0: float) -> np.ndarray:
 
 
 def check_supported(scn: Scenario) -> None:
-    """Refuse, in one line, a scenario whose kinds this linearization does not model."""
+    """Refuse, in one line, a scenario whose kinds this linearization does not model.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A scenario.
+
+    Raises
+    ------
+    ScenarioError
+        One line naming the key whose kind is not modelled.
+    """
     if not can(scn, "RIG"):  # what the plant kind declares
         raise ScenarioError(
             f"plant.kind: the frequency-domain analysis models the lever arm (one joint), not "
@@ -267,6 +328,16 @@ def observer_linearization(scn: Scenario) -> ObserverLinearization:
     ------
     ScenarioError
         The kind declares none (not modelled): one line naming ``observer.kind``.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario.
+
+    Returns
+    -------
+    ObserverLinearization
+        (P, Q, Γ, Hz, Hy) of the kind at the scenario's Ts.
     """
     kind = kinds_of(scn).observer
     lin = hook(kind, "linearization")
@@ -281,9 +352,18 @@ def observer_linearization(scn: Scenario) -> ObserverLinearization:
 def observer_matrices(scn: Scenario) -> tuple[np.ndarray, ...]:
     """A 3-state observer of the scenario as z⁺ = P z + Q y + Γ u, ẑ = (I − M C) z + M y.
 
-    Returns (P, Q, Γ, M) as arrays of shapes (3,3), (3,1), (3,1), (3,1), from the
-    observer kind (:func:`observer_linearization`); for the nonlinear ESO, the loop
+    From the observer kind (:func:`observer_linearization`); for the nonlinear ESO, the loop
     for innovations |y − z1| ≤ δ (fal's linear zone).  Any kind: :func:`observer_model`.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario.
+
+    Returns
+    -------
+    tuple of ndarray
+        (P, Q, Γ, M), shapes (3,3), (3,1), (3,1), (3,1).
     """
     lin = observer_linearization(scn)
     return lin.p, lin.q, lin.gamma, lin.hy
@@ -293,14 +373,35 @@ def observer_model(scn: Scenario) -> tuple[np.ndarray, ...]:
     """Any observer kind as z⁺ = P z + Q y + Γ u, ẑ = Hz z + Hy y (one joint).
 
     The kind's ``linearization`` (:func:`observer_linearization`; the ESOs: Hz = I − M C,
-    Hy = M).  Returns (P, Q, Γ, Hz, Hy); Hz has 3 rows.
+    Hy = M).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario.
+
+    Returns
+    -------
+    tuple of ndarray
+        (P, Q, Γ, Hz, Hy); Hz has 3 rows.
     """
     lin = observer_linearization(scn)
     return lin.p, lin.q, lin.gamma, lin.hz, lin.hy
 
 
 def observer_system(scn: Scenario) -> Matrices:
-    """The observer alone: inputs (y [rad], u [N·m]), outputs ẑ = (ẑ1, ẑ2, ẑ3)."""
+    """The observer alone: inputs (y [rad], u [N·m]), outputs ẑ = (ẑ1, ẑ2, ẑ3).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario.
+
+    Returns
+    -------
+    Matrices
+        (A, B, C, D) of the observer.
+    """
     pmat, qmat, gam, hz, hy = observer_model(scn)
     return (pmat, np.hstack([qmat, gam]), hz, np.hstack([hy, np.zeros((3, 1))]))
 
@@ -310,6 +411,18 @@ def controller_matrices(scn: Scenario, theta0: float) -> Matrices:
 
     τ = u + Dm ẑ2 drives the plant (τ = u without a motor); the observer is
     updated with u (module docstring).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario with the FLC.
+    theta0 : float
+        Operating angle [rad].
+
+    Returns
+    -------
+    Matrices
+        (A, B, C, D) of K(z).
     """
     pmat, qmat, gam, zhat_z, zhat_y = observer_model(scn)  # ẑ = zhat_z z + zhat_y y
     kr = _reduced_gains(scn, theta0).reshape(1, 3)
@@ -335,7 +448,27 @@ def _series(first: Matrices, second: Matrices) -> Matrices:
 
 
 def closed_loop_matrix(plant: Matrices, controller: Matrices, gain: float = 1.0) -> np.ndarray:
-    """State matrix of the loop u = −gain · K y closed around the plant (D_plant = 0)."""
+    """State matrix of the loop u = −gain · K y closed around the plant (D_plant = 0).
+
+    Parameters
+    ----------
+    plant : Matrices
+        The sampled plant (A, B, C, D), input u [N·m], output θ [rad].
+    controller : Matrices
+        K(z), input y [rad], output −τ [N·m].
+    gain : float
+        The loop gain the controller is scaled by.
+
+    Returns
+    -------
+    ndarray
+        The closed loop's state matrix (plant states first).
+
+    Raises
+    ------
+    ValueError
+        A plant with a direct feedthrough.
+    """
     ap, bp, cp, dp = plant
     ak, bk, ck, dk = controller
     if np.any(dp):
@@ -350,7 +483,21 @@ def closed_loop_matrix(plant: Matrices, controller: Matrices, gain: float = 1.0)
 
 
 def closed_loop_radius(plant: Matrices, controller: Matrices, gain: float = 1.0) -> float:
-    """Spectral radius of the closed loop (< 1: stable, = 1: marginally stable)."""
+    """Spectral radius of the closed loop (< 1: stable, = 1: marginally stable).
+
+    Parameters
+    ----------
+    plant : Matrices
+        The sampled plant (A, B, C, D), input u [N·m], output θ [rad].
+    controller : Matrices
+        K(z), input y [rad], output −τ [N·m].
+    gain : float
+        The loop gain the controller is scaled by.
+
+    Returns
+    -------
+    float
+    """
     return float(np.max(np.abs(np.linalg.eigvals(closed_loop_matrix(plant, controller, gain)))))
 
 
@@ -386,7 +533,20 @@ class LinearLoop:
     motor_damping: float = 0.0
 
     def response(self, which: str, w: np.ndarray) -> np.ndarray:
-        """Frequency response of ``plant``, ``controller`` or ``loop`` at w [rad/s]."""
+        """Frequency response of ``plant``, ``controller`` or ``loop`` at w [rad/s].
+
+        Parameters
+        ----------
+        which : {"plant", "controller", "loop"}
+            The system.
+        w : ndarray
+            Frequencies [rad/s].
+
+        Returns
+        -------
+        ndarray of complex
+            The response at z = e^{jωTs}.
+        """
         return freqresp(getattr(self, which), np.exp(1j * np.asarray(w) * self.ts))
 
 
@@ -397,10 +557,18 @@ def linearize(scenario: Scenario | str | Path, overrides: dict | list[str] | Non
     Parameters
     ----------
     scenario : Scenario, str or Path
+        A scenario, a built-in name or a TOML file.
     overrides : dict or list of str, optional
+        Overrides of its keys.
     theta0 : float, optional
         Operating angle [rad]; default ``rig.theta0``.
     friction : {"viscous", "slope", "none"}
+        Friction in the linear plant (module docstring).
+
+    Returns
+    -------
+    LinearLoop
+        The sampled plant, the controller, the loop and the observer as matrices.
     """
     scn = _load(scenario, overrides)
     check_supported(scn)
@@ -412,7 +580,20 @@ def linearize(scenario: Scenario | str | Path, overrides: dict | list[str] | Non
 
 
 def freqresp(sys: Matrices, z: np.ndarray) -> np.ndarray:
-    """C (zI − A)⁻¹ B + D at the points z (first input, first output)."""
+    """C (zI − A)⁻¹ B + D at the points z (first input, first output).
+
+    Parameters
+    ----------
+    sys : Matrices
+        (A, B, C, D) of a discrete system.
+    z : ndarray of complex
+        The points.
+
+    Returns
+    -------
+    ndarray of complex
+        The response, shaped like ``z``.
+    """
     a, b, c, d = sys
     z = np.atleast_1d(np.asarray(z, dtype=complex))
     n = a.shape[0]
@@ -472,7 +653,15 @@ def to_control(scenario: Scenario | str | Path = "test-1",
     >>> bool(max(abs(cl.poles())) < 1)
     True
 
-    Parameters are those of :func:`linearize`.
+    Parameters
+    ----------
+    scenario, overrides, theta0, friction
+        As for :func:`linearize`.
+
+    Returns
+    -------
+    ControlLoop
+        The plant, the controller, the loop and the observer as ``control.StateSpace``.
     """
     control = _require_control()
     lin = linearize(scenario, overrides, theta0=theta0, friction=friction)
@@ -496,6 +685,16 @@ def perturbation_estimate(scn: Scenario) -> Matrices:
 
     f drives the sampled double integrator θ̈ = f (u = 0); Theorem 1's
     continuous ESO gives ẑ3/f = (1/ε)³/(s + 1/ε)³.
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario.
+
+    Returns
+    -------
+    Matrices
+        (A, B, C, D) from f to ẑ3.
     """
     ts = scn.sample_time
     a = np.array([[0.0, 1.0], [0.0, 0.0]])
@@ -514,6 +713,20 @@ def eso_closed_forms(eps: float, b0: float, s: np.ndarray) -> dict[str, np.ndarr
         ẑ1 = [(3a s² + 3a² s + a³) y + b0 s u] / D
         ẑ2 = [(3a² s² + a³ s) y + b0 (s² + 3a s) u] / D
         ẑ3 = a³ (s² y − b0 u) / D
+
+    Parameters
+    ----------
+    eps : float
+        ε [s].
+    b0 : float
+        The input gain b0 [1/(kg·m²)].
+    s : ndarray of complex
+        The points [1/s].
+
+    Returns
+    -------
+    dict of str to ndarray
+        The transfer functions above by name, each shaped like ``s``.
     """
     a = 1.0 / eps
     s = np.asarray(s, dtype=complex)
@@ -535,6 +748,24 @@ def critical_delay(scn: Scenario, theta0: float, friction: str = "viscous",
     and the closed loop's spectral radius is bisected to 1.  ``nan`` if the
     loop is unstable without extra delay or still stable at ``upper``
     (default 2 s).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A lever-arm scenario with the FLC.
+    theta0 : float
+        Operating angle [rad].
+    friction : {"viscous", "slope", "none"}
+        Friction in the linear plant (module docstring).
+    upper : float, optional
+        The largest delay tried [s] (default 2 s).
+    tol : float
+        The bisection's tolerance [s].
+
+    Returns
+    -------
+    float
+        The delay margin [s], or nan (see above).
     """
     ctl = controller_matrices(scn, theta0)
 

@@ -32,7 +32,18 @@ def _fmt(values: dict[float, float]) -> str:
 
 
 def check_claims(rep: Reproduction) -> list[Claim]:
-    """Check the paper's qualitative claims on the twin's runs."""
+    """Check the paper's qualitative claims on the twin's runs.
+
+    Parameters
+    ----------
+    rep : Reproduction
+        A finished reproduction (:func:`~esoarm.studies.reproduction.run.run_reproduction`).
+
+    Returns
+    -------
+    list of Claim
+        Each claim of the paper, whether the twin reproduces it, and the numbers behind it.
+    """
     claims: list[Claim] = []
     for test, table in TABLE_NAMES.items():
         err = {e: rep.metric(test, e, "rms_error") for e in EPS_SET}
@@ -81,6 +92,11 @@ def observer_checks(eps_values: tuple[float, ...], ts: float) -> list[ObserverCh
         ε values [s].
     ts : float
         Sample period Ts [s].
+
+    Returns
+    -------
+    list of ObserverCheck
+        Per ε and discretization: the poles placed against the poles wanted.
     """
     from esoarm.observers.stability import (
         analyze_observer,
@@ -122,6 +138,18 @@ def bound_checks(runs: dict[str, SimResult], t_from: float = CHECK_FROM) -> list
     loop with exact measurements; the runs are sampled at 50 Hz with
     quantization and noise, so a violation is possible and is reported as
     such.
+
+    Parameters
+    ----------
+    runs : dict of str to SimResult
+        The runs by key; those with ``controller.compensation = "eso"`` are checked.
+    t_from : float
+        Start of the checked window [s] (the transient before it is left out).
+
+    Returns
+    -------
+    list of BoundCheck
+        Per run: the bounds and the errors measured, and whether they hold.
     """
     from esoarm.observers.stability import estimation_error, theorem1_bound, tracking_l1_gain
 
@@ -167,6 +195,16 @@ def discretization_findings(rep: Reproduction) -> list[str]:
 
     Every sentence is built from the runs and the observer designs; nothing
     here is typed in by hand except the wording.
+
+    Parameters
+    ----------
+    rep : Reproduction
+        A finished reproduction (:func:`~esoarm.studies.reproduction.run.run_reproduction`).
+
+    Returns
+    -------
+    list of str
+        The findings, one sentence or a few each.
     """
     ts = rep.sample_time
     rate = 1.0 / ts

@@ -54,7 +54,21 @@ ABLATION_EPS = 0.09
 
 
 def run_id(test: str, eps: float, compensation: str = "eso") -> str:
-    """File-name-safe identifier of one experiment, e.g. ``test-1_eps0.09``."""
+    """File-name-safe identifier of one experiment, e.g. ``test-1_eps0.09``.
+
+    Parameters
+    ----------
+    test : str
+        The experiment's scenario (``test-1``, ``test-2``).
+    eps : float
+        ε [s].
+    compensation : str
+        ``controller.compensation`` ("eso", or "model" for the ablation).
+
+    Returns
+    -------
+    str
+    """
     suffix = "" if compensation == "eso" else f"_{compensation}"
     return f"{test}_eps{eps:g}{suffix}"
 
@@ -73,6 +87,16 @@ def table_metrics(res: SimResult) -> dict[str, float]:
     ``du_rms`` is the control roughness RMS(u_k − u_{k−1}) [N·m], the measure of
     the paper's "noisy control" claim; ``rate_est_rms`` and ``pert_est_rms`` the
     RMS errors of the rate and perturbation estimates (:mod:`esoarm.engines.metrics`).
+
+    Parameters
+    ----------
+    res : SimResult
+        One run.
+
+    Returns
+    -------
+    dict of str to float
+        The table's columns by name.
     """
     return {column: res.metrics[name] for column, name in RUN_COLUMNS}
 
@@ -171,7 +195,12 @@ class Reproduction:
     n_simulated_all: int = 0
 
     def runs_text(self) -> str:
-        """"N simulated runs", with the command's total when it ran more (the twins compared)."""
+        """"N simulated runs", with the command's total when it ran more (the twins compared).
+
+        Returns
+        -------
+        str
+        """
         text = f"{self.n_simulated} simulated runs"
         if self.n_simulated_all > self.n_simulated:
             text += (f" for these tables and claims ({self.n_simulated_all} in all, with the "
@@ -179,7 +208,24 @@ class Reproduction:
         return text
 
     def metric(self, test: str, eps: float, key: str, compensation: str = "eso") -> float:
-        """One metric of one experiment."""
+        """One metric of one experiment.
+
+        Parameters
+        ----------
+        test : str
+            The experiment's scenario.
+        eps : float
+            ε [s].
+        key : str
+            A column of :data:`RUN_COLUMNS`.
+        compensation : str
+            ``controller.compensation`` of the run.
+
+        Returns
+        -------
+        float
+            In the column's unit.
+        """
         return float(table_metrics(self.runs[run_id(test, eps, compensation)])[key])
 
     @property
@@ -188,7 +234,13 @@ class Reproduction:
         return next(iter(self.scenarios.values())).sample_time
 
     def comparison_rows(self) -> list[dict[str, Any]]:
-        """One row per (discretization, experiment): metrics of the comparison set."""
+        """One row per (discretization, experiment): metrics of the comparison set.
+
+        Returns
+        -------
+        list of dict
+            The discretization, the run, its test, ε [s], compensation and metrics.
+        """
         rows = []
         for disc, runs in self.comparison.items():
             for key, res in runs.items():
@@ -199,12 +251,23 @@ class Reproduction:
         return rows
 
     def sweep_rows(self) -> list[dict[str, Any]]:
-        """One row per (discretization, ε) of the sweep."""
+        """One row per (discretization, ε) of the sweep.
+
+        Returns
+        -------
+        list of dict
+            The discretization, the test, ε [s] and the metrics.
+        """
         return [{"discretization": disc, "test": SWEEP_TEST, "eps": eps, **table_metrics(res)}
                 for disc, runs in self.sweep.items() for eps, res in sorted(runs.items())]
 
     def to_json(self) -> dict[str, Any]:
-        """Tables, claims, checks, version and resolved scenarios, JSON-ready."""
+        """Tables, claims, checks, version and resolved scenarios, JSON-ready.
+
+        Returns
+        -------
+        dict
+        """
         return {
             "esoarm_version": __version__,
             "tables": self.rows,

@@ -32,7 +32,15 @@ __all__ = ["captions", "figure_specs", "write_outputs"]
 def figure_specs(rep: Reproduction) -> list[tuple[str, str, Callable[[], Any]]]:
     """(file stem, caption, draw) for every figure of a reproduction.
 
-    ``draw()`` returns a :class:`matplotlib.figure.Figure`.
+    Parameters
+    ----------
+    rep : Reproduction
+        A finished reproduction (:func:`~esoarm.studies.reproduction.run.run_reproduction`).
+
+    Returns
+    -------
+    list of tuple
+        (file stem, caption, draw); ``draw()`` returns a :class:`matplotlib.figure.Figure`.
     """
     from esoarm.plotting import run as plotting
 
@@ -82,7 +90,17 @@ def figure_specs(rep: Reproduction) -> list[tuple[str, str, Callable[[], Any]]]:
 
 
 def captions(rep: Reproduction) -> dict[str, str]:
-    """Caption of every figure of :func:`figure_specs`, by file stem."""
+    """Caption of every figure of :func:`figure_specs`, by file stem.
+
+    Parameters
+    ----------
+    rep : Reproduction
+        A finished reproduction (:func:`~esoarm.studies.reproduction.run.run_reproduction`).
+
+    Returns
+    -------
+    dict of str to str
+    """
     return {stem: caption for stem, caption, _ in figure_specs(rep)}
 
 
@@ -106,7 +124,10 @@ def write_outputs(rep: Reproduction, out_dir: str | Path,
     extra_sections : sequence of (id, title, HTML)
         Further report sections (see :func:`esoarm.studies.reproduction.report.render_report`).
 
-    Returns the written paths.
+    Returns
+    -------
+    list of Path
+        The files written.
     """
     from esoarm.plotting import run as plotting
 

@@ -157,6 +157,16 @@ def assumption_rows(scenarios: Mapping[str, Scenario]) -> list[tuple[str, str, s
     test-2), one row per distinct value names the scenarios that use it;
     ε and the compensation, which the experiments vary on purpose, are not
     assumptions and are not listed.
+
+    Parameters
+    ----------
+    scenarios : mapping of str to Scenario
+        The experiments' scenarios by run key.
+
+    Returns
+    -------
+    list of tuple of str
+        (key, value, unit, why), one row per key and distinct value.
     """
     units = _units()
     rows: list[tuple[str, str, str, str]] = []
@@ -178,6 +188,16 @@ def summary_text(rep: Reproduction) -> str:
 
     The ratio of the paper's RMS control to the twin's, the ε with the lowest
     RMS tracking error per test, and the claims reproduced and not.
+
+    Parameters
+    ----------
+    rep : Reproduction
+        A finished reproduction (:func:`~esoarm.studies.reproduction.run.run_reproduction`).
+
+    Returns
+    -------
+    str
+        The sentences, plain text (the caller escapes it for HTML).
     """
     from esoarm.studies.reproduction.data import EPS_SET, PAPER_TABLES, TABLE_NAMES
 

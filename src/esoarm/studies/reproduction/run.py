@@ -91,6 +91,15 @@ def experiment_set(overrides: list[str] | None = None) -> dict[str, Scenario]:
 
     ``overrides`` (``KEY=VALUE`` strings) apply to every experiment, e.g.
     ``["observer.discretization=zoh"]`` to repeat the set with another ESO.
+
+    Parameters
+    ----------
+    overrides : list of str, optional
+        ``KEY=VALUE`` applied to every experiment.
+
+    Returns
+    -------
+    dict of str to Scenario
     """
     out: dict[str, Scenario] = {}
     extra = list(overrides or [])
@@ -108,6 +117,15 @@ def baseline_set(overrides: list[str] | None = None) -> dict[str, Scenario]:
 
     Keyed ``baseline/<test>``; the controller table takes the baseline kind's
     defaults (for the PID: gains tuned on test-1).
+
+    Parameters
+    ----------
+    overrides : list of str, optional
+        ``KEY=VALUE`` applied to every run.
+
+    Returns
+    -------
+    dict of str to Scenario
     """
     extra = list(overrides or [])
     return {f"baseline/{test}": load_scenario(
@@ -145,6 +163,17 @@ def plan_runs(overrides: list[str] | None = None, compare: bool = True
     discretization comparison; ``"sweep/<disc>/<test>_eps<ε>"`` for the sweep.
     A run that repeats an earlier scenario exactly is left out (see
     :func:`_aliases`).
+
+    Parameters
+    ----------
+    overrides : list of str, optional
+        ``KEY=VALUE`` applied to every run.
+    compare : bool
+        Include the discretization comparison and the ε sweep.
+
+    Returns
+    -------
+    dict of str to Scenario
     """
     unique, _ = _aliases(_all_runs(overrides, compare))
     return unique
@@ -226,6 +255,11 @@ def run_reproduction(
         Called with the run key after each simulated run.
     compare : bool
         Also run the discretization comparison and the ε sweep.
+
+    Returns
+    -------
+    Reproduction
+        The runs, the tables, the claims and the theorems' checks.
     """
     planned = _all_runs(overrides, compare)
     unique, alias = _aliases(planned)

@@ -17,7 +17,7 @@ from esoarm._io import OutputError, atomic_path, describe_os_error, target_file,
 from esoarm.engines.metrics import METRICS
 
 if TYPE_CHECKING:
-    from esoarm.studies.sweeps.sweep import SweepGrid
+    from esoarm.studies.sweeps.grid import SweepGrid
 
 __all__ = ["DIVERGED_SHOWN", "SweepResult", "SweepWriter", "write_rows_atomic"]
 

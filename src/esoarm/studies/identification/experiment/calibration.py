@@ -83,7 +83,21 @@ class Rig:
 
 
 def draw_rig(seed: int) -> Rig:
-    """The twin of seed ``seed`` (see the module docstring for the prior)."""
+    """The twin of seed ``seed`` (see the module docstring for the prior).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the draw (with the stream tag 30); also the twin's ``sensor.seed`` modulo
+        100 000. Seeds from :data:`HELD_OUT_START` on are the held-out rigs.
+
+    Returns
+    -------
+    Rig
+        The drawn truth (friction in N·m and N·m·s/rad, noise and backlash in degrees, lag
+        in s, delay in samples, rate in Hz), the ``--set`` overrides of the twin and of
+        ``identify`` (rate and resolution only), and the keys the fit is judged on.
+    """
     rng = np.random.default_rng([seed, 30])
 
     def loguni(lo: float, hi: float) -> float:
@@ -144,7 +158,23 @@ def _esoarm(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess
 
 
 def run_rig(rig: Rig, workdir: Path | None = None) -> RigOutcome:
-    """Excite the twin of ``rig`` and identify it with the ``esoarm`` command (a subprocess)."""
+    """Excite the twin of ``rig`` and identify it with the ``esoarm`` command (a subprocess).
+
+    Parameters
+    ----------
+    rig : Rig
+        The drawn twin (:func:`draw_rig`): ``esoarm excite test-1 --twin`` runs with its
+        overrides for min(60 s, :data:`MAX_SAMPLES` / rate), then ``esoarm identify --json``.
+    workdir : pathlib.Path, optional
+        Folder for the temporary log (default: the system's temporary folder); removed after.
+
+    Returns
+    -------
+    RigOutcome
+        ``excite-failed`` or ``refused`` with the last stderr line as the reason, or the
+        verdict of :func:`classify`; ``seconds`` is identify's wall time [s] and
+        ``stuck_share`` the share of samples the true arm did not move [1].
+    """
     env = dict(os.environ)
     env.setdefault("MPLBACKEND", "Agg")
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
@@ -183,7 +213,24 @@ def _stuck_share(log: Path) -> float:
 
 
 def classify(rig: Rig, data: dict) -> RigOutcome:
-    """Sort an exit-0 ``identify --json`` answer for ``rig`` (see the module docstring)."""
+    """Sort an exit-0 ``identify --json`` answer for ``rig`` (see the module docstring).
+
+    Parameters
+    ----------
+    rig : Rig
+        The twin whose log was identified (its truth and judged keys).
+    data : dict
+        The parsed ``esoarm identify --json`` output (its ``parameters``: value, ci95,
+        fitted, withheld, identifiable, at_bound per key, in the key's own unit).
+
+    Returns
+    -------
+    RigOutcome
+        Verdict ``wrong`` when a written 95 % interval misses its truth, else ``flagged``
+        when a missed truth is named in words (withheld, poorly determined, at a bound), else
+        ``recovered``; per judged key (truth, value, lo, hi, written), and the keys missed
+        and flagged.
+    """
     params: dict[str, tuple[float, float, float, float, bool]] = {}
     missed: list[str] = []
     flagged: list[str] = []
@@ -206,7 +253,22 @@ def classify(rig: Rig, data: dict) -> RigOutcome:
 
 def summary(outcomes: list[RigOutcome]) -> dict[str, float]:
     """Counts of each class, shares [%] of the rigs that reached identify (not those whose
-    excitation stopped), and the coverage of the written intervals [%]."""
+    excitation stopped), and the coverage of the written intervals [%].
+
+    Parameters
+    ----------
+    outcomes : list of RigOutcome
+        One per rig run (:func:`run_rig`, or :func:`from_json`).
+
+    Returns
+    -------
+    dict of str to float
+        ``rigs``, ``identified`` (rigs whose excitation finished), the count of each verdict
+        (``recovered``, ``refused``, ``flagged``, ``wrong``, ``excite-failed``), each of the
+        first four as ``<verdict>_percent`` of the identified rigs [%],
+        ``intervals_written`` and ``coverage_percent``: the share of written 95 % intervals
+        that contain their truth [%].
+    """
     n = len(outcomes)
     count = {v: sum(o.verdict == v for o in outcomes)
              for v in ("recovered", "refused", "flagged", "wrong", "excite-failed")}
@@ -222,7 +284,20 @@ def summary(outcomes: list[RigOutcome]) -> dict[str, float]:
 
 
 def from_json(items: list[dict]) -> list[RigOutcome]:
-    """Outcomes back from the ``--json`` dump of the benchmark (the rigs redrawn by seed)."""
+    """Outcomes back from the ``--json`` dump of the benchmark (the rigs redrawn by seed).
+
+    Parameters
+    ----------
+    items : list of dict
+        The dump's outcomes: ``seed``, ``verdict``, ``exit``, ``reason``, ``params`` (key ->
+        [truth, value, lo, hi, written]), ``missed``, ``flagged``, ``seconds`` [s] and
+        ``stuck`` [1].
+
+    Returns
+    -------
+    list of RigOutcome
+        One per item, in order, its :class:`Rig` redrawn from the seed by :func:`draw_rig`.
+    """
     return [RigOutcome(draw_rig(int(o["seed"])), o["verdict"], int(o["exit"]), o["reason"],
                        {k: tuple(v) for k, v in o["params"].items()}, list(o["missed"]),
                        list(o["flagged"]), float(o["seconds"]), float(o["stuck"]))

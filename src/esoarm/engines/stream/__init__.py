@@ -27,35 +27,35 @@ from __future__ import annotations
 import math
 import signal
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from esoarm import _limits
-from esoarm._jit import jitable
-from esoarm.engines.loop import borrowed, borrowed_designs, keep_alive
-from esoarm.engines.metrics import ERR, METRICS, NROW, OM, SAT, Z2, Z3, F, U, combine_joints
-from esoarm.engines.sample import (
-    Designs,
-    Sampling,
-    Steps,
-    advance_plant_into,
-    command_into,
-    log_sample,
-    sense_into,
-    start_into,
-    update_observer_into,
+from esoarm.engines.metrics import (
+    ERR,
+    METRICS,
+    NROW,
+    OM,
+    SAT,
+    Z2,
+    Z3,
+    F,
+    MetricsTable,
+    U,
+    combine_joints,
 )
-from esoarm.plants.actuator import delayed_input
+from esoarm.engines.sample import Sampling
+from esoarm.engines.stream.block import stream_block
 from esoarm.plants.noise import NoiseStream, noise_model
 from esoarm.reference import reference_rows
 from esoarm.result import SimResult
 from esoarm.scenario import Scenario
 
 __all__ = ["BLOCK", "PYTHON_BLOCK", "STREAM_SAMPLES", "StreamInterrupted", "StreamedRun",
-           "stream", "stream_block", "streamed_metrics", "worth_compiling"]
+           "stream", "stream_block", "streamed_metrics", "with_long_runs", "worth_compiling"]
 
 #: Samples per block when the block runs compiled (~0.1 s at 1-2 µs per sample).
 BLOCK = 1 << 16
@@ -65,84 +65,6 @@ PYTHON_BLOCK = 1 << 12
 #: ``esoarm simulate`` streams runs of more samples than this (memory: the reference engine
 #: keeps ~200 bytes per sample; time: the compiled blocks are ~50 times quicker).
 STREAM_SAMPLES = _limits.STREAM_SAMPLES
-
-
-@jitable
-def stream_block(log: np.ndarray, x: np.ndarray, noise: np.ndarray, refs: np.ndarray,
-                 k0: int, off: int, m: int, y: np.ndarray, u: np.ndarray, drive: np.ndarray,
-                 applied: np.ndarray, duty: np.ndarray, sat: np.ndarray, acc: np.ndarray,
-                 v: np.ndarray, z: np.ndarray, zhat: np.ndarray, c: np.ndarray,
-                 hist: np.ndarray, sg: Sampling, d: Designs, s: Steps) -> int:
-    """Samples k0 … k0+m−1 of one run, each exactly as in :func:`~esoarm.engines.loop.closed_loop`.
-
-    The block's arrays hold sample k in column (or draw) ``k − k0 + off``: ``off`` is 0
-    for the first block and 1 after it, so that a kind that treats sample 0 apart (the
-    PID's first difference) sees index 0 only at k = 0.  Time is the run's, t_k = k·Ts.
-    The transport delay's drives are ``hist``: from index 0 in the first block, after
-    the previous block's last ``delay`` drives (copied to its front) in the next ones.
-
-    Parameters
-    ----------
-    log : ndarray, shape (len(LOG_ROWS)·joints, ≥ off + m)
-        The block's log.
-    x : ndarray
-        Plant state at t_k0, advanced in place to t_{k0+m}.
-    noise : ndarray ((off + m)·joints,)
-        The block's noise draws (joint index fastest).
-    refs : ndarray, shape (3·joints, ≥ off + m)
-        θd, θ̇d, θ̈d of the block's samples [rad, rad/s, rad/s²].
-    k0, off, m : int
-        First sample of the block, its column offset (0 or 1) and its length.
-    y, u, drive, applied, duty, sat, acc, v, z, zhat, c : ndarray
-        The run's state and scratch arrays (:class:`esoarm.engines.sample.Work`), carried
-        from the previous block.
-    hist : ndarray ((delay + m)·joints,)
-        The drives of the transport delay (see above).
-    sg : Sampling
-        Timing and sensor of the run.
-    d : Designs
-        The kinds' and the actuator's parameter vectors.
-    s : Steps
-        The kinds' step functions.
-
-    Returns
-    -------
-    int
-        m, or −(i+1) if the run diverged at sample k0 + i (its row, column i + off, logged).
-    """
-    nj = len(y)
-    owner = (log, x, noise, refs, y, u, drive, applied, duty, sat, acc, v, z, zhat, c, hist)
-    log, x, noise, refs = borrowed(log), borrowed(x), borrowed(noise), borrowed(refs)
-    y, u, drive, applied, duty, sat = (borrowed(y), borrowed(u), borrowed(drive),
-                                       borrowed(applied), borrowed(duty), borrowed(sat))
-    acc, v, z, zhat, c, hist = (borrowed(acc), borrowed(v), borrowed(z), borrowed(zhat),
-                                borrowed(c), borrowed(hist))
-    d = borrowed_designs(d)
-    if k0 == 0:
-        sense_into(y, x, noise, 0, sg)
-        start_into(z, c, y, d, s)
-    b0 = d.b0
-    for i in range(m):
-        k = k0 + i
-        col = i + off
-        sense_into(y, x, noise, col, sg)
-        command_into(y, u, drive, duty, sat, z, zhat, c, col, refs, d, s)
-        # steps 3-5 (esoarm.engines.sample.respond_into), the log and the delay indexed
-        # within the block, time t_k = k·Ts the run's
-        delayed_input(hist, k if k0 == 0 else i + sg.delay, sg.delay, drive, applied)
-        s.plant_acceleration(x, applied, k * sg.ts, d.plant, acc)
-        s.plant_observer_input(zhat, u, d.plant, v)
-        ok = True
-        for j in range(nj):
-            ok = log_sample(log, col, j, nj, x, refs[3 * j, col], u[j], zhat,
-                            acc[j] - b0[j] * v[j], y[j], sat[j]) and ok
-        if not ok:
-            keep_alive(owner)
-            return -(i + 1)
-        update_observer_into(z, zhat, y, v, d, s)
-        advance_plant_into(x, applied, k, sg, d.plant, s.plant_advance)
-    keep_alive(owner)
-    return m
 
 
 # ---------------------------------------------------------------------------
@@ -302,7 +224,7 @@ def _compiled_runner(inp: Any) -> Callable[..., int] | None:
     """The compiled block for these inputs, or None where the kinds do not compile."""
     if not inp.kinds.jit:
         return None
-    from esoarm.engines import _stream_kernels as kernels
+    from esoarm.engines.stream import kernels
 
     return kernels.runner(inp)
 
@@ -469,6 +391,61 @@ def streamed_metrics(scn: Scenario) -> dict[str, float]:
         return stream(scn, compiled=worth_compiling(scn)).metrics
     except SimulationDiverged as exc:
         return dict(exc.metrics)  # type: ignore[attr-defined]
+
+
+def with_long_runs(run_metrics: Callable[..., MetricsTable], points: Sequence[Scenario],
+                   seeds: Sequence[int] | None = None, **kwargs: Any) -> MetricsTable:
+    """``run_metrics(points, seeds, **kwargs)``, every run longer than
+    :data:`STREAM_SAMPLES` samples streamed instead (:func:`streamed_metrics`).
+
+    An engine's kernel keeps a run's whole log (~90 bytes a sample); a long run here is
+    run block by block in constant memory, with the same metrics.  The engines do not
+    call this module themselves (it is above them: it runs their step functions), so a
+    caller that may meet long runs (a sweep, a tune) routes its engine through here.
+
+    Parameters
+    ----------
+    run_metrics : callable
+        An engine's ``run_metrics(points, seeds, **kwargs)`` (the exact, reference or
+        fast engine's), used for the runs that are not long.
+    points : sequence of Scenario
+        Validated scenarios.
+    seeds : sequence of int, optional
+        Noise seeds for each point (point-major, seed fastest); default each point's own.
+    **kwargs
+        Passed on to ``run_metrics``; ``progress`` (if given) is also called with 1 after
+        each streamed run.
+
+    Returns
+    -------
+    MetricsTable
+        One row per run, columns :data:`~esoarm.engines.metrics.METRICS`, in the order
+        ``run_metrics`` gives.
+    """
+    long = [scn.n_samples > STREAM_SAMPLES for scn in points]
+    if not any(long):
+        return run_metrics(points, seeds, **kwargs)
+    seed_list: list[int | None] = [None] if seeds is None else [int(s) for s in seeds]
+    per = len(seed_list)
+    out = np.empty((len(points) * per, len(METRICS)))
+    short = [i for i, is_long in enumerate(long) if not is_long]
+    if short:
+        values = run_metrics([points[i] for i in short], seeds, **kwargs).values
+        for j, i in enumerate(short):
+            out[i * per:(i + 1) * per] = values[j * per:(j + 1) * per]
+    progress = kwargs.get("progress")
+    for i, is_long in enumerate(long):
+        if not is_long:
+            continue
+        for k, seed in enumerate(seed_list):
+            scn = points[i]
+            if seed is not None and seed != scn.sensor.seed:
+                scn = scn.with_overrides({"sensor.seed": seed})
+            got = streamed_metrics(scn)
+            out[i * per + k] = [got[name] for name in METRICS]
+            if progress is not None:
+                progress(1)
+    return MetricsTable(out)
 
 
 def worth_compiling(scn: Scenario) -> bool | None:

@@ -113,7 +113,7 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
                        "--onboard (the rig firmware without it runs no observer)")
     sums = sums or "auto"
     if target == "cortex-m4":
-        from esoarm.cli.hil_cortex_m import hil_cortex_m
+        from esoarm.cli.board.hil_cortex_m import hil_cortex_m
 
         hil_cortex_m(scenario, overrides, faults, realtime, elf, onboard, sums, once)
         return

@@ -24,8 +24,9 @@ from esoarm.cli._common import (
 @click.command()
 @scenario_argument
 @set_option
-@click.option("--port", metavar="PATH", help="Serial device of the rig (the Uno with the rig "
-              "firmware for the excitation; the on-board build for the run).")
+@click.option("--port", metavar="PATH", help="Serial device of the rig: an Uno with the rig "
+              "firmware for the excitation; the on-board build is then written to it through "
+              "its bootloader (avrdude) for the run.")
 @click.option("--hil", is_flag=True, help="Commission the simulated Uno (simavr, the scenario's "
               "twin on its pins) instead of a rig: the same steps, flashing loads the simulated "
               "chip.")

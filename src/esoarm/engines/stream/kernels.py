@@ -1,7 +1,8 @@
 """The compiled block of :mod:`esoarm.engines.stream` (imports numba; loaded on first use).
 
-:func:`esoarm.engines.stream.stream_block` compiled with the registry's dispatch
-functions (:func:`esoarm.engines.batch._records`), cached on disk and keyed on
+:func:`esoarm.engines.stream.block.stream_block` compiled with the registry's dispatch
+functions (:func:`esoarm.engines.batch._records`, vectors as tuples or arrays:
+:class:`esoarm.engines.batch.VectorsAs`), cached on disk and keyed on
 the physics sources like the batch kernels.
 """
 
@@ -15,9 +16,9 @@ from numba import njit
 
 from esoarm import kinds as _kinds
 from esoarm.engines import batch as _batch
-from esoarm.engines.batch import _records, _records_wide
+from esoarm.engines.batch import ARRAYS, TUPLES, _records
 from esoarm.engines.packing import VECTOR_WIDTH, _stack
-from esoarm.engines.stream import stream_block
+from esoarm.engines.stream.block import stream_block
 
 _batch.cover_with_physics_stamp(__file__)
 
@@ -25,17 +26,9 @@ __all__ = ["runner"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _block(log, x, noise, refs, k0, off, m, y, u, drive, applied, duty, sat, acc, v, z, zhat,
+def _block(how, log, x, noise, refs, k0, off, m, y, u, drive, applied, duty, sat, acc, v, z, zhat,
            c, hist, n, fpar, ipar, b0, pp, op, cp, ap):  # pragma: no cover - compiled
-    sg, d, s = _records(n, fpar, ipar, b0, pp, op, cp, ap)
-    return stream_block(log, x, noise, refs, k0, off, m, y, u, drive, applied, duty, sat, acc,
-                        v, z, zhat, c, hist, sg, d, s)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _block_wide(log, x, noise, refs, k0, off, m, y, u, drive, applied, duty, sat, acc, v, z,
-                zhat, c, hist, n, fpar, ipar, b0, pp, op, cp, ap):  # pragma: no cover - compiled
-    sg, d, s = _records_wide(n, fpar, ipar, b0, pp, op, cp, ap)
+    sg, d, s = _records(how, n, fpar, ipar, b0, pp, op, cp, ap)
     return stream_block(log, x, noise, refs, k0, off, m, y, u, drive, applied, duty, sat, acc,
                         v, z, zhat, c, hist, sg, d, s)
 
@@ -64,11 +57,11 @@ def runner(inp: Any) -> Callable[..., int]:
                zip((inp.plant.vector, inp.observer.vector, inp.controller.vector, inp.actuator),
                    VECTOR_WIDTH, strict=True)]
     wide = any(len(vec) > w for vec, w in zip(vectors, VECTOR_WIDTH, strict=True))
-    kernel = _block_wide if wide else _block
+    how = ARRAYS if wide else TUPLES
     b0 = np.asarray(inp.plant.b0, dtype=float)
     n = 0  # Sampling.n: not used by the sample functions
 
     def run(*args: Any) -> int:
-        return int(kernel(*args, n, fpar, ipar, b0, *vectors))  # type: ignore[call-arg]
+        return int(_block(how, *args, n, fpar, ipar, b0, *vectors))  # type: ignore[call-arg]
 
     return run

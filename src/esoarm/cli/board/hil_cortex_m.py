@@ -20,7 +20,27 @@ def _say(line: str) -> None:
 
 def hil_cortex_m(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...],
                  realtime: bool, elf: str | None, onboard: bool, sums: str, once: bool) -> None:
-    """Serve the on-board Cortex-M4 firmware of ``scenario`` until stopped (see ``esoarm hil``)."""
+    """Serve the on-board Cortex-M4 firmware of ``scenario`` until stopped (see ``esoarm hil``).
+
+    Parameters
+    ----------
+    scenario : str
+        A built-in scenario's name or a TOML file.
+    overrides : tuple of str
+        ``KEY=VALUE`` items of ``--set``.
+    faults : tuple of str
+        ``--fault`` items: refused here (the on-board run takes its faults from ``esoarm run``).
+    realtime : bool
+        ``--realtime``: refused here (QEMU runs in lockstep with the twin).
+    elf : str, optional
+        ``--elf``: refused here (the firmware is built from the scenario).
+    onboard : bool
+        ``--onboard``: required (the chip runs the generated controller).
+    sums : {"auto", "compensated", "plain"}
+        The observer's float32 sums (auto: compensated, the FPU makes them cheap).
+    once : bool
+        Stop after one run (when the motor is off again, or the device faulted).
+    """
     from esoarm.codegen import CodegenError
     from esoarm.codegen.cortex_m_onboard import m4_onboard_firmware
     from esoarm.hardware.hil.build import ToolchainMissing

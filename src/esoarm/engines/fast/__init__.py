@@ -54,7 +54,7 @@ import numpy as np
 from esoarm._limits import STREAM_SAMPLES
 from esoarm.controllers import flc as _ctl
 from esoarm.engines import packing as _packing
-from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache
+from esoarm.engines.metrics import METRICS, MetricsTable, NoiseCache, _chunked_metrics, _renumbered
 from esoarm.engines.simulation import DIVERGENCE_LIMIT
 from esoarm.kinds import hook, kinds_of
 from esoarm.observers import linear as _obs
@@ -277,6 +277,11 @@ def unsupported(scn: Scenario) -> str | None:
         return f"rig.disturbance.kind = {kind!r}"
     if getattr(scn.rig, "stiction", 0.0) != 0.0:
         return "rig.stiction > 0 (Stribeck friction)"
+    cogging = getattr(scn.rig, "cogging", None)
+    if cogging is not None and cogging.amplitude != 0.0:
+        return "rig.cogging.amplitude > 0 (a position-periodic torque)"
+    if getattr(scn.controller, "feedforward_map", None):
+        return "controller.feedforward_map (a learned feedforward table)"
     return None
 
 
@@ -427,9 +432,10 @@ def run_metrics(
         # a run this long keeps its whole log in the kernel's memory; the exact engine
         # streams it block by block (esoarm.engines.stream), in constant memory
         from esoarm.engines import batch as _batch
+        from esoarm.engines.stream import with_long_runs
 
-        return _batch.run_metrics(points, seeds, workers=workers, chunk=chunk,
-                                  progress=progress, _noise_cache=_noise_cache)
+        return with_long_runs(_batch.run_metrics, points, seeds, workers=workers, chunk=chunk,
+                              progress=progress, _noise_cache=_noise_cache)
     try:
         lib = load_kernel()
     except FastEngineUnavailable as exc:
@@ -444,18 +450,11 @@ def run_metrics(
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     nthreads = workers or _default_workers()
-    if seeds is None:
-        runs = [(i, scn.sensor.seed) for i, scn in enumerate(points)]
-    else:
-        runs = [(i, int(s)) for i in range(len(points)) for s in seeds]
-    out = np.empty((len(runs), len(METRICS)))
     noise_cache = _noise_cache or NoiseCache()
-    for start in range(0, len(runs), chunk):
-        part = runs[start : start + chunk]
-        used = sorted({pi for pi, _ in part})
-        local = {pi: j for j, pi in enumerate(used)}
-        chunk_points = [points[pi] for pi in used]
-        pack = _packing._pack(chunk_points, [(local[pi], s) for pi, s in part], noise_cache)
+
+    def run_chunk(part: list[tuple[int, int]]) -> np.ndarray:
+        used, local = _renumbered(part)
+        pack = _packing._pack([points[pi] for pi in used], local, noise_cache)
         res = _run_pack(lib, pack, nthreads)
         bad = np.flatnonzero(res[:, METRICS.index("diverged")] != 0.0)
         if len(bad):  # diverged: the exact engine gives the partial metrics
@@ -463,10 +462,9 @@ def run_metrics(
             from esoarm.engines import batch as _batch
 
             res[bad] = _batch.run_metrics(again, workers=workers).values
-        out[start : start + len(part)] = res
-        if progress is not None:
-            progress(len(part))
-    return MetricsTable(out)
+        return res
+
+    return _chunked_metrics(points, seeds, chunk, progress, run_chunk)
 
 
 if __name__ == "__main__":  # pragma: no cover - manual check: python -m esoarm.engines.fast

@@ -188,13 +188,26 @@ class ExcitationController:
     def set_signal(self, k: int, exc: float, ref: float, dref: float) -> None:
         """Replace e(t_k) [N·m], θc(t_k) [rad] and θ̇c(t_k) [rad/s] before :meth:`step` ``k``.
 
-        (The breakaway probe of :mod:`esoarm.studies.identification.probe` decides its
+        (The breakaway probe of :mod:`esoarm.studies.identification.experiment.probe` decides its
         torque and the multisine's scale as the run goes.)
         """
         self._exc[k], self._ref[k], self._dref[k] = float(exc), float(ref), float(dref)
 
     def step(self, k: int, y: float) -> float:
-        """Torque u_k [N·m] (saturated) from the measured angle y_k [rad]."""
+        """Torque u_k [N·m] (saturated) from the measured angle y_k [rad].
+
+        Parameters
+        ----------
+        k : int
+            Sample index.
+        y : float
+            Measured angle y_k [rad].
+
+        Returns
+        -------
+        float
+            The saturated torque u_k [N·m].
+        """
         zhat = self._obs.estimate(y)
         self.zhat = (float(zhat[0]), float(zhat[1]), float(zhat[2]))
         p = self.plan
@@ -202,11 +215,28 @@ class ExcitationController:
         return float(saturate(u, self.torque_limit))
 
     def commit(self, u: float) -> None:
-        """Advance the observer with the torque u_k [N·m] applied from t_k on."""
+        """Advance the observer with the torque u_k [N·m] applied from t_k on.
+
+        Parameters
+        ----------
+        u : float
+            The torque applied [N·m].
+        """
         self._obs.observe(u)
 
     def predict(self, u: float) -> tuple[float, float, float]:
-        """Bridge a missing sample (the observer kind's ``predict``); return the estimate used."""
+        """Bridge a missing sample (the observer kind's ``predict``).
+
+        Parameters
+        ----------
+        u : float
+            The torque applied from t_k on [N·m].
+
+        Returns
+        -------
+        tuple of float
+            The estimate used for the missing sample [rad, rad/s, rad/s²].
+        """
         zhat = self._obs.bridge(u)
         return float(zhat[0]), float(zhat[1]), float(zhat[2])
 

@@ -76,7 +76,7 @@ def codegen(scenario: str, overrides: tuple[str, ...], target: str | None, out: 
     from esoarm.codegen import CodegenError, generate, write_sources
 
     if project is not None:
-        from esoarm.cli.codegen_project import write_project
+        from esoarm.cli.board.codegen_project import write_project
 
         if out is None or library is not None:
             raise BadInput("--project stm32 writes into --out DIR (not --arduino-library)")
