@@ -36,7 +36,7 @@ from esoarm.hardware.excite import excite_twin
 from esoarm.scenario import load_scenario
 from esoarm.studies.identification import fit as identify_fit
 from esoarm.studies.identification.data import read_ident_log
-from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.experiment.excitation import ExcitationPlan
 from esoarm.studies.identification.identify import IdentResult, identify
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

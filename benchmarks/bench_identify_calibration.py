@@ -1,7 +1,8 @@
 """Calibration of ``esoarm identify`` on seeded twins drawn over wide ranges.
 
-Each rig is drawn by :func:`esoarm.studies.identification.calibration.draw_rig` (the prior
-is documented there), excited with ``esoarm excite test-1 --twin`` (the default plan) and
+Each rig is drawn by
+:func:`esoarm.studies.identification.experiment.calibration.draw_rig` (the prior is
+documented there), excited with ``esoarm excite test-1 --twin`` (the default plan) and
 fitted with ``esoarm identify LOG --json`` as a user would run them, each a command of its
 own. Rigs are sorted into recovered, refused, flagged and confidently wrong, and the
 coverage of the written 95 % intervals is counted.
@@ -27,7 +28,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from esoarm.studies.identification.calibration import (
+from esoarm.studies.identification.experiment.calibration import (
     HELD_OUT_START,
     RigOutcome,
     draw_rig,
@@ -123,10 +124,10 @@ def main() -> None:
                  f"{elapsed / 60:.0f} min so far.{partial}"
                  + (f" {args.note}" if args.note else ""), "",
                  "Each rig is a twin of test-1 drawn from the prior of "
-                 "`esoarm.studies.identification.calibration` (inertia 0.5-2×, viscous friction "
-                 "0.1-10×, Coulomb friction 0 to 1.5× the excitation's 0.2 N·m RMS, stiction, "
-                 "backlash, white and coloured encoder noise, vibration, lag, delay 0-3 "
-                 "samples, PWM resolution, gravity offset, 50 Hz to 1 kHz), excited with "
+                 "`esoarm.studies.identification.experiment.calibration` (inertia 0.5-2×, "
+                 "viscous friction 0.1-10×, Coulomb friction 0 to 1.5× the excitation's 0.2 N·m "
+                 "RMS, stiction, backlash, white and coloured encoder noise, vibration, lag, "
+                 "delay 0-3 samples, PWM resolution, gravity offset, 50 Hz to 1 kHz), excited with "
                  "`esoarm excite test-1 --twin` (the default plan; above 200 Hz shortened to "
                  "12000 samples) and fitted with `esoarm identify LOG --json --set "
                  "sensor.rate_hz=… --set sensor.resolution_deg=…` (what a user knows of the "
@@ -164,7 +165,7 @@ def main() -> None:
         return o
 
     if args.from_json:
-        from esoarm.studies.identification.calibration import from_json
+        from esoarm.studies.identification.experiment.calibration import from_json
 
         done.extend(from_json(json.loads(Path(args.from_json).read_text(encoding="utf-8"))))
         args.json_out = ""

@@ -5,12 +5,15 @@ Run:  python benchmarks/bench_pil.py [--update docs/on-the-chip.md]
 1. Cycles per kind × target × precision, measured processor in the loop
    (:func:`esoarm.codegen.pil.run_pil`) over the whole ``uno-rig`` run (50 Hz,
    motor: torque -> duty) -- ATmega328P at 16 MHz in simavr (cycles), Cortex-M4 on
-   QEMU's mps2-an386 (an instruction-count proxy: QEMU models no cycle counter) --
+   QEMU's mps2-an386 and the Cortex-M0+ build (soft float) on QEMU's microbit, whose
+   nRF51 Cortex-M0 runs the same ARMv6-M instructions (both an instruction-count
+   proxy: QEMU models no cycle counter) --
    plus a *forced* worst case: the same chip fed 400 samples that jump ±0.6 rad
    every 4 samples, which drives the innovation past δ (fal's ``pow`` branch) with
    both signs, saturates the command both ways and crosses the motor's deadband.
    "% of 1 kHz" is the larger of the two maxima over one 1 kHz sample period at
-   the chip's clock (16 000 cycles; 25 000 at the mps2's 25 MHz).
+   the chip's clock (16 000 cycles; 16 000 instructions at the microbit's 16 MHz;
+   25 000 at the mps2's 25 MHz).
 2. Precision: worst |Δu| of the generated float32 code against the Python
    float64 reference over the test-1 run (the first 5 s at 10 kHz; an ideal torque
    source, so no duty rounding is involved; host build, lockstep with the twin),
@@ -20,7 +23,10 @@ Run:  python benchmarks/bench_pil.py [--update docs/on-the-chip.md]
 Everything is counted on the emulated chips, so the numbers do not depend on the
 machine that runs the benchmark (the cycles table names it and its load anyway).
 With ``--update`` the tables replace the text between the
-``<!-- bench_pil:NAME -->`` and ``<!-- /bench_pil:NAME -->`` markers.
+``<!-- bench_pil:NAME -->`` and ``<!-- /bench_pil:NAME -->`` markers; with
+``--targets`` (e.g. ``--targets cortex-m0plus --only cycles``) only those
+targets' rows are measured and replace theirs in the file's table, the other
+rows are kept as they were measured.
 """
 
 from __future__ import annotations
@@ -61,12 +67,15 @@ KINDS = [
 ]
 #: (target, precision, compensated observer sums); avr-gcc's double is 32 bits, so the
 #: AVR has no float64 row (``codegen`` refuses it), its plain sums are listed instead.
-TARGETS = [("avr", "float32", True), ("avr", "float32", False), ("cortex-m4", "float32", True),
+TARGETS = [("avr", "float32", True), ("avr", "float32", False), ("cortex-m0plus", "float32", True),
+           ("cortex-m0plus", "float64", False), ("cortex-m4", "float32", True),
            ("cortex-m4", "float64", False)]
 
 
 #: label substrings of the rows to measure (--kinds; empty: every row)
 ONLY_KINDS: list[str] = []
+#: targets to measure (--targets; empty: every target)
+ONLY_TARGETS: list[str] = []
 
 
 def machine() -> str:
@@ -120,6 +129,8 @@ def cycles_table() -> str:
             continue
         scn = load_scenario("uno-rig", over)
         for target, precision, comp in TARGETS:
+            if ONLY_TARGETS and target not in ONLY_TARGETS:
+                continue
             gen = generate(scn, target, precision, comp)
             chip = open_chip(gen)
             try:
@@ -172,6 +183,43 @@ def precision_table() -> str:
     return "\n".join(rows)
 
 
+def _row_key(line: str) -> tuple[str, ...]:
+    """(kind, target, precision, sums) of a cycles-table row."""
+    return tuple(c.strip() for c in line.strip().strip("|").split("|")[:4])
+
+
+def merge_rows(old: str, new: str) -> str:
+    """``old`` cycles table with the rows of ``new``'s targets replaced (or added) by
+    ``new``'s, in KINDS × TARGETS order; ``old``'s machine line is kept and ``new``'s is
+    added for those targets' rows (replacing an earlier one for the same targets)."""
+    old_lines = old.splitlines()
+    old_rows = [ln for ln in old_lines if ln.startswith("| ") and "---" not in ln][1:]
+    new_lines = new.splitlines()
+    new_rows = [ln for ln in new_lines if ln.startswith("| ") and "---" not in ln][1:]
+    fresh = {_row_key(r)[1] for r in new_rows}
+    tag = f"The {', '.join(sorted(fresh))} rows: "
+    machine_lines = [ln for ln in old_lines[:old_lines.index(new_lines[2])]
+                     if ln and not ln.startswith(tag)]
+    machine_lines.append(tag + new_lines[0])
+    rows = {_row_key(r): r for r in old_rows if _row_key(r)[1] not in fresh}
+    rows.update({_row_key(r): r for r in new_rows})
+    order: dict[tuple[str, ...], int] = {
+        (label, target, precision, "compensated" if comp else "plain"): i
+        for i, (label, target, precision, comp) in enumerate(
+            (lb, *tg) for lb, _ in KINDS for tg in TARGETS)}
+    body = sorted(rows.values(), key=lambda r: order.get(_row_key(r), len(order)))
+    return "\n\n".join(machine_lines) + "\n\n" + "\n".join(new_lines[2:4] + body)
+
+
+def current(path: Path, name: str) -> str:
+    """The text between ``name``'s markers in ``path``."""
+    text = path.read_text(encoding="utf-8")
+    m = re.search(rf"<!-- bench_pil:{name} -->\n(.*?)\n<!-- /bench_pil:{name} -->", text, re.S)
+    if m is None:
+        raise SystemExit(f"{path}: no <!-- bench_pil:{name} --> markers")
+    return m.group(1)
+
+
 def update(path: Path, name: str, table: str) -> None:
     text = path.read_text(encoding="utf-8")
     pattern = re.compile(rf"(<!-- bench_pil:{name} -->\n).*?(\n<!-- /bench_pil:{name} -->)",
@@ -188,13 +236,23 @@ def main() -> None:
     parser.add_argument("--only", choices=["cycles", "precision"])
     parser.add_argument("--kinds", default="", help="comma-separated label substrings: measure "
                         "only those rows (printed; the markers are not updated)")
+    parser.add_argument("--targets", default="", help="comma-separated targets: measure only "
+                        "their rows (with --update they replace those rows, the rest is kept)")
     args = parser.parse_args()
     ONLY_KINDS.extend(k for k in args.kinds.split(",") if k)
+    ONLY_TARGETS.extend(k for k in args.targets.split(",") if k)
+    known = {t for t, _, _ in TARGETS}
+    if set(ONLY_TARGETS) - known:
+        raise SystemExit(f"--targets: one of {', '.join(sorted(known))}")
     if ONLY_KINDS and args.update:
         raise SystemExit("--kinds measures a part of the table: print it, do not --update")
+    if ONLY_TARGETS and args.only != "cycles":
+        raise SystemExit("--targets applies to the cycles table: add --only cycles")
     tables = {}
     if args.only in (None, "cycles"):
         tables["cycles"] = cycles_table()
+        if ONLY_TARGETS and args.update:
+            tables["cycles"] = merge_rows(current(args.update, "cycles"), tables["cycles"])
     if args.only in (None, "precision"):
         tables["precision"] = precision_table()
     for name, table in tables.items():

@@ -26,7 +26,7 @@ from pathlib import Path
 from esoarm.hardware.excite import excite_twin
 from esoarm.scenario import ScenarioError, load_scenario
 from esoarm.studies.identification.data import read_ident_log
-from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.experiment.excitation import ExcitationPlan
 from esoarm.studies.identification.identify import FitFailed, identify
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,7 +10,7 @@ from pathlib import Path
 from esoarm.hardware.excite import excite_twin
 from esoarm.scenario import load_scenario
 from esoarm.studies.identification.data import read_ident_log
-from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.experiment.excitation import ExcitationPlan
 from esoarm.studies.identification.identify import identify
 from esoarm.studies.identification.plots import figure_identification
 from esoarm.studies.identification.report import scenario_toml

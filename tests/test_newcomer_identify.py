@@ -14,7 +14,7 @@ def lever_log(tmp_path_factory) -> Path:
     """A 20 s excitation log of test-1's twin (the columns of 'esoarm excite')."""
     from esoarm.hardware.excite import excite_twin
     from esoarm.scenario import load_scenario
-    from esoarm.studies.identification.excitation import ExcitationPlan
+    from esoarm.studies.identification.experiment.excitation import ExcitationPlan
 
     path = tmp_path_factory.mktemp("newcomer") / "ex.csv"
     excite_twin(load_scenario("test-1"), ExcitationPlan(duration=20.0, seed=1), path)

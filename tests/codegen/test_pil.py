@@ -160,7 +160,7 @@ def test_instruction_proxy_matches_qemus_exec_trace(tmp_path) -> None:
     proxy = []
     try:
         for y in (0.0, 0.01, 0.6, -0.6, 0.6, 0.002, -0.3, 0.0):  # in and out of fal's zone
-            proc.stdin.write(struct.pack("<f", y))
+            proc.stdin.write(struct.pack("<4f", y, 0.0, 0.0, 0.0))  # y, (θd, θ̇d, θ̈d)
             proc.stdin.flush()
             (ticks,) = struct.unpack("<I", proc.stdout.read(16)[12:])
             proxy.append(round(ticks * (1e9 / CLOCK_HZ) / 2 ** shift))  # as the chip

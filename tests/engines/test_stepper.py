@@ -65,7 +65,10 @@ def test_excite_estimates_match_simulate_for_the_same_observer():
     excitation controller's observer with that y and u gives simulate's z columns.
     """
     from esoarm.engines.simulation import simulate
-    from esoarm.studies.identification.excitation import ExcitationController, ExcitationPlan
+    from esoarm.studies.identification.experiment.excitation import (
+        ExcitationController,
+        ExcitationPlan,
+    )
 
     for kind in ("nonlinear", "cascade"):
         scn = load_scenario("test-1", {"observer.kind": kind, "duration": 3.0})
@@ -82,7 +85,10 @@ def test_excite_estimates_match_simulate_for_the_same_observer():
 
 def test_excite_lost_sample_uses_the_kinds_predict():
     """A lost sample in the guard loop is bridged by the observer kind (finite, bounded)."""
-    from esoarm.studies.identification.excitation import ExcitationController, ExcitationPlan
+    from esoarm.studies.identification.experiment.excitation import (
+        ExcitationController,
+        ExcitationPlan,
+    )
 
     scn = load_scenario("test-1", {"observer.kind": "cascade"})
     ctl = ExcitationController(scn, ExcitationPlan(duration=2.0))

@@ -160,14 +160,14 @@ def test_sweep_metrics_of_a_long_run_are_streamed(python_blocks, monkeypatch):
     from esoarm.engines import simulation
     from esoarm.engines.metrics import METRICS
 
-    monkeypatch.setattr(simulation, "STREAM_SAMPLES", 100)
+    monkeypatch.setattr(streaming, "STREAM_SAMPLES", 100)
     calls = []
     real = streaming.stream
     monkeypatch.setattr(streaming, "stream", lambda scn, **kw: calls.append(scn) or real(scn,
                                                                                          **kw))
     ok = load_scenario("test-1", {"duration": 4.0})
     bad = load_scenario("test-1", {"duration": 4.0, "observer.eps": 0.001})
-    table = simulation.reference_metrics([ok, bad])
+    table = streaming.with_long_runs(simulation.reference_metrics, [ok, bad])
     assert len(calls) == 2
     ref_ok = run_reference(ok, prepare(ok)).metrics
     with pytest.raises(SimulationDiverged) as info:
@@ -208,3 +208,19 @@ def test_only_runs_worth_the_compile_are_compiled():
     long = load_scenario("test-1", {"duration": 1.1e4})
     assert streaming.worth_compiling(short) is False
     assert streaming.worth_compiling(long) is None
+
+
+def test_long_runs_keep_their_place_among_short_ones_and_seeds(python_blocks, monkeypatch):
+    """with_long_runs: the streamed rows land where the engine would put them
+    (point-major, seed fastest), the short runs go to the engine, progress counts all."""
+    from esoarm.engines import simulation
+
+    monkeypatch.setattr(streaming, "STREAM_SAMPLES", 100)
+    pts = [load_scenario("test-1", {"duration": d}) for d in (1.0, 3.0, 1.5)]  # 50, 150, 75
+    done = []
+    table = streaming.with_long_runs(simulation.reference_metrics, pts, [0, 3],
+                                     progress=done.append)
+    whole = simulation.reference_metrics(pts, [0, 3])
+    assert table.values.shape == whole.values.shape == (6, whole.values.shape[1])
+    np.testing.assert_allclose(table.values, whole.values, rtol=RTOL)
+    assert sum(done) == 6

@@ -12,8 +12,8 @@ import pytest
 from esoarm.hardware.excite import excite_twin
 from esoarm.hardware.logfile import read_log_columns
 from esoarm.scenario import load_scenario
-from esoarm.studies.identification.excitation import ExcitationPlan
-from esoarm.studies.identification.probe import (
+from esoarm.studies.identification.experiment.excitation import ExcitationPlan
+from esoarm.studies.identification.experiment.probe import (
     BREAKAWAY_FACTOR,
     HEADER_KEYS,
     MotionStats,

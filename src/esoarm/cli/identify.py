@@ -89,7 +89,7 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
     line ('# esoarm excite: key=value ...'). Feed the log to 'esoarm identify'.
     """
     from esoarm.hardware.realtime import SafetyLimits
-    from esoarm.studies.identification.excitation import ExcitationPlan, plan_text
+    from esoarm.studies.identification.experiment.excitation import ExcitationPlan, plan_text
 
     plan = ExcitationPlan(duration=duration, amplitude=amplitude, f_min=f_min, f_max=f_max,
                           n_tones=tones, sweep=sweep, sweep_period=sweep_period, kp=kp, kd=kd,
@@ -101,7 +101,7 @@ def excite(scenario: str, overrides: tuple[str, ...], port: str | None, twin: bo
     scn = resolve_scenario(scenario, overrides)
     lever_only(scn, "excite")
     plan.check(scn.sample_time)
-    from esoarm.studies.identification.probe import ProbingExcitation, probe_text
+    from esoarm.studies.identification.experiment.probe import ProbingExcitation, probe_text
 
     limits = SafetyLimits(angle_limit=angle_limit, max_jump=max_jump, watchdog=watchdog)
     ctl = ProbingExcitation(scn, plan, probe)
@@ -422,7 +422,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
                    as_json, cutoff=None, input_unit="") -> None:
     """``identify`` for plant.kind = "axis": IDIM-LS, output error beside it (SI units)."""
     from esoarm.scenario import ScenarioError
-    from esoarm.studies.identification.axis_identify import (
+    from esoarm.studies.identification.axis.identify import (
         AxisFitRefused,
         identify_axis,
         physical_names,
@@ -443,7 +443,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     except AxisFitRefused as exc:
         raise RunFailure(str(exc)) from None
     if input_unit:  # u in volts (or counts): every printed unit follows
-        from esoarm.studies.identification.axis_identify import unit_of as _unit
+        from esoarm.studies.identification.axis.identify import unit_of as _unit
 
         for name, e in res.physical.items():
             e["unit"] = _unit(scn.plant.motion, name, input_unit)
@@ -476,7 +476,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     if as_json:
         click.echo(json.dumps(res.to_json()))
         return
-    from esoarm.studies.identification.axis_identify import unit_of
+    from esoarm.studies.identification.axis.identify import unit_of
 
     motion = scn.plant.motion
     lines = [f"axis '{scn.name}' ({motion}), IDIM-LS on {', '.join(res.fit_logs)}:"]

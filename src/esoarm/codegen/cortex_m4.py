@@ -78,24 +78,30 @@ class CortexM4Chip:
 
     timing = "instructions (QEMU -icount proxy; no cycle counter is modelled)"
     clock_hz = CLOCK_HZ
+    #: ``gen.target`` this chip runs, QEMU's machine, and a name for messages.
+    target_name, machine, chip_name = "cortex-m4", "mps2-an386", "Cortex-M4"
 
     def __init__(self, gen: Generated, timeout: float = 10.0,
                  icount_shift: int = ICOUNT_SHIFT) -> None:
-        if gen.target != "cortex-m4":
-            raise ValueError("CortexM4Chip needs code generated for --target cortex-m4")
-        self.target, self.precision = "cortex-m4", gen.precision
+        if gen.target != self.target_name:
+            raise ValueError(f"{type(self).__name__} needs code generated for "
+                             f"--target {self.target_name}")
+        self.target, self.precision = self.target_name, gen.precision
         self._fmt = "<f" if gen.precision == "float32" else "<d"
         self._size = struct.calcsize(self._fmt)
-        self.elf = m4_image(gen)
+        self.elf = self._image(gen)
         self.flash_bytes, self.ram_bytes = image_sizes(self.elf, "arm-none-eabi-size")
         self.timeout = timeout
         self.shift = icount_shift
         self.cycles: list[int] = []
         self._proc: subprocess.Popen[bytes] | None = subprocess.Popen(
-            [tool("qemu-system-arm"), "-M", "mps2-an386", "-display", "none", "-monitor",
+            [tool("qemu-system-arm"), "-M", self.machine, "-display", "none", "-monitor",
              "none", "-serial", "stdio", "-icount", f"shift={icount_shift}", "-kernel",
              str(self.elf)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL)
+
+    def _image(self, gen: Generated) -> Path:
+        return m4_image(gen)
 
     def _read(self, n: int) -> bytes:
         assert self._proc is not None and self._proc.stdout is not None
@@ -104,7 +110,8 @@ class CortexM4Chip:
         while len(buf) < n:
             ready, _, _ = select.select([fd], [], [], self.timeout)
             if not ready:
-                raise RuntimeError(f"the Cortex-M4 did not answer within {self.timeout:g} s")
+                raise RuntimeError(f"the {self.chip_name} did not answer within "
+                                   f"{self.timeout:g} s")
             chunk = os.read(fd, n - len(buf))
             if not chunk:
                 raise RuntimeError("QEMU exited")
@@ -120,7 +127,7 @@ class CortexM4Chip:
         raw = self._read(3 * self._size + 4)
         u, drive, duty = struct.unpack(self._fmt[0] + 3 * self._fmt[1], raw[:3 * self._size])
         (ticks,) = struct.unpack("<I", raw[3 * self._size:])
-        self.cycles.append(round(ticks * (1e9 / CLOCK_HZ) / 2 ** self.shift))
+        self.cycles.append(round(ticks * (1e9 / self.clock_hz) / 2 ** self.shift))
         return u, drive, duty
 
     def close(self) -> None:

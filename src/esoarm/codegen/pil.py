@@ -31,6 +31,10 @@ def open_chip(gen: Generated) -> Chip:
         from esoarm.codegen.cortex_m4 import CortexM4Chip
 
         return CortexM4Chip(gen)
+    if gen.target == "cortex-m0plus":
+        from esoarm.codegen.cortex_m0 import CortexM0PlusChip
+
+        return CortexM0PlusChip(gen)
     from esoarm.codegen.host import HostChip
 
     return HostChip(gen)
@@ -118,7 +122,7 @@ def run_pil(scn: Scenario, target: str, precision: str = "float32",
     ----------
     scn : Scenario
         One-joint scenario whose kinds have C.
-    target : {"avr", "cortex-m4", "host"}
+    target : {"avr", "cortex-m0plus", "cortex-m4", "host"}
         The emulated chip.
     precision : {"float32", "float64"}
         Of the generated code.

@@ -63,7 +63,6 @@ from numba.extending import (
 
 from esoarm import _jit
 from esoarm import kinds as _kinds
-from esoarm._limits import STREAM_SAMPLES
 from esoarm.engines import loop as _loop
 from esoarm.engines.loop import closed_loop, closed_loop_block
 from esoarm.engines.metrics import (
@@ -577,22 +576,10 @@ def run_metrics(
         nruns = len(points) * (1 if seeds is None else len(seeds))
         series = (blocked and nruns <= SERIES_RUNS
                   and not _loaded(_blocked_metrics_kernel, TUPLES))
-    # a long run (more than STREAM_SAMPLES samples) block by block, in constant memory: a
-    # kernel here keeps its whole log (~90 bytes a sample)
-    long = [points[pi].n_samples > STREAM_SAMPLES for pi in range(len(points))]
-
     def run_chunk(part: list[tuple[int, int]]) -> np.ndarray:
         res = np.empty((len(part), NMETRIC))
-        jit_idx = [i for i, (pi, _) in enumerate(part) if compiled[pi] and not long[pi]]
-        py_idx = [i for i, (pi, _) in enumerate(part) if not compiled[pi] and not long[pi]]
-        for i, (pi, seed) in enumerate(part):
-            if long[pi]:
-                from esoarm.engines.stream import streamed_metrics
-
-                scn = points[pi]
-                scn = scn.with_overrides({"sensor.seed": seed}) if seed != scn.sensor.seed else scn
-                got = streamed_metrics(scn)
-                res[i] = [got[name] for name in METRICS]
+        jit_idx = [i for i, (pi, _) in enumerate(part) if compiled[pi]]
+        py_idx = [i for i, (pi, _) in enumerate(part) if not compiled[pi]]
         if jit_idx:
             res[jit_idx] = _compiled_metrics(points, [part[i] for i in jit_idx], noise_cache,
                                              series, blocked, workers)

@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from esoarm._limits import STREAM_SAMPLES
 from esoarm.contract import ComponentDesign, PlantDesign
 from esoarm.engines.loop import DIVERGENCE_LIMIT, closed_loop, within_limits
 from esoarm.engines.metrics import METRICS, NROW, SAT, MetricsTable
@@ -494,17 +493,11 @@ def reference_metrics(
                 for scn in points for s in seeds]
     out = np.empty((len(runs), len(METRICS)))
     for i, scn in enumerate(runs):
-        if scn.n_samples > STREAM_SAMPLES:  # a long run: block by block, in constant memory
-            from esoarm.engines.stream import streamed_metrics
-
-            metrics = streamed_metrics(scn)
-            out[i] = [metrics[name] for name in METRICS]
-        else:
-            try:
-                res = run_reference(scn, prepare(scn))
-            except SimulationDiverged as exc:  # the partial run's metrics, diverged = 1
-                res = exc.result
-            out[i] = [res.metrics[name] for name in METRICS]
+        try:
+            res = run_reference(scn, prepare(scn))
+        except SimulationDiverged as exc:  # the partial run's metrics, diverged = 1
+            res = exc.result
+        out[i] = [res.metrics[name] for name in METRICS]
         if progress is not None:
             progress(1)
     return MetricsTable(out)

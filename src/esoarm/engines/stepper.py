@@ -4,7 +4,7 @@ The compiled loops (:mod:`esoarm.engines.loop`) run whole runs; everything that
 takes one sample at a time -- the Gymnasium environment
 (:mod:`esoarm.envs.lever_arm`), the rig's host controller
 (:mod:`esoarm.hardware.host_control`), ``excite``'s guard loop
-(:mod:`esoarm.studies.identification.excitation`), ``replay``
+(:mod:`esoarm.studies.identification.experiment.excitation`), ``replay``
 (:mod:`esoarm.hardware.replay`) and the PIL reference (through the host
 controller) -- holds a :class:`Stepper`.  It is the only caller of a kind's step
 functions outside the compiled loops, and it calls them through the sample

@@ -1,8 +1,8 @@
 """Run an identification experiment (``esoarm excite``) on a rig or on the twin.
 
 On a rig the experiment goes through :func:`esoarm.hardware.realtime.run_rig` with an
-:class:`~esoarm.studies.identification.excitation.ExcitationController` in place of the FLC, so
-it has every safety check of ``esoarm run`` (torque limit, angle limit, encoder
+:class:`~esoarm.studies.identification.experiment.excitation.ExcitationController` in
+place of the FLC, so it has every safety check of ``esoarm run`` (torque limit, angle limit, encoder
 jump, watchdog, NaN guard, STOP on any fault) and the same streamed, flushed log.
 
 On the twin (:func:`excite_twin`) the same controller drives the emulator's
@@ -25,7 +25,7 @@ from esoarm.hardware.emulator import Twin
 from esoarm.hardware.host_control import SampleController
 from esoarm.hardware.realtime import LOG_COLUMNS, RunSummary, SafetyLimits, _LogWriter, _Stop
 from esoarm.scenario import Scenario
-from esoarm.studies.identification.excitation import ExcitationController, ExcitationPlan
+from esoarm.studies.identification.experiment.excitation import ExcitationController, ExcitationPlan
 
 __all__ = ["TWIN_LOG_COLUMNS", "ExcitationFault", "ExcitationInterrupted", "excite_twin",
            "finish_log"]
@@ -73,8 +73,8 @@ def excite_twin(scn: Scenario, plan: ExcitationPlan | None, log_path: Path | Non
         Rows logged, RMS of u [N·m].
     preview : dict
         ``max_abs_theta`` [rad], ``rms_u`` [N·m], ``saturated`` (fraction of samples);
-        with a :class:`~esoarm.studies.identification.probe.ProbingExcitation` also
-        ``probe``, its :class:`~esoarm.studies.identification.probe.ProbeReport`, which
+        with a :class:`~esoarm.studies.identification.experiment.probe.ProbingExcitation` also
+        ``probe``, its :class:`~esoarm.studies.identification.experiment.probe.ProbeReport`, which
         is then written as the log's first line as well (:func:`finish_log`).
 
     Raises
@@ -172,7 +172,7 @@ def _finish(controller: object, log_path: Path | None) -> Any:
         return None
     report = finish()
     if log_path is not None and Path(log_path).exists():
-        from esoarm.studies.identification.probe import write_header
+        from esoarm.studies.identification.experiment.probe import write_header
 
         try:
             write_header(log_path, report)

@@ -441,7 +441,7 @@ def run_rig(scn: Scenario, link: SerialLink, log_path: Path | None = None,
         What computes u_k from y_k (``step``, ``commit``, ``predict``, ``zhat``,
         ``reference``, ``t``, ``n_samples``, ``ts``, ``torque_limit``); default the
         scenario's ESO + FLC.  The identification experiment passes its
-        :class:`~esoarm.studies.identification.excitation.ExcitationController`.
+        :class:`~esoarm.studies.identification.experiment.excitation.ExcitationController`.
     monitor : callable, optional
         Receives every log row (the CSV line of :data:`LOG_COLUMNS`) as it is
         written, e.g. :meth:`esoarm.hardware.scope.Scope.push`; it must not block.

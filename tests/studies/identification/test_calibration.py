@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from esoarm.studies.identification.calibration import (
+from esoarm.studies.identification.experiment.calibration import (
     HELD_OUT_START,
     classify,
     draw_rig,

@@ -17,7 +17,7 @@ from esoarm.hardware.excite import TWIN_LOG_COLUMNS, excite_twin
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import load_scenario
 from esoarm.studies.identification.data import read_ident_log
-from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.experiment.excitation import ExcitationPlan
 from esoarm.studies.identification.identify import identify
 
 #: True rigs (scenario overrides of test-1) and the nominal scenario given to the fit.

@@ -13,7 +13,7 @@ import pytest
 
 from esoarm.hardware.excite import excite_twin
 from esoarm.scenario import load_scenario
-from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.experiment.excitation import ExcitationPlan
 from esoarm.studies.identification.fit import PARAMS
 
 

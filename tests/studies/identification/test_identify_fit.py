@@ -10,7 +10,7 @@ from esoarm.hardware.excite import excite_twin
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import load_scenario
 from esoarm.studies.identification.data import read_ident_log, simulate_segments
-from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.experiment.excitation import ExcitationPlan
 from esoarm.studies.identification.fit import PARAMS, Problem
 from esoarm.studies.identification.identify import _values
 

@@ -14,7 +14,7 @@ from esoarm.hardware.excite import excite_twin
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import ScenarioError, load_scenario
 from esoarm.studies.identification.data import MAX_SATURATED, read_ident_log
-from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.experiment.excitation import ExcitationPlan
 
 #: A weak motor: 50 · 0.02 N·m/A · 2 V / 2 Ω = 1 N·m at full duty, below the 2 N·m torque
 #: limit, so a strong excitation drives the duty to ±pwm_max while |u| stays below the limit.

@@ -15,7 +15,7 @@ import pytest
 from esoarm.hardware.excite import excite_twin
 from esoarm.scenario import ScenarioError, load_scenario
 from esoarm.studies.identification.data import read_ident_log
-from esoarm.studies.identification.excitation import ExcitationPlan
+from esoarm.studies.identification.experiment.excitation import ExcitationPlan
 from esoarm.studies.identification.identify import FitFailed, identify
 from esoarm.studies.identification.lever_checks import lever_idim
 

@@ -90,7 +90,7 @@ def test_identify_writes_an_ar_noise_only_when_it_is_one(tmp_path, truth_sets: d
     from esoarm.hardware.excite import excite_twin
     from esoarm.scenario import load_scenario
     from esoarm.studies.identification.data import read_ident_log
-    from esoarm.studies.identification.excitation import ExcitationPlan
+    from esoarm.studies.identification.experiment.excitation import ExcitationPlan
     from esoarm.studies.identification.identify import FitFailed, identify
 
     fine = {"sensor.resolution_deg": 0.001, "sensor.seed": 3}

@@ -139,7 +139,7 @@ def test_the_issue_30_sticking_twin_is_not_written_with_intervals_that_miss(tmp_
     from esoarm.hardware.excite import excite_twin
     from esoarm.scenario import load_scenario
     from esoarm.studies.identification.data import read_ident_log
-    from esoarm.studies.identification.excitation import ExcitationPlan
+    from esoarm.studies.identification.experiment.excitation import ExcitationPlan
     from esoarm.studies.identification.identify import FitFailed, identify
 
     truth = load_scenario("test-1", ["rig.coulomb_friction=0.15"])
@@ -176,7 +176,7 @@ def test_the_spectrum_line_reads_the_keys_the_plain_verdict_has():
 
 
 def test_one_excited_stretch_has_no_halves_and_two_are_cut_between_them():
-    from esoarm.studies.identification.axis_identify import _halves
+    from esoarm.studies.identification.axis.identify import _halves
     from esoarm.studies.identification.data import IdentLog
 
     y, u = _step_then_rest(seconds=6.0)
@@ -196,7 +196,7 @@ def test_a_step_then_rest_is_fitted_on_the_step_at_1khz_and_100hz():
     """Issue 30: a closed-loop step followed by rest was refused ("the axis changed during
     the log": the rest carries no information) and IDIM-LS's mass depended on the rate."""
     from esoarm.scenario import load_scenario
-    from esoarm.studies.identification.axis_identify import identify_axis
+    from esoarm.studies.identification.axis.identify import identify_axis
     from esoarm.studies.identification.data import IdentLog
 
     y, u = _step_then_rest(seconds=8.0)

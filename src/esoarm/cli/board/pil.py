@@ -19,9 +19,12 @@ from esoarm.cli._common import (
 @click.command()
 @scenario_argument
 @set_option
-@click.option("--target", type=click.Choice(["avr", "cortex-m4"]), required=True,
-              help="avr: ATmega328P at 16 MHz in simavr (cycles counted); cortex-m4: "
-              "mps2-an386 in QEMU (an instruction-count proxy: QEMU has no cycle counter).")
+@click.option("--target", type=click.Choice(["avr", "cortex-m0plus", "cortex-m4"]),
+              required=True,
+              help="avr: ATmega328P at 16 MHz in simavr (cycles counted); cortex-m0plus: "
+              "soft-float build on QEMU's microbit (an nRF51 Cortex-M0 at 16 MHz, same "
+              "ARMv6-M instructions); cortex-m4: mps2-an386 in QEMU (QEMU targets: an "
+              "instruction-count proxy, QEMU has no cycle counter).")
 @click.option("--precision", type=click.Choice(["float32", "float64"]), default="float32",
               show_default=True, help="Type of every real in the generated code (avr: float32 "
               "only).")

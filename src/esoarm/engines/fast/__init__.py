@@ -432,9 +432,10 @@ def run_metrics(
         # a run this long keeps its whole log in the kernel's memory; the exact engine
         # streams it block by block (esoarm.engines.stream), in constant memory
         from esoarm.engines import batch as _batch
+        from esoarm.engines.stream import with_long_runs
 
-        return _batch.run_metrics(points, seeds, workers=workers, chunk=chunk,
-                                  progress=progress, _noise_cache=_noise_cache)
+        return with_long_runs(_batch.run_metrics, points, seeds, workers=workers, chunk=chunk,
+                              progress=progress, _noise_cache=_noise_cache)
     try:
         lib = load_kernel()
     except FastEngineUnavailable as exc:

@@ -27,14 +27,26 @@ from __future__ import annotations
 import math
 import signal
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from esoarm import _limits
-from esoarm.engines.metrics import ERR, METRICS, NROW, OM, SAT, Z2, Z3, F, U, combine_joints
+from esoarm.engines.metrics import (
+    ERR,
+    METRICS,
+    NROW,
+    OM,
+    SAT,
+    Z2,
+    Z3,
+    F,
+    MetricsTable,
+    U,
+    combine_joints,
+)
 from esoarm.engines.sample import Sampling
 from esoarm.engines.stream.block import stream_block
 from esoarm.plants.noise import NoiseStream, noise_model
@@ -43,7 +55,7 @@ from esoarm.result import SimResult
 from esoarm.scenario import Scenario
 
 __all__ = ["BLOCK", "PYTHON_BLOCK", "STREAM_SAMPLES", "StreamInterrupted", "StreamedRun",
-           "stream", "stream_block", "streamed_metrics", "worth_compiling"]
+           "stream", "stream_block", "streamed_metrics", "with_long_runs", "worth_compiling"]
 
 #: Samples per block when the block runs compiled (~0.1 s at 1-2 µs per sample).
 BLOCK = 1 << 16
@@ -379,6 +391,61 @@ def streamed_metrics(scn: Scenario) -> dict[str, float]:
         return stream(scn, compiled=worth_compiling(scn)).metrics
     except SimulationDiverged as exc:
         return dict(exc.metrics)  # type: ignore[attr-defined]
+
+
+def with_long_runs(run_metrics: Callable[..., MetricsTable], points: Sequence[Scenario],
+                   seeds: Sequence[int] | None = None, **kwargs: Any) -> MetricsTable:
+    """``run_metrics(points, seeds, **kwargs)``, every run longer than
+    :data:`STREAM_SAMPLES` samples streamed instead (:func:`streamed_metrics`).
+
+    An engine's kernel keeps a run's whole log (~90 bytes a sample); a long run here is
+    run block by block in constant memory, with the same metrics.  The engines do not
+    call this module themselves (it is above them: it runs their step functions), so a
+    caller that may meet long runs (a sweep, a tune) routes its engine through here.
+
+    Parameters
+    ----------
+    run_metrics : callable
+        An engine's ``run_metrics(points, seeds, **kwargs)`` (the exact, reference or
+        fast engine's), used for the runs that are not long.
+    points : sequence of Scenario
+        Validated scenarios.
+    seeds : sequence of int, optional
+        Noise seeds for each point (point-major, seed fastest); default each point's own.
+    **kwargs
+        Passed on to ``run_metrics``; ``progress`` (if given) is also called with 1 after
+        each streamed run.
+
+    Returns
+    -------
+    MetricsTable
+        One row per run, columns :data:`~esoarm.engines.metrics.METRICS`, in the order
+        ``run_metrics`` gives.
+    """
+    long = [scn.n_samples > STREAM_SAMPLES for scn in points]
+    if not any(long):
+        return run_metrics(points, seeds, **kwargs)
+    seed_list: list[int | None] = [None] if seeds is None else [int(s) for s in seeds]
+    per = len(seed_list)
+    out = np.empty((len(points) * per, len(METRICS)))
+    short = [i for i, is_long in enumerate(long) if not is_long]
+    if short:
+        values = run_metrics([points[i] for i in short], seeds, **kwargs).values
+        for j, i in enumerate(short):
+            out[i * per:(i + 1) * per] = values[j * per:(j + 1) * per]
+    progress = kwargs.get("progress")
+    for i, is_long in enumerate(long):
+        if not is_long:
+            continue
+        for k, seed in enumerate(seed_list):
+            scn = points[i]
+            if seed is not None and seed != scn.sensor.seed:
+                scn = scn.with_overrides({"sensor.seed": seed})
+            got = streamed_metrics(scn)
+            out[i * per + k] = [got[name] for name in METRICS]
+            if progress is not None:
+                progress(1)
+    return MetricsTable(out)
 
 
 def worth_compiling(scn: Scenario) -> bool | None:

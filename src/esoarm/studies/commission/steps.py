@@ -4,7 +4,8 @@
 study function that does it on its own (nothing is computed twice here):
 
 1. ``excite`` -- a multisine within the torque limit, with the angle limit and every safety
-   check of ``esoarm run`` (:class:`~esoarm.studies.identification.excitation.ExcitationController`
+   check of ``esoarm run``
+   (:class:`~esoarm.studies.identification.experiment.excitation.ExcitationController`
    through :func:`esoarm.hardware.realtime.run_rig`, as ``esoarm excite --port``);
 2. ``identify`` -- the grey-box fit (:func:`esoarm.studies.identification.identify.identify`)
    with its refusals (a fit that failed, or one it does not trust);
@@ -277,7 +278,10 @@ class Commission:
                 board.close()
 
     def _excite(self) -> dict[str, Any]:
-        from esoarm.studies.identification.excitation import ExcitationController, ExcitationPlan
+        from esoarm.studies.identification.experiment.excitation import (
+            ExcitationController,
+            ExcitationPlan,
+        )
 
         rig, o = self.rig, self.opts
         plan = ExcitationPlan(duration=o.excite_seconds, amplitude=o.amplitude)

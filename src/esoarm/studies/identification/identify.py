@@ -191,7 +191,7 @@ class IdentResult:
     #: How the written intervals were computed.
     interval_method: str = "white noise: σ̂² (JᵀJ)⁻¹"
     #: What the excitation achieved, from the ``# esoarm excite:`` header of each fitting log
-    #: that has one (:func:`esoarm.studies.identification.probe.read_header`).
+    #: that has one (:func:`esoarm.studies.identification.experiment.probe.read_header`).
     excitation: dict = field(default_factory=dict)
 
     def value(self, key: str) -> float:
@@ -655,7 +655,7 @@ MAX_STUCK = 0.5
 
 def _excitation_headers(logs: list[IdentLog]) -> dict[str, dict[str, float]]:
     """{path: header} of the fitting logs that carry an ``# esoarm excite:`` header."""
-    from esoarm.studies.identification.probe import read_header
+    from esoarm.studies.identification.experiment.probe import read_header
 
     out = {}
     for path in sorted({lg.path for lg in logs}):

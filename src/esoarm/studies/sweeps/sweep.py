@@ -92,14 +92,18 @@ def _same_bits(scn: Scenario) -> bool:
 
 def _run_exact(points: Sequence[Scenario], seeds: Sequence[int] | None = None,
                **kwargs: Any) -> MetricsTable:
+    from esoarm.engines.stream import with_long_runs  # a long run: in constant memory
+
     runs = len(points) * (len(seeds) if seeds is not None else 1)
     if runs <= REFERENCE_RUNS and all(_same_bits(scn) for scn in points):
         from esoarm.engines.simulation import reference_metrics  # no compiled kernel to load
 
-        return reference_metrics(points, seeds, progress=kwargs.get("progress"))
+        return with_long_runs(
+            lambda pts, sds, **kw: reference_metrics(pts, sds, progress=kw.get("progress")),
+            points, seeds, **kwargs)
     from esoarm.engines.batch import run_metrics
 
-    return run_metrics(points, seeds, **kwargs)
+    return with_long_runs(run_metrics, points, seeds, **kwargs)
 
 
 def metrics_runner(engine: str = "exact") -> Callable[..., MetricsTable]:

@@ -57,7 +57,7 @@ import numpy as np
 
 from esoarm._limits import MAX_SAMPLES
 from esoarm.scenario import Scenario, ScenarioError
-from esoarm.studies.identification.excitation import (
+from esoarm.studies.identification.experiment.excitation import (
     ExcitationController,
     ExcitationPlan,
     excitation_signal,

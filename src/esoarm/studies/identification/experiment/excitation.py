@@ -188,7 +188,7 @@ class ExcitationController:
     def set_signal(self, k: int, exc: float, ref: float, dref: float) -> None:
         """Replace e(t_k) [N·m], θc(t_k) [rad] and θ̇c(t_k) [rad/s] before :meth:`step` ``k``.
 
-        (The breakaway probe of :mod:`esoarm.studies.identification.probe` decides its
+        (The breakaway probe of :mod:`esoarm.studies.identification.experiment.probe` decides its
         torque and the multisine's scale as the run goes.)
         """
         self._exc[k], self._ref[k], self._dref[k] = float(exc), float(ref), float(dref)

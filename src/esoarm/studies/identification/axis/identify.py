@@ -17,7 +17,7 @@
    ``viscous_friction_pos``/``_neg`` beside their mean and written as
    ``plant.viscous_asymmetry``.  The Coulomb friction's asymmetry is not
    identifiable apart from the offset (:data:`COULOMB_ASYMMETRY`).
-3. **Output error** (:mod:`esoarm.studies.identification.axis_fit`), started from
+3. **Output error** (:mod:`esoarm.studies.identification.axis.fit`), started from
    and scaled by the IDIM-LS estimate, over ``segment``-long pieces: reported
    beside it, with whether each parameter agrees (within the combined
    interval).  Its intervals cover noise, not model error; when a parameter
@@ -46,7 +46,7 @@ import numpy as np
 
 from esoarm.plants.axis import units
 from esoarm.scenario import Scenario, ScenarioError
-from esoarm.studies.identification.axis_fit import OeResult, axis_vector, fit_axis_oe
+from esoarm.studies.identification.axis.fit import OeResult, axis_vector, fit_axis_oe
 from esoarm.studies.identification.data import IdentLog
 from esoarm.studies.identification.idim import (
     ASYMMETRY_Z,
@@ -483,7 +483,7 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
 def _simulated_validation(log: IdentLog, ts: float, est: IdimResult, segment: float,
                           vs: float, lag: float, nsub: int) -> dict:
     """The IDIM-LS axis simulated over the validation log's segments (initial states fitted)."""
-    from esoarm.studies.identification.axis_fit import segment_bounds, simulate_axis_segments
+    from esoarm.studies.identification.axis.fit import segment_bounds, simulate_axis_segments
     from esoarm.studies.identification.idim import filtered_derivatives
 
     seg_n = max(5, int(round(segment / ts)))

@@ -1,0 +1,191 @@
+"""The Cortex-M0+ (soft float) processor in the loop: ``esoarm pil --target cortex-m0plus``.
+
+QEMU models no RP2040; its ``microbit`` machine is an nRF51822 whose Cortex-M0
+runs the same ARMv6-M instructions, so the ``-mcpu=cortex-m0plus
+-mfloat-abi=soft`` image runs there.  Marked ``hil`` and ``slow`` like the
+other PIL tests: skipped with the reason where a tool is missing, required in
+CI (``ESOARM_REQUIRE_HIL``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import struct
+import subprocess
+import sys
+
+import pytest
+
+from esoarm.scenario import load_scenario
+
+MISSING = [tool for tool, ok in (
+    ("arm-none-eabi-gcc (gcc-arm-none-eabi)", shutil.which("arm-none-eabi-gcc")),
+    ("qemu-system-arm", shutil.which("qemu-system-arm")),
+) if not ok]
+
+if MISSING and os.environ.get("ESOARM_REQUIRE_HIL"):  # CI: the PIL tests must run
+    raise RuntimeError(f"ESOARM_REQUIRE_HIL is set but not installed: {', '.join(MISSING)}")
+
+def _on_chip(test):  # type: ignore[no-untyped-def]
+    """slow, hil, skipped with the reason where a tool is missing."""
+    for mark in (pytest.mark.slow, pytest.mark.hil,
+                 pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")):
+        test = mark(test)
+    return test
+
+
+def _pil(*args: str, code: int = 0) -> dict:
+    res = subprocess.run([sys.executable, "-m", "esoarm", "pil", *args, "--json"],
+                         capture_output=True, text=True, timeout=900)
+    assert res.returncode == code, res.stderr
+    return json.loads(res.stdout)
+
+
+@_on_chip
+def test_test1_on_cortex_m0plus_at_1khz() -> None:
+    """float32, soft float: agrees with the float64 reference over the moving part, fits."""
+    data = _pil("test-1", "--target", "cortex-m0plus", "--set", "sensor.rate_hz=1000",
+                "--steps", "3000")
+    assert data["ok"] and data["covers_motion"] and data["steps"] == 3000
+    assert data["target"] == "cortex-m0plus" and data["clock_hz"] == 16e6
+    assert data["budget_cycles"] == 16000
+    assert data["max_rel_du"] <= 1e-4
+    # soft float costs: more than the Cortex-M4's ~200 hard-float instructions (docs table)
+    assert 1000 < data["cycles"]["median"] < data["budget_cycles"]
+    assert "microbit" in data["cycles_are"] and "instructions" in data["cycles_are"]
+    assert 0 < data["flash_bytes"] < 256 * 1024 and 0 < data["ram_bytes"] < 16 * 1024
+
+
+@_on_chip
+def test_cortex_m0plus_float64_repeats_python() -> None:
+    """libgcc's soft double is IEEE binary64: the same numbers as Python's float64."""
+    data = _pil("test-1", "--target", "cortex-m0plus", "--precision", "float64", "--steps",
+                "300", "--set", "observer.kind=nonlinear")
+    assert data["max_abs_du"] <= 1e-12
+
+
+@_on_chip
+def test_image_is_armv6m_without_fpu() -> None:
+    """The PIL image is built for the M0+ (ARMv6-M, soft float), not for the board's M0 or
+    an FPU: the ELF's build attributes say so."""
+    from esoarm.codegen.cortex_m0 import m0plus_image
+    from esoarm.codegen.generate import generate
+    from esoarm.codegen.toolchain import tool
+
+    elf = m0plus_image(generate(load_scenario("uno-rig"), "cortex-m0plus", "float32"))
+    attrs = subprocess.run([tool("arm-none-eabi-readelf"), "-A", str(elf)], capture_output=True,
+                           text=True, check=True).stdout
+    assert re.search(r"Tag_CPU_arch: v6S?-M", attrs), attrs
+    assert "Tag_FP_arch" not in attrs and "VFP registers" not in attrs
+
+
+@_on_chip
+def test_instruction_proxy_does_not_depend_on_the_icount_shift() -> None:
+    """ticks · 62.5 ns / 2^shift is an instruction count only if it is the same for every
+    shift."""
+    from esoarm.codegen.cortex_m0 import CortexM0PlusChip
+    from esoarm.codegen.generate import generate
+    from esoarm.codegen.lockstep import lockstep
+
+    scn = load_scenario("test-1", {"duration": 0.3})
+    gen = generate(scn, "cortex-m0plus", "float32")
+    counts = []
+    for shift in (8, 10):
+        chip = CortexM0PlusChip(gen, icount_shift=shift)
+        try:
+            counts.append(lockstep(scn, chip).cycles)
+        finally:
+            chip.close()
+    assert len(counts[0]) == scn.n_samples and counts[0] == counts[1]
+
+
+@_on_chip
+def test_instruction_proxy_matches_qemus_exec_trace(tmp_path) -> None:
+    """The proxy ticks · 62.5 / 2^shift against an independent count: QEMU's own trace of
+    every executed instruction (one instruction per translation block, ``-d exec,nochain``)
+    from esoarm_step's entry to the return into the shell, soft-float calls included.  The
+    proxy must exceed it by the same few instructions at every step, whatever the step's
+    length: the argument marshalling between the first SysTick read and the call (with the
+    soft-float ABI the reals go in core registers and the fifth on the stack), the call and
+    the second read (measured 10, against 2 on the Cortex-M4)."""
+    from esoarm.codegen.avr import symbols
+    from esoarm.codegen.cortex_m0 import CLOCK_HZ, m0plus_image
+    from esoarm.codegen.generate import generate
+    from esoarm.codegen.toolchain import tool
+
+    scn = load_scenario("test-1", {"observer.kind": "nonlinear"})  # fal: steps of two lengths
+    elf = m0plus_image(generate(scn, "cortex-m0plus", "float32"))
+    entry = symbols(elf, "arm-none-eabi-nm")["esoarm_step"] & ~1
+    dis = subprocess.run([tool("arm-none-eabi-objdump"), "-d", str(elf)], capture_output=True,
+                         text=True, check=True).stdout.splitlines()
+    calls = [i for i, line in enumerate(dis) if re.search(r"\sbl\s.*<esoarm_step>", line)]
+    assert len(calls) == 1
+    back = int(dis[calls[0] + 1].split(":")[0], 16)  # the instruction after the call
+    shift, log = 8, tmp_path / "exec.log"
+    qemu = tool("qemu-system-arm")
+    version = re.search(r"version (\d+)\.(\d+)", subprocess.run(
+        [qemu, "--version"], capture_output=True, text=True, check=True).stdout)
+    assert version is not None
+    one_insn = (["-accel", "tcg,one-insn-per-tb=on"]
+                if (int(version[1]), int(version[2])) >= (8, 1) else ["-singlestep"])
+    proc = subprocess.Popen(
+        [qemu, "-M", "microbit", "-display", "none", "-monitor", "none",
+         "-serial", "stdio", "-icount", f"shift={shift}", *one_insn, "-d", "exec,nochain",
+         "-D", str(log), "-kernel", str(elf)], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    assert proc.stdin is not None and proc.stdout is not None
+    proxy = []
+    try:
+        for y in (0.0, 0.01, 0.6, -0.6, 0.6, 0.002, -0.3, 0.0):  # in and out of fal's zone
+            proc.stdin.write(struct.pack("<4f", y, 0.0, 0.0, 0.0))
+            proc.stdin.flush()
+            (ticks,) = struct.unpack("<I", proc.stdout.read(16)[12:])
+            proxy.append(round(ticks * (1e9 / CLOCK_HZ) / 2 ** shift))  # as the chip
+    finally:
+        proc.kill()
+        proc.wait()
+    pcs = [int(m.group(1), 16) for m in
+           re.finditer(r"Trace \d+: 0x[0-9a-f]+ \[[0-9a-f]+/([0-9a-f]+)/", log.read_text())]
+    traced, i = [], 0
+    while i < len(pcs):
+        if pcs[i] == entry:
+            j = pcs.index(back, i)
+            traced.append(j - i)
+            i = j
+        i += 1
+    assert len(traced) == len(proxy)
+    assert len(set(traced)) > 1  # steps of different lengths
+    assert min(traced) > 500  # the soft-float calls are counted
+    extra = {p - t for p, t in zip(proxy, traced, strict=True)}
+    assert len(extra) == 1 and 0 < extra.pop() <= 12, (proxy, traced)
+
+
+def test_bench_replaces_only_the_measured_targets_rows() -> None:
+    """``bench_pil.py --targets cortex-m0plus --update``: the M0+ rows are replaced or added
+    in the kinds × targets order, every other row is kept word for word."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "benchmarks" / "bench_pil.py"
+    spec = importlib.util.spec_from_file_location("bench_pil", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    head = "| kind | target | precision | observer sums | run |\n|---|---|---|---|---|"
+    kind, other = bench.KINDS[0][0], bench.KINDS[1][0]
+    old = "\n".join([
+        "Measured on A.", "", head, f"| {kind} | avr | float32 | compensated | 7 |",
+        f"| {kind} | cortex-m0plus | float32 | compensated | 1 |",
+        f"| {kind} | cortex-m4 | float32 | compensated | 2 |",
+        f"| {other} | cortex-m4 | float32 | compensated | 3 |"])
+    new = "\n".join([
+        "Measured on B.", "", head, f"| {kind} | cortex-m0plus | float32 | compensated | 10 |",
+        f"| {other} | cortex-m0plus | float64 | plain | 11 |"])
+    merged = bench.merge_rows(old, new)
+    lines = merged.splitlines()
+    assert lines[:3] == ["Measured on A.", "", "The cortex-m0plus rows: Measured on B."]
+    assert lines[4:6] == head.splitlines()
+    assert [r.rsplit("|", 2)[1].strip() for r in lines[6:]] == ["7", "10", "2", "11", "3"]
+    assert bench.merge_rows(merged, new) == merged  # measuring again replaces its note
