@@ -38,7 +38,20 @@ CFLAGS = ["-std=c99", "-mcpu=cortex-m0plus", "-mthumb", "-mfloat-abi=soft", "-O2
 
 
 def m0plus_image(gen: Generated) -> Path:
-    """The PIL image (ELF) of ``gen`` for the Cortex-M0+ (arm-none-eabi-gcc ``-O2``, soft float)."""
+    """The PIL image (ELF) of ``gen`` for the Cortex-M0+ (arm-none-eabi-gcc ``-O2``, soft float).
+
+    Parameters
+    ----------
+    gen : Generated
+        The generated header and source, for target ``cortex-m0plus``; linked with the
+        bare-metal shell (``m0_startup.c``, ``m0.ld``: 256 kB flash, 16 kB RAM) and libm.
+
+    Returns
+    -------
+    pathlib.Path
+        The built ELF (``pil.elf``) in the build cache (``esoarm-pil-m0plus``), reused while
+        the sources and flags are unchanged.
+    """
     return build("arm-none-eabi-gcc",
                  {HEADER: gen.header, SOURCE: gen.source, "m0_startup.c":
                   _chip_file("m0_startup.c"), "m0.ld": _chip_file("m0.ld")},

@@ -149,7 +149,20 @@ def learned_from_run(scn: Scenario, bins: int, skip: float = 1.0) -> LearnedMap:
 
 
 def with_map(scn: Scenario, table: np.ndarray) -> Scenario:
-    """``scn`` with ``controller.feedforward_map`` set to ``table`` [rad/s²]."""
+    """``scn`` with ``controller.feedforward_map`` set to ``table`` [rad/s²].
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario to copy (left unchanged).
+    table : ndarray, shape (N,)
+        The learned perturbation m(θ_i) at θ_i = 2π i/N [rad/s²].
+
+    Returns
+    -------
+    Scenario
+        A copy whose ``controller.feedforward_map`` is ``table`` (as floats), validated.
+    """
     return scn.with_overrides({"controller.feedforward_map": [float(v) for v in table]})
 
 
