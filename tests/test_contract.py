@@ -334,13 +334,7 @@ def _comments(path) -> int:  # type: ignore[no-untyped-def]
 
 #: Places outside the registry and the kinds' own modules that still compare with a kind's
 #: name, each with why it stays for now (a new one fails the test below).
-NAMED_KIND_ALLOWED = {
-    # identify's axis fit is a study of its own (the trust helpers' file): a plant
-    # capability for "which identification" is still to be declared
-    ("esoarm/cli/identify.py", "axis"),
-    # the bandwidth criterion is stated against the linear ESO's recommendation
-    ("esoarm/studies/frequency/sweep_check.py", "linear"),
-}
+NAMED_KIND_ALLOWED: set[tuple[str, str]] = set()
 
 
 def _kind_files() -> set[Path]:

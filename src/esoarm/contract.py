@@ -493,6 +493,15 @@ PRISMATIC_UNITS = Units(position="m", velocity="m/s", acceleration="m/s²", forc
 #: ``RIG`` (plants; default False)
 #:     the one-joint rig of the serial protocol: ``run``, ``emulate``, ``excite`` and
 #:     ``identify`` drive it, and the frequency-domain analysis (``analyze``) models it;
+#: ``AXIS_FIT`` (plants; default False)
+#:     ``identify`` fits it as one axis in SI units (IDIM-LS with an output-error fit
+#:     beside it, :mod:`esoarm.studies.identification.axis`) instead of the rig's model;
+#: ``NOISE_BUDGET`` (observers; default False)
+#:     its ``linearization`` holds for sensor noise (a linear observer), so the noise
+#:     budget predicts its chatter: ``analyze --bandwidth`` recommends among these kinds;
+#: ``BASELINE`` (observers; default False)
+#:     the reference observer the bandwidth criterion is stated against (``analyze
+#:     --bandwidth W --tracking`` matches the others to its tracking); one kind at most;
 #: ``FLC_LAW`` (controllers; default False)
 #:     its law is the feedback linearization of eq. 14-16 with the gains ``k1``, ``k2``
 #:     and ``compensation`` of its table: the frequency-domain analysis and κ (eq. 17)
@@ -528,6 +537,9 @@ OPTIONAL: dict[str, Any] = {
     "MOTOR": False,
     "RIG": False,
     "FLC_LAW": False,
+    "AXIS_FIT": False,
+    "NOISE_BUDGET": False,
+    "BASELINE": False,
     "C_SOURCE": None,
     "check": None,
     "label": None,

@@ -55,7 +55,8 @@ from esoarm.plants.arms import urdf
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "by_name", "can", "check_kind",
+__all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "baseline_observer", "by_name", "can",
+           "check_kind", "having",
            "check_steps",
            "compile_only", "compiled_selection", "covers", "hook",
            "kind_labels", "kinds_of", "observer_summary", "on_dispatch_change",
@@ -73,6 +74,13 @@ CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque, adrc_error
 _BUILTIN: dict[str, tuple[Any, ...]] = {
     "plant": PLANTS, "observer": OBSERVERS, "controller": CONTROLLERS}
 _listeners: list[Callable[[], None]] = []
+
+
+#: The capability flags (bool names of :data:`esoarm.contract.OPTIONAL`) and the component
+#: whose kind carries each (``FAST``: all three).
+_FLAGS: dict[str, str] = {"FAST": "all", "MOTOR": "plant", "RIG": "plant",
+                          "AXIS_FIT": "plant", "NOISE_BUDGET": "observer",
+                          "BASELINE": "observer", "FLC_LAW": "controller"}
 
 
 def _registered(component: str) -> tuple[Any, ...]:
@@ -114,7 +122,7 @@ def check_kind(component: str, module: Any, others: tuple[Any, ...] = ()) -> Non
         raise ImportError(f"esoarm.kinds: {who}: KIND must be a non-empty str")
     if isinstance(code, bool) or not isinstance(code, int) or code < 0:
         raise ImportError(f"esoarm.kinds: {who}: CODE must be an int >= 0, got {code!r}")
-    for flag in ("JIT", "FAST", "MOTOR", "RIG", "FLC_LAW"):
+    for flag in ("JIT", *_FLAGS):
         if not isinstance(getattr(module, flag, False), bool):
             raise ImportError(f"esoarm.kinds: {who}: {flag} must be True or False")
     steps = tuple(n for n in required
@@ -149,6 +157,9 @@ def check_kind(component: str, module: Any, others: tuple[Any, ...] = ()) -> Non
     for other in others:
         if other is module:
             raise ImportError(f"esoarm.kinds: {who} is registered already")
+        if hook(module, "BASELINE") and hook(other, "BASELINE"):
+            raise ImportError(f"esoarm.kinds: {who}: BASELINE = True is {other.__name__}'s "
+                              "already (one reference observer)")
         for attr in ("KIND", "CODE"):
             if getattr(other, attr) == getattr(module, attr):
                 raise ImportError(f"esoarm.kinds: {who}: {attr} = {getattr(module, attr)!r} "
@@ -258,8 +269,9 @@ class Kinds(NamedTuple):
 def can(scn: Scenario, capability: str) -> bool:
     """Whether the scenario's kinds declare ``capability`` (a flag of :data:`OPTIONAL`).
 
-    The way a consumer asks what a kind can do, never by its name: ``"RIG"`` and
-    ``"MOTOR"`` of the plant, ``"FLC_LAW"`` of the controller, ``"FAST"`` of all three.
+    The way a consumer asks what a kind can do, never by its name: ``"RIG"``,
+    ``"MOTOR"`` and ``"AXIS_FIT"`` of the plant, ``"NOISE_BUDGET"`` and ``"BASELINE"``
+    of the observer, ``"FLC_LAW"`` of the controller, ``"FAST"`` of all three.
 
     Parameters
     ----------
@@ -273,6 +285,11 @@ def can(scn: Scenario, capability: str) -> bool:
     bool
         True when the component that carries the flag declares it.
 
+    Raises
+    ------
+    KeyError
+        ``capability`` is not a capability flag.
+
     Examples
     --------
     >>> from esoarm.scenario import load_scenario
@@ -280,12 +297,66 @@ def can(scn: Scenario, capability: str) -> bool:
     (True, False)
     >>> can(load_scenario("test-1", {"controller.kind": "pid"}), "FLC_LAW")
     False
+    >>> can(load_scenario("emps"), "AXIS_FIT"), can(load_scenario("test-1"), "AXIS_FIT")
+    (True, False)
     """
     k = kinds_of(scn)
-    if capability == "FAST":
+    carrier = _FLAGS[capability]
+    if carrier == "all":
         return k.fast
-    module = k.controller if capability == "FLC_LAW" else k.plant
-    return bool(hook(module, capability))
+    return bool(hook(getattr(k, carrier), capability))
+
+
+def having(component: str, capability: str) -> tuple[str, ...]:
+    """The KINDs of the registered ``component`` kinds that declare ``capability``.
+
+    In registration order; a kind registered at run time with the flag is among them,
+    so a consumer that compares kinds (``analyze --bandwidth``) needs no list of names.
+
+    Parameters
+    ----------
+    component : {"plant", "observer", "controller"}
+        The component.
+    capability : str
+        A capability flag carried by that component (``"NOISE_BUDGET"``, ...).
+
+    Returns
+    -------
+    tuple of str
+        The KIND tags, possibly empty.
+
+    Examples
+    --------
+    >>> having("observer", "NOISE_BUDGET")
+    ('linear', 'cascade')
+    """
+    if _FLAGS.get(capability) not in (component, "all"):
+        raise KeyError(f"{capability!r} is not a capability flag of {component} kinds")
+    return tuple(m.KIND for m in _registered(component) if hook(m, capability))
+
+
+def baseline_observer() -> str:
+    """The KIND of the reference observer (``BASELINE = True``) criteria are stated against.
+
+    Returns
+    -------
+    str
+        Its KIND.
+
+    Raises
+    ------
+    LookupError
+        No registered observer kind declares ``BASELINE``.
+
+    Examples
+    --------
+    >>> baseline_observer()
+    'linear'
+    """
+    base = having("observer", "BASELINE")
+    if not base:
+        raise LookupError("no registered observer kind declares BASELINE = True")
+    return base[0]
 
 
 def kinds_of(scn: Scenario) -> Kinds:

@@ -262,12 +262,13 @@ def identify(logs: tuple[str, ...], scenario: str, overrides: tuple[str, ...],
 
 def _identify(scn, logs, validate, validate_fraction, segment, max_delay, fix, out_path,  # type: ignore[no-untyped-def]
               plot, plot_path, as_json, cutoff, input_unit) -> None:
+    from esoarm.kinds import can
     from esoarm.plants.actuator import motor_of
     from esoarm.studies.identification.data import read_ident_log
     from esoarm.studies.identification.identify import FitFailed
     from esoarm.studies.identification.identify import identify as run_fit
 
-    if scn.plant.kind == "axis":
+    if can(scn, "AXIS_FIT"):  # the plant declares the axis fit (SI units)
         if plot_path is not None:
             raise BadInput(f"--plot {plot}: the axis fit (plant.kind = \"axis\") draws no "
                            "figure; its residual and validation are in --json")
@@ -380,7 +381,9 @@ def _check_log_paths(logs: tuple[str, ...], validate: tuple[str, ...]) -> None:
 def _check_rotary_log(scn, logs: tuple[str, ...]) -> None:  # type: ignore[no-untyped-def]
     """Refuse a lever-arm log (the columns of 'esoarm run'/'excite': theta [rad], the ESO's
     z1 … z3) fitted as a prismatic axis (bad input)."""
-    if scn.plant.kind != "axis" or getattr(scn.plant, "motion", "") != "prismatic":
+    from esoarm.kinds import can
+
+    if not can(scn, "AXIS_FIT") or getattr(scn.plant, "motion", "") != "prismatic":
         return
     for p in logs:
         try:

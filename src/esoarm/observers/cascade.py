@@ -70,6 +70,8 @@ __all__ = ["CODE", "C_SOURCE", "JIT", "KIND", "MAX_LEVELS", "Params", "advance",
 KIND = "cascade"
 CODE = 2
 JIT = True
+#: Linear for sensor noise (its linearization is exact): ``analyze --bandwidth`` ranks it.
+NOISE_BUDGET = True
 #: The same step in C99 for ``esoarm codegen`` (:mod:`esoarm.codegen.generate`).
 C_SOURCE = "cascade.c"
 

@@ -125,6 +125,10 @@ CODE = 0
 JIT = True
 #: The fast engine's C kernel models this observer (every discretization).
 FAST = True
+#: Linear for sensor noise: the noise budget predicts its chatter (``analyze --bandwidth``).
+NOISE_BUDGET = True
+#: The reference the bandwidth criterion is stated against (the paper's observer).
+BASELINE = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "linear.c"
 

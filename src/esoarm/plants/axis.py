@@ -51,6 +51,8 @@ JIT = True
 #: Driven by the actuator's motor when the scenario has a ``[motor]`` table (its back-EMF
 #: damping, :func:`esoarm.plants.actuator.back_emf_damping`, joins Fv in both directions).
 MOTOR = True
+#: ``identify`` fits it as one axis in SI units (IDIM-LS, output error beside it).
+AXIS_FIT = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "axis.c"
 

@@ -279,7 +279,7 @@ RECOMMEND_EPS_MAX = 5.0
 
 
 def recommend_eps(scn: Scenario, bandwidth: float,
-                  kinds: tuple[str, ...] = ("linear", "cascade"),
+                  kinds: tuple[str, ...] | None = None,
                   why: list[str] | None = None) -> list[Recommendation]:
     """For each observer kind, the ε whose f → ẑ3 bandwidth is ``bandwidth`` [rad/s].
 
@@ -295,8 +295,9 @@ def recommend_eps(scn: Scenario, bandwidth: float,
         A lever-arm scenario without ``[motor]``.
     bandwidth : float
         The f → ẑ3 bandwidth wanted [rad/s].
-    kinds : tuple of str
-        The observer kinds to try.
+    kinds : tuple of str, optional
+        The observer kinds to try; default every registered kind that declares
+        ``NOISE_BUDGET`` (:func:`esoarm.kinds.having`; the package's: linear, cascade).
     why : list of str, optional
         Receives one phrase per kind left out, with the bandwidths it does reach.
 
@@ -307,6 +308,10 @@ def recommend_eps(scn: Scenario, bandwidth: float,
     """
     from scipy.optimize import brentq
 
+    if kinds is None:
+        from esoarm.kinds import having
+
+        kinds = having("observer", "NOISE_BUDGET")
     ts = scn.sample_time
     out = []
     for kind in kinds:

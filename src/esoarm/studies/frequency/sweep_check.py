@@ -11,7 +11,10 @@ criterion, stated once here and in ``docs/frequency.md``:
     whose f → ẑ3 bandwidth is W
 
 (the tracking the target bandwidth buys with the paper's observer, at the least
-control chatter).  :func:`check_recommendation` runs the grid and the recommended
+control chatter).  The kinds compared are the registered observer kinds that declare
+``NOISE_BUDGET``, the reference is the one that declares ``BASELINE`` (the linear ESO):
+both asked of the registry (:func:`esoarm.kinds.having`), so a kind registered with the
+flag is compared too.  :func:`check_recommendation` runs the grid and the recommended
 points on the compiled engine (the numbers ``esoarm sweep`` prints for the same
 grid) and reports both.
 """
@@ -23,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from esoarm.kinds import baseline_observer, having
 from esoarm.scenario import Scenario
 from esoarm.studies.frequency.noise import Recommendation, recommend_eps
 
@@ -126,7 +130,7 @@ def _measure(scn: Scenario, cells: Sequence[tuple[str, float]],
 
 def check_recommendation(scn: Scenario, bandwidth: float, eps_grid: Sequence[float],
                          seeds: Sequence[int] = (0, 1, 2, 3),
-                         kinds: tuple[str, ...] = ("linear", "cascade")) -> SweepCheck:
+                         kinds: tuple[str, ...] | None = None) -> SweepCheck:
     """Measure ``analyze --bandwidth`` against the sweep optimum on ``scn``.
 
     Parameters
@@ -139,8 +143,9 @@ def check_recommendation(scn: Scenario, bandwidth: float, eps_grid: Sequence[flo
         ε values [s] of the sweep, run for every kind of ``kinds``.
     seeds : sequence of int
         Noise seeds each point is averaged over.
-    kinds : tuple of str
-        Observer kinds of the recommendation and of the sweep.
+    kinds : tuple of str, optional
+        Observer kinds of the recommendation and of the sweep; default the registered
+        kinds that declare ``NOISE_BUDGET`` (the package's: linear, cascade).
 
     Returns
     -------
@@ -152,14 +157,16 @@ def check_recommendation(scn: Scenario, bandwidth: float, eps_grid: Sequence[flo
         No kind reaches the bandwidth (the recommendation is empty), or the linear ESO
         does not (the criterion has no bound).
     """
+    kinds = having("observer", "NOISE_BUDGET") if kinds is None else kinds
+    base = baseline_observer()
     recs = recommend_eps(scn, bandwidth, kinds)
-    linear = [r for r in recs if r.kind == "linear"]
+    linear = [r for r in recs if r.kind == base]
     if not recs or not linear:
         raise ValueError(f"bandwidth {bandwidth:g} rad/s: not reached by "
-                         f"{'the linear ESO' if recs else 'any observer kind'}")
+                         f"{f'the {base} ESO' if recs else 'any observer kind'}")
     best = recs[0]
     cells = [(k, float(e)) for k in kinds for e in eps_grid]
-    extra = [(best.kind, best.eps), ("linear", linear[0].eps)]
+    extra = [(best.kind, best.eps), (base, linear[0].eps)]
     measured = _measure(scn, [*cells, *extra], seeds)
     grid, at_rec, at_lin = measured[:len(cells)], measured[-2], measured[-1]
     return SweepCheck(bandwidth, best, at_rec, linear[0].eps, at_lin.rms_error,
@@ -193,7 +200,7 @@ MATCH_FACTORS = tuple(float(f) for f in np.geomspace(0.6, 1.6, 11))
 
 
 def match_tracking(scn: Scenario, bandwidth: float,
-                   kinds: tuple[str, ...] = ("linear", "cascade"),
+                   kinds: tuple[str, ...] | None = None,
                    seeds: Sequence[int] = (0, 1, 2, 3)) -> tuple[float, list[TrackingMatch]]:
     """``analyze --bandwidth W --tracking``: each kind at the linear ESO's tracking, ranked.
 
@@ -211,8 +218,10 @@ def match_tracking(scn: Scenario, bandwidth: float,
         The scenario with its noise model.
     bandwidth : float
         Target f → ẑ3 bandwidth W [rad/s] of the linear ESO.
-    kinds : tuple of str
-        Observer kinds compared (``"linear"`` among them).
+    kinds : tuple of str, optional
+        Observer kinds compared; default the registered kinds that declare
+        ``NOISE_BUDGET`` (the package's: linear, cascade).  The reference is the kind that
+        declares ``BASELINE`` (:func:`esoarm.kinds.baseline_observer`).
     seeds : sequence of int
         Noise seeds of each measurement.
 
@@ -228,17 +237,19 @@ def match_tracking(scn: Scenario, bandwidth: float,
     """
     from esoarm.studies.frequency.noise import noise_budget
 
+    kinds = having("observer", "NOISE_BUDGET") if kinds is None else kinds
+    base = baseline_observer()
     why: list[str] = []
-    linear = [r for r in recommend_eps(scn, bandwidth, ("linear",), why)]
+    linear = [r for r in recommend_eps(scn, bandwidth, (base,), why)]
     if not linear:
-        raise ValueError(f"bandwidth {bandwidth:g} rad/s: not reached by the linear ESO"
+        raise ValueError(f"bandwidth {bandwidth:g} rad/s: not reached by the {base} ESO"
                          + (f" ({why[0].partition(': ')[2]})" if why else ""))
     eps_lin = linear[0].eps
-    others = [k for k in kinds if k != "linear"]
-    cells = [("linear", eps_lin)] + [(k, eps_lin * f) for k in others for f in MATCH_FACTORS]
+    others = [k for k in kinds if k != base]
+    cells = [(base, eps_lin)] + [(k, eps_lin * f) for k in others for f in MATCH_FACTORS]
     measured = _measure(scn, cells, seeds)
     at_lin, bound = measured[0], measured[0].rms_error
-    out = [TrackingMatch("linear", eps_lin, at_lin, linear[0].budget.rms_du)]
+    out = [TrackingMatch(base, eps_lin, at_lin, linear[0].budget.rms_du)]
     for i, kind in enumerate(others):
         row = measured[1 + i * len(MATCH_FACTORS):1 + (i + 1) * len(MATCH_FACTORS)]
         ok = [j for j, m in enumerate(row) if m.rms_error <= bound]
@@ -267,7 +278,7 @@ def main(argv: Sequence[str] | None = None) -> None:  # pragma: no cover - thin 
 
     Prints the recommendation for bandwidth W [rad/s] (with ``--tracking``: that of
     :func:`match_tracking`), its measurement, and the sweep optimum over :data:`DOC_GRID` ×
-    (linear, cascade), seeds 0-3.
+    the kinds that declare ``NOISE_BUDGET`` (linear, cascade), seeds 0-3.
 
     Parameters
     ----------
@@ -287,7 +298,8 @@ def main(argv: Sequence[str] | None = None) -> None:  # pragma: no cover - thin 
     if tracking:
         scn = load_scenario(args[0], args[2:])
         bound, matches = match_tracking(scn, float(args[1]))
-        grid = _measure(scn, [(k, e) for k in ("linear", "cascade") for e in DOC_GRID],
+        grid = _measure(scn, [(k, e) for k in having("observer", "NOISE_BUDGET")
+                              for e in DOC_GRID],
                         (0, 1, 2, 3))
         best = sweep_optimum(grid, bound)
         for m in matches:
