@@ -157,14 +157,19 @@ def test_simulate_tracks_and_estimates(extra, run_cli, tmp_path) -> None:  # typ
 
 @pytest.mark.slow
 def test_sweep_exact_is_the_reference_engine(extra, run_cli, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    """The compiled batch engine (generated dispatch, ẑ of 3 per joint, z of 2) bit for bit."""
+    """The compiled batch engine (generated dispatch, ẑ of 3 per joint, z of 2) bit for bit.
+
+    6 runs: more than the sweep's REFERENCE_RUNS, so the compiled engine runs them."""
+    from esoarm.studies.sweeps.sweep import REFERENCE_RUNS
+
+    assert 6 > REFERENCE_RUNS
     out = tmp_path / "sweep.csv"
     res = run_cli("sweep", "test-1", *BOTH, *SHORT, "--vary", "observer.eps=0.05,0.09",
-                  "--seeds", "2", "--out", str(out))
+                  "--seeds", "3", "--out", str(out))
     assert res.exit_code == 0, res.stderr
     with out.open() as fh:
         rows = list(csv.DictReader(fh))
-    assert len(rows) == 4
+    assert len(rows) == 6
     for row in rows:
         scn = load_scenario("test-1", {**OVR, "duration": 2.0,
                                        "observer.eps": float(row["observer.eps"]),
