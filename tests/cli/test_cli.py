@@ -403,15 +403,21 @@ def test_command_line_syntax_errors(run_cli, args, fragment):
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS semantics")
 def test_out_of_memory_is_one_line_exit_1(tmp_path):
-    """A run too large for the machine fails in one line, not with a traceback."""
+    """A run too large for the machine fails in one line, not with a traceback.
+
+    ``simulate`` streams a run this long in constant memory (tests/engines/test_streaming.py),
+    so the in-memory engine's out-of-memory path is reached here with streaming turned off
+    (``esoarm._limits.STREAM_SAMPLES`` raised before the engines are imported)."""
     import resource
 
     def limit():  # 1.2 GB of address space: the 1e8-sample arrays cannot fit
         resource.setrlimit(resource.RLIMIT_AS, (1_200_000_000, 1_200_000_000))
 
     out = tmp_path / "big.csv"
+    code = ("import sys; import esoarm._limits as L; L.STREAM_SAMPLES = 10**12; "
+            "from esoarm.cli import main; main(sys.argv[1:])")
     proc = subprocess.run(
-        [sys.executable, "-c", "import sys; from esoarm.cli import main; main(sys.argv[1:])",
+        [sys.executable, "-c", code,
          "simulate", "test-1", "--set", "duration=1e6", "--set", "sensor.rate_hz=100",
          "--out", str(out)],
         capture_output=True, text=True, timeout=120, preexec_fn=limit,

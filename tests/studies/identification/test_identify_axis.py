@@ -278,6 +278,10 @@ def test_emps_cli_json_physical(run_cli):
         assert phys[name]["value"] == pytest.approx(PUBLISHED[name], rel=0.05)
         lo, hi = phys[name]["ci95"]
         assert lo < phys[name]["value"] < hi
-    # the published parameters give 6.00 % through the same filters
-    assert data["validation"]["cross_test_force_error_percent"] < 6.0
+    # no worse than the published parameters through the same filters (the scripts' own
+    # filters give 6.00 % for them; identify's default filters, which follow the motion's
+    # band since issue 30, give 10.7 % for them and 10.4 % for ours)
+    theirs = cross_test(*_emps("validation.csv"), TS, np.array(list(PUBLISHED.values())),
+                        data["idim_ls"]["cutoff_hz"])
+    assert data["validation"]["cross_test_force_error_percent"] <= theirs
     assert data["output_error"]["converged"]

@@ -92,5 +92,8 @@ def test_case_7_short_segments_find_the_motor(tmp_path, run_cli):
     inertia = data["physical"]["inertia"]["value"]
     assert inertia == pytest.approx(INERTIA, rel=0.05)
     assert data["idim_ls"]["parameters"]["inertia"]["value"] == pytest.approx(INERTIA, rel=0.05)
-    # the residual is not white (quantization, the unobservable gravity): not called noise
-    assert data["noise"].startswith("not written")
+    # the residual is quantization (and the unobservable gravity): it is not called sensor
+    # noise, or (since issue 30's fit, whose residual here passes the whiteness test) the noise
+    # written is no more than the encoder's quantization, q/sqrt(12) = 0.025 deg (truth: 0)
+    if not data["noise"].startswith("not written"):
+        assert data["parameters"]["sensor.noise_deg"]["value"] <= 0.088 / math.sqrt(12)
