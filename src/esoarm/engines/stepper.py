@@ -304,11 +304,8 @@ class Stepper:
         ndarray (joints,)
             :attr:`u`.
         """
-        if u is not None:
-            self.u[:] = u
-        saturate_into(self.u, self.sat, self.designs.actuator)
-        self.actuate()
-        return self.u
+        self.saturate(u)
+        return self.actuate()
 
     def saturate(self, u: np.ndarray | float | None = None) -> np.ndarray:
         """Step 2c alone: :attr:`u` clipped to ±torque_limit (flags in :attr:`sat`).
