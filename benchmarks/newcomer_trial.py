@@ -75,8 +75,9 @@ CASES: list[Case] = [
     E(BAD, "simulate", "test-1", "--set", "reference.kind=sine", "--set", "duration=1"),
     E(BAD, "simulate", "test-1", "--set", "rig.step=0.0007", "--set", "duration=1"),
     # sweep
-    E(GOOD, "sweep", "test-1", "--vary", "observer.eps=0.05:0.1:3", "--set", "duration=2",
+    E(GOOD, "sweep", "test-1", "--vary", "observer.eps=lin:0.05:0.1:3", "--set", "duration=2",
       "--json"),
+    E(BAD, "sweep", "test-1", "--vary", "observer.eps=0.05:0.1:3", "--set", "duration=2"),
     E(BAD, "sweep", "test-1", "--vary", "observer.eps=0.1:0.05:0"),
     E(BAD, "sweep", "test-1", "--vary", "observer.eps=a:b:3"),
     E(BAD, "sweep", "test-1", "--vary", "observer.eps"),
@@ -244,7 +245,7 @@ def classify(case: Case, rc: int | None, out: str, err: str) -> tuple[bool, str]
     if case.python:  # the environment raises: one exception line, a ValueError/TypeError
         last = lines[-1] if lines else ""
         ok = rc == 1 and last.startswith(("ValueError", "TypeError", "KeyError",
-                                          "esoarm.scenario.errors.ScenarioError"))
+                                          "esoarm.scenario.ScenarioError"))
         return ok, last
     if rc == 2 and len(errors) == 1:
         return True, errors[0]
