@@ -541,8 +541,8 @@ def _in_input_units(text: str, motion: str, input_unit: str) -> str:
     pairs = {si[k]: unit_of(motion, k, input_unit)
              for k in ("mass", "inertia", "viscous_friction", "coulomb_friction") if k in si}
     for old in sorted(pairs, key=len, reverse=True):
-        text = re.sub(rf"([\d\]] ?){re.escape(old)}(?=[\s,;:.)\]]|$)",
-                      lambda m, new=pairs[old]: m.group(1) + new, text)
+        new = pairs[old].replace("\\", "\\\\")
+        text = re.sub(rf"([\d\]] ?){re.escape(old)}(?=[\s,;:.)\]]|$)", rf"\g<1>{new}", text)
     return text
 
 
