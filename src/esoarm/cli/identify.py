@@ -282,7 +282,7 @@ def _identify(scn, logs, validate, validate_fraction, segment, max_delay, fix, o
     limit = scn.actuator.torque_limit
     motor = motor_of(scn)
     fit_logs = [read_ident_log(p, limit, motor) for p in logs]
-    val_logs = [read_ident_log(p, limit, motor) for p in validate]
+    val_logs = [read_ident_log(p, limit, motor, validation=True) for p in validate]
     from esoarm.studies.identification.identify import rate_mismatch
 
     for lg in (*fit_logs, *val_logs):  # before the segment's check: it counts in samples
@@ -437,7 +437,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
                        "nothing (set the scenario's values with --set)")
     limit = scn.actuator.torque_limit
     fit_logs = [read_ident_log(p, limit) for p in logs]
-    val_logs = [read_ident_log(p, limit) for p in validate]
+    val_logs = [read_ident_log(p, limit, validation=True) for p in validate]
     flat = constant_force_half(fit_logs, bool(val_logs), validate_fraction)
     if flat is not None:
         raise RunFailure(flat)
