@@ -55,8 +55,12 @@ __all__ = ["HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig", "from_
 
 #: Seeds from this one on are held out of any tuning of the estimator (reported apart).
 #: (Seeds 1_000_000 … were held out first; the first of them, 1_000_001, a 200 Hz rig whose
-#: 2-sample delay was fitted as 1 sample and a lag, led to a change, so they are no longer.)
-HELD_OUT_START = 2_000_000
+#: 2-sample delay was fitted as 1 sample and a lag, led to a change, so they are no longer.
+#: Seeds 2_000_000 … were held out next; their results (35 rigs) were read on 2026-12-06
+#: before the estimator was changed again, so they are no longer held out either.  Seeds
+#: 5_000_000 … were declared on 2026-12-06 04:50 UTC, before any tuning of that session,
+#: and are run only for the final table.)
+HELD_OUT_START = 5_000_000
 #: RMS of the default plan's multisine [N·m] (``esoarm excite --amplitude``).
 EXCITATION_RMS = 0.2
 RATES = (50.0, 50.0, 50.0, 50.0, 50.0, 50.0, 100.0, 100.0, 200.0, 1000.0)
