@@ -282,7 +282,7 @@ def _identify(scn, logs, validate, validate_fraction, segment, max_delay, fix, o
     limit = scn.actuator.torque_limit
     motor = motor_of(scn)
     fit_logs = [read_ident_log(p, limit, motor) for p in logs]
-    val_logs = [read_ident_log(p, limit, motor) for p in validate]
+    val_logs = [read_ident_log(p, limit, motor, validation=True) for p in validate]
     from esoarm.studies.identification.identify import rate_mismatch
 
     for lg in (*fit_logs, *val_logs):  # before the segment's check: it counts in samples
@@ -437,21 +437,28 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
                        "nothing (set the scenario's values with --set)")
     limit = scn.actuator.torque_limit
     fit_logs = [read_ident_log(p, limit) for p in logs]
-    val_logs = [read_ident_log(p, limit) for p in validate]
+    val_logs = [read_ident_log(p, limit, validation=True) for p in validate]
     flat = constant_force_half(fit_logs, bool(val_logs), validate_fraction)
     if flat is not None:
         raise RunFailure(flat)
     try:
         res = identify_axis(scn, fit_logs, val_logs, segment, validate_fraction, cutoff)
     except AxisFitRefused as exc:
-        raise RunFailure(str(exc)) from None
+        raise RunFailure(_in_input_units(str(exc), scn.plant.motion, input_unit)) from None
     if input_unit:  # u in volts (or counts): every printed unit follows
         from esoarm.studies.identification.axis.identify import unit_of as _unit
 
         for name, e in res.physical.items():
             e["unit"] = _unit(scn.plant.motion, name, input_unit)
+            for key in ("note", "withheld"):
+                if isinstance(e.get(key), str):
+                    e[key] = _in_input_units(e[key], scn.plant.motion, input_unit)
         if res.asymmetry:
             res.asymmetry["unit"] = _unit(scn.plant.motion, "viscous_friction", input_unit)
+        res.oe_warning = _in_input_units(res.oe_warning, scn.plant.motion, input_unit)
+        for key, text in list(res.validation.items()):
+            if isinstance(text, str):
+                res.validation[key] = _in_input_units(text, scn.plant.motion, input_unit)
     try:  # the estimate must make a valid axis (friction ≥ 0 each way, mass > 0)
         fitted = res.fitted_scenario()
     except ScenarioError as exc:  # not bad input: the fit's result is not a physical axis
@@ -495,6 +502,9 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
             line += (f"   output error {oe.values[i]:.6g}" if res.oe_warning else
                      f"   output error {oe.values[i]:.6g} ± {oe.ci95_half[i]:.3g}")
         lines.append(line)
+    for name, e in res.physical.items():
+        if e.get("note"):
+            lines.append(f"  note: {name}: {e['note']}")
     a = res.asymmetry
     if a:
         verdict = "kept" if a["kept"] else "not significant: symmetric model kept"
@@ -515,6 +525,25 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     click.echo("\n".join(lines))
     if out_path is not None:
         click.echo(f"scenario: {out_path}")
+
+
+def _in_input_units(text: str, motion: str, input_unit: str) -> str:
+    """``text`` with every SI unit of an axis parameter (kg·m², N·m·s/rad, N, ...) replaced
+    by the unit that follows from the logged u's ``input_unit`` (V·s²/rad, V·s/rad, V)."""
+    if not input_unit or not text:
+        return text
+    import re
+
+    from esoarm.plants.axis import units
+    from esoarm.studies.identification.axis.identify import unit_of
+
+    si = units(motion)
+    pairs = {si[k]: unit_of(motion, k, input_unit)
+             for k in ("mass", "inertia", "viscous_friction", "coulomb_friction") if k in si}
+    for old in sorted(pairs, key=len, reverse=True):
+        new = pairs[old].replace("\\", "\\\\")
+        text = re.sub(rf"([\d\]] ?){re.escape(old)}(?=[\s,;:.)\]]|$)", rf"\g<1>{new}", text)
+    return text
 
 
 def constant_force_half(logs: list[Any], validation_given: bool,
