@@ -158,3 +158,27 @@ def test_printed_units_follow_the_input_unit():
     assert _in_input_units("mass 0.2 kg, 1.4 N·s/m", "prismatic", "V") == \
         "mass 0.2 V·s²/m, 1.4 V·s/m"
     assert _in_input_units(text, "rotary", "") == text
+
+
+def test_the_axis_path_refuses_a_simulated_validation_fit_at_or_below_zero(run_cli, tmp_path,
+                                                                           monkeypatch):
+    """Issue 30 item 5 on the axis path (the lever arm accepted −2529 %): a validation log the
+    IDIM-LS axis simulates no better than its mean is refused, naming the method and the
+    number, and nothing is written."""
+    from esoarm.studies.identification.axis import identify as axis_identify
+
+    real = axis_identify._simulated_validation
+
+    def worse(*args, **kwargs):  # type: ignore[no-untyped-def]
+        out = real(*args, **kwargs)
+        out["simulated_fit_percent"] = -2529.0
+        return out
+
+    monkeypatch.setattr(axis_identify, "_simulated_validation", worse)
+    fit = _write(tmp_path / "step.csv", *_cart_step(1000.0, 8.0))
+    val = _write(tmp_path / "short.csv", *_cart_step(1000.0, 2.5, gain=25.0, seed=1))
+    out = tmp_path / "fitted.toml"
+    res = run_cli("identify", str(fit), "--validate", str(val), "--out", str(out), *CART)
+    assert res.exit_code == 1
+    assert "validation failed (the IDIM-LS axis simulated)" in res.stderr
+    assert "-2529 %" in res.stderr and not out.exists()
