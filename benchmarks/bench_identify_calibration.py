@@ -156,8 +156,8 @@ def main() -> None:
             lines[2] = f"Written from {Path(args.from_json).name}, the dump of a run: {args.note}"
         lines += _table(f"Held-out seeds ({HELD_OUT_START} …)", held)
         if tuning:
-            lines += _table("Tuning seeds (below the held-out ones): looked at while the estimator was changed",
-                            tuning)
+            lines += _table("Tuning seeds (below the held-out ones): looked at while the "
+                            "estimator was changed", tuning)
         Path(args.out).write_text("\n".join(lines), encoding="utf-8")
         if args.json_out:
             Path(args.json_out).write_text(json.dumps(
