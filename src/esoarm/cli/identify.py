@@ -199,7 +199,8 @@ def _excite_rig(scn, ctl, port: str, log_path: Path, limits, baud: int) -> None:
               help="Simulation horizon of one segment [s]; each segment's initial angle and "
               "rate are estimated.")
 @click.option("--max-delay", type=int, default=2, show_default=True, metavar="SAMPLES",
-              help="Largest transport delay tried [samples].")
+              help="Largest transport delay tried [samples]; while the best delay is the "
+              "longest tried, the search goes on, up to 3 samples more.")
 @click.option("--fix", "fix", multiple=True, metavar="KEY",
               help="Hold a parameter at the scenario's value (repeatable), e.g. --fix "
               "actuator.lag --fix plant.m2.")
