@@ -16,6 +16,9 @@ change only that prediction.  Each runs on the reference engine with the linear 
   in the perturbation the FLC cancels (f̂ + N·Ts·ḟ̂);
 - ``filtered``: ẑ2 and ẑ3 low-passed (first order, τ = 0.75·N·Ts) before they are
   extrapolated: the prediction N·Ts·ẑ2 + … amplifies the rate estimate's noise;
+- ``both``: ẑ2, ẑ3 low-passed with τ = 0.3·N·Ts, then f̂'s slope over 2N samples (of the
+  low-passed f̂) extrapolated as in ``trend`` (tried last, after the others: tuned on
+  these very runs);
 - ``partial``: the state predicted only N/2 samples ahead.
 
 The table: the largest N whose RMS error stays ≤ 2× the paper's ESO without delay, at
@@ -68,13 +71,30 @@ def _filtered(h1, h2, h3, z, nd, obs, st):  # type: ignore[no-untyped-def]
     return g1, g2, h3
 
 
+def _both(h1, h2, h3, z, nd, obs, st):  # type: ignore[no-untyped-def]
+    ts, b0 = obs[lin.TS], obs[lin.B0]
+    a = ts / (0.3 * nd * ts + ts)
+    st["h2"] = h2 if "h2" not in st else st["h2"] + a * (h2 - st["h2"])
+    st["h3"] = h3 if "h3" not in st else st["h3"] + a * (h3 - st["h3"])
+    hist = st.setdefault("hist", [])
+    hist.append(st["h3"])
+    m = 2 * nd
+    slope = (hist[-1] - hist[-1 - m]) / (m * ts) if len(hist) > m else 0.0
+    g2, half = st["h2"], 0.5 * ts * ts
+    for i in range(nd):
+        acc = st["h3"] + slope * (i + 0.5) * ts + b0 * z[3 + i]
+        h1 = h1 + ts * g2 + half * acc
+        g2 = g2 + ts * acc
+    return h1, g2, h3 + slope * nd * ts
+
+
 def _partial(h1, h2, h3, z, nd, obs, st):  # type: ignore[no-untyped-def]
     h1, h2 = lin.eso_predict(h1, h2, h3, z, 3, nd // 2, obs)
     return h1, h2, h3
 
 
 VARIANTS: dict[str, Predict] = {"held": _held, "trend": _trend, "filtered": _filtered,
-                                "partial": _partial}
+                                "both": _both, "partial": _partial}
 
 
 def rms_error(scn: Scenario, variant: str, delay: int, seeds: tuple[int, ...] = (0, 1)) -> float:
