@@ -289,7 +289,7 @@ def _identify(scn, logs, validate, validate_fraction, segment, max_delay, fix, o
         if abs(lg.ts - scn.sample_time) > 1e-9 * scn.sample_time:
             raise BadInput(rate_mismatch(lg.path, lg.ts, scn.sensor.rate_hz))
     _check_segment(segment, fit_logs, val_logs, validate_fraction)
-    say: Any = _progress() if stderr_is_tty() and not as_json else status_lines("identify")
+    say: Any = _progress_for(as_json)
     try:
         res = run_fit(scn, fit_logs, validation=val_logs or None,
                       validate_fraction=validate_fraction, segment=segment, max_delay=max_delay,
@@ -467,7 +467,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     sim_fit = res.validation.get("simulated_fit_percent")
     if sim_fit is not None and not sim_fit > 0.0:  # also nan
         raise RunFailure(
-            f"validation failed: the fitted axis simulated over the validation log fits "
+            f"validation failed (the IDIM-LS axis simulated): over the validation log it fits "
             f"{sim_fit:.4g} % of its motion (0 % is its mean: the model predicts nothing; "
             f"relative force error {res.validation['estimation_force_error_percent']:.3g} % "
             "on the fitting data); nothing written")
@@ -509,7 +509,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     if a:
         verdict = "kept" if a["kept"] else "not significant: symmetric model kept"
         lines.append(f"  viscous friction asymmetry Fv+ − Fv− = {a['difference']:.4g} "
-                     f"{a['unit']} (z = {a['z']:.3g}, {verdict})")
+                     f"{a['unit']} (z = {a['z']:.3g} against {a['threshold_z']:.3g}, {verdict})")
     if res.oe_warning:
         lines.append(f"  warning: {res.oe_warning}")
     v = res.validation
@@ -604,17 +604,35 @@ def constant_force_half(logs: list[Any], validation_given: bool,
     return None
 
 
+def _progress_for(as_json: bool) -> Any:
+    """What the fit reports its stages to: a live status line on a terminal (rich, on
+    stderr), lines every 10 s in a log or pipe (every stage with --verbose); nothing under
+    --json or --quiet unless --verbose asks for it."""
+    from esoarm.cli._common import VERBOSE, verbosity
+
+    if as_json and verbosity() < VERBOSE:
+        return None
+    if stderr_is_tty() and not as_json:
+        return _progress()
+    return status_lines("identify")
+
+
 class _progress:  # noqa: N801 - used like a function
-    """One transient status line on stderr."""
+    """One transient status line on stderr: the stage and the time since the start."""
 
     def __init__(self) -> None:
+        import time
+
         from rich.console import Console
 
-        self._status = Console(stderr=True).status("identifying")
+        self._t0 = time.monotonic()
+        self._status = Console(stderr=True).status("identify: reading the logs")
         self._status.start()
 
     def __call__(self, message: str) -> None:
-        self._status.update(message)
+        import time
+
+        self._status.update(f"identify: {message} [{time.monotonic() - self._t0:.0f} s]")
 
     def close(self) -> None:
         self._status.stop()

@@ -125,20 +125,32 @@ BAND_MARGIN = 2.0
 
 
 def motion_band(parts: list[np.ndarray], ts: float, share: float = 0.9) -> float:
-    """The frequency [Hz] below which ``share`` of the velocity's energy lies, over the logs
-    ``parts`` (positions; velocity by first differences, whole-log FFT: a step's velocity
-    starts and ends at rest, so nothing leaks from the log's ends)."""
+    """The frequency [Hz] below which ``share`` of the motion's energy lies, over the logs
+    ``parts`` (positions).
+
+    The velocity by first differences, its periodogram over the whole log (a step's velocity
+    starts and ends at rest, so nothing leaks from the log's ends); a bin counts as motion
+    where the position's periodogram (the velocity's over the difference's gain) exceeds
+    :data:`BAND_SNR` times the encoder's noise floor (its median over the top half of the
+    band; white noise passes that one bin in a thousand), so the noise does not stretch the
+    band.
+    """
     best = 0.0
     for y in parts:
         v = np.diff(np.asarray(y, dtype=float)) / ts
         if len(v) < 8 or not np.all(np.isfinite(v)):
             continue
-        p = np.abs(np.fft.rfft(v - v.mean())) ** 2
-        total = float(p.sum())
+        pv = np.abs(np.fft.rfft(v - v.mean())) ** 2
+        f = np.fft.rfftfreq(len(v), ts)
+        gain = (2.0 * np.sin(np.pi * f * ts) / ts) ** 2
+        py = np.where(gain > 0, pv / np.where(gain > 0, gain, 1.0), 0.0)
+        top = f >= 0.25 / ts
+        floor = float(np.median(py[top])) if top.any() else 0.0
+        signal = np.where(py > BAND_SNR * floor, py, 0.0)
+        total = float(signal.sum())
         if total <= 0.0:
             continue
-        f = np.fft.rfftfreq(len(v), ts)
-        k = int(np.searchsorted(np.cumsum(p) / total, share))
+        k = int(np.searchsorted(np.cumsum(signal) / total, share))
         best = max(best, float(f[min(k, len(f) - 1)]))
     return best
 

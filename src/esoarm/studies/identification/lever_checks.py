@@ -47,6 +47,8 @@ __all__ = ["DISTURBANCE_SLACK", "UNIT_RATIO", "LeverIdim", "check_log_against_sc
 UNIT_RATIO = 0.05
 #: The log's disturbance amplitude may miss the scenario's by its interval plus this share.
 DISTURBANCE_SLACK = 0.25
+#: The decimated rate in cut-offs (idim.DECIMATED_RATE on the axis path).
+LEVER_RATE = 1.0
 NAMES = ("inertia", "viscous_friction", "coulomb_friction", "gravity", "disturbance")
 
 
@@ -120,7 +122,7 @@ def lever_idim(scn: Scenario, logs: list[IdentLog],
 def _lever_fixed(scn: Scenario, logs: list[IdentLog], cutoff: float) -> LeverIdim | None:
     """IDIM-LS of the lever arm with one given cut-off [Hz] (see :func:`lever_idim`)."""
     ts = logs[0].ts
-    nd = decimation_factor(ts, cutoff, 1.0)  # the scripts' nd = fs/cutoff (a delay's phase
+    nd = decimation_factor(ts, cutoff, LEVER_RATE)  # the scripts' nd = fs/cutoff (a delay's phase
     # above half the cut-off stays out of the fit)
     w = scn.rig.disturbance.frequency
     with_d = w > 0 and scn.rig.disturbance.amplitude != 0.0
@@ -134,7 +136,7 @@ def _lever_fixed(scn: Scenario, logs: list[IdentLog], cutoff: float) -> LeverIdi
             cols.append(np.sin(w * log.t))
         keep = slice(BORDER - 1, log.n)
         x = np.column_stack(cols)[keep]
-        f = log.u[keep]
+        f = _zoh_centred(log.u)[keep]
         if nd > 1:
             from esoarm.studies.identification.idim import staged_decimate
 
@@ -208,3 +210,13 @@ def disturbance_confirmed(scn: Scenario, est: LeverIdim | None) -> bool:
     period = 2.0 * math.pi / d.frequency
     return bool(est.duration >= 2.0 * period and abs(a_log) > half
                 and abs(a_log - d.amplitude) <= half + DISTURBANCE_SLACK * abs(d.amplitude))
+
+
+def _zoh_centred(u: np.ndarray) -> np.ndarray:
+    """The logged command as the motion at each sample instant answers it: u[k] is held
+    from t_k to t_k + ts (zero-order hold), so the torque centred on t_k is the mean of
+    u[k − 1] and u[k] (half a sample of delay, 18° at a tenth of a 50 Hz rate, otherwise
+    read as inertia)."""
+    out = np.asarray(u, dtype=float).copy()
+    out[1:] = 0.5 * (out[1:] + out[:-1])
+    return out
