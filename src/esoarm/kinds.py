@@ -49,7 +49,7 @@ from esoarm.contract import (
 )
 from esoarm.controllers import adrc_error, adrc_tf, computed_torque, flc, pid, switch
 from esoarm.observers import cascade, linear, nonlinear
-from esoarm.plants import axis, lever_arm
+from esoarm.plants import axis, dc_motor, lever_arm
 from esoarm.plants.arms import urdf
 
 if TYPE_CHECKING:
@@ -65,7 +65,7 @@ __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "baseline_observer", "
 
 #: Registered kinds per component; the first is the default.  (mypy checks each module
 #: against its component's protocol, :class:`esoarm.contract.PlantKind` etc.)
-PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis)
+PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis, dc_motor)
 OBSERVERS: tuple[ObserverKind, ...] = (linear, nonlinear, cascade)
 CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque, adrc_error, adrc_tf,
                                             switch)

@@ -38,7 +38,7 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
 from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
-from esoarm.observers.linear import design_observer
+from esoarm.controllers.common import eso_words, one_joint, own_eso, zero_state
 from esoarm.plants.actuator import saturate
 
 if TYPE_CHECKING:
@@ -100,7 +100,7 @@ def error_eso_vector(params: LinearADRCParams, ts: float, b0: float, limit: floa
         k1, k2, I0, limit); "euler": Φ = I + Ts A, Γ = (0, Ts b0, 0); otherwise the exact
         ZOH model.
     """
-    d = design_observer(params.eps, ts, b0, params.discretization, params.tuning)
+    d = own_eso(params, ts, b0)
     disc = ("euler", "zoh", "current").index(params.discretization)
     return np.array([float(disc), ts, b0, *d.gain, d.phi[0, 2], d.gamma[0], d.gamma[1],
                      params.k1, params.k2, 1.0 / b0, limit])
@@ -123,8 +123,7 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     ComponentDesign
         The vector and 3 states.
     """
-    if plant.n_joints != 1:
-        raise ValueError("the adrc-error kind is designed for one joint")
+    one_joint(plant, "the adrc-error kind")
     vec = error_eso_vector(scn.controller, ts, float(plant.b0[0]), scn.actuator.torque_limit)
     return ComponentDesign(read_only(np.concatenate([[float(CODE)], vec])), 3)
 
@@ -142,8 +141,7 @@ def initialize(c: np.ndarray, y: np.ndarray, p: Vector) -> None:
     p : ndarray
         The design vector; ``p[0]`` is the kind's CODE.
     """
-    for i in range(len(c)):
-        c[i] = 0.0
+    zero_state(c)
 
 
 @jitable
@@ -226,5 +224,4 @@ def label(params: Params) -> str:
     str
         The label.
     """
-    tune = ", half-gain" if params.tuning == "half-gain" else ""
-    return f"error-based ADRC (ε = {params.eps:g} s, {params.discretization}{tune})"
+    return f"error-based ADRC ({eso_words(params)})"

@@ -47,7 +47,8 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
 from esoarm.controllers.adrc_error import LinearADRCParams
-from esoarm.observers.linear import design_observer, discrete_linearization
+from esoarm.controllers.common import eso_words, one_joint, own_eso
+from esoarm.observers.linear import discrete_linearization
 from esoarm.plants.actuator import saturate
 
 if TYPE_CHECKING:
@@ -99,7 +100,7 @@ def tf_coefficients(params: LinearADRCParams, ts: float, b0: float) -> np.ndarra
         α·Ts (the δ-denominator's coefficients times Ts), Ts [s], β·Ts [N·m/rad] and γ·Ts
         (dimensionless) the inputs' columns, d [N·m/rad] the direct term of y.
     """
-    d = design_observer(params.eps, ts, b0, params.discretization, params.tuning)
+    d = own_eso(params, ts, b0)
     lin = discrete_linearization(d, d.gain, 0.0, "ESO")
     gain = np.array([params.k2, params.k1, 1.0]) / b0
     cw = gain @ lin.hz  # c = cw z + dy y
@@ -133,8 +134,7 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     ComponentDesign
         The vector (16 values) and 3 states.
     """
-    if plant.n_joints != 1:
-        raise ValueError("the adrc-tf kind is designed for one joint")
+    one_joint(plant, "the adrc-tf kind")
     ctl = scn.controller
     b0 = float(plant.b0[0])
     i0 = 1.0 / b0
@@ -238,5 +238,4 @@ def label(params: Params) -> str:
     str
         The label.
     """
-    tune = ", half-gain" if params.tuning == "half-gain" else ""
-    return f"ADRC, transfer-function form (ε = {params.eps:g} s, {params.discretization}{tune})"
+    return f"ADRC, transfer-function form ({eso_words(params)})"

@@ -37,6 +37,7 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
 from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
+from esoarm.controllers.common import integration_held, one_joint, pid_vector, zero_state
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
@@ -98,11 +99,9 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     ctl = scn.controller
     if not isinstance(ctl, Params):  # pragma: no cover - the registry dispatches by kind
         raise TypeError("not a PID controller table")
-    if plant.n_joints != 1:
-        raise ValueError("the PID kind is designed for one joint")
-    vec = [float(CODE), ctl.kp, ctl.ki, ctl.kd, ctl.derivative_filter,
-           scn.actuator.torque_limit, ts, float(COMPENSATIONS.index(ctl.compensation)),
-           1.0 / float(plant.b0[0])]
+    one_joint(plant, "the PID kind")
+    vec = [float(CODE), *pid_vector(ctl, scn.actuator.torque_limit, ts),
+           float(COMPENSATIONS.index(ctl.compensation)), 1.0 / float(plant.b0[0])]
     return ComponentDesign(read_only(np.array(vec)), 3)
 
 
@@ -147,9 +146,7 @@ def pid_command(e: float, k: int, c: np.ndarray, pid: Vector, comp: float = 0.0)
     a = pid[TF] / (pid[TF] + ts)
     der = a * c[DER] + pid[KD] * (1.0 - a) * (e - e_prev) / ts
     u: float = pid[KP] * e + c[INT] + der + comp
-    limit = pid[LIMIT]
-    saturated = (u > limit and e > 0.0) or (u < -limit and e < 0.0)
-    if not saturated:
+    if not integration_held(u, e, pid[LIMIT]):  # the anti-windup
         c[INT] = c[INT] + pid[KI] * ts * e
     c[DER] = der
     c[EPREV] = e
@@ -169,8 +166,7 @@ def initialize(c: np.ndarray, y: np.ndarray, p: Vector) -> None:
     p : ndarray
         The design vector; ``p[0]`` is the kind's CODE.
     """
-    for i in range(len(c)):
-        c[i] = 0.0
+    zero_state(c)
 
 
 @jitable

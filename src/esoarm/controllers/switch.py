@@ -32,6 +32,7 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
 from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
+from esoarm.controllers.common import PID_SIZE, one_joint, pid_vector, zero_state
 from esoarm.controllers.flc import FLCParams, flc_command
 from esoarm.controllers.pid import pid_command
 from esoarm.plants.actuator import saturate
@@ -49,7 +50,7 @@ JIT = True
 C_SOURCE = "switch.c"
 
 # Layout after the CODE: the PID's vector (6), the FLC's vector (6), then the switch.
-PID0, FLC0, K_SWITCH, K_BACK, DECAY = 0, 6, 12, 13, 14
+PID0, FLC0, K_SWITCH, K_BACK, DECAY = 0, PID_SIZE, 12, 13, 14
 # state
 INT, DER, EPREV, MODE, ULAST, OFFSET = range(6)
 
@@ -99,11 +100,10 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     ComponentDesign
         The vector (16 values; ``decay`` 0 for a hard transfer) and 6 states.
     """
-    if plant.n_joints != 1:
-        raise ValueError("the switch kind is designed for one joint")
+    one_joint(plant, "the switch kind")
     c = scn.controller
     limit = scn.actuator.torque_limit
-    pid = [c.kp, c.ki, c.kd, c.derivative_filter, limit, ts]
+    pid = pid_vector(c, limit, ts)
     p = scn.plant
     flc = FLCParams(c.k1, c.k2, p.inertia, 0.0, "eso", limit).vector
     k_switch = float(math.ceil(c.switch_at / ts - 1e-9))
@@ -127,8 +127,7 @@ def initialize(c: np.ndarray, y: np.ndarray, p: Vector) -> None:
     p : ndarray
         The design vector; ``p[0]`` is the kind's CODE.
     """
-    for i in range(len(c)):
-        c[i] = 0.0
+    zero_state(c)
 
 
 @jitable

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import signal
 from pathlib import Path
 
 import click
 
 from esoarm.cli._common import (
     BadInput,
-    Interrupted,
     RunFailure,
     bad_input_guard,
     lever_only,
@@ -18,10 +16,8 @@ from esoarm.cli._common import (
     set_option,
     warn_line,
 )
-
-
-def _say(line: str) -> None:
-    print(line, flush=True)
+from esoarm.cli.board.hil_serve import finish, serve_until
+from esoarm.cli.board.hil_serve import say as _say
 
 
 def _progress(line: str) -> None:
@@ -160,17 +156,13 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
          f"ATmega328P at 16 MHz, {'real time' if realtime else 'paced by the host'}")
     if board_note:
         _say(board_note)
-    terminated: list[int] = []
-
-    def on_term(signum, frame) -> None:  # type: ignore[no-untyped-def]
-        terminated.append(signum)
 
     def done() -> bool:
         # --once: a run was started, the motor pins are off, and the host has said STOP
         # (0.3 s ago, so that STOPPED reaches it), gone quiet for 5 s, or pulled the plug
         # (then the firmware's watchdog stops the motor and sends its FAULT frame, which
         # takes a few ms on the wire after the pins go off: wait for it, 1 s at most)
-        return bool(terminated) or (
+        return (
             once and server.log.start_cycle is not None and server.motor_duty == 0
             and (unplug_settled() or server.host_quiet(5.0)
                  or server.stop_seen and server.host_quiet(0.3)))
@@ -180,18 +172,13 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
             return False
         return bool(server.device_faults) or server.board.cycle - server.unplug_cycle > F_CPU
 
-    old = signal.signal(signal.SIGTERM, on_term)
-    interrupted = False
-    try:
-        server.serve(until=done)
-    except KeyboardInterrupt:
-        interrupted = True
-    except BoardError as exc:
-        raise RunFailure(f"simavr: {exc}") from None
-    finally:
-        signal.signal(signal.SIGTERM, old)
-        stats = server.board.isr_stats()
+    stats: dict[str, int] = {}
+
+    def close() -> None:
+        stats.update(server.board.isr_stats())
         server.close()
+
+    interrupted = serve_until(server, done, (BoardError,), "simavr", close)
     if server.log.start_cycle is not None:
         _say(f"encoder: device count − arm position at the last sample: "
              f"{server.count_error:+d} counts (largest {server.count_error_max})")
@@ -210,6 +197,4 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
                 "clock); only the wall-clock time of the run grows" if onboard else
                 "the deadline misses and period jitter 'run' reports measure the simulator, "
                 "not the host"))
-    if interrupted:  # Ctrl-C: the summary above, then exit status 130
-        raise Interrupted("simulated board stopped, port closed")
-    _say("stopped: port closed")
+    finish(interrupted)  # Ctrl-C: the summary above, then exit status 130

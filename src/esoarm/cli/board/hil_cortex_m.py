@@ -2,20 +2,15 @@
 
 from __future__ import annotations
 
-import signal
-
 from esoarm.cli._common import (
     BadInput,
-    Interrupted,
     RunFailure,
     lever_only,
     resolve_scenario,
     warn_line,
 )
-
-
-def _say(line: str) -> None:
-    print(line, flush=True)
+from esoarm.cli.board.hil_serve import finish, serve_until
+from esoarm.cli.board.hil_serve import say as _say
 
 
 def hil_cortex_m(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...],
@@ -72,28 +67,13 @@ def hil_cortex_m(scenario: str, overrides: tuple[str, ...], faults: tuple[str, .
     _say(f"on board: {scn.name}'s controller, float32 {'compensated' if compensated else 'plain'}"
          f" observer sums{why}, at {scn.sensor.rate_hz:g} Hz, "
          + ("ideal torque source" if fw.torque else "PWM duty to the motor model"))
-    terminated: list[int] = []
-
-    def on_term(signum, frame) -> None:  # type: ignore[no-untyped-def]
-        terminated.append(signum)
-
     def done() -> bool:
-        return bool(terminated) or (
+        return (
             once and server.run_started and not server.motor_on
             and (server.host_quiet(5.0) or (server.stop_seen and server.host_quiet(0.3))
                  or bool(server.device_faults) and server.host_quiet(1.0)))
 
-    old = signal.signal(signal.SIGTERM, on_term)
-    interrupted = False
-    try:
-        server.serve(until=done)
-    except KeyboardInterrupt:
-        interrupted = True
-    except QemuError as exc:
-        raise RunFailure(f"qemu: {exc}") from None
-    finally:
-        signal.signal(signal.SIGTERM, old)
-        server.close()
+    interrupted = serve_until(server, done, (QemuError,), "qemu", server.close)
     if server.run_started:
         _say(f"twin: {server.samples} samples served")
     if server.host_waits:
@@ -104,6 +84,4 @@ def hil_cortex_m(scenario: str, overrides: tuple[str, ...], faults: tuple[str, .
                   f"at {server.lags} samples (worst {server.worst_lag * 1e3:.0f} ms; the machine "
                   "is busy): the run took longer than real time; the chip's clock (its samples) "
                   "is unaffected")
-    if interrupted:
-        raise Interrupted("simulated board stopped, port closed")
-    _say("stopped: port closed")
+    finish(interrupted)

@@ -1,0 +1,186 @@
+"""What the controller kinds share: plain functions, written once, that the kinds import.
+
+Not a kind (no ``KIND``): the pieces that the PID, the switch and the linear ADRC forms
+(:mod:`~esoarm.controllers.pid`, :mod:`~esoarm.controllers.switch`,
+:mod:`~esoarm.controllers.adrc_error`, :mod:`~esoarm.controllers.adrc_tf`) each had
+written again:
+
+- the one-joint check of a design (:func:`one_joint`);
+- the PID's part of a design vector (:func:`pid_vector`) and its anti-windup, conditional
+  integration (:func:`integration_held`);
+- the command a controller's own ESO is fed (:func:`eso_input`): the saturated command
+  the actuator applies (anti-windup), or the command itself (the paper's ESO);
+- the own ESO of a linear ADRC form (:func:`own_eso`) and its words in a title
+  (:func:`eso_words`);
+- a zero start of a controller's state (:func:`zero_state`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from esoarm._jit import jitable
+from esoarm.observers.linear import ESODesign, design_observer
+from esoarm.plants.actuator import saturate
+
+if TYPE_CHECKING:
+    from esoarm.contract import PlantDesign
+
+__all__ = ["eso_input", "eso_words", "integration_held", "one_joint", "own_eso",
+           "pid_vector", "zero_state"]
+
+#: Length of :func:`pid_vector` (kp, ki, kd, Tf, torque_limit, Ts).
+PID_SIZE = 6
+
+
+def one_joint(plant: PlantDesign, kind: str) -> None:
+    """Refuse a plant of more than one joint for a one-joint controller kind.
+
+    Parameters
+    ----------
+    plant : PlantDesign
+        The plant's design.
+    kind : str
+        The controller's words in the message (e.g. ``"the PID kind"``).
+
+    Raises
+    ------
+    ValueError
+        ``plant.n_joints != 1``.
+    """
+    if plant.n_joints != 1:
+        raise ValueError(f"{kind} is designed for one joint")
+
+
+def pid_vector(ctl: Any, limit: float, ts: float) -> list[float]:
+    """The PID's part of a design vector: (kp, ki, kd, Tf, torque_limit, Ts).
+
+    Parameters
+    ----------
+    ctl : Params
+        A ``[controller]`` table with ``kp`` [N·m/rad], ``ki`` [N·m/(rad·s)], ``kd``
+        [N·m·s/rad] and ``derivative_filter`` Tf [s].
+    limit : float
+        torque_limit [N·m] (the anti-windup's saturation).
+    ts : float
+        Sample period Ts [s].
+
+    Returns
+    -------
+    list of float
+        :data:`PID_SIZE` values, in the order :func:`esoarm.controllers.pid.pid_command`
+        reads them.
+    """
+    return [float(ctl.kp), float(ctl.ki), float(ctl.kd), float(ctl.derivative_filter),
+            float(limit), float(ts)]
+
+
+@jitable
+def integration_held(u: float, e: float, limit: float) -> bool:
+    """The PID's anti-windup: True while u is saturated in the direction e drives it.
+
+    Conditional integration: the integrator stops while |u| > limit and the error pushes
+    the command further out.
+
+    Parameters
+    ----------
+    u : float
+        The command before saturation [N·m].
+    e : float
+        Tracking error e = θd − y [rad].
+    limit : float
+        torque_limit [N·m].
+
+    Returns
+    -------
+    bool
+        True: hold the integrator this sample.
+
+    Examples
+    --------
+    >>> integration_held(3.0, 0.1, 2.0), integration_held(3.0, -0.1, 2.0)
+    (True, False)
+    """
+    return (u > limit and e > 0.0) or (u < -limit and e < 0.0)
+
+
+@jitable
+def eso_input(u: float, limit: float, commanded: float) -> float:
+    """The command a controller's own ESO is fed [N·m].
+
+    Parameters
+    ----------
+    u : float
+        The controller's command before saturation [N·m].
+    limit : float
+        torque_limit [N·m].
+    commanded : float
+        0.0: the saturated command, what the actuator applies (``actuator.observer_sees =
+        "applied"``, the anti-windup); 1.0: the command itself (``"commanded"``, the paper's
+        ESO, which winds up while the command saturates).
+
+    Returns
+    -------
+    float
+        saturate(u, limit), or u.
+
+    Examples
+    --------
+    >>> eso_input(3.0, 2.0, 0.0), eso_input(3.0, 2.0, 1.0)
+    (2.0, 3.0)
+    """
+    if commanded == 1.0:
+        return u
+    return saturate(u, limit)
+
+
+@jitable
+def zero_state(c: np.ndarray) -> None:
+    """Every entry of a controller's state set to zero (a kind's ``initialize``).
+
+    Parameters
+    ----------
+    c : ndarray
+        The state, set in place.
+    """
+    for i in range(len(c)):
+        c[i] = 0.0
+
+
+def own_eso(params: Any, ts: float, b0: float) -> ESODesign:
+    """The linear ESO of a linear ADRC form's own keys (ε, discretization, tuning).
+
+    Parameters
+    ----------
+    params : LinearADRCParams
+        ``eps`` [s], ``discretization``, ``tuning``.
+    ts : float
+        Sample period Ts [s].
+    b0 : float
+        Input gain b0 = 1/I0 [1/(kg·m²)].
+
+    Returns
+    -------
+    ESODesign
+        :func:`esoarm.observers.linear.design_observer` of those keys.
+    """
+    return design_observer(params.eps, ts, b0, params.discretization, params.tuning)
+
+
+def eso_words(params: Any) -> str:
+    """The own ESO in a title: ``ε = 0.09 s, euler`` (``, half-gain`` when halved).
+
+    Parameters
+    ----------
+    params : LinearADRCParams
+        ``eps`` [s], ``discretization``, ``tuning``.
+
+    Returns
+    -------
+    str
+        The words.
+    """
+    tune = ", half-gain" if params.tuning == "half-gain" else ""
+    return f"ε = {params.eps:g} s, {params.discretization}{tune}"
