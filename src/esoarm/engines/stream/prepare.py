@@ -42,7 +42,8 @@ _PACKAGE = Path(__file__).resolve().parent.parent.parent
 
 
 def _key(inp: Any) -> str:
-    """Hash of what the cached block depends on: sources, numba, kinds, cache place."""
+    """Hash of what the cached block depends on: sources, numba, kinds, vector widths, cache
+    place."""
     from importlib import metadata
 
     digest = hashlib.sha256()
@@ -53,8 +54,15 @@ def _key(inp: Any) -> str:
         numba_version = metadata.version("numba")
     except metadata.PackageNotFoundError:  # pragma: no cover - no numba: never compiled
         numba_version = "none"
+    from esoarm.engines.packing import VECTOR_WIDTH
+
     kinds = ".".join(m.KIND for m in inp.kinds)
-    digest.update(f"{sys.version}|{numba_version}|{kinds}|"
+    # the block is compiled for vectors as tuples, or as arrays where one is wider than its
+    # tuple (esoarm.engines.stream.kernels.runner): two signatures
+    wide = any(len(vec) > w for vec, w in zip(
+        (inp.plant.vector, inp.observer.vector, inp.controller.vector, inp.actuator),
+        VECTOR_WIDTH, strict=True))
+    digest.update(f"{sys.version}|{numba_version}|{kinds}|{wide}|"
                   f"{os.environ.get('NUMBA_CACHE_DIR', '')}".encode())
     return digest.hexdigest()[:24]
 
