@@ -83,3 +83,11 @@ def test_an_action_that_is_not_a_number_names_the_action_space(action):
         env.step(action)
     obs, *_ = env.step(np.array([0.05]))  # the episode goes on
     assert np.all(np.isfinite(obs))
+
+
+def test_a_small_refused_sweep_says_its_size_in_kilobytes(run_cli):
+    # was: "that is about 0 MB for the results alone"
+    res = run_cli("sweep", "test-1", "--vary", "observer.eps=lin:0.01:0.1:1000", "--seeds",
+                  "100", "--max-runs", "10")
+    msg = _one_error(res, "1,000 runs", "about 80 kB")
+    assert "0 MB" not in msg

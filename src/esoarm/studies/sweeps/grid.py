@@ -24,9 +24,11 @@ __all__ = ["SweepGrid", "VarySpec", "build_grid", "parse_vary"]
 
 
 def _too_many(n: float, max_runs: int, what: str) -> ScenarioError:
+    size = n * 80 / 1e6  # MB: 10 metrics of 8 bytes a run
+    amount = f"{size:,.0f} MB" if size >= 1 else f"{size * 1e3:,.0f} kB"
     return ScenarioError(
         f"{what} {n:,.0f} runs (grid points × seeds), more than the limit of {max_runs:,}: "
-        f"that is about {n * 80 / 1e6:,.0f} MB for the results alone; "
+        f"that is about {amount} for the results alone; "
         f"shrink the grid or raise the limit (--max-runs N, or max_runs=N in Python)")
 
 
