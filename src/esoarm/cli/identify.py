@@ -199,7 +199,8 @@ def _excite_rig(scn, ctl, port: str, log_path: Path, limits, baud: int) -> None:
               help="Simulation horizon of one segment [s]; each segment's initial angle and "
               "rate are estimated.")
 @click.option("--max-delay", type=int, default=2, show_default=True, metavar="SAMPLES",
-              help="Largest transport delay tried [samples].")
+              help="Largest transport delay tried [samples]; while the best delay is the "
+              "longest tried, the search goes on, up to 3 samples more.")
 @click.option("--fix", "fix", multiple=True, metavar="KEY",
               help="Hold a parameter at the scenario's value (repeatable), e.g. --fix "
               "actuator.lag --fix plant.m2.")
@@ -289,7 +290,7 @@ def _identify(scn, logs, validate, validate_fraction, segment, max_delay, fix, o
         if abs(lg.ts - scn.sample_time) > 1e-9 * scn.sample_time:
             raise BadInput(rate_mismatch(lg.path, lg.ts, scn.sensor.rate_hz))
     _check_segment(segment, fit_logs, val_logs, validate_fraction)
-    say: Any = _progress() if stderr_is_tty() and not as_json else status_lines("identify")
+    say: Any = _progress_for(as_json)
     try:
         res = run_fit(scn, fit_logs, validation=val_logs or None,
                       validate_fraction=validate_fraction, segment=segment, max_delay=max_delay,
@@ -613,17 +614,35 @@ def constant_force_half(logs: list[Any], validation_given: bool,
     return None
 
 
+def _progress_for(as_json: bool) -> Any:
+    """What the fit reports its stages to: a live status line on a terminal (rich, on
+    stderr), lines every 10 s in a log or pipe (every stage with --verbose); nothing under
+    --json or --quiet unless --verbose asks for it."""
+    from esoarm.cli._common import VERBOSE, verbosity
+
+    if as_json and verbosity() < VERBOSE:
+        return None
+    if stderr_is_tty() and not as_json:
+        return _progress()
+    return status_lines("identify")
+
+
 class _progress:  # noqa: N801 - used like a function
-    """One transient status line on stderr."""
+    """One transient status line on stderr: the stage and the time since the start."""
 
     def __init__(self) -> None:
+        import time
+
         from rich.console import Console
 
-        self._status = Console(stderr=True).status("identifying")
+        self._t0 = time.monotonic()
+        self._status = Console(stderr=True).status("identify: reading the logs")
         self._status.start()
 
     def __call__(self, message: str) -> None:
-        self._status.update(message)
+        import time
+
+        self._status.update(f"identify: {message} [{time.monotonic() - self._t0:.0f} s]")
 
     def close(self) -> None:
         self._status.stop()
