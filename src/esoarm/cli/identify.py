@@ -199,7 +199,8 @@ def _excite_rig(scn, ctl, port: str, log_path: Path, limits, baud: int) -> None:
               help="Simulation horizon of one segment [s]; each segment's initial angle and "
               "rate are estimated.")
 @click.option("--max-delay", type=int, default=2, show_default=True, metavar="SAMPLES",
-              help="Largest transport delay tried [samples].")
+              help="Largest transport delay tried [samples]; while the best delay is the "
+              "longest tried, the search goes on, up to 3 samples more.")
 @click.option("--fix", "fix", multiple=True, metavar="KEY",
               help="Hold a parameter at the scenario's value (repeatable), e.g. --fix "
               "actuator.lag --fix plant.m2.")
@@ -484,7 +485,16 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
             tmp.write_text("\n".join(head) + "\n\n" + fitted.to_toml(),
                            encoding="utf-8")
     if as_json:
-        click.echo(json.dumps(res.to_json()))
+        data = res.to_json()
+        if input_unit and data.get("output_error"):  # the output error's units follow u too
+            from esoarm.studies.identification.axis.identify import unit_of as _unit_of
+
+            for name, e in data["output_error"]["parameters"].items():
+                e["unit"] = _unit_of(scn.plant.motion, name, input_unit)
+            if "warning" in data["output_error"]:
+                data["output_error"]["warning"] = _in_input_units(
+                    data["output_error"]["warning"], scn.plant.motion, input_unit)
+        click.echo(json.dumps(data))
         return
     from esoarm.studies.identification.axis.identify import unit_of
 

@@ -63,6 +63,7 @@ def test_a_step_then_rest_is_fitted_and_validated_on_a_short_step(run_cli, tmp_p
         lo, hi = p[key]["ci95"]
         assert lo <= truth <= hi, (key, p[key])
     assert p["plant.mass"]["unit"] == "V·s²/m" and p["plant.viscous_friction"]["unit"] == "V·s/m"
+    assert "kg" not in json.dumps(data["physical"]) + json.dumps(data["output_error"])
     assert data["validation"]["logs"] == [str(val)]
     assert data["validation"]["simulated_fit_percent"] > 50.0
 

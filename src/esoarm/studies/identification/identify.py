@@ -423,7 +423,8 @@ def identify(scn: Scenario, logs: list[IdentLog], *, validation: list[IdentLog] 
     segment : float
         Simulation horizon of one segment [s].
     max_delay : int
-        Largest transport delay tried [samples].
+        Largest transport delay tried [samples] (the search goes on, by at most
+        :data:`EXTEND_DELAY` samples, while the best delay is the longest tried).
     fix : tuple of str
         Keys held at the scenario's values.
     progress : callable, optional
