@@ -127,3 +127,14 @@ def test_commands_print_speed_and_voltage(run_cli) -> None:  # type: ignore[no-u
     res = run_cli("codegen", "dc-motor-eso", "--target", "host", "--out", "unused-dir")
     assert res.exit_code == 2
     assert len(res.stderr.strip().splitlines()) == 1 and "dc-motor" in res.stderr
+
+
+def test_compiled_engine_repeats_the_reference_bit_for_bit() -> None:
+    """The batch engine (the kind's step functions compiled) gives the reference's θ exactly."""
+    from esoarm.engines.batch import simulate_many
+    from esoarm.engines.simulation import simulate
+
+    scn = load_scenario("dc-motor-eso", {"controller.compensation": "eso", "duration": 12.0})
+    (batch,) = simulate_many([scn])
+    ref = simulate(scn, warn=False)
+    assert np.array_equal(np.asarray(batch.theta), np.asarray(ref.theta))

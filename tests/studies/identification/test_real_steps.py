@@ -50,10 +50,10 @@ CART = ["--scenario", "emps", "--set", "plant.mass=0.2", "--set", "plant.viscous
 
 
 def test_a_step_then_rest_is_fitted_and_validated_on_a_short_step(run_cli, tmp_path):
-    """The real cart's case on its twin: an 8 s step-then-rest log is fitted (not refused),
+    """The real cart's case on its twin: a 5 s step-then-rest log is fitted (not refused),
     its intervals cover the truth, a 2.5 s step with another gain validates it (before: "too
     short ... identification needs at least 4 s"), and every unit is the volt's."""
-    fit = _write(tmp_path / "step.csv", *_cart_step(1000.0, 8.0))
+    fit = _write(tmp_path / "step.csv", *_cart_step(1000.0, 5.0))
     val = _write(tmp_path / "short.csv", *_cart_step(1000.0, 2.5, gain=25.0, seed=1))
     res = run_cli("identify", str(fit), "--validate", str(val), *CART)
     assert res.exit_code == 0, res.stderr
@@ -176,7 +176,7 @@ def test_the_axis_path_refuses_a_simulated_validation_fit_at_or_below_zero(run_c
         return out
 
     monkeypatch.setattr(axis_identify, "_simulated_validation", worse)
-    fit = _write(tmp_path / "step.csv", *_cart_step(1000.0, 8.0))
+    fit = _write(tmp_path / "step.csv", *_cart_step(1000.0, 5.0))
     val = _write(tmp_path / "short.csv", *_cart_step(1000.0, 2.5, gain=25.0, seed=1))
     out = tmp_path / "fitted.toml"
     res = run_cli("identify", str(fit), "--validate", str(val), "--out", str(out), *CART)
