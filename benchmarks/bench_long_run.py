@@ -12,7 +12,8 @@ set from ``wait4``):
 
 The first run of each command goes with cold caches (a fresh ``ESOARM_CACHE_DIR``
 and ``NUMBA_CACHE_DIR``, as after installation): the block is compiled then, by a
-short-lived child process (:mod:`esoarm.engines.stream.prepare`); the next runs
+short-lived child process (:mod:`esoarm.engines.stream.prepare` starts
+:mod:`esoarm.engines.stream.compile_child`); the next runs
 load it from numba's cache.  The peak resident set from ``wait4`` is that of the
 largest process (the command or its compile child); the peak of the whole process
 tree (their sum, sampled every 0.1 s from ``/proc``) is given beside it.  The
