@@ -186,8 +186,9 @@ HEADER = ("| build | observer sums | baud [bit/s] | streamed: every n-th sample 
 
 
 #: The builds of the table in docs/on-the-chip.md (``--table``): (label, sums, baud, every,
-#: polled).  Every one controls at every sample; they differ in what they stream and how.
-TABLE_BUILDS = [
+#: polled[, scenario overrides]).  Every one controls at every sample; they differ in what
+#: they stream and how, and the last two in the controller's form.
+TABLE_BUILDS: list[tuple] = [
     ("every sample, 1 Mbit/s (the default build)", False, 1_000_000, None, False),
     ("every sample, 1 Mbit/s (the default build)", True, 1_000_000, None, False),
     ("every 4th, 115200 bit/s", False, 115_200, None, False),
@@ -196,6 +197,10 @@ TABLE_BUILDS = [
     ("every 8th, 115200 bit/s, polled", False, 115_200, 8, True),
     ("every 10th, 115200 bit/s, polled (the cheapest)", False, 115_200, 10, True),
     ("every 10th, 115200 bit/s, polled (the cheapest)", True, 115_200, 10, True),
+    ("error-based ADRC, every 10th, 115200 bit/s, polled", False, 115_200, 10, True,
+     {"controller.kind": "adrc-error"}),
+    ("ADRC TF form, every 10th, 115200 bit/s, polled", False, 115_200, 10, True,
+     {"controller.kind": "adrc-tf"}),
 ]
 MARK = "<!-- bench_onboard:table -->", "<!-- /bench_onboard:table -->"
 
@@ -211,8 +216,9 @@ def table(scn, seconds: float) -> str:  # type: ignore[no-untyped-def]
              f"with the first move from 1 s to 3 s; on {platform.node()}, load {load}: the "
              "load slows the simulation, not the simulated cycles). Cycles per "
              f"{1e3 * scn.sample_time:g} ms sample, median / p99 / max.", "", HEADER]
-    for label, compensated, baud, every, polled in TABLE_BUILDS:
-        r = measure(scn, compensated, seconds, baud, every, polled)
+    for label, compensated, baud, every, polled, *keys in TABLE_BUILDS:
+        point = load_scenario(scn, keys[0]) if keys else scn
+        r = measure(point, compensated, seconds, baud, every, polled)
         lines.append(row(r, label))
         print(lines[-1], flush=True)
     return "\n".join(lines) + "\n"

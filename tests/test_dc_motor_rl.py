@@ -112,3 +112,29 @@ def test_pid_with_the_eso_rejects_the_pulse_faster() -> None:
     assert eso["e105"] < pid["e105"] / 3.0
     assert eso["iae"] < 0.8 * pid["iae"]
     assert eso["rms"] < pid["rms"]
+
+
+def test_commands_print_speed_and_voltage(run_cli) -> None:  # type: ignore[no-untyped-def]
+    """compare and simulate name rad/s and V; codegen refuses the kind in one line, exit 2."""
+    res = run_cli("compare", "dc-motor-eso", "--kinds", "pid,pid+eso", "--seeds", "1")
+    assert res.exit_code == 0, res.stderr
+    assert "RMS error [rad/s]" in res.stdout and "RMS u [V]" in res.stdout
+    res = run_cli("simulate", "dc-motor-eso", "--json")
+    assert res.exit_code == 0
+    import json
+
+    assert json.loads(res.stdout)["units"]["rms_u"] == "V"
+    res = run_cli("codegen", "dc-motor-eso", "--target", "host", "--out", "unused-dir")
+    assert res.exit_code == 2
+    assert len(res.stderr.strip().splitlines()) == 1 and "dc-motor" in res.stderr
+
+
+def test_compiled_engine_repeats_the_reference_bit_for_bit() -> None:
+    """The batch engine (the kind's step functions compiled) gives the reference's θ exactly."""
+    from esoarm.engines.batch import simulate_many
+    from esoarm.engines.simulation import simulate
+
+    scn = load_scenario("dc-motor-eso", {"controller.compensation": "eso", "duration": 12.0})
+    (batch,) = simulate_many([scn])
+    ref = simulate(scn, warn=False)
+    assert np.array_equal(np.asarray(batch.theta), np.asarray(ref.theta))

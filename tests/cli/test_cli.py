@@ -100,7 +100,7 @@ FILE_CASES = [
     ("step-not-dividing", "[rig]\nstep = 0.0015\n", ["rig.step", "divide"]),
     ("moves-out-of-order", "[reference]\nmoves = [[5.0, 1.0, 1.0], [4.0, 1.0, 0.0]]\n",
      ["reference.moves[1]", "time order"]),
-    ("not-utf8", b"\xff\xfe\x00", ["cannot read"]),
+    ("not-utf8", b"\xff\xfe\x00", ["not a text TOML file"]),
 ]
 
 

@@ -60,3 +60,25 @@ def test_stream_every_below_the_line_is_refused() -> None:
     scn = load_scenario("uno-rig", {"sensor.rate_hz": 1000})
     with pytest.raises(CodegenError, match="at least every 4th"):
         onboard_firmware(scn, compensated=False, baud=115200, every=2)
+
+
+def test_cheapest_build_leaves_30_percent_free_at_p99_while_the_arm_moves() -> None:
+    """The Done-when, measured as ``benchmarks/bench_onboard.py`` measures it: plain sums,
+    every 10th sample streamed at 115200 bit/s from loop(); busy cycles per 1 ms window at
+    p99 over the windows in which the reference moves ≤ 70 % of 16 000 (measured 10 414:
+    35 % free).  The default build, every sample at 1 Mbit/s, uses the whole period there."""
+    import importlib.util
+
+    path = Path(__file__).parents[2] / "benchmarks" / "bench_onboard.py"
+    spec = importlib.util.spec_from_file_location("bench_onboard", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    scn = load_scenario("uno-rig", {"sensor.rate_hz": 1000})
+    r = bench.measure(scn, False, 2.0, 115_200, 10, True)
+    assert r["faults"] == []
+    busy = r["busy"][r["moving"]]
+    assert len(busy) > 900  # the first move runs from 1 s to 3 s
+    assert float(np.percentile(busy, 99)) <= 0.70 * r["budget"]
+    default = bench.measure(scn, False, 2.0)
+    assert float(np.percentile(default["busy"][default["moving"]], 99)) > 0.90 * r["budget"]

@@ -468,7 +468,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     sim_fit = res.validation.get("simulated_fit_percent")
     if sim_fit is not None and not sim_fit > 0.0:  # also nan
         raise RunFailure(
-            f"validation failed: the fitted axis simulated over the validation log fits "
+            f"validation failed (the IDIM-LS axis simulated): over the validation log it fits "
             f"{sim_fit:.4g} % of its motion (0 % is its mean: the model predicts nothing; "
             f"relative force error {res.validation['estimation_force_error_percent']:.3g} % "
             "on the fitting data); nothing written")
@@ -485,7 +485,16 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
             tmp.write_text("\n".join(head) + "\n\n" + fitted.to_toml(),
                            encoding="utf-8")
     if as_json:
-        click.echo(json.dumps(res.to_json()))
+        data = res.to_json()
+        if input_unit and data.get("output_error"):  # the output error's units follow u too
+            from esoarm.studies.identification.axis.identify import unit_of as _unit_of
+
+            for name, e in data["output_error"]["parameters"].items():
+                e["unit"] = _unit_of(scn.plant.motion, name, input_unit)
+            if "warning" in data["output_error"]:
+                data["output_error"]["warning"] = _in_input_units(
+                    data["output_error"]["warning"], scn.plant.motion, input_unit)
+        click.echo(json.dumps(data))
         return
     from esoarm.studies.identification.axis.identify import unit_of
 
@@ -510,7 +519,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     if a:
         verdict = "kept" if a["kept"] else "not significant: symmetric model kept"
         lines.append(f"  viscous friction asymmetry Fv+ − Fv− = {a['difference']:.4g} "
-                     f"{a['unit']} (z = {a['z']:.3g}, {verdict})")
+                     f"{a['unit']} (z = {a['z']:.3g} against {a['threshold_z']:.3g}, {verdict})")
     if res.oe_warning:
         lines.append(f"  warning: {res.oe_warning}")
     v = res.validation

@@ -50,10 +50,10 @@ CART = ["--scenario", "emps", "--set", "plant.mass=0.2", "--set", "plant.viscous
 
 
 def test_a_step_then_rest_is_fitted_and_validated_on_a_short_step(run_cli, tmp_path):
-    """The real cart's case on its twin: an 8 s step-then-rest log is fitted (not refused),
+    """The real cart's case on its twin: a 5 s step-then-rest log is fitted (not refused),
     its intervals cover the truth, a 2.5 s step with another gain validates it (before: "too
     short ... identification needs at least 4 s"), and every unit is the volt's."""
-    fit = _write(tmp_path / "step.csv", *_cart_step(1000.0, 8.0))
+    fit = _write(tmp_path / "step.csv", *_cart_step(1000.0, 5.0))
     val = _write(tmp_path / "short.csv", *_cart_step(1000.0, 2.5, gain=25.0, seed=1))
     res = run_cli("identify", str(fit), "--validate", str(val), *CART)
     assert res.exit_code == 0, res.stderr
@@ -63,6 +63,7 @@ def test_a_step_then_rest_is_fitted_and_validated_on_a_short_step(run_cli, tmp_p
         lo, hi = p[key]["ci95"]
         assert lo <= truth <= hi, (key, p[key])
     assert p["plant.mass"]["unit"] == "V·s²/m" and p["plant.viscous_friction"]["unit"] == "V·s/m"
+    assert "kg" not in json.dumps(data["physical"]) + json.dumps(data["output_error"])
     assert data["validation"]["logs"] == [str(val)]
     assert data["validation"]["simulated_fit_percent"] > 50.0
 
@@ -158,3 +159,27 @@ def test_printed_units_follow_the_input_unit():
     assert _in_input_units("mass 0.2 kg, 1.4 N·s/m", "prismatic", "V") == \
         "mass 0.2 V·s²/m, 1.4 V·s/m"
     assert _in_input_units(text, "rotary", "") == text
+
+
+def test_the_axis_path_refuses_a_simulated_validation_fit_at_or_below_zero(run_cli, tmp_path,
+                                                                           monkeypatch):
+    """Issue 30 item 5 on the axis path (the lever arm accepted −2529 %): a validation log the
+    IDIM-LS axis simulates no better than its mean is refused, naming the method and the
+    number, and nothing is written."""
+    from esoarm.studies.identification.axis import identify as axis_identify
+
+    real = axis_identify._simulated_validation
+
+    def worse(*args, **kwargs):  # type: ignore[no-untyped-def]
+        out = real(*args, **kwargs)
+        out["simulated_fit_percent"] = -2529.0
+        return out
+
+    monkeypatch.setattr(axis_identify, "_simulated_validation", worse)
+    fit = _write(tmp_path / "step.csv", *_cart_step(1000.0, 5.0))
+    val = _write(tmp_path / "short.csv", *_cart_step(1000.0, 2.5, gain=25.0, seed=1))
+    out = tmp_path / "fitted.toml"
+    res = run_cli("identify", str(fit), "--validate", str(val), "--out", str(out), *CART)
+    assert res.exit_code == 1
+    assert "validation failed (the IDIM-LS axis simulated)" in res.stderr
+    assert "-2529 %" in res.stderr and not out.exists()

@@ -155,17 +155,17 @@ GUARD_TARGET_DEG = 20.0
 
 
 def guard_margin(kp: float, kd: float, inertia: float, viscous: float,
-                 delay_s: float) -> float:
-    """Phase margin [deg] of the guard loop (kp + kd s) e^(−s τ) / (I s² + b s).
+                 delay_s: float, lag_s: float = 0.0) -> float:
+    """Phase margin [deg] of the guard loop (kp + kd s) e^(−s τ) / ((T s + 1)(I s² + b s)).
 
-    ``inertia`` I [kg·m²], ``viscous`` b [N·m·s/rad], ``delay_s`` τ [s] (transport delay,
-    half a sample of hold, the actuator's lag).  Gravity (a few hundredths of a N·m on the
-    lever arm) and Coulomb friction (which only adds damping) are left out.  inf when the
-    loop gain never reaches 1.
+    ``inertia`` I [kg·m²], ``viscous`` b [N·m·s/rad], ``delay_s`` τ [s] (transport delay and
+    half a sample of hold), ``lag_s`` T [s] (the actuator's first-order lag).  Gravity (a few
+    hundredths of a N·m on the lever arm) and Coulomb friction (which only adds damping) are
+    left out.  inf when the loop gain never reaches 1.
     """
     w = np.geomspace(1e-3, 1e4, 20000)
-    loop = (kp + 1j * kd * w) * np.exp(-1j * w * delay_s) / (inertia * (1j * w) ** 2
-                                                               + viscous * 1j * w)
+    loop = (kp + 1j * kd * w) * np.exp(-1j * w * delay_s) / (
+        (lag_s * 1j * w + 1.0) * (inertia * (1j * w) ** 2 + viscous * 1j * w))
     mag = np.abs(loop)
     cross = np.flatnonzero((mag[:-1] >= 1.0) & (mag[1:] < 1.0))
     if cross.size == 0:
@@ -175,10 +175,9 @@ def guard_margin(kp: float, kd: float, inertia: float, viscous: float,
 
 
 def guard_delay(scn: Scenario) -> float:
-    """The delay [s] the guard loop's torque meets: the transport delay, half a sample of
-    zero-order hold and the actuator's lag."""
-    a = scn.actuator
-    return (a.delay_samples + 0.5) * scn.sample_time + a.lag
+    """The delay [s] the guard loop's torque meets: the transport delay and half a sample of
+    zero-order hold (the actuator's lag enters :func:`guard_margin` as a lag)."""
+    return (scn.actuator.delay_samples + 0.5) * scn.sample_time
 
 
 def guard_kd(scn: Scenario, plan: ExcitationPlan) -> float:
@@ -189,19 +188,19 @@ def guard_kd(scn: Scenario, plan: ExcitationPlan) -> float:
     the plan would swing the arm past its limits; lower kp or the delay."""
     inertia = scn.plant.inertia * scn.rig.inertia_scale
     viscous = scn.rig.viscous_friction
-    tau = guard_delay(scn)
-    if plan.kp <= 0 or guard_margin(plan.kp, plan.kd, inertia, viscous,
-                                    tau) >= GUARD_MARGIN_DEG:
+    tau, lag = guard_delay(scn), scn.actuator.lag
+    if plan.kp <= 0 or guard_margin(plan.kp, plan.kd, inertia, viscous, tau,
+                                    lag) >= GUARD_MARGIN_DEG:
         return plan.kd
     kd = max(plan.kd, 1e-3)
     while kd <= 100.0 * max(plan.kd, 1e-3):
-        if guard_margin(plan.kp, kd, inertia, viscous, tau) >= GUARD_TARGET_DEG:
+        if guard_margin(plan.kp, kd, inertia, viscous, tau, lag) >= GUARD_TARGET_DEG:
             return kd
         kd *= 1.25
     raise ScenarioError(
         f"kp {plan.kp:g}: the guard loop cannot be kept stable with a delay of "
-        f"{scn.actuator.delay_samples} sample(s) ({tau * 1e3:.3g} ms with the hold and the "
-        f"lag): its phase margin stays under {GUARD_TARGET_DEG:g}° for every kd; lower kp")
+        f"{scn.actuator.delay_samples} sample(s) ({tau * 1e3:.3g} ms with the hold, lag "
+        f"{lag:g} s): its phase margin stays under {GUARD_TARGET_DEG:g}° for every kd; lower kp")
 
 
 class ExcitationController:
@@ -313,7 +312,7 @@ def plan_text(plan: ExcitationPlan, scn: Scenario, preview: dict | None = None) 
     freqs, amps = signal_spectrum(exc, ts)
     kd = guard_kd(scn, plan)
     margin = guard_margin(plan.kp, plan.kd, scn.plant.inertia * scn.rig.inertia_scale,
-                          scn.rig.viscous_friction, guard_delay(scn))
+                          scn.rig.viscous_friction, guard_delay(scn), scn.actuator.lag)
     lines = [
         f"excitation of '{scn.name}': {plan.duration:g} s at {scn.sensor.rate_hz:g} Hz "
         f"({n} samples), torque limit ±{scn.actuator.torque_limit:g} N·m",
@@ -323,7 +322,7 @@ def plan_text(plan: ExcitationPlan, scn: Scenario, preview: dict | None = None) 
         f"guard loop: u = e(t) − {plan.kp:g}·(y − θc) − {kd:g}·(ẑ2 − θ̇c), "
         f"setpoint sweep θc = {plan.sweep:g}·sin(2π t/{plan.sweep_period:g} s) rad",
         *([f"  kd raised from {plan.kd:g}: with the rig's delay ({guard_delay(scn) * 1e3:.3g} "
-           f"ms, the hold and the lag included) the guard loop had a phase margin of "
+           f"ms with the hold) and lag the guard loop had a phase margin of "
            f"{margin:.3g}° (under {GUARD_MARGIN_DEG:g}°)"] if kd != plan.kd else []),
         "spectrum of e(t) (RMS per octave band):",
     ]
