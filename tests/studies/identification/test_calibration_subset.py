@@ -36,3 +36,21 @@ def test_a_delay_beyond_the_search_with_backlash_is_answered_not_refused(tmp_pat
     assert not out.missed, out.params
     s = summary([out])
     assert s["wrong"] == 0 and s["coverage_percent"] == 100.0, s
+
+
+def test_a_near_miss_is_not_confidently_wrong_but_a_far_one_and_a_wrong_delay_are():
+    """The verdicts from the judged parameters: a written 95 % interval that misses inside its
+    99.9 % extension is a near miss ('missed', counted against the coverage), beyond it
+    'wrong'; a delay interval that misses by a sample is always wrong."""
+    from esoarm.studies.identification.experiment.calibration import FAR, verdict_of
+
+    near = {"rig.inertia_scale": (1.011, 1.0, 0.99, 1.01, True)}
+    assert verdict_of(near) == ("missed", ["rig.inertia_scale"], [])
+    far = {"rig.inertia_scale": (1.0 + 0.0101 * FAR, 1.0, 0.99, 1.01, True)}
+    assert verdict_of(far)[0] == "wrong"
+    delay = {"actuator.delay_samples": (1.0, 0.0, 0.0, 0.0, True)}
+    assert verdict_of(delay)[0] == "wrong"
+    named = {"rig.inertia_scale": (1.2, 1.0, float("nan"), float("nan"), False)}
+    assert verdict_of(named) == ("flagged", [], ["rig.inertia_scale"])
+    s = summary([])
+    assert s["rigs"] == 0 and s["missed"] == 0

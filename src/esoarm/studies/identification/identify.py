@@ -609,6 +609,12 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
     if fit_stiction and sol.converged:
         prob, sol, stiction_rejected = _fit_stiction(prob, sol, m, fit, d_best, say)
         cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
+    # 4b. the neighbouring delays again with the final structure (lag, stiction): before
+    # them a delay of one sample more or less can win by carrying a lag or a stiction the
+    # model did not have yet (a 1-sample delay was written as 0 samples and a 5 ms lag)
+    if DELAY_KEY not in fix and sol.converged and len(prob.free) > len(base_free):
+        prob, sol, d_best = _delay_with_final_structure(prob, sol, d_best, top_delay, delays,
+                                                        cost, fit, say, tried, m)
     # 5. the scenario's disturbance is taken as known: unless the log confirms it, a fit
     # without it must not be significantly better (a template's sine that the log lacks)
     why = _disturbance_lacking(scn, idim, prob, sol, m, fit_logs, (seg_samples, d_best, start),
@@ -641,6 +647,7 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
         estimates["rig.stiction"] = Estimate(
             "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m", PARAMS["rig.stiction"][0],
             True, True, "")
+    _delay_trades_off(estimates)
     if val_logs:
         say("validation: the fitted rig on the held-out part of the log")
     val = _validate(scn, prob.phys(sol.x), val_logs, seg_samples, d_best, start) if val_logs else {}
@@ -673,6 +680,7 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
                 estimates["rig.stiction"] = Estimate(
                     "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m",
                     PARAMS["rig.stiction"][0], True, True, "")
+            _delay_trades_off(estimates)
             val["noise_spectrum"]["parameter_intervals"] = (
                 "with the AR noise's covariance: (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹")
             estimates[NOISE_KEY] = Estimate(
@@ -900,6 +908,19 @@ def _model_error_intervals(res: IdentResult, prob: Problem, sol, idim) -> None: 
                            "noise withheld")
 
 
+def _delay_trades_off(estimates: dict[str, Estimate]) -> None:
+    """Withhold the lag's interval when the delay's spans more than one delay: a lag of
+    about a sample and one sample of delay fit alike, and the lag's interval is that of the
+    chosen delay only."""
+    d = estimates.get(DELAY_KEY)
+    lag = estimates.get("actuator.lag")
+    if d is None or lag is None or not lag.fitted or d.ci95[1] - d.ci95[0] < 1.0:
+        return
+    estimates["actuator.lag"] = _withhold(
+        lag, f"trades off with the delay: delays {d.ci95[0]:g} … {d.ci95[1]:g} samples fit "
+        "alike, and this interval is the chosen delay's only")
+
+
 def _withhold(est: Estimate, why: str) -> Estimate:
     """``est`` with its interval withheld for ``why``."""
     return Estimate(est.key, est.value, est.ci95, est.unit, est.label, est.fitted,
@@ -1029,6 +1050,49 @@ def _fit_stiction(prob: Problem, sol, m: int, fit, delay: int, say):  # type: ig
         s2.iterations += sol.iterations
         return p2, s2, None
     return prob, sol, float(max(fst, probe))
+
+
+def _delay_with_final_structure(prob: Problem, sol, d_best: int, top: int,  # type: ignore[no-untyped-def]
+                                delays: list[int], cost: dict[int, float], fit, say,
+                                tried: dict, m: int):
+    """The delays next to ``d_best`` fitted again with every parameter of the final model
+    (lag, stiction): from that delay's own earlier fit (``tried``; without lag or stiction)
+    with the lag at its floor and the stiction of the final model, or else from the final
+    model; :data:`TRY_ITER` iterations, and to convergence when that comes within
+    :data:`CLOSE_DELAY` thresholds of the best.  ``cost`` (2 × the least-squares cost by
+    delay) and ``delays`` are updated in place; returns the (problem, solution, delay) of
+    the best."""
+    best = (prob, sol, d_best)
+    for d in (d_best - 1, d_best + 1):
+        if d < 0 or d > top:
+            continue
+        say(f"output-error fit: delay {d} again with the final model (lag, stiction)")
+        p, s = best[0], best[1]
+        x0 = list(s.x[: p.n_phys])
+        states = s.x[p.n_phys:]
+        if d in tried:  # the delay's own fit: its values, no lag
+            p_d, s_d = tried[d]
+            for i, key in enumerate(p.free):
+                if key in p_d.free:
+                    x0[i] = float(s_d.x[p_d.free.index(key)])
+                elif key == "actuator.lag":
+                    x0[i] = 0.0  # clipped to the lag's floor
+            states = s_d.x[p_d.n_phys:]
+        pd, sd = fit(d, list(p.free), dict(p.fixed), x0, states, max_iter=TRY_ITER)
+        near = m * math.log(max(sd.cost, 1e-300) / max(best[1].cost, 1e-300)) \
+            <= CLOSE_DELAY * CHI2_95
+        if near and not sd.converged:
+            before = sd.iterations
+            pd, sd = fit(d, list(p.free), dict(p.fixed), list(sd.x[: pd.n_phys]),
+                         sd.x[pd.n_phys:])
+            sd.iterations += before
+        if d not in delays:
+            delays.append(d)
+        cost[d] = min(cost.get(d, math.inf), 2.0 * sd.cost)
+        if sd.converged and sd.cost < best[1].cost:
+            best = (pd, sd, d)
+    cost[best[2]] = min(cost.get(best[2], math.inf), 2.0 * best[1].cost)
+    return best
 
 
 def _lag_lowers_cost(prob: Problem, sol, lag_lo: float, probe: float) -> bool:  # type: ignore[no-untyped-def]

@@ -10,7 +10,12 @@ The result is sorted into one of four classes (:func:`classify`):
 * *flagged*: exit 0, every written interval contains its truth, and every parameter whose
   truth lies outside its interval is named in words (interval withheld, poorly determined,
   or at a bound of the fit);
-* *confidently wrong*: exit 0 and a written interval, not flagged, that misses the truth.
+* *confidently wrong*: exit 0 and a written interval, not flagged, that misses the truth
+  far: beyond its 99.9 % extension (:data:`FAR` × its half-width; the delay by any
+  sample);
+* *missed*: exit 0 and written intervals that miss only near (inside their 99.9 %
+  extension): a 95 % interval misses one time in twenty, so with eight of them a third
+  of an exact estimator's answers have one; they count against the coverage.
 
 The prior (all of it applied to the twin of ``test-1``; the nominal scenario given to
 ``identify`` stays ``test-1`` with only the sensor's rate and resolution, which a user
@@ -50,17 +55,20 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig", "from_json",
-           "run_rig", "sticking_rig", "summary"]
+__all__ = ["FAR", "HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig", "far_miss",
+           "from_json", "run_rig", "sticking_rig", "summary", "verdict_of"]
 
 #: Seeds from this one on are held out of any tuning of the estimator (reported apart).
 #: (Seeds 1_000_000 … were held out first; the first of them, 1_000_001, a 200 Hz rig whose
 #: 2-sample delay was fitted as 1 sample and a lag, led to a change, so they are no longer.
 #: Seeds 2_000_000 … were held out next; their results (35 rigs) were read on 2026-12-06
 #: before the estimator was changed again, so they are no longer held out either.  Seeds
-#: 5_000_000 … were declared on 2026-12-06 04:50 UTC, before any tuning of that session,
-#: and are run only for the final table.)
-HELD_OUT_START = 5_000_000
+#: 5_000_000 … were declared on 2026-12-06 04:50 UTC, before any tuning of that session;
+#: their first 28 rigs, run at 05:34-05:57 on commit 1795e02 after main was merged, had 6
+#: confidently wrong (the delay and the lag decided before the stiction), which led to a
+#: change, so they are no longer held out either.  Seeds 6_000_000 … were declared at
+#: 05:58 UTC, before that change was tried, and are run only for the final table.)
+HELD_OUT_START = 6_000_000
 #: RMS of the default plan's multisine [N·m] (``esoarm excite --amplitude``).
 EXCITATION_RMS = 0.2
 RATES = (50.0, 50.0, 50.0, 50.0, 50.0, 50.0, 100.0, 100.0, 200.0, 1000.0)
@@ -147,7 +155,7 @@ class RigOutcome:
     """What ``identify`` did with one rig."""
 
     rig: Rig
-    verdict: str  # recovered | refused | flagged | wrong | excite-failed
+    verdict: str  # recovered | refused | flagged | missed | wrong | excite-failed
     exit_code: int
     reason: str = ""
     #: key -> (truth, value, lo, hi, written) for the judged keys.
@@ -271,8 +279,6 @@ def classify(rig: Rig, data: dict) -> RigOutcome:
         and flagged.
     """
     params: dict[str, tuple[float, float, float, float, bool]] = {}
-    missed: list[str] = []
-    flagged: list[str] = []
     for key in rig.judged:
         e = data["parameters"].get(key)
         if e is None or not e.get("fitted", True):
@@ -282,12 +288,54 @@ def classify(rig: Rig, data: dict) -> RigOutcome:
         written = (e.get("ci95") is not None and not e.get("withheld", False)
                    and e.get("identifiable", True) and not e.get("at_bound", False))
         params[key] = (truth, float(e["value"]), float(lo), float(hi), written)
-        inside = e.get("ci95") is not None and lo - 1e-12 <= truth <= hi + 1e-12
-        if inside:
+    verdict, missed, flagged = verdict_of(params)
+    return RigOutcome(rig, verdict, 0, "", params, missed, flagged)
+
+
+#: A written 95 % interval misses *far* when the truth lies beyond the value by more than
+#: this many times the interval's half-width on the truth's side: outside the 99.9 %
+#: interval (3.29/1.96 standard errors) of the same estimate.
+FAR = 3.29 / 1.96
+
+
+def far_miss(key: str, truth: float, value: float, lo: float, hi: float) -> bool:
+    """Whether a written interval [lo, hi] around ``value`` misses ``truth`` far
+    (:data:`FAR`); the delay, an integer, misses far whenever it misses."""
+    if lo - 1e-12 <= truth <= hi + 1e-12:
+        return False
+    half = value - lo if truth < lo else hi - value
+    return key == "actuator.delay_samples" or not half > 0 or abs(truth - value) > FAR * half
+
+
+def verdict_of(params: dict[str, tuple[float, float, float, float, bool]]
+               ) -> tuple[str, list[str], list[str]]:
+    """The verdict of an exit-0 answer from its judged parameters (see :func:`classify`).
+
+    Parameters
+    ----------
+    params : dict
+        key -> (truth, value, lo, hi, written).
+
+    Returns
+    -------
+    (verdict, missed, flagged)
+        ``wrong`` when a written interval misses its truth far (:func:`far_miss`),
+        ``missed`` when written intervals miss only near (within the 99.9 % interval: with
+        eight 95 % intervals, a third of the answers of an exact estimator have one),
+        ``flagged`` when a truth outside its interval is named in words, else
+        ``recovered``; the keys whose written interval misses, and those flagged.
+    """
+    missed: list[str] = []
+    flagged: list[str] = []
+    far = False
+    for key, (truth, value, lo, hi, written) in params.items():
+        if lo - 1e-12 <= truth <= hi + 1e-12:
             continue
         (missed if written else flagged).append(key)
-    verdict = "wrong" if missed else "flagged" if flagged else "recovered"
-    return RigOutcome(rig, verdict, 0, "", params, missed, flagged)
+        far = far or (written and far_miss(key, truth, value, lo, hi))
+    verdict = ("wrong" if far else "missed" if missed else "flagged" if flagged
+               else "recovered")
+    return verdict, missed, flagged
 
 
 def summary(outcomes: list[RigOutcome]) -> dict[str, float]:
@@ -310,12 +358,12 @@ def summary(outcomes: list[RigOutcome]) -> dict[str, float]:
     """
     n = len(outcomes)
     count = {v: sum(o.verdict == v for o in outcomes)
-             for v in ("recovered", "refused", "flagged", "wrong", "excite-failed")}
+             for v in ("recovered", "refused", "flagged", "missed", "wrong", "excite-failed")}
     written = [p for o in outcomes for p in o.params.values() if p[4]]
     covered = sum(lo - 1e-12 <= truth <= hi + 1e-12 for truth, _v, lo, hi, _w in written)
     identified = n - count["excite-failed"]  # the shares are of the rigs identify saw
     out: dict[str, float] = {"rigs": n, "identified": identified, **count}
-    for v in ("recovered", "refused", "flagged", "wrong"):
+    for v in ("recovered", "refused", "flagged", "missed", "wrong"):
         out[f"{v}_percent"] = 100.0 * count[v] / max(identified, 1)
     out["intervals_written"] = len(written)
     out["coverage_percent"] = 100.0 * covered / max(len(written), 1)
@@ -337,7 +385,13 @@ def from_json(items: list[dict]) -> list[RigOutcome]:
     list of RigOutcome
         One per item, in order, its :class:`Rig` redrawn from the seed by :func:`draw_rig`.
     """
-    return [RigOutcome(draw_rig(int(o["seed"])), o["verdict"], int(o["exit"]), o["reason"],
-                       {k: tuple(v) for k, v in o["params"].items()}, list(o["missed"]),
-                       list(o["flagged"]), float(o["seconds"]), float(o["stuck"]))
-            for o in items]
+    out = []
+    for o in items:
+        params = {k: tuple(v) for k, v in o["params"].items()}
+        verdict, missed, flagged = o["verdict"], list(o["missed"]), list(o["flagged"])
+        if verdict in ("recovered", "flagged", "missed", "wrong"):  # by today's rule
+            verdict, missed, flagged = verdict_of(params)  # type: ignore[arg-type]
+        out.append(RigOutcome(draw_rig(int(o["seed"])), verdict, int(o["exit"]), o["reason"],
+                              params, missed, flagged,  # type: ignore[arg-type]
+                              float(o["seconds"]), float(o["stuck"])))
+    return out
