@@ -90,6 +90,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rigs", type=int, default=200, help="held-out rigs")
     ap.add_argument("--tuning", type=int, default=0, help="rigs from the tuning seeds 0 …")
+    ap.add_argument("--tuning-start", type=int, default=0,
+                    help="first tuning seed (default 0)")
+    ap.add_argument("--held-start", type=int, default=HELD_OUT_START,
+                    help="first held-out seed (default HELD_OUT_START); a later start lets two "
+                    "processes split one range")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--out", default=str(ROOT / "docs" / "benchmarks-identify-calibration.md"))
     ap.add_argument("--json", dest="json_out", default="", help="also dump the outcomes")
@@ -97,7 +102,10 @@ def main() -> None:
                     help="write the page from a --json dump of an earlier run (nothing is run)")
     ap.add_argument("--note", default="", help="a sentence added under the page's header")
     args = ap.parse_args()
-    seeds = [*range(args.tuning), *range(HELD_OUT_START, HELD_OUT_START + args.rigs)]
+    if args.held_start < HELD_OUT_START or args.tuning_start + args.tuning > HELD_OUT_START:
+        ap.error(f"held-out seeds start at {HELD_OUT_START}; tuning seeds stay below it")
+    seeds = [*range(args.tuning_start, args.tuning_start + args.tuning),
+             *range(args.held_start, args.held_start + args.rigs)]
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     done: list[RigOutcome] = []
@@ -118,6 +126,9 @@ def main() -> None:
         lines = ["# Calibration of esoarm identify", "",
                  f"Measured with `python benchmarks/bench_identify_calibration.py --rigs "
                  f"{args.rigs}" + (f" --tuning {args.tuning}" if args.tuning else "")
+                 + (f" --tuning-start {args.tuning_start}" if args.tuning_start else "")
+                 + (f" --held-start {args.held_start}"
+                    if args.held_start != HELD_OUT_START else "")
                  + (f" --jobs {args.jobs}" if args.jobs > 1 else "")
                  + f"` from {start_utc} UTC, commit {commit}, {platform.machine()} with "
                  f"{os.cpu_count()} cores, load average {load0:.1f} at the start; "
@@ -145,8 +156,8 @@ def main() -> None:
             lines[2] = f"Written from {Path(args.from_json).name}, the dump of a run: {args.note}"
         lines += _table(f"Held-out seeds ({HELD_OUT_START} …)", held)
         if tuning:
-            lines += _table("Tuning seeds (0 …): looked at while the estimator was changed",
-                            tuning)
+            lines += _table("Tuning seeds (below the held-out ones): looked at while the "
+                            "estimator was changed", tuning)
         Path(args.out).write_text("\n".join(lines), encoding="utf-8")
         if args.json_out:
             Path(args.json_out).write_text(json.dumps(

@@ -11,7 +11,15 @@ reads three program-counter probes (``Board.probe``):
   step as it runs on board, interrupts on (encoder and UART interrupts inside it count);
 - the first instruction of ``loop()``'s receive check: each idle pass of ``loop()`` hits
   it once, ``idle`` cycles apart, so the busy cycles of each 1 ms window are
-  ``16000 − idle · (passes that found nothing to do)``.
+  16000 less the cycles of the passes that found nothing to do (at most
+  :data:`IDLE_SLACK` cycles longer than the shortest pass).
+
+The table's columns "arm moving" take only the windows in which the scenario's reference
+moves (θ̇d or θ̈d not zero): the issue's budget is "at least 30 % of the period free at p99
+while the arm moves".  ``--set KEY=VALUE`` builds another form (e.g.
+``controller.kind=adrc-error``), ``--baud``/``--every`` stream every n-th sample (the chip
+still controls at every one), ``--polled`` feeds the line from ``loop()`` without the
+transmit interrupt.
 
 ``overhead = busy − step`` per sample is everything the firmware does besides the
 controller (interrupt entry, encoder, motor pins, the CHIP_SAMPLE frame: its CRC, queue
@@ -27,11 +35,13 @@ import time
 
 import numpy as np
 
-from esoarm.codegen.onboard import onboard_firmware
+from esoarm.codegen.onboard import BAUD, onboard_firmware, stream_every
 from esoarm.hardware import protocol as P
 from esoarm.hardware.hil.board import F_CPU, Board
 from esoarm.hardware.hil.twin import PinTwin
+from esoarm.reference import evaluate_reference
 from esoarm.scenario import load_scenario
+from esoarm.scenario.schema import parse_override
 
 
 def _disassembly(elf: str) -> list[str]:
@@ -57,7 +67,7 @@ def probes(elf: str) -> tuple[int, int, int]:
             sei = addr
         elif section == "__vector_7" and op == "cli" and sei is not None and cli is None:
             cli = addr
-        elif section == "main" and rx is None and "<_ZL8rxq_tail>" in ln and "lds" in op:
+        elif (section == "main" and rx is None and "<_ZL8rxq_tail" in ln and "lds" in op):
             rx = addr
     if sei is None or cli is None or rx is None:
         raise SystemExit(f"{elf}: probes not found (sei {sei}, cli {cli}, rx check {rx})")
@@ -105,9 +115,27 @@ def run_probe(scn, elf: str, pc: int, seconds: float) -> tuple[np.ndarray, int, 
     return h, t_first, n, faults
 
 
-def measure(scn, compensated: bool, seconds: float) -> dict:  # type: ignore[no-untyped-def]
-    """Per 1 ms sample window: step cycles, busy cycles, overhead; and the run's faults."""
-    elf = str(onboard_firmware(scn, compensated=compensated))
+#: A pass of loop() at most this many cycles longer than the shortest one did nothing
+#: either: with the polled transmit (``--polled``) a pass that finds the line still busy
+#: takes a few cycles more than one that finds nothing to send.
+IDLE_SLACK = 12
+
+
+def moving(scn, n: int) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Samples 0..n-1 at which the reference moves (θ̇d or θ̈d not zero): the arm moves."""
+    _, vel, acc = evaluate_reference(scn.reference, np.arange(n) * scn.sample_time)
+    return (vel != 0.0) | (acc != 0.0)
+
+
+def measure(scn, compensated: bool, seconds: float, baud: int = BAUD,  # type: ignore[no-untyped-def]
+            every: int | None = None, polled: bool = False) -> dict:
+    """Per sample window: step cycles, busy cycles, overhead; and the run's faults.
+
+    ``every`` streams every n-th sample (the firmware's STREAM_EVERY; default the fewest
+    ``baud`` needs).  ``moving`` marks the windows in which the reference moves.
+    """
+    elf = str(onboard_firmware(scn, compensated=compensated, baud=baud, every=every,
+                               polled=polled))
     sei, cli, rx = probes(elf)
     per = round(F_CPU * scn.sample_time)
     h_sei, t0, n, faults = run_probe(scn, elf, sei, seconds)
@@ -119,18 +147,81 @@ def measure(scn, compensated: bool, seconds: float) -> dict:  # type: ignore[no-
     idle = int(np.diff(h_rx).min())
     d = np.diff(h_rx)
     w = (h_rx[:-1] - t0) // per
-    ok = (w >= 0) & (d == idle)
+    ok = (w >= 0) & (d <= idle + IDLE_SLACK)
     windows = int(seconds / scn.sample_time) - 1
-    idle_c = np.bincount(w[ok], minlength=windows)[:windows] * idle
+    idle_c = np.bincount(w[ok], weights=d[ok], minlength=windows)[:windows].astype(np.int64)
     busy = per - idle_c
     k = min(len(step), windows)
     return {"sums": "compensated" if compensated else "plain", "samples": n, "faults": faults,
             "step": step[:k], "busy": busy[:k], "overhead": busy[:k] - step[:k],
-            "budget": per, "idle_pass": idle}
+            "moving": moving(scn, k), "budget": per, "idle_pass": idle,
+            "every": every if every is not None else stream_every(scn.sensor.rate_hz, baud),
+            "baud": baud, "polled": polled}
 
 
 def _stats(a: np.ndarray) -> str:
+    if len(a) == 0:
+        return "—"
     return f"{np.median(a):.0f} / {np.percentile(a, 99):.0f} / {a.max():.0f}"
+
+
+def row(r: dict, label: str) -> str:
+    """One table row: the whole run, then the windows in which the arm moves."""
+    mv = r["moving"]
+    busy_mv = r["busy"][mv]
+    p99 = float(np.percentile(busy_mv, 99)) if len(busy_mv) else float("nan")
+    free = 1.0 - p99 / r["budget"]
+    return (f"| {label} | {r['sums']} | {r['baud']} | {r['every']} "
+            f"| {'polled' if r['polled'] else 'interrupt'} | {r['samples']} "
+            f"| {r['faults'] or 'none'} | {_stats(r['step'][mv])} | {_stats(r['busy'][mv])} "
+            f"| {_stats(r['overhead'][mv])} | {_stats(r['busy'])} | {r['budget']} "
+            f"| {100 * free:.0f} % |")
+
+
+HEADER = ("| build | observer sums | baud [bit/s] | streamed: every n-th sample | transmit "
+          "| samples | faults | step (ISR, interrupts on), arm moving | busy, arm moving "
+          "| overhead = busy − step, arm moving | busy, whole run | budget "
+          "| free at p99, arm moving |\n"
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+
+
+#: The builds of the table in docs/on-the-chip.md (``--table``): (label, sums, baud, every,
+#: polled[, scenario overrides]).  Every one controls at every sample; they differ in what
+#: they stream and how, and the last two in the controller's form.
+TABLE_BUILDS: list[tuple] = [
+    ("every sample, 1 Mbit/s (the default build)", False, 1_000_000, None, False),
+    ("every sample, 1 Mbit/s (the default build)", True, 1_000_000, None, False),
+    ("every 4th, 115200 bit/s", False, 115_200, None, False),
+    ("every 10th, 1 Mbit/s", False, 1_000_000, 10, False),
+    ("every 10th, 1 Mbit/s, polled", False, 1_000_000, 10, True),
+    ("every 8th, 115200 bit/s, polled", False, 115_200, 8, True),
+    ("every 10th, 115200 bit/s, polled (the cheapest)", False, 115_200, 10, True),
+    ("every 10th, 115200 bit/s, polled (the cheapest)", True, 115_200, 10, True),
+    ("error-based ADRC, every 10th, 115200 bit/s, polled", False, 115_200, 10, True,
+     {"controller.kind": "adrc-error"}),
+    ("ADRC TF form, every 10th, 115200 bit/s, polled", False, 115_200, 10, True,
+     {"controller.kind": "adrc-tf"}),
+]
+MARK = "<!-- bench_onboard:table -->", "<!-- /bench_onboard:table -->"
+
+
+def table(scn, seconds: float) -> str:  # type: ignore[no-untyped-def]
+    """Every build of :data:`TABLE_BUILDS` on ``scn``: the table, markdown."""
+    import os
+    import platform
+
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    lines = [f"`python benchmarks/bench_onboard.py --table --seconds {seconds:g}` "
+             f"({scn.name} at {scn.sensor.rate_hz:g} Hz in simavr, {seconds:g} s from START "
+             f"with the first move from 1 s to 3 s; on {platform.node()}, load {load}: the "
+             "load slows the simulation, not the simulated cycles). Cycles per "
+             f"{1e3 * scn.sample_time:g} ms sample, median / p99 / max.", "", HEADER]
+    for label, compensated, baud, every, polled, *keys in TABLE_BUILDS:
+        point = load_scenario(scn, keys[0]) if keys else scn
+        r = measure(point, compensated, seconds, baud, every, polled)
+        lines.append(row(r, label))
+        print(lines[-1], flush=True)
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
@@ -138,19 +229,49 @@ def main() -> None:
     ap.add_argument("--scenario", default="uno-rig")
     ap.add_argument("--rate", type=float, default=1000.0)
     ap.add_argument("--seconds", type=float, default=5.0)
+    ap.add_argument("--sums", choices=("plain", "compensated", "both"), default="both")
+    ap.add_argument("--baud", type=int, default=BAUD, help="line rate [bit/s]")
+    ap.add_argument("--every", type=int, default=None,
+                    help="stream every n-th sample (default: the fewest the line needs)")
+    ap.add_argument("--polled", action="store_true",
+                    help="feed the line from loop() a byte at a time (no transmit interrupt)")
+    ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                    help="a scenario override, e.g. controller.kind=adrc-error (repeatable)")
+    ap.add_argument("--label", default="", help="the build's name in the table")
+    ap.add_argument("--header", action="store_true", help="print the table's header")
+    ap.add_argument("--table", action="store_true",
+                    help="every build of the docs' table (TABLE_BUILDS), one after another")
+    ap.add_argument("--update", default=None, metavar="MD",
+                    help="with --table: write it between the markers in this file")
     args = ap.parse_args()
-    scn = load_scenario(args.scenario, {"sensor.rate_hz": args.rate})
-    print(f"{scn.name} at {args.rate:g} Hz on board (simavr ATmega328P, 16 MHz, 1 Mbit/s), "
-          f"{args.seconds:g} s; cycles per sample, median / p99 / max")
-    print("| observer sums | samples | faults | step (ISR, interrupts on) | busy | "
-          "overhead = busy − step | budget |")
-    print("|---|---|---|---|---|---|---|")
-    for compensated in (False, True):
+    overrides: dict[str, object] = {"sensor.rate_hz": args.rate}
+    for kv in args.overrides:
+        key, value = parse_override(kv)
+        overrides[key] = value
+    scn = load_scenario(args.scenario, overrides)
+    if args.table:
+        text = table(scn, args.seconds)
+        if args.update:
+            from pathlib import Path
+
+            path = Path(args.update)
+            doc = path.read_text()
+            a, b = doc.index(MARK[0]) + len(MARK[0]), doc.index(MARK[1])
+            path.write_text(doc[:a] + "\n" + text + doc[b:])
+            print(f"wrote the table into {path}")
+        return
+    print(f"<!-- {scn.name} at {args.rate:g} Hz on board (simavr ATmega328P, 16 MHz), "
+          f"{args.seconds:g} s from START; cycles per sample, median / p99 / max; "
+          f"{' '.join(args.overrides) or 'the scenario as written'} -->")
+    if args.header:
+        print(HEADER)
+    sums = {"plain": [False], "compensated": [True], "both": [False, True]}[args.sums]
+    for compensated in sums:
         t = time.perf_counter()
-        r = measure(scn, compensated, args.seconds)
-        print(f"| {r['sums']} | {r['samples']} | {r['faults'] or 'none'} | {_stats(r['step'])} "
-              f"| {_stats(r['busy'])} | {_stats(r['overhead'])} | {r['budget']} |", flush=True)
-        print(f"<!-- {time.perf_counter() - t:.0f} s wall, idle pass {r['idle_pass']} cycles -->")
+        r = measure(scn, compensated, args.seconds, args.baud, args.every, args.polled)
+        print(row(r, args.label or "as generated"), flush=True)
+        print(f"<!-- {time.perf_counter() - t:.0f} s wall, idle pass {r['idle_pass']} cycles, "
+              f"{int(r['moving'].sum())} windows with the arm moving -->")
 
 
 if __name__ == "__main__":

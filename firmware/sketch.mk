@@ -12,6 +12,8 @@ SKETCH_DEFINES := $(if $(filter bts7960,$(ESOARM_DRIVER)),-DESOARM_DRIVER_BTS796
   $(if $(SAMPLE_PERIOD_US),-DSAMPLE_PERIOD_US=$(SAMPLE_PERIOD_US)UL) \
   $(if $(ENCODER_PPR),-DENCODER_PPR=$(ENCODER_PPR)UL) \
   $(if $(BAUD),-DBAUD=$(BAUD)UL) \
+  $(if $(STREAM_EVERY),-DSTREAM_EVERY=$(STREAM_EVERY)u) \
+  $(if $(STREAM_POLLED),-DESOARM_STREAM_POLLED) \
   $(if $(ONBOARD),-DESOARM_ONBOARD -I$(abspath $(ONBOARD)))
 
 include $(ARDMK_DIR)/Arduino.mk
@@ -28,7 +30,8 @@ $(OBJDIR)/esoarm_rig.ino.o: $(abspath $(ONBOARD))/esoarm_controller.c \
 endif
 
 # The settings are part of the build: the file changes (and the sketch is rebuilt) only when
-# SAMPLE_PERIOD_US, ENCODER_PPR, BAUD or the driver differ from the last build in OBJDIR.
+# SAMPLE_PERIOD_US, ENCODER_PPR, BAUD, STREAM_EVERY, STREAM_POLLED or
+# the driver differ from the last build in OBJDIR.
 SETTINGS := $(OBJDIR)/settings.txt
 $(OBJDIR)/esoarm_rig.ino.o: $(SETTINGS)
 .PHONY: settings-check

@@ -82,9 +82,12 @@ static const esoarm_real COUNT_TO_RAD = (esoarm_real)(6.283185307179586 / COUNTS
 /* A CHIP_SAMPLE frame is 37 bytes of 10 bits on the wire; stream every STREAM_EVERY-th
  * sample so that the frames use at most 90 % of the line (1 at 1 kHz and 1 Mbit/s). */
 #define CHIP_FRAME_BITS 370ULL
+#define STREAM_EVERY_MIN ((CHIP_FRAME_BITS * 1000000ULL * 10ULL \
+    + 9ULL * BAUD * SAMPLE_PERIOD_US - 1ULL) / (9ULL * BAUD * SAMPLE_PERIOD_US))
 #ifndef STREAM_EVERY
-#define STREAM_EVERY ((uint16_t)((CHIP_FRAME_BITS * 1000000ULL * 10ULL \
-    + 9ULL * BAUD * SAMPLE_PERIOD_US - 1ULL) / (9ULL * BAUD * SAMPLE_PERIOD_US)))
+#define STREAM_EVERY ((uint16_t)STREAM_EVERY_MIN)
+#elif STREAM_EVERY < STREAM_EVERY_MIN || STREAM_EVERY > 65535
+#error "STREAM_EVERY: the line cannot carry a frame that often (or it is over 65535)"
 #endif
 #if SAMPLE_PERIOD_US % 4 != 0
 #error "on-board mode: SAMPLE_PERIOD_US must be a multiple of 4 us (Timer2 ticks at 4 us)"
@@ -106,6 +109,7 @@ static volatile uint8_t pending_fault = 0;    /* for loop() to report */
 static volatile uint32_t pending_detail = 0;
 static uint8_t subticks = 1;                  /* Timer2 compares per sample */
 static volatile uint8_t subtick = 0;
+static uint16_t stream_countdown = 0;         /* samples until the next streamed one */
 static const char SCENARIO_HASH8[8] = {ESOARM_SCENARIO_HASH[0], ESOARM_SCENARIO_HASH[1],
     ESOARM_SCENARIO_HASH[2], ESOARM_SCENARIO_HASH[3], ESOARM_SCENARIO_HASH[4],
     ESOARM_SCENARIO_HASH[5], ESOARM_SCENARIO_HASH[6], ESOARM_SCENARIO_HASH[7]};
@@ -219,7 +223,11 @@ ISR(TIMER2_COMPA_vect)
     cli();
     if (running && !halted) {
         if (duty != applied_duty) motor_write(duty);  /* the pins cost ~300 cycles */
-        if (k % STREAM_EVERY == 0) {
+        /* every STREAM_EVERY-th sample from k = 0 (a countdown: k % n costs a 32-bit
+         * division when n is not a power of two) */
+        bool stream = stream_countdown == 0;
+        stream_countdown = stream ? (uint16_t)(STREAM_EVERY - 1u) : (uint16_t)(stream_countdown - 1u);
+        if (stream) {
             uint8_t next = (uint8_t)((ring_head + 1u) % RING);
             if (next == ring_tail) {
                 /* loop() has not sent the last RING - 1 samples: step plus stream take more
@@ -293,17 +301,85 @@ static int uart_read()
     return b;
 }
 
+#ifdef ESOARM_STREAM_POLLED
+/* Polled streaming (make ... STREAM_POLLED=1): no transmit interrupt.  loop() hands the line
+ * one byte whenever its data register is empty, and builds each CHIP_SAMPLE frame byte by byte
+ * from the ring's record as it goes (the record's fields are the payload's, in order and
+ * little-endian, so its bytes are the payload's), the CRC carried from byte to byte.  At a
+ * line rate where a frame spans several samples the frame's cost spreads over them, about
+ * 40 cycles a byte instead of the interrupt's ~100 (docs/on-the-chip.md, "The cycle
+ * budget").  Control frames (INFO, FAULT, STOPPED) go through txq, never inside a streamed
+ * frame. */
+typedef char chip_record_is_the_payload[(sizeof(chip_record_t) == 30u) ? 1 : -1];
+static chip_record_t tx_rec;
+static uint8_t tx_pos = 0;  /* next byte of the streamed frame (0: none in progress) */
+static uint16_t tx_crc;
+/* No byte written yet: the data register is empty.  (A real USART sets UDRE0 at reset;
+ * simavr 1.6 sets it only once a written byte has gone out, so the first write goes on this.) */
+static bool tx_first = true;
+
+static void tx_poll()
+{
+    uint8_t b;
+    if (tx_pos == 0 && txq_tail == txq_head && ring_tail == ring_head) return;  /* nothing */
+    if (!(UCSR0A & _BV(UDRE0)) && !tx_first) return;  /* the line is busy */
+    if (tx_pos == 0) {
+        uint8_t tail = txq_tail;
+        if (tail != txq_head) {
+            UDR0 = txq[tail];
+            tx_first = false;
+            txq_tail = (uint8_t)((tail + 1u) & (TXQ - 1u));
+            return;
+        }
+        if (ring_tail == ring_head) return;
+        noInterrupts();
+        tx_rec = ring[ring_tail];
+        interrupts();
+        ring_tail = (uint8_t)((ring_tail + 1u) % RING);
+        tx_crc = 0xFFFFu;
+        b = ESO_SYNC0;
+    } else if (tx_pos == 1) {
+        b = ESO_SYNC1;
+    } else if (tx_pos == 2) {
+        b = ESO_CHIP_SAMPLE;
+    } else if (tx_pos == 3) {
+        b = tx_seq;
+    } else if (tx_pos == 4) {
+        b = 30u;
+    } else if (tx_pos < ESO_HEADER_SIZE + 30u) {
+        b = ((const uint8_t *)&tx_rec)[tx_pos - ESO_HEADER_SIZE];
+    } else if (tx_pos == ESO_HEADER_SIZE + 30u) {
+        b = (uint8_t)tx_crc;
+    } else {
+        b = (uint8_t)(tx_crc >> 8);
+    }
+    if (tx_pos >= 2u && tx_pos < ESO_HEADER_SIZE + 30u) tx_crc = eso_crc16_update(tx_crc, b);
+    UDR0 = b;
+    tx_first = false;
+    if (++tx_pos == ESO_HEADER_SIZE + 30u + ESO_CRC_SIZE) {
+        tx_pos = 0;
+        tx_seq++;
+    }
+}
+#endif
+
 static void send_frame(uint8_t len)
 {
     uint8_t i;
     for (i = 0; i < len; i++) {
         uint8_t next = (uint8_t)((txq_head + 1u) & (TXQ - 1u));
+#ifdef ESOARM_STREAM_POLLED
+        while (next == txq_tail) tx_poll();  /* full: feed the line (loop() only) */
+        txq[txq_head] = frame_buf[i];
+        txq_head = next;
+#else
         while (next == txq_tail) {}  /* full: wait for the line (loop() only) */
         txq[txq_head] = frame_buf[i];
         txq_head = next;
         /* Not atomic (lds/ori/sts), but the only bit an ISR changes is UDRIE0 itself, and
          * setting it with bytes queued is right whatever the ISR did in between. */
         UCSR0B |= _BV(UDRIE0);
+#endif
     }
     tx_seq++;
 }
@@ -363,6 +439,7 @@ static void handle_frame(const eso_frame_t *f)
         halted = false;
         pending_fault = 0;
         ring_head = ring_tail = 0;
+        stream_countdown = 0;
         subtick = (uint8_t)(subticks - 1u);  /* sample 0 at the next compare */
         TCNT2 = 0;
         t_start_us = micros();
@@ -460,6 +537,10 @@ void loop()
 #ifdef ESOARM_ONBOARD
     /* Stream what the ISR recorded, then report a fault it raised (after the samples
      * before it, so the host logs every one of them). */
+#if defined(ESOARM_STREAM_POLLED) && defined(__AVR_ATmega328P__)
+    tx_poll();
+    if (pending_fault && ring_tail == ring_head && tx_pos == 0) {
+#else
     while (ring_tail != ring_head) {
         chip_record_t r;
         noInterrupts();
@@ -470,6 +551,7 @@ void loop()
                                           r.z2, r.z3, r.duty));
     }
     if (pending_fault) {
+#endif
         uint8_t code;
         uint32_t detail;
         noInterrupts();

@@ -112,16 +112,23 @@ def is_jitable(func: object) -> bool:
     return id(func) in _marked
 
 
-def register_all() -> None:
+def register_all(inline_threshold: int | None = None) -> None:
     """Register every function marked :func:`jitable` with numba (idempotent).
 
     Compiled engines call this once, after importing the physics they use and
     before their kernels are compiled or loaded from the cache.
+
+    Parameters
+    ----------
+    inline_threshold : int, optional
+        LLVM's inlining threshold for this process (default :data:`INLINE_THRESHOLD`);
+        only the first call sets it (a process that compiles one streamed block
+        only, :mod:`esoarm.engines.stream.prepare`, gives LLVM's default).
     """
     global _registered
     if not _registered:
         _tolerate_cache_write_errors()
-        _inline_physics()
+        _inline_physics(INLINE_THRESHOLD if inline_threshold is None else inline_threshold)
         _defer_blas_probe()
     _registered = True
     while _pending:
@@ -132,7 +139,7 @@ def register_all() -> None:
 INLINE_THRESHOLD = 20000
 
 
-def _inline_physics() -> None:
+def _inline_physics(threshold: int = INLINE_THRESHOLD) -> None:
     """Let LLVM inline the whole physics into the kernels' loops.
 
     The step functions are small, but one RK4 step of the lever arm inlines
@@ -147,7 +154,7 @@ def _inline_physics() -> None:
         import llvmlite.binding as llvm
     except ImportError:  # pragma: no cover
         return
-    llvm.set_option("esoarm", f"-inline-threshold={INLINE_THRESHOLD}")
+    llvm.set_option("esoarm", f"-inline-threshold={threshold}")
 
 
 def _defer_blas_probe() -> None:

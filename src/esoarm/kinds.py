@@ -49,7 +49,7 @@ from esoarm.contract import (
 )
 from esoarm.controllers import adrc_error, adrc_tf, computed_torque, flc, pid, switch
 from esoarm.observers import cascade, linear, nonlinear
-from esoarm.plants import axis, lever_arm
+from esoarm.plants import axis, dc_motor, lever_arm
 from esoarm.plants.arms import urdf
 
 if TYPE_CHECKING:
@@ -60,12 +60,12 @@ __all__ = ["CONTROLLERS", "OBSERVERS", "PLANTS", "Kinds", "baseline_observer", "
            "check_steps",
            "compile_only", "compiled_selection", "covers", "hook",
            "kind_labels", "kinds_of", "observer_summary", "on_dispatch_change",
-           "observer_warnings", "on_change", "register", "registry_stamp",
+           "observer_warnings", "observers_for", "on_change", "register", "registry_stamp",
            "tagged_union", "units", "unregister"]
 
 #: Registered kinds per component; the first is the default.  (mypy checks each module
 #: against its component's protocol, :class:`esoarm.contract.PlantKind` etc.)
-PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis)
+PLANTS: tuple[PlantKind, ...] = (lever_arm, urdf, axis, dc_motor)
 OBSERVERS: tuple[ObserverKind, ...] = (linear, nonlinear, cascade)
 CONTROLLERS: tuple[ControllerKind, ...] = (flc, pid, computed_torque, adrc_error, adrc_tf,
                                             switch)
@@ -333,6 +333,41 @@ def having(component: str, capability: str) -> tuple[str, ...]:
     if _FLAGS.get(capability) not in (component, "all"):
         raise KeyError(f"{capability!r} is not a capability flag of {component} kinds")
     return tuple(m.KIND for m in _registered(component) if hook(m, capability))
+
+
+def observers_for(joints: int) -> tuple[str, ...]:
+    """The KINDs of the registered observer kinds whose design takes ``joints`` joints.
+
+    Asked of each kind, not listed by name: its ``design`` is tried on the registration
+    case (:func:`check_steps`, its ``Params`` defaults) of a plant with ``joints`` joints,
+    and a kind that refuses the shape in its own words (ValueError, e.g. "one joint
+    only") is left out.  A kind registered at run time is asked too.
+
+    Parameters
+    ----------
+    joints : int
+        The plant's number of joints (≥ 1).
+
+    Returns
+    -------
+    tuple of str
+        The KIND tags, in registration order.
+
+    Examples
+    --------
+    >>> observers_for(2)
+    ('linear', 'nonlinear', 'cascade')
+    """
+    out = []
+    for module in _registered("observer"):
+        who = f"observer kind {module.KIND!r}"
+        params = _params(who, module)
+        case = _Case(plant=PLANTS[0].Params(), observer=params,
+                     controller=CONTROLLERS[0].Params(), actuator=_Actuator())
+        with np.errstate(all="ignore"):
+            if _designed(who, module, case, joints) is not None:
+                out.append(module.KIND)
+    return tuple(out)
 
 
 def baseline_observer() -> str:

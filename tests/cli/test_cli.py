@@ -100,7 +100,7 @@ FILE_CASES = [
     ("step-not-dividing", "[rig]\nstep = 0.0015\n", ["rig.step", "divide"]),
     ("moves-out-of-order", "[reference]\nmoves = [[5.0, 1.0, 1.0], [4.0, 1.0, 0.0]]\n",
      ["reference.moves[1]", "time order"]),
-    ("not-utf8", b"\xff\xfe\x00", ["cannot read"]),
+    ("not-utf8", b"\xff\xfe\x00", ["not a text TOML file"]),
 ]
 
 
@@ -272,8 +272,8 @@ def test_scenarios_lists_builtins(run_cli):
     assert res.exit_code == 0
     lines = res.stdout.strip().splitlines()
     names = [line.split()[0] for line in lines]
-    assert names == builtin_names() == ["emps", "test-1", "test-1-urdf", "test-2", "two-link",
-                                        "uno-rig"]
+    assert names == builtin_names() == ["dc-motor-eso", "emps", "test-1", "test-1-urdf",
+                                        "test-2", "two-link", "uno-rig"]
     # one column of descriptions after the longest name, each a complete sentence
     column = max(map(len, names)) + 2
     for line in lines:

@@ -9,25 +9,18 @@ CI (``ESOARM_REQUIRE_HIL``).
 
 from __future__ import annotations
 
-import json
-import os
 import re
-import shutil
-import struct
 import subprocess
-import sys
 
 import pytest
 
 from esoarm.scenario import load_scenario
 
-MISSING = [tool for tool, ok in (
-    ("arm-none-eabi-gcc (gcc-arm-none-eabi)", shutil.which("arm-none-eabi-gcc")),
-    ("qemu-system-arm", shutil.which("qemu-system-arm")),
-) if not ok]
+from .chip_helpers import ARM_TOOLS, missing, traced_steps
+from .chip_helpers import pil as _pil
 
-if MISSING and os.environ.get("ESOARM_REQUIRE_HIL"):  # CI: the PIL tests must run
-    raise RuntimeError(f"ESOARM_REQUIRE_HIL is set but not installed: {', '.join(MISSING)}")
+MISSING = missing(*ARM_TOOLS)
+
 
 def _on_chip(test):  # type: ignore[no-untyped-def]
     """slow, hil, skipped with the reason where a tool is missing."""
@@ -35,13 +28,6 @@ def _on_chip(test):  # type: ignore[no-untyped-def]
                  pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")):
         test = mark(test)
     return test
-
-
-def _pil(*args: str, code: int = 0) -> dict:
-    res = subprocess.run([sys.executable, "-m", "esoarm", "pil", *args, "--json"],
-                         capture_output=True, text=True, timeout=900)
-    assert res.returncode == code, res.stderr
-    return json.loads(res.stdout)
 
 
 @_on_chip
@@ -111,51 +97,12 @@ def test_instruction_proxy_matches_qemus_exec_trace(tmp_path) -> None:
     length: the argument marshalling between the first SysTick read and the call (with the
     soft-float ABI the reals go in core registers and the fifth on the stack), the call and
     the second read (measured 10, against 2 on the Cortex-M4)."""
-    from esoarm.codegen.avr import symbols
     from esoarm.codegen.cortex_m0 import CLOCK_HZ, m0plus_image
     from esoarm.codegen.generate import generate
-    from esoarm.codegen.toolchain import tool
 
     scn = load_scenario("test-1", {"observer.kind": "nonlinear"})  # fal: steps of two lengths
     elf = m0plus_image(generate(scn, "cortex-m0plus", "float32"))
-    entry = symbols(elf, "arm-none-eabi-nm")["esoarm_step"] & ~1
-    dis = subprocess.run([tool("arm-none-eabi-objdump"), "-d", str(elf)], capture_output=True,
-                         text=True, check=True).stdout.splitlines()
-    calls = [i for i, line in enumerate(dis) if re.search(r"\sbl\s.*<esoarm_step>", line)]
-    assert len(calls) == 1
-    back = int(dis[calls[0] + 1].split(":")[0], 16)  # the instruction after the call
-    shift, log = 8, tmp_path / "exec.log"
-    qemu = tool("qemu-system-arm")
-    version = re.search(r"version (\d+)\.(\d+)", subprocess.run(
-        [qemu, "--version"], capture_output=True, text=True, check=True).stdout)
-    assert version is not None
-    one_insn = (["-accel", "tcg,one-insn-per-tb=on"]
-                if (int(version[1]), int(version[2])) >= (8, 1) else ["-singlestep"])
-    proc = subprocess.Popen(
-        [qemu, "-M", "microbit", "-display", "none", "-monitor", "none",
-         "-serial", "stdio", "-icount", f"shift={shift}", *one_insn, "-d", "exec,nochain",
-         "-D", str(log), "-kernel", str(elf)], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-    assert proc.stdin is not None and proc.stdout is not None
-    proxy = []
-    try:
-        for y in (0.0, 0.01, 0.6, -0.6, 0.6, 0.002, -0.3, 0.0):  # in and out of fal's zone
-            proc.stdin.write(struct.pack("<4f", y, 0.0, 0.0, 0.0))
-            proc.stdin.flush()
-            (ticks,) = struct.unpack("<I", proc.stdout.read(16)[12:])
-            proxy.append(round(ticks * (1e9 / CLOCK_HZ) / 2 ** shift))  # as the chip
-    finally:
-        proc.kill()
-        proc.wait()
-    pcs = [int(m.group(1), 16) for m in
-           re.finditer(r"Trace \d+: 0x[0-9a-f]+ \[[0-9a-f]+/([0-9a-f]+)/", log.read_text())]
-    traced, i = [], 0
-    while i < len(pcs):
-        if pcs[i] == entry:
-            j = pcs.index(back, i)
-            traced.append(j - i)
-            i = j
-        i += 1
-    assert len(traced) == len(proxy)
+    proxy, traced = traced_steps(elf, "microbit", CLOCK_HZ, tmp_path / "exec.log")
     assert len(set(traced)) > 1  # steps of different lengths
     assert min(traced) > 500  # the soft-float calls are counted
     extra = {p - t for p, t in zip(proxy, traced, strict=True)}

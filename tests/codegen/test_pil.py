@@ -6,40 +6,25 @@ shown where a toolchain is missing, and required in CI (``ESOARM_REQUIRE_HIL``).
 
 from __future__ import annotations
 
-import json
-import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from esoarm.scenario import load_scenario
 
-MISSING = [tool for tool, ok in (
-    ("avr-gcc (gcc-avr)", shutil.which("avr-gcc")),
-    ("libsimavr-dev", Path("/usr/include/simavr/sim_avr.h").exists()),
-    ("gcc", shutil.which("gcc")),
-    ("arm-none-eabi-gcc (gcc-arm-none-eabi)", shutil.which("arm-none-eabi-gcc")),
-    ("qemu-system-arm", shutil.which("qemu-system-arm")),
-) if not ok]
+from .chip_helpers import ARM_TOOLS, missing, traced_steps
+from .chip_helpers import pil as _pil
 
-if MISSING and os.environ.get("ESOARM_REQUIRE_HIL"):  # CI: the PIL tests must run
-    raise RuntimeError(f"ESOARM_REQUIRE_HIL is set but not installed: {', '.join(MISSING)}")
+MISSING = missing(("avr-gcc (gcc-avr)", shutil.which("avr-gcc")),
+                  ("libsimavr-dev", Path("/usr/include/simavr/sim_avr.h").exists()),
+                  ("gcc", shutil.which("gcc")), *ARM_TOOLS)
 
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.hil,
     pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}"),
 ]
-
-
-def _pil(*args: str, code: int = 0) -> dict:
-    res = subprocess.run([sys.executable, "-m", "esoarm", "pil", *args, "--json"],
-                         capture_output=True, text=True, timeout=900)
-    assert res.returncode == code, res.stderr
-    return json.loads(res.stdout)
 
 
 def test_uno_rig_on_avr() -> None:
@@ -128,55 +113,12 @@ def test_instruction_proxy_matches_qemus_exec_trace(tmp_path) -> None:
     and the second SysTick read: measured 2) at every step, whatever the step's length; the
     inverted conversion ticks · 2^shift / 40 would be 41 times too large at shift 8.
     (A tick is 40 ns, an instruction 2^8 ns: the unrounded proxy is within ±0.16.)"""
-    import re
-    import struct
-
-    from esoarm.codegen.avr import symbols
     from esoarm.codegen.cortex_m4 import CLOCK_HZ, m4_image
     from esoarm.codegen.generate import generate
-    from esoarm.codegen.toolchain import tool
 
     scn = load_scenario("test-1", {"observer.kind": "nonlinear"})  # fal: steps of two lengths
     elf = m4_image(generate(scn, "cortex-m4", "float32"))
-    entry = symbols(elf, "arm-none-eabi-nm")["esoarm_step"] & ~1
-    dis = subprocess.run([tool("arm-none-eabi-objdump"), "-d", str(elf)], capture_output=True,
-                         text=True, check=True).stdout.splitlines()
-    calls = [i for i, line in enumerate(dis) if re.search(r"\sbl\s.*<esoarm_step>", line)]
-    assert len(calls) == 1
-    back = int(dis[calls[0] + 1].split(":")[0], 16)  # the instruction after the call
-    shift, log = 8, tmp_path / "exec.log"
-    qemu = tool("qemu-system-arm")
-    version = re.search(r"version (\d+)\.(\d+)", subprocess.run(
-        [qemu, "--version"], capture_output=True, text=True, check=True).stdout)
-    assert version is not None
-    # one instruction per translation block: -singlestep until QEMU 8.1 renamed it
-    one_insn = (["-accel", "tcg,one-insn-per-tb=on"]
-                if (int(version[1]), int(version[2])) >= (8, 1) else ["-singlestep"])
-    proc = subprocess.Popen(
-        [qemu, "-M", "mps2-an386", "-display", "none", "-monitor", "none",
-         "-serial", "stdio", "-icount", f"shift={shift}", *one_insn, "-d", "exec,nochain",
-         "-D", str(log), "-kernel", str(elf)], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-    assert proc.stdin is not None and proc.stdout is not None
-    proxy = []
-    try:
-        for y in (0.0, 0.01, 0.6, -0.6, 0.6, 0.002, -0.3, 0.0):  # in and out of fal's zone
-            proc.stdin.write(struct.pack("<4f", y, 0.0, 0.0, 0.0))  # y, (θd, θ̇d, θ̈d)
-            proc.stdin.flush()
-            (ticks,) = struct.unpack("<I", proc.stdout.read(16)[12:])
-            proxy.append(round(ticks * (1e9 / CLOCK_HZ) / 2 ** shift))  # as the chip
-    finally:
-        proc.kill()
-        proc.wait()
-    pcs = [int(m.group(1), 16) for m in
-           re.finditer(r"Trace \d+: 0x[0-9a-f]+ \[[0-9a-f]+/([0-9a-f]+)/", log.read_text())]
-    traced, i = [], 0
-    while i < len(pcs):
-        if pcs[i] == entry:
-            j = pcs.index(back, i)
-            traced.append(j - i)
-            i = j
-        i += 1
-    assert len(traced) == len(proxy)
+    proxy, traced = traced_steps(elf, "mps2-an386", CLOCK_HZ, tmp_path / "exec.log")
     assert len(set(traced)) > 1  # steps of different lengths
     extra = {p - t for p, t in zip(proxy, traced, strict=True)}
     assert len(extra) == 1 and 0 < extra.pop() <= 4, (proxy, traced)

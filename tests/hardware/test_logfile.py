@@ -80,7 +80,7 @@ def test_missing_file_and_directory(tmp_path):
 def test_undecodable_file_is_a_one_line_error(tmp_path):
     path = tmp_path / "bin.csv"
     path.write_bytes(b"t,theta,u\n\xff\xfe,0,0\n")
-    with pytest.raises(ScenarioError, match="cannot read"):
+    with pytest.raises(ScenarioError, match="not a text CSV.*esoarm log import"):
         _read(path)
 
 

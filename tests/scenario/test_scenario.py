@@ -47,7 +47,8 @@ def _get(scn: Scenario, dotted: str):
 
 
 def test_builtin_names():
-    assert builtin_names() == ["emps", "test-1", "test-1-urdf", "test-2", "two-link", "uno-rig"]
+    assert builtin_names() == ["dc-motor-eso", "emps", "test-1", "test-1-urdf", "test-2",
+                               "two-link", "uno-rig"]
     assert builtin_names(plant="lever-arm") == ["test-1", "test-2", "uno-rig"]
 
 

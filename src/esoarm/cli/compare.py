@@ -105,7 +105,11 @@ def compare(scenario: str, overrides: tuple[str, ...], forms: str, seeds: int,
         click.echo(json.dumps(data))
         return
     click.echo(f"scenario '{scn.name}', means over {seeds} seed(s)")
-    head = f"{'form':<24} {'RMS error [rad]':>16} {'RMS Δu [N·m]':>13} {'RMS u [N·m]':>12}"
+    from esoarm.kinds import units
+
+    un = units(scn)  # rad and N·m; m and N on a prismatic axis; rad/s and V on a DC motor
+    head = (f"{'form':<24} {f'RMS error [{un.position}]':>16} {f'RMS Δu [{un.force}]':>13} "
+            f"{f'RMS u [{un.force}]':>12}")
     if held is not None:
         head += f" {'delay held':>11}"
     if chips is not None:

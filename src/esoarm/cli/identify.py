@@ -199,7 +199,8 @@ def _excite_rig(scn, ctl, port: str, log_path: Path, limits, baud: int) -> None:
               help="Simulation horizon of one segment [s]; each segment's initial angle and "
               "rate are estimated.")
 @click.option("--max-delay", type=int, default=2, show_default=True, metavar="SAMPLES",
-              help="Largest transport delay tried [samples].")
+              help="Largest transport delay tried [samples]; while the best delay is the "
+              "longest tried, the search goes on, up to 3 samples more.")
 @click.option("--fix", "fix", multiple=True, metavar="KEY",
               help="Hold a parameter at the scenario's value (repeatable), e.g. --fix "
               "actuator.lag --fix plant.m2.")
@@ -282,14 +283,14 @@ def _identify(scn, logs, validate, validate_fraction, segment, max_delay, fix, o
     limit = scn.actuator.torque_limit
     motor = motor_of(scn)
     fit_logs = [read_ident_log(p, limit, motor) for p in logs]
-    val_logs = [read_ident_log(p, limit, motor) for p in validate]
+    val_logs = [read_ident_log(p, limit, motor, validation=True) for p in validate]
     from esoarm.studies.identification.identify import rate_mismatch
 
     for lg in (*fit_logs, *val_logs):  # before the segment's check: it counts in samples
         if abs(lg.ts - scn.sample_time) > 1e-9 * scn.sample_time:
             raise BadInput(rate_mismatch(lg.path, lg.ts, scn.sensor.rate_hz))
     _check_segment(segment, fit_logs, val_logs, validate_fraction)
-    say: Any = _progress() if stderr_is_tty() and not as_json else status_lines("identify")
+    say: Any = _progress_for(as_json)
     try:
         res = run_fit(scn, fit_logs, validation=val_logs or None,
                       validate_fraction=validate_fraction, segment=segment, max_delay=max_delay,
@@ -437,21 +438,28 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
                        "nothing (set the scenario's values with --set)")
     limit = scn.actuator.torque_limit
     fit_logs = [read_ident_log(p, limit) for p in logs]
-    val_logs = [read_ident_log(p, limit) for p in validate]
+    val_logs = [read_ident_log(p, limit, validation=True) for p in validate]
     flat = constant_force_half(fit_logs, bool(val_logs), validate_fraction)
     if flat is not None:
         raise RunFailure(flat)
     try:
         res = identify_axis(scn, fit_logs, val_logs, segment, validate_fraction, cutoff)
     except AxisFitRefused as exc:
-        raise RunFailure(str(exc)) from None
+        raise RunFailure(_in_input_units(str(exc), scn.plant.motion, input_unit)) from None
     if input_unit:  # u in volts (or counts): every printed unit follows
         from esoarm.studies.identification.axis.identify import unit_of as _unit
 
         for name, e in res.physical.items():
             e["unit"] = _unit(scn.plant.motion, name, input_unit)
+            for key in ("note", "withheld"):
+                if isinstance(e.get(key), str):
+                    e[key] = _in_input_units(e[key], scn.plant.motion, input_unit)
         if res.asymmetry:
             res.asymmetry["unit"] = _unit(scn.plant.motion, "viscous_friction", input_unit)
+        res.oe_warning = _in_input_units(res.oe_warning, scn.plant.motion, input_unit)
+        for key, text in list(res.validation.items()):
+            if isinstance(text, str):
+                res.validation[key] = _in_input_units(text, scn.plant.motion, input_unit)
     try:  # the estimate must make a valid axis (friction ≥ 0 each way, mass > 0)
         fitted = res.fitted_scenario()
     except ScenarioError as exc:  # not bad input: the fit's result is not a physical axis
@@ -460,7 +468,7 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     sim_fit = res.validation.get("simulated_fit_percent")
     if sim_fit is not None and not sim_fit > 0.0:  # also nan
         raise RunFailure(
-            f"validation failed: the fitted axis simulated over the validation log fits "
+            f"validation failed (the IDIM-LS axis simulated): over the validation log it fits "
             f"{sim_fit:.4g} % of its motion (0 % is its mean: the model predicts nothing; "
             f"relative force error {res.validation['estimation_force_error_percent']:.3g} % "
             "on the fitting data); nothing written")
@@ -477,7 +485,16 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
             tmp.write_text("\n".join(head) + "\n\n" + fitted.to_toml(),
                            encoding="utf-8")
     if as_json:
-        click.echo(json.dumps(res.to_json()))
+        data = res.to_json()
+        if input_unit and data.get("output_error"):  # the output error's units follow u too
+            from esoarm.studies.identification.axis.identify import unit_of as _unit_of
+
+            for name, e in data["output_error"]["parameters"].items():
+                e["unit"] = _unit_of(scn.plant.motion, name, input_unit)
+            if "warning" in data["output_error"]:
+                data["output_error"]["warning"] = _in_input_units(
+                    data["output_error"]["warning"], scn.plant.motion, input_unit)
+        click.echo(json.dumps(data))
         return
     from esoarm.studies.identification.axis.identify import unit_of
 
@@ -495,11 +512,14 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
             line += (f"   output error {oe.values[i]:.6g}" if res.oe_warning else
                      f"   output error {oe.values[i]:.6g} ± {oe.ci95_half[i]:.3g}")
         lines.append(line)
+    for name, e in res.physical.items():
+        if e.get("note"):
+            lines.append(f"  note: {name}: {e['note']}")
     a = res.asymmetry
     if a:
         verdict = "kept" if a["kept"] else "not significant: symmetric model kept"
         lines.append(f"  viscous friction asymmetry Fv+ − Fv− = {a['difference']:.4g} "
-                     f"{a['unit']} (z = {a['z']:.3g}, {verdict})")
+                     f"{a['unit']} (z = {a['z']:.3g} against {a['threshold_z']:.3g}, {verdict})")
     if res.oe_warning:
         lines.append(f"  warning: {res.oe_warning}")
     v = res.validation
@@ -515,6 +535,25 @@ def _identify_axis(scn, logs, validate, validate_fraction, segment, fix, out_pat
     click.echo("\n".join(lines))
     if out_path is not None:
         click.echo(f"scenario: {out_path}")
+
+
+def _in_input_units(text: str, motion: str, input_unit: str) -> str:
+    """``text`` with every SI unit of an axis parameter (kg·m², N·m·s/rad, N, ...) replaced
+    by the unit that follows from the logged u's ``input_unit`` (V·s²/rad, V·s/rad, V)."""
+    if not input_unit or not text:
+        return text
+    import re
+
+    from esoarm.plants.axis import units
+    from esoarm.studies.identification.axis.identify import unit_of
+
+    si = units(motion)
+    pairs = {si[k]: unit_of(motion, k, input_unit)
+             for k in ("mass", "inertia", "viscous_friction", "coulomb_friction") if k in si}
+    for old in sorted(pairs, key=len, reverse=True):
+        new = pairs[old].replace("\\", "\\\\")
+        text = re.sub(rf"([\d\]] ?){re.escape(old)}(?=[\s,;:.)\]]|$)", rf"\g<1>{new}", text)
+    return text
 
 
 def constant_force_half(logs: list[Any], validation_given: bool,
@@ -575,17 +614,35 @@ def constant_force_half(logs: list[Any], validation_given: bool,
     return None
 
 
+def _progress_for(as_json: bool) -> Any:
+    """What the fit reports its stages to: a live status line on a terminal (rich, on
+    stderr), lines every 10 s in a log or pipe (every stage with --verbose); nothing under
+    --json or --quiet unless --verbose asks for it."""
+    from esoarm.cli._common import VERBOSE, verbosity
+
+    if as_json and verbosity() < VERBOSE:
+        return None
+    if stderr_is_tty() and not as_json:
+        return _progress()
+    return status_lines("identify")
+
+
 class _progress:  # noqa: N801 - used like a function
-    """One transient status line on stderr."""
+    """One transient status line on stderr: the stage and the time since the start."""
 
     def __init__(self) -> None:
+        import time
+
         from rich.console import Console
 
-        self._status = Console(stderr=True).status("identifying")
+        self._t0 = time.monotonic()
+        self._status = Console(stderr=True).status("identify: reading the logs")
         self._status.start()
 
     def __call__(self, message: str) -> None:
-        self._status.update(message)
+        import time
+
+        self._status.update(f"identify: {message} [{time.monotonic() - self._t0:.0f} s]")
 
     def close(self) -> None:
         self._status.stop()

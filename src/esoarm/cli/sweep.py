@@ -465,6 +465,11 @@ def tune(scenario: str, vary: tuple[str, ...], overrides: tuple[str, ...],
     base = load_scenario(scenario, list(overrides))
     bounds = [parse_bound(item, base, "--vary") for item in vary]
     rob = [parse_bound(item, base, "--robust") for item in robust]
+    given = click.get_current_context().get_parameter_source("samples")
+    if not rob and given is click.core.ParameterSource.COMMANDLINE:
+        raise BadInput(f"--samples {samples}: counts the rig variants of --robust KEY=LOW:HIGH, "
+                       "which is not given (without it each candidate runs the scenario's rig "
+                       "once per seed: give --robust, or drop --samples)")
     if not bounds:
         raise BadInput("--vary: give at least one KEY=LOW:HIGH to tune, "
                        "e.g. --vary observer.eps=0.02:0.3")

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from esoarm.codegen.cortex_m4 import CortexM4Chip, _chip_file
+from esoarm.codegen.cortex_m4 import CortexM4Chip, startup_files
 from esoarm.codegen.generate import HEADER, SOURCE, Generated
 from esoarm.codegen.toolchain import build
 
@@ -53,8 +53,8 @@ def m0plus_image(gen: Generated) -> Path:
         the sources and flags are unchanged.
     """
     return build("arm-none-eabi-gcc",
-                 {HEADER: gen.header, SOURCE: gen.source, "m0_startup.c":
-                  _chip_file("m0_startup.c"), "m0.ld": _chip_file("m0.ld")},
+                 {HEADER: gen.header, SOURCE: gen.source,
+                  **startup_files("cortex_m_pil.h", "m0_startup.c", "m0.ld")},
                  CFLAGS, "pil.elf", "esoarm-pil-m0plus", ["-lm"])
 
 

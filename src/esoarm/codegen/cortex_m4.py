@@ -34,7 +34,7 @@ from esoarm.codegen.avr import image_sizes
 from esoarm.codegen.generate import HEADER, SOURCE, Generated
 from esoarm.codegen.toolchain import build, tool
 
-__all__ = ["CLOCK_HZ", "CortexM4Chip", "m4_image"]
+__all__ = ["CLOCK_HZ", "CortexM4Chip", "m4_image", "startup_files"]
 
 #: The mps2-an386 processor clock QEMU models [Hz] (SysTick's clock).
 CLOCK_HZ = 25_000_000
@@ -48,11 +48,17 @@ def _chip_file(name: str) -> str:
     return (resources.files("esoarm.codegen") / "chip" / name).read_text(encoding="utf-8")
 
 
+def startup_files(*names: str) -> dict[str, str]:
+    """The bare-metal start shared by the Cortex-M images (``chip/cortex_m_startup.h``: reset
+    handler, vector table, SysTick), with the chip files ``names``, by file name."""
+    return {name: _chip_file(name) for name in ("cortex_m_startup.h", *names)}
+
+
 def m4_image(gen: Generated) -> Path:
     """The PIL image (ELF) of ``gen`` for the Cortex-M4 (arm-none-eabi-gcc ``-O2``)."""
     return build("arm-none-eabi-gcc",
-                 {HEADER: gen.header, SOURCE: gen.source, "m4_startup.c":
-                  _chip_file("m4_startup.c"), "m4.ld": _chip_file("m4.ld")},
+                 {HEADER: gen.header, SOURCE: gen.source,
+                  **startup_files("cortex_m_pil.h", "m4_startup.c", "m4.ld")},
                  CFLAGS, "pil.elf", "esoarm-pil-m4", ["-lm"])
 
 

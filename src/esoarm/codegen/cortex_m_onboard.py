@@ -21,7 +21,7 @@ from importlib import resources
 from pathlib import Path
 
 from esoarm.codegen.avr import image_sizes
-from esoarm.codegen.cortex_m4 import CFLAGS, CLOCK_HZ, ICOUNT_SHIFT
+from esoarm.codegen.cortex_m4 import CFLAGS, CLOCK_HZ, ICOUNT_SHIFT, startup_files
 from esoarm.codegen.generate import Generated, generate
 from esoarm.codegen.toolchain import build
 from esoarm.hardware.hil.build import ToolchainMissing, default_firmware_dir
@@ -116,7 +116,7 @@ def m4_onboard_firmware(scn: Scenario, compensated: bool | None = None) -> M4Fir
                "-DONBOARD_SUMS=" + ("ESO_SUMS_COMPENSATED" if gen.compensated
                                     else "ESO_SUMS_PLAIN")]
     files = {**gen.files, "esoarm_protocol.h": _protocol_header(),
-             "mps2_onboard.c": _chip("mps2_onboard.c"), "m4.ld": _chip("m4.ld", "chip")}
+             "mps2_onboard.c": _chip("mps2_onboard.c"), **startup_files("m4.ld")}
     elf = build("arm-none-eabi-gcc", files, [*CFLAGS, *defines], "onboard.elf",
                 "esoarm-onboard-m4", ["-lm"])
     flash, ram = image_sizes(elf, "arm-none-eabi-size")

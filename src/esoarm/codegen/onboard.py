@@ -228,7 +228,8 @@ def stream_every(rate_hz: float, baud: int = BAUD) -> int:
 
 
 def onboard_firmware(scn: Scenario, firmware_dir: Path | None = None,
-                     compensated: bool | None = None, baud: int = BAUD) -> Path:
+                     compensated: bool | None = None, baud: int = BAUD,
+                     every: int | None = None, polled: bool = False) -> Path:
     """Generate ``scn``'s controller for the AVR and build the rig firmware with it.
 
     Parameters
@@ -242,6 +243,14 @@ def onboard_firmware(scn: Scenario, firmware_dir: Path | None = None,
         Observer sums of the generated code (default: compensated).
     baud : int
         Line rate [bit/s] of the build (sets the stream decimation, :func:`stream_every`).
+    every : int, optional
+        Stream every ``every``-th sample (the firmware's STREAM_EVERY; default: the fewest
+        the line needs, :func:`stream_every`).  The chip still controls at every sample;
+        fewer frames leave more of the period free (docs/on-the-chip.md, "The cycle budget").
+    polled : bool
+        Feed the line from ``loop()`` a byte at a time, each CHIP_SAMPLE frame built as it
+        goes, instead of the transmit interrupt (the firmware's STREAM_POLLED): a frame's cost
+        spreads over the samples it spans.
 
     Returns
     -------
@@ -258,14 +267,24 @@ def onboard_firmware(scn: Scenario, firmware_dir: Path | None = None,
     if abs(period_us - 1e6 / scn.sensor.rate_hz) > 1e-6 or period_us % 4:
         raise CodegenError(f"sensor.rate_hz = {scn.sensor.rate_hz:g}: on board the sample "
                            "period must be a whole multiple of 4 µs (the firmware's Timer2 tick)")
+    least = stream_every(scn.sensor.rate_hz, baud)
+    if every is not None and not least <= every <= 65535:
+        raise CodegenError(f"stream every {every}th sample: at {baud} bit/s and "
+                           f"{scn.sensor.rate_hz:g} Hz the line needs at least every {least}th "
+                           "(and at most 65535)")
     gen = generate(scn, "avr", "float32", compensated)
     root = _cache_dir() / (f"esoarm-onboard-{gen.digest}-{'c' if gen.compensated else 'p'}"
-                           f"-{baud}")
+                           f"-{baud}" + (f"-n{every}" if every is not None else "")
+                           + ("-polled" if polled else ""))
     write_sources(gen, root / "controller")
     out_dir = root / "build"
     cmd = ["make", "-s", "--no-print-directory", "-C", str(fw), "l298n",
            f"VARIANT_DIR={out_dir}", f"ONBOARD={root / 'controller'}",
            f"SAMPLE_PERIOD_US={period_us}", f"BAUD={baud}"]
+    if every is not None:
+        cmd.append(f"STREAM_EVERY={every}")
+    if polled:
+        cmd.append("STREAM_POLLED=1")
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
         lines = [ln for ln in res.stderr.splitlines() if ln.strip()]

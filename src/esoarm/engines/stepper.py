@@ -305,11 +305,8 @@ class Stepper:
         ndarray (joints,)
             :attr:`u`.
         """
-        if u is not None:
-            self.u[:] = u
-        saturate_into(self.u, self.sat, self.designs.actuator)
-        self.actuate()
-        return self.u
+        self.saturate(u)
+        return self.actuate()
 
     def saturate(self, u: np.ndarray | float | None = None) -> np.ndarray:
         """Step 2c alone: :attr:`u` clipped to ±torque_limit (flags in :attr:`sat`).
@@ -324,8 +321,7 @@ class Stepper:
         ndarray (joints,)
             :attr:`u`.
         """
-        if u is not None:
-            self.u[:] = u
+        self._take(u)
         saturate_into(self.u, self.sat, self.designs.actuator)
         return self.u
 
@@ -342,10 +338,14 @@ class Stepper:
         ndarray (joints,)
             :attr:`u`, the host's torque.
         """
-        if u is not None:
-            self.u[:] = u
+        self._take(u)
         actuate_into(self.u, self.drive, self.duty, self.zhat, self.designs.actuator)
         return self.u
+
+    def _take(self, u: np.ndarray | float | None) -> None:
+        """A command given to :meth:`saturate` or :meth:`actuate` [N·m] into :attr:`u`."""
+        if u is not None:
+            self.u[:] = u
 
     # -- the plant half ----------------------------------------------------------------
     def hold(self, k: int) -> np.ndarray:

@@ -165,7 +165,12 @@ class LeverArmEnv(gym.Env):
         if self._k >= self.n_steps:
             raise RuntimeError("the episode is over (truncated): call reset()")
         inp, k, st = self._inp, self._k, self._st
-        arr = np.asarray(action, dtype=np.float64)
+        try:
+            arr = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"action {action!r}: must be a number array of shape (1,) (the "
+                             f"action space {self.action_space}); the episode is unchanged"
+                             ) from None
         if arr.size != 1 or arr.ndim > 1:  # (1,) as action_space, or a scalar
             raise ValueError(f"action of shape {arr.shape}: must be shape (1,) (the action "
                              f"space {self.action_space}); the episode is unchanged")

@@ -108,7 +108,12 @@ def read_log_columns(path: str | Path, pick: Pick, need: str,
         raise ScenarioError(f"{src}: no such file") from None
     except IsADirectoryError:
         raise ScenarioError(f"{src}: is a directory, not a file") from None
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{src}: not a text CSV (byte 0x{exc.object[exc.start]:02x} at "
+                            f"offset {exc.start} is not UTF-8): a MAT file or another program's "
+                            "binary export comes in with 'esoarm log import FILE "
+                            "--map t=…,y=…,u=… --out LOG.csv'") from None
+    except (OSError, csv.Error) as exc:
         raise ScenarioError(f"{src}: cannot read: {exc}") from None
     if not rows:
         raise ScenarioError(f"{src}: no data rows (only the header)")

@@ -561,8 +561,9 @@ def stream_notice(scn: Scenario, chip: P.ChipInfo) -> str:
     if chip.stream_every == 1:
         return f"on board: logging {what}, every sample ({rate:g} Hz)"
     return (f"on board: logging {what}, DECIMATED: every {chip.stream_every}th sample "
-            f"({rate / chip.stream_every:g} Hz of {rate:g} Hz) -- the link's baud cannot carry "
-            "a frame per sample; the chip still controls at every sample")
+            f"({rate / chip.stream_every:g} Hz of {rate:g} Hz) -- as built (the link's baud "
+            "cannot carry a frame per sample, or the firmware's STREAM_EVERY saves the chip "
+            "the frames); the chip still controls at every sample")
 
 
 def _run_onboard(scn: Scenario, link: SerialLink, info: P.Info, q: float,  # noqa: PLR0913

@@ -105,9 +105,18 @@ def load_scenario(
             raise ScenarioError(f"{source}: no such file")
         try:
             text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
+        except UnicodeDecodeError as exc:
+            raise ScenarioError(f"{source}: not a text TOML file (byte 0x"
+                                f"{exc.object[exc.start]:02x} at offset {exc.start} is not "
+                                "UTF-8); a scenario is TOML text, see 'esoarm show test-1'"
+                                ) from None
+        except OSError as exc:
             raise ScenarioError(f"{source}: cannot read: {exc}") from None
         data = _read_toml(text, source)
+        if not data:
+            raise ScenarioError(f"{source}: sets no key (no table, no key=value line): a scenario "
+                                "file holds at least the keys that differ from the defaults; start "
+                                "from 'esoarm show test-1 > my-rig.toml'")
         data.setdefault("name", path.stem)
         _resolve_paths(data, path.resolve().parent)
     else:

@@ -89,7 +89,11 @@ def test_lag_and_delay_fit_simulates_no_more_than_it_needs(tmp_path, monkeypatch
     case 6 a log shorter than two periods of the scenario's disturbance (this one: 15 s of
     fitting data, 25 s) also gets a few iterations without d(t): 282 in all.  Since issue 30
     the neighbouring delays are always retried from the converged fit (a delay decided by a
-    cost ratio alone was confidently wrong on sticking twins): 318."""
+    cost ratio alone was confidently wrong on sticking twins): 318.  Since the delay search
+    goes one past the longest delay tried while the best is there (here the lag makes delay 2
+    look best before the lag is fitted: +31) and the stiction fit is screened after 10
+    iterations (260 -> 100 here): 392.  With excite's guard loop since raised for the delay
+    (main a5e5dc8) the log differs, and its lag fit takes more iterations: 535."""
     from esoarm.studies.identification import fit as identify_fit
     from esoarm.studies.identification.identify import identify
 
@@ -111,7 +115,7 @@ def test_lag_and_delay_fit_simulates_no_more_than_it_needs(tmp_path, monkeypatch
     monkeypatch.setattr(identify_fit, "simulate_segments", counted_one)
     monkeypatch.setattr(identify_fit, "simulate_columns", counted_many)
     res = identify(load_scenario("test-1"), [read_ident_log(path, 2.0)])
-    assert count[0] <= 340, count[0]
+    assert count[0] <= 560, count[0]
     assert res.value("actuator.delay_samples") == 1
     for key, true in (("actuator.lag", 0.03), ("rig.inertia_scale", 1.25),
                       ("rig.coulomb_friction", 0.08)):

@@ -51,7 +51,9 @@
 /* SysTick ticks (40 ns at 25 MHz) -> instructions: n = ticks * (1e9 / CLOCK_HZ) / 2^shift */
 #define BUDGET_INSTRUCTIONS ((uint32_t)((uint64_t)CLOCK_HZ * SAMPLE_PERIOD_US / 1000000ULL))
 
-#define REG(a) (*(volatile uint32_t *)(a))
+#define CORTEX_M_FPU
+#include "cortex_m_startup.h"
+
 #define UART_DATA(b) REG((b) + 0x000u)
 #define UART_STATE(b) REG((b) + 0x004u)
 #define UART_CTRL(b) REG((b) + 0x008u)
@@ -59,38 +61,10 @@
 #define UART_BAUDDIV(b) REG((b) + 0x010u)
 #define PINS 0x40004000u /* UART0: the pin link to the twin */
 #define HOST 0x40005000u /* UART1: the rig protocol */
-#define SYST_CSR REG(0xE000E010u)
-#define SYST_RVR REG(0xE000E014u)
-#define SYST_CVR REG(0xE000E018u)
-#define SCB_CPACR REG(0xE000ED88u)
 #define NVIC_ISER0 REG(0xE000E100u)
 #define NVIC_ICPR0 REG(0xE000E280u)
 #define IRQ_UART0_RX 0u
 #define IRQ_UART1_RX 2u
-
-extern uint32_t _sidata, _sdata, _edata, _sbss, _ebss, _estack;
-int main(void);
-
-void reset_handler(void)
-{
-    uint32_t *src = &_sidata, *dst = &_sdata;
-    while (dst < &_edata) *dst++ = *src++;
-    for (dst = &_sbss; dst < &_ebss; ++dst) *dst = 0;
-    SCB_CPACR |= (0xFu << 20); /* CP10, CP11 full access: the FPU */
-    __asm volatile("dsb\n\tisb" ::: "memory");
-    main();
-    for (;;) {}
-}
-
-static void halt(void)
-{
-    for (;;) {}
-}
-
-__attribute__((section(".vectors"), used)) static void (*const vectors[16])(void) = {
-    (void (*)(void))(&_estack), reset_handler, halt, halt, halt, halt, halt, 0, 0, 0, 0,
-    halt, halt, 0, halt, halt,
-};
 
 static int rx_ready(uint32_t base) { return (UART_STATE(base) & 2u) != 0u; }
 
@@ -235,9 +209,7 @@ int main(void)
     UART_BAUDDIV(HOST) = 16;
     UART_CTRL(PINS) = 0xBu; /* TX, RX, RX interrupt (bit 3) */
     UART_CTRL(HOST) = 0xBu;
-    SYST_RVR = 0x00FFFFFFu;
-    SYST_CVR = 0;
-    SYST_CSR = 5u; /* enable, processor clock */
+    systick_start();
     eso_parser_init(&parser);
     __asm volatile("cpsid i" ::: "memory"); /* interrupts only wake the core (WFI) */
     NVIC_ISER0 = (1u << IRQ_UART0_RX) | (1u << IRQ_UART1_RX);

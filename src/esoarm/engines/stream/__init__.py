@@ -220,10 +220,25 @@ class _Noise:
         return out
 
 
-def _compiled_runner(inp: Any) -> Callable[..., int] | None:
-    """The compiled block for these inputs, or None where the kinds do not compile."""
+def _compiled_runner(scn: Scenario, inp: Any) -> Callable[..., int] | None:
+    """The compiled block for these inputs, or None where the kinds do not compile.
+
+    In a process that has not loaded numba yet, the block is compiled (the first
+    time) by a child process and loaded here from numba's cache
+    (:mod:`esoarm.engines.stream.prepare`: compiling peaks far above loading).
+    """
     if not inp.kinds.jit:
         return None
+    from esoarm.engines.stream import prepare
+
+    try:
+        selected = prepare.apart(scn, inp)
+    except KeyboardInterrupt:
+        raise StreamInterrupted(0, 0.0) from None
+    if selected:
+        from esoarm import kinds as _kinds
+
+        _kinds.compile_only([inp.kinds])
     from esoarm.engines.stream import kernels
 
     return kernels.runner(inp)
@@ -299,7 +314,7 @@ def stream(scn: Scenario, *, sink: Callable[[SimResult], None] | None = None,
     inp = prepare_designs(scn)
     n = scn.n_samples
     nj = inp.plant.n_joints
-    runner = _compiled_runner(inp) if compiled is not False else None
+    runner = _compiled_runner(scn, inp) if compiled is not False else None
     if compiled and runner is None:
         raise ValueError(f"the kinds of '{scn.name}' do not compile")
     m_block = max(int(block or (BLOCK if runner else PYTHON_BLOCK)), inp.delay + 1, 1)

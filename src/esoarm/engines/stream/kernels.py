@@ -24,13 +24,27 @@ _batch.cover_with_physics_stamp(__file__)
 
 __all__ = ["runner"]
 
+#: The block's body inlined into :func:`_block` by numba (not compiled apart and linked
+#: again): one LLVM module of the whole block instead of two (less memory the first time).
+_body = njit(inline="always", error_model="numpy")(stream_block)
+
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _block(how, log, x, noise, refs, k0, off, m, y, u, drive, applied, duty, sat, acc, v, z, zhat,
            c, hist, n, fpar, ipar, b0, pp, op, cp, ap):  # pragma: no cover - compiled
     sg, d, s = _records(how, n, fpar, ipar, b0, pp, op, cp, ap)
-    return stream_block(log, x, noise, refs, k0, off, m, y, u, drive, applied, duty, sat, acc,
-                        v, z, zhat, c, hist, sg, d, s)
+    return _body(log, x, noise, refs, k0, off, m, y, u, drive, applied, duty, sat, acc, v, z,
+                 zhat, c, hist, sg, d, s)
+
+
+def _drop_compiled() -> None:
+    """After the dispatch changed (:func:`esoarm.kinds.compile_only`): compile or load the
+    block again with the new dispatch (as :func:`esoarm.engines.batch._drop_compiled_kernels`)."""
+    _block._reset_overloads()  # type: ignore[attr-defined]  # numba internal, as in batch
+    _block.enable_caching()
+
+
+_kinds.on_dispatch_change(_drop_compiled)
 
 
 def runner(inp: Any) -> Callable[..., int]:

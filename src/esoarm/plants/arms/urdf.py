@@ -49,10 +49,7 @@ if TYPE_CHECKING:
 
 __all__ = ["CODE", "JIT", "KIND", "MOTOR", "Params", "acceleration", "advance", "advance_block",
            "arm_of", "check", "design", "joint_limits", "joint_names", "observer_input",
-           "packed_models", "scenario_arm", "PER_JOINT_OBSERVERS"]
-
-#: Observer kinds that run one ESO per joint (the others are designed for one joint).
-PER_JOINT_OBSERVERS = ("linear", "nonlinear", "cascade")
+           "packed_models", "scenario_arm"]
 
 KIND = "urdf"
 CODE = 1
@@ -209,10 +206,14 @@ def check(scn: Scenario) -> str | None:
     if scn.controller.kind != "computed-torque":
         return (f"key 'controller.kind': '{scn.controller.kind}' is the lever arm's; a URDF arm "
                 "uses 'computed-torque'")
-    if scn.observer.kind not in PER_JOINT_OBSERVERS and n > 1:
-        return (f"key 'observer.kind': '{scn.observer.kind}' is designed for one joint, and "
-                f"'{Path(scn.plant.file).name}' has {_joint_list(arm)}; use one of "
-                f"{', '.join(repr(k) for k in PER_JOINT_OBSERVERS)} (one ESO per joint)")
+    if n > 1:
+        from esoarm.kinds import observers_for  # (the registry imports this module)
+
+        per_joint = observers_for(n)
+        if scn.observer.kind not in per_joint:
+            return (f"key 'observer.kind': '{scn.observer.kind}' is designed for one joint, and "
+                    f"'{Path(scn.plant.file).name}' has {_joint_list(arm)}; use one of "
+                    f"{', '.join(repr(k) for k in per_joint)} (one ESO per joint)")
     if scn.rig.stiction != 0.0:
         return ("key 'rig.stiction': the URDF twin's friction is Coulomb and viscous per joint "
                 "(no Stribeck term); leave it 0")

@@ -44,6 +44,9 @@ __all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "check_supported", "read_i
 #: Shortest log accepted [s] and fewest samples.
 MIN_DURATION = 4.0
 MIN_SAMPLES = 150
+#: A validation log needs only this long [s]: it is not fitted, only predicted (one step
+#: of a P-controlled rig lasts 2-4 s), and MIN_SAMPLES rows.
+MIN_VALIDATION_DURATION = 1.0
 #: Largest share of saturated samples (a saturated log is bad input; see saturated_share).
 MAX_SATURATED = 0.25
 #: Largest share of lost samples (measured angle nan).
@@ -101,15 +104,18 @@ def check_supported(scn: object, what: str = "identification") -> None:
 
 
 def read_ident_log(path: str | Path, torque_limit: float,
-                   motor: MotorParams | None = None) -> IdentLog:
+                   motor: MotorParams | None = None, validation: bool = False) -> IdentLog:
     """Read and check one log; raise :class:`ScenarioError` with one line naming the file.
 
     Checks: the file exists and parses, has columns t, y or theta, u (and duty with
     a ``motor``), no non-finite t or u, a uniform time column, at most
-    :data:`MAX_LOST` lost samples, at least :data:`MIN_DURATION` s and
+    :data:`MAX_LOST` lost samples, at least :data:`MIN_DURATION` s (a ``validation``
+    log, which is only predicted: :data:`MIN_VALIDATION_DURATION`) and
     :data:`MIN_SAMPLES` rows, some excitation, and at most :data:`MAX_SATURATED`
     of the samples saturated (:func:`saturated_share`).
     """
+    least = MIN_VALIDATION_DURATION if validation else MIN_DURATION
+    what = "validation" if validation else "identification"
     src = f"log '{path}'"
     need_duty = motor is not None
     duty_col = ["duty"] if need_duty else []
@@ -127,12 +133,12 @@ def read_ident_log(path: str | Path, torque_limit: float,
     duty = data[:, 3] if need_duty else None
     n = len(t)
     if n < 2:
-        raise ScenarioError(f"{src}: too short ({n} rows); identification needs at least "
-                            f"{MIN_DURATION:g} s and {MIN_SAMPLES} samples")
+        raise ScenarioError(f"{src}: too short ({n} rows); {what} needs at least "
+                            f"{least:g} s and {MIN_SAMPLES} samples")
     ts = sample_period(t, path)
-    if n < MIN_SAMPLES or n * ts < MIN_DURATION:
-        raise ScenarioError(f"{src}: too short ({n} samples, {n * ts:.3g} s); identification "
-                            f"needs at least {MIN_DURATION:g} s and {MIN_SAMPLES} samples")
+    if n < MIN_SAMPLES or n * ts < least:
+        raise ScenarioError(f"{src}: too short ({n} samples, {n * ts:.3g} s); {what} "
+                            f"needs at least {least:g} s and {MIN_SAMPLES} samples")
     lost = np.isnan(y)  # never the first row (read_log_columns)
     if lost.mean() > MAX_LOST:
         raise ScenarioError(f"{src}: {int(lost.sum())} rows with {names[1]} = nan "

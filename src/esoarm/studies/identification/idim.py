@@ -12,9 +12,9 @@ no bounds, in whatever units the log is written.  The estimation is the data
 set's own (Gautier 1997; the EMPS scripts ``Script_IDIM_LS.m``):
 
 1. *band-pass filtered derivatives*: q filtered forward and backward by a
-   Butterworth low-pass (order 4, cut-off ``cutoff_hz``, default :func:`band_cutoff`:
-   where the motion's spectrum meets the encoder's noise, at most a tenth of the sample
-   rate, so that it follows the motion, not the rate), then q̇ and q̈
+   Butterworth low-pass (order 4, cut-off ``cutoff_hz``, default :func:`select_cutoff`:
+   from twice the motion's band up to a tenth of the sample rate, where the model explains
+   the force best, so that it follows the motion, not the rate), then q̇ and q̈
    by central differences (MATLAB's ``diffcent``), :data:`BORDER` samples dropped at each end;
 2. *decimation*: every column of φ and the force τ low-pass filtered and
    resampled by ``nd`` = round(fs/(4 ``cutoff_hz``)) (:func:`scipy.signal.decimate`,
@@ -37,14 +37,16 @@ with a bandwidth read from the residual's own autocorrelation
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ASYMMETRY_Z", "BORDER", "NAMES", "NAMES_ASYMMETRIC", "IdimResult", "band_cutoff",
+__all__ = ["ASYMMETRY_Z", "BORDER", "NAMES", "NAMES_ASYMMETRIC", "IdimResult",
+           "asymmetry_threshold", "band_cutoff",
            "cross_test", "decimation_factor", "filtered_derivatives", "force_error",
-           "hac_bandwidth", "hac_covariance", "idim_ls", "idim_system", "regressors",
-           "staged_decimate", "viscous_asymmetry"]
+           "hac_bandwidth", "hac_covariance", "idim_ls", "idim_system", "motion_band",
+           "regressors", "select_cutoff", "staged_decimate", "viscous_asymmetry"]
 
 #: Samples dropped at each end after the filters (their edge effects; EMPS: 50).
 BORDER = 50
@@ -110,6 +112,92 @@ def band_cutoff(y: np.ndarray, ts: float) -> float:
     return float(min(0.1 * fs, max(band, 20.0 * fs / n)))
 
 
+#: The candidate cut-offs step down from a tenth of the sample rate by this factor.
+CUTOFF_STEP = math.sqrt(2.0)
+#: The written interval joins the HAC intervals of the candidate cut-offs within an octave
+#: of the chosen one whose force error is within this factor of its own: how far the
+#: estimate moves with the filter (model error in that band, which one filter's HAC
+#: interval does not cover).
+FILTER_SLACK = 1.25
+#: The lowest candidate cut-off is this many times the motion's band (:func:`motion_band`):
+#: the order-4 Butterworth run forward and backward keeps 99.6 % of the power there.
+BAND_MARGIN = 2.0
+
+
+def motion_band(parts: list[np.ndarray], ts: float, share: float = 0.9) -> float:
+    """The frequency [Hz] below which ``share`` of the motion's energy lies, over the logs
+    ``parts`` (positions).
+
+    The velocity by first differences, its periodogram over the whole log (a step's velocity
+    starts and ends at rest, so nothing leaks from the log's ends); a bin counts as motion
+    where the position's periodogram (the velocity's over the difference's gain) exceeds
+    :data:`BAND_SNR` times the encoder's noise floor (its median over the top half of the
+    band; white noise passes that one bin in a thousand), so the noise does not stretch the
+    band.
+    """
+    best = 0.0
+    for y in parts:
+        v = np.diff(np.asarray(y, dtype=float)) / ts
+        if len(v) < 8 or not np.all(np.isfinite(v)):
+            continue
+        pv = np.abs(np.fft.rfft(v - v.mean())) ** 2
+        f = np.fft.rfftfreq(len(v), ts)
+        gain = (2.0 * np.sin(np.pi * f * ts) / ts) ** 2
+        py = np.where(gain > 0, pv / np.where(gain > 0, gain, 1.0), 0.0)
+        top = f >= 0.25 / ts
+        floor = float(np.median(py[top])) if top.any() else 0.0
+        signal = np.where(py > BAND_SNR * floor, py, 0.0)
+        total = float(signal.sum())
+        if total <= 0.0:
+            continue
+        k = int(np.searchsorted(np.cumsum(signal) / total, share))
+        best = max(best, float(f[min(k, len(f) - 1)]))
+    return best
+
+
+def select_cutoff(force_error_at: Callable[[float], float], ts: float, band_hz: float,
+                  shortest_s: float) -> tuple[float, tuple[float, ...]]:
+    """The derivative filter's cut-off [Hz] for IDIM-LS, from the excitation's band up.
+
+    Candidates step down from a tenth of the sample rate (the EMPS scripts' fs/10) by
+    :data:`CUTOFF_STEP`, to :data:`BAND_MARGIN` × the motion's band ``band_hz`` (below it
+    the filter would cut the motion) and to 20 periods of the shortest log ``shortest_s``.
+    The cut-off is the candidate whose IDIM-LS explains the force best (lowest relative
+    force error, ``force_error_at(cutoff)``): too high a cut-off lets the encoder's noise and
+    vibration the model lacks into q̈ (errors in the variables pull the inertia towards 0);
+    too low a one cuts the motion.  Both ends follow the motion, not the sample rate: a
+    1 kHz step and its 100 Hz down-sample get about the same filter.
+
+    Returns
+    -------
+    cutoff : float
+        The chosen cut-off [Hz].
+    around : tuple of float
+        The candidates within an octave of it whose force error is within
+        :data:`FILTER_SLACK` of its own (their intervals join the written one).
+    """
+    top = 0.1 / ts
+    low = max(BAND_MARGIN * band_hz, 20.0 / max(shortest_s, ts))
+    cands = [top]
+    while cands[-1] / CUTOFF_STEP >= min(low, top / 4.0) * 0.999:
+        cands.append(cands[-1] / CUTOFF_STEP)
+    errors: dict[float, float] = {}
+    for fc in cands:
+        try:
+            fe = float(force_error_at(fc))
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if math.isfinite(fe):
+            errors[fc] = fe
+    if not errors:
+        return top, ()
+    best = min(errors, key=lambda fc: errors[fc])
+    around = tuple(fc for fc, fe in errors.items() if fc != best
+                   and 0.5 * best * 0.999 <= fc <= 2.0 * best * 1.001
+                   and fe <= FILTER_SLACK * errors[best])
+    return best, around
+
+
 def staged_decimate(x: np.ndarray, nd: int) -> np.ndarray:
     """:func:`scipy.signal.decimate` by ``nd`` along axis 0 (zero phase), in stages of at
     most 10 (scipy's advice for its IIR filter beyond 13)."""
@@ -130,6 +218,10 @@ def staged_decimate(x: np.ndarray, nd: int) -> np.ndarray:
 
 #: Rows where the filtered speed is below this share of its peak are rest (left out).
 MOVING_SHARE = 0.05
+#: With fewer moving rows than this the log hardly moves and every row is kept.
+MIN_MOVING_ROWS = 40
+#: A candidate cut-off leaving fewer rows than this many per parameter is not chosen.
+ROWS_PER_PARAMETER = 10
 #: The decimated rate is this many times the cut-off (its Nyquist frequency twice the
 #: cut-off: the filtered band is kept whole, whatever the log's rate).
 DECIMATED_RATE = 4.0
@@ -237,6 +329,14 @@ class IdimResult:
         Largest |ρ| of the residual over lags 1 … 20 (1 would be white noise's ±2/√n).
     cov_hac : ndarray or None
         The Newey-West covariance of θ̂ (p×p), whose square-rooted diagonal is ``se_hac``.
+    ci_joined : ndarray or None
+        p×2: the 95 % interval written for each parameter when the cut-off was chosen from
+        the data -- this cut-off's HAC interval joined with those of the neighbouring
+        cut-offs that explain the force about as well (``around_hz``,
+        :func:`select_cutoff`): how far the estimate moves with the filter.  None: the
+        HAC interval alone.
+    around_hz : tuple of float
+        Those neighbouring cut-offs [Hz].
     """
 
     names: tuple[str, ...]
@@ -251,6 +351,8 @@ class IdimResult:
     cutoff_hz: float
     max_autocorrelation: float
     cov_hac: np.ndarray | None = None
+    ci_joined: np.ndarray | None = None
+    around_hz: tuple[float, ...] = ()
 
     @property
     def asymmetric(self) -> bool:
@@ -262,8 +364,11 @@ class IdimResult:
         return float(self.values[self.names.index(name)])
 
     def ci95(self, name: str) -> tuple[float, float]:
-        """The HAC 95 % interval of ``name``."""
+        """The 95 % interval of ``name``: HAC, joined with the neighbouring cut-offs' when
+        the cut-off was chosen from the data (``ci_joined``)."""
         i = self.names.index(name)
+        if self.ci_joined is not None:
+            return float(self.ci_joined[i, 0]), float(self.ci_joined[i, 1])
         half = 1.96 * float(self.se_hac[i])
         return float(self.values[i]) - half, float(self.values[i]) + half
 
@@ -290,7 +395,7 @@ def idim_system(y: np.ndarray, u: np.ndarray, ts: float, cutoff_hz: float | None
     if moving_only:
         speed = np.abs(_decimate(dq[keep], nd))
         moving = speed >= MOVING_SHARE * float(np.max(speed, initial=0.0))
-        if moving.sum() >= 10 * x.shape[1]:
+        if moving.sum() >= MIN_MOVING_ROWS:  # (the same rows whatever the model's columns)
             xd, fd = xd[moving], fd[moving]
     return xd, fd, nd, cutoff
 
@@ -298,15 +403,45 @@ def idim_system(y: np.ndarray, u: np.ndarray, ts: float, cutoff_hz: float | None
 def idim_ls(parts: list[tuple[np.ndarray, np.ndarray]], ts: float,
             cutoff_hz: float | None = None, gravity: bool = False,
             asymmetric: bool = False, rate: float = DECIMATED_RATE,
-            moving_only: bool = True) -> IdimResult:
+            moving_only: bool = True, around: tuple[float, ...] = ()) -> IdimResult:
     """IDIM-LS over one or more logs (``parts``: (position, force) pairs), see the module.
 
     The logs' observation matrices are stacked (each filtered on its own);
     ``asymmetric`` fits the viscous friction of each direction
-    (:data:`NAMES_ASYMMETRIC`).
+    (:data:`NAMES_ASYMMETRIC`).  Without ``cutoff_hz`` one filter for every log is chosen
+    from the data (:func:`select_cutoff`) and the written intervals join those of the
+    neighbouring cut-offs that explain the force about as well; ``around`` [Hz] gives such
+    neighbours for a given cut-off (the same filter's estimate of another model).
     """
-    if cutoff_hz is None:  # one filter for every log: the widest band among them
-        cutoff_hz = max(band_cutoff(y, ts) for y, _u in parts)
+    if cutoff_hz is None:
+        band = motion_band([y for y, _u in parts], ts)
+        shortest = min(len(y) for y, _u in parts) * ts
+
+        def fe_at(fc: float) -> float:
+            est = _idim_fixed(parts, ts, fc, gravity, asymmetric, rate, moving_only)
+            if est.n < ROWS_PER_PARAMETER * len(est.values):
+                raise ValueError("too few rows")
+            return est.force_error
+
+        cutoff_hz, around = select_cutoff(fe_at, ts, band, shortest)
+    est = _idim_fixed(parts, ts, cutoff_hz, gravity, asymmetric, rate, moving_only)
+    if not around:
+        return est
+    lo = np.array([est.ci95(n)[0] for n in est.names])
+    hi = np.array([est.ci95(n)[1] for n in est.names])
+    for fc in around:
+        other = _idim_fixed(parts, ts, fc, gravity, asymmetric, rate, moving_only)
+        lo = np.minimum(lo, [other.ci95(n)[0] for n in other.names])
+        hi = np.maximum(hi, [other.ci95(n)[1] for n in other.names])
+    from dataclasses import replace
+
+    return replace(est, ci_joined=np.column_stack([lo, hi]), around_hz=tuple(around))
+
+
+def _idim_fixed(parts: list[tuple[np.ndarray, np.ndarray]], ts: float, cutoff_hz: float,
+                gravity: bool, asymmetric: bool, rate: float,
+                moving_only: bool) -> IdimResult:
+    """IDIM-LS with one given cut-off (see :func:`idim_ls`)."""
     systems = [idim_system(y, u, ts, cutoff_hz, gravity, asymmetric, rate, moving_only)
                for y, u in parts]
     x = np.vstack([s[0] for s in systems])
@@ -332,6 +467,21 @@ def idim_ls(parts: list[tuple[np.ndarray, np.ndarray]], ts: float,
 #: (two-sided 99 %: a symmetric axis keeps it one time in a hundred, and the symmetric
 #: model is nested in it, so keeping it wrongly costs only width).
 ASYMMETRY_Z = 2.576
+
+
+def asymmetry_threshold(est: IdimResult) -> float:
+    """The |z| beyond which the viscous asymmetry of ``est`` is kept: the two-sided 99 %
+    point of Student's t with the HAC estimate's effective degrees of freedom (rows per
+    bandwidth, less the parameters), :data:`ASYMMETRY_Z` on a long log.  With a few dozen
+    correlated rows (a step's rise and its overshoot) the HAC standard error is itself
+    uncertain and the normal 2.576 keeps an asymmetry that the Coulomb friction and the
+    offset explain as well."""
+    from scipy.stats import t as student
+
+    dof = est.n / max(est.bandwidth, 1) - len(est.values)
+    if dof >= 1000:
+        return ASYMMETRY_Z
+    return float(student.ppf(0.995, max(dof, 1.0)))
 
 
 def viscous_asymmetry(est: IdimResult) -> tuple[float, float, float]:

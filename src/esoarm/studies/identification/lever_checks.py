@@ -47,6 +47,8 @@ __all__ = ["DISTURBANCE_SLACK", "UNIT_RATIO", "LeverIdim", "check_log_against_sc
 UNIT_RATIO = 0.05
 #: The log's disturbance amplitude may miss the scenario's by its interval plus this share.
 DISTURBANCE_SLACK = 0.25
+#: The decimated rate in cut-offs (idim.DECIMATED_RATE on the axis path).
+LEVER_RATE = 1.0
 NAMES = ("inertia", "viscous_friction", "coulomb_friction", "gravity", "disturbance")
 
 
@@ -54,9 +56,12 @@ class LeverIdim:
     """IDIM-LS of the lever arm: values, HAC standard errors, force error [%]."""
 
     def __init__(self, names: tuple[str, ...], values: np.ndarray, se: np.ndarray,
-                 force_error: float, rows: int, duration: float) -> None:
+                 force_error: float, rows: int, duration: float,
+                 cutoff_hz: float = math.nan) -> None:
         self.names, self.values, self.se = names, values, se
         self.force_error, self.rows, self.duration = force_error, rows, duration
+        #: The derivative filter's cut-off [Hz].
+        self.cutoff_hz = cutoff_hz
 
     def value(self, name: str) -> float:
         """The estimate of ``name`` (:data:`NAMES`; "disturbance" is c = −I A [N·m])."""
@@ -68,18 +73,57 @@ class LeverIdim:
                                                                 float(v + 1.96 * s)]}
                                for n, v, s in zip(self.names, self.values, self.se,
                                                   strict=True)},
-                "force_error_percent": self.force_error, "rows": self.rows}
+                "force_error_percent": self.force_error, "rows": self.rows,
+                "cutoff_hz": self.cutoff_hz}
 
 
 def lever_idim(scn: Scenario, logs: list[IdentLog],
                cutoff_hz: float | None = None) -> LeverIdim | None:
     """IDIM-LS of the lever arm over ``logs``; None when a log is too short or has lost
     samples (the output-error fit handles those).  ``cutoff_hz`` [Hz] is the derivative
-    filter's cut-off (default a tenth of the sample rate, decimated to it: the EMPS scripts'
-    filter, on which the lever arm's checks were set; --cutoff sets it)."""
+    filter's cut-off (--cutoff sets it); by default it is chosen from the motion's band up to
+    a tenth of the sample rate, where the model explains the torque best
+    (:func:`~esoarm.studies.identification.idim.select_cutoff`, as on the axis path), so the
+    estimate follows the motion, not the sample rate (the fixed fs/10 of the EMPS scripts
+    gave a 1 kHz log a filter ten times wider than its 100 Hz down-sample's), and the written
+    standard errors cover how far the estimate moves between the neighbouring cut-offs that
+    explain the torque about as well."""
+    if any(np.isnan(log.y).any() for log in logs):
+        return None
     ts = logs[0].ts
-    cutoff = cutoff_hz if cutoff_hz is not None else 0.1 / ts
-    nd = decimation_factor(ts, cutoff, 1.0)
+    if cutoff_hz is not None:
+        return _lever_fixed(scn, logs, cutoff_hz)
+    from esoarm.studies.identification.idim import motion_band, select_cutoff
+
+    fits: dict[float, LeverIdim | None] = {}
+
+    def fe_at(fc: float) -> float:
+        fits[fc] = _lever_fixed(scn, logs, fc)
+        est = fits[fc]
+        return est.force_error if est is not None else math.inf
+
+    best, around = select_cutoff(fe_at, ts, motion_band([lg.y for lg in logs], ts),
+                                 min(lg.n for lg in logs) * ts)
+    est = fits.get(best) or _lever_fixed(scn, logs, best)
+    if est is None or not around:
+        return est
+    lo, hi = est.values - 1.96 * est.se, est.values + 1.96 * est.se
+    for fc in around:
+        other = fits.get(fc)
+        if other is not None:
+            lo = np.minimum(lo, other.values - 1.96 * other.se)
+            hi = np.maximum(hi, other.values + 1.96 * other.se)
+    # the joined interval written as a symmetric standard error around this estimate
+    se = np.maximum(est.se, np.maximum(est.values - lo, hi - est.values) / 1.96)
+    return LeverIdim(est.names, est.values, se, est.force_error, est.rows, est.duration,
+                     best)
+
+
+def _lever_fixed(scn: Scenario, logs: list[IdentLog], cutoff: float) -> LeverIdim | None:
+    """IDIM-LS of the lever arm with one given cut-off [Hz] (see :func:`lever_idim`)."""
+    ts = logs[0].ts
+    nd = decimation_factor(ts, cutoff, LEVER_RATE)  # the scripts' nd = fs/cutoff (a delay's phase
+    # above half the cut-off stays out of the fit)
     w = scn.rig.disturbance.frequency
     with_d = w > 0 and scn.rig.disturbance.amplitude != 0.0
     xs, fs = [], []
@@ -92,7 +136,7 @@ def lever_idim(scn: Scenario, logs: list[IdentLog],
             cols.append(np.sin(w * log.t))
         keep = slice(BORDER - 1, log.n)
         x = np.column_stack(cols)[keep]
-        f = log.u[keep]
+        f = _zoh_centred(log.u)[keep]
         if nd > 1:
             from esoarm.studies.identification.idim import staged_decimate
 
@@ -104,7 +148,7 @@ def lever_idim(scn: Scenario, logs: list[IdentLog],
     r = f - x @ theta
     se = np.sqrt(np.maximum(np.diag(hac_covariance(x, r, hac_bandwidth(r))), 0.0))
     return LeverIdim(NAMES[: x.shape[1]], theta, se, force_error(f, x @ theta), len(f),
-                     sum(log.n for log in logs) * ts)
+                     sum(log.n for log in logs) * ts, cutoff)
 
 
 def check_log_against_scenario(scn: Scenario, est: LeverIdim | None, path: str) -> str:
@@ -166,3 +210,13 @@ def disturbance_confirmed(scn: Scenario, est: LeverIdim | None) -> bool:
     period = 2.0 * math.pi / d.frequency
     return bool(est.duration >= 2.0 * period and abs(a_log) > half
                 and abs(a_log - d.amplitude) <= half + DISTURBANCE_SLACK * abs(d.amplitude))
+
+
+def _zoh_centred(u: np.ndarray) -> np.ndarray:
+    """The logged command as the motion at each sample instant answers it: u[k] is held
+    from t_k to t_k + ts (zero-order hold), so the torque centred on t_k is the mean of
+    u[k − 1] and u[k] (half a sample of delay, 18° at a tenth of a 50 Hz rate, otherwise
+    read as inertia)."""
+    out = np.asarray(u, dtype=float).copy()
+    out[1:] = 0.5 * (out[1:] + out[:-1])
+    return out

@@ -122,6 +122,12 @@ def parse_vary(item: str, base: Scenario | None = None, max_values: int = MAX_RU
             if all(v == round(v) for v in values):
                 values = [int(round(v)) for v in values]
         return VarySpec(key, tuple(values), head)
+    if ":" in spec and not any(c in spec for c in "\"'[{"):
+        raise ScenarioError(
+            f"vary {key}: '{spec}' is not a SPEC: a range names its spacing first, "
+            f"lin:START:STOP:NUM or geom:START:STOP:NUM (e.g. {key}=lin:{spec.split(':')[0]}"
+            f":…), else give the values as a comma list"
+        )
     items = [s.strip() for s in _split_top_level(spec)]
     if any(not s for s in items):
         raise ScenarioError(f"vary {key}: '{spec}' has an empty item")

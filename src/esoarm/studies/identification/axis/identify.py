@@ -13,7 +13,7 @@
    parameter and both values).
    The viscous friction is also fitted split by direction (Fv+, Fv−): kept
    when the HAC Wald test of Fv+ − Fv− rejects symmetry at 99 %
-   (:data:`~esoarm.studies.identification.idim.ASYMMETRY_Z`), reported as
+   (:func:`~esoarm.studies.identification.idim.asymmetry_threshold`), reported as
    ``viscous_friction_pos``/``_neg`` beside their mean and written as
    ``plant.viscous_asymmetry``.  The Coulomb friction's asymmetry is not
    identifiable apart from the offset (:data:`COULOMB_ASYMMETRY`).
@@ -49,8 +49,8 @@ from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.identification.axis.fit import OeResult, axis_vector, fit_axis_oe
 from esoarm.studies.identification.data import IdentLog
 from esoarm.studies.identification.idim import (
-    ASYMMETRY_Z,
     IdimResult,
+    asymmetry_threshold,
     cross_test,
     idim_ls,
     viscous_asymmetry,
@@ -344,6 +344,27 @@ def _halves(logs: list[IdentLog], ts: float,
     return first, second
 
 
+def _negative_friction(physical: dict, motion: str) -> None:
+    """A friction that IDIM-LS puts below 0: written as 0 and said so when 0 is inside its
+    interval (a friction too small for the log to tell from none), refused when the whole
+    interval is below 0 (the model does not describe the axis)."""
+    for name in ("coulomb_friction", "viscous_friction"):
+        e = physical.get(name)
+        if e is None or e["value"] >= 0.0:
+            continue
+        ci = e.get("ci95")
+        if ci is not None and ci[1] < 0.0:
+            raise AxisFitRefused(
+                f"IDIM-LS gives a negative {name.replace('_', ' ')}: {e['value']:.4g} "
+                f"{unit_of(motion, name)}, 95 % [{ci[0]:.4g}, {ci[1]:.4g}], below 0 beyond "
+                "its interval: a friction that pushes the axis along is not a model of it "
+                "(another force the model lacks, or the input's sign)")
+        e["estimate"] = e["value"]
+        e["value"] = 0.0
+        e["note"] = (f"IDIM-LS gives {e['estimate']:.4g}, below 0 but with 0 inside its 95 % "
+                     "interval: the log cannot tell this friction from none; written as 0")
+
+
 def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog],
                   segment: float = 2.0, validate_fraction: float = 0.25,
                   cutoff: float | None = None) -> AxisIdentResult:
@@ -378,14 +399,15 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
     est = idim_ls(parts, ts, cutoff, gravity=gravity)  # cutoff None: the input's band
     # the viscous friction split by direction, kept when the data support it (Wald, HAC)
     asymmetry: dict = {}
-    split = idim_ls(parts, ts, est.cutoff_hz, gravity, asymmetric=True)
+    split = idim_ls(parts, ts, est.cutoff_hz, gravity, asymmetric=True, around=est.around_hz)
     # (tested only when both directions carry the split: a log moving one way makes it
     # ill-conditioned, and its asymmetry meaningless)
     if split.condition <= 100.0 * est.condition:
         diff, se, z = viscous_asymmetry(split)
-        kept = bool(np.isfinite(z) and z > ASYMMETRY_Z)
+        z_limit = asymmetry_threshold(split)
+        kept = bool(np.isfinite(z) and z > z_limit)
         asymmetry = {"difference": diff, "ci95": [diff - 1.96 * se, diff + 1.96 * se],
-                     "z": z, "threshold_z": ASYMMETRY_Z, "kept": kept,
+                     "z": z, "threshold_z": z_limit, "kept": kept,
                      "force_error_percent": split.force_error,
                      "unit": unit_of(motion, "viscous_friction")}
         if kept:
@@ -411,6 +433,7 @@ def identify_axis(scn: Scenario, logs: list[IdentLog], validation: list[IdentLog
                 f"combined 95 % half-width {half:.3g}): the axis changed during the log, or "
                 "the model does not describe it")
     physical = _physical(motion, est)
+    _negative_friction(physical, motion)
     oe = fit_axis_oe(logs[0].y, logs[0].u, ts, est, segment, vs=p.friction_velocity,
                      lag=scn.actuator.lag, nsub=scn.substeps)
     oe_warning = ""

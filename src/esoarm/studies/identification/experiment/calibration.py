@@ -51,12 +51,16 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig", "from_json",
-           "run_rig", "summary"]
+           "run_rig", "sticking_rig", "summary"]
 
 #: Seeds from this one on are held out of any tuning of the estimator (reported apart).
 #: (Seeds 1_000_000 … were held out first; the first of them, 1_000_001, a 200 Hz rig whose
-#: 2-sample delay was fitted as 1 sample and a lag, led to a change, so they are no longer.)
-HELD_OUT_START = 2_000_000
+#: 2-sample delay was fitted as 1 sample and a lag, led to a change, so they are no longer.
+#: Seeds 2_000_000 … were held out next; their results (35 rigs) were read on 2026-12-06
+#: before the estimator was changed again, so they are no longer held out either.  Seeds
+#: 5_000_000 … were declared on 2026-12-06 04:50 UTC, before any tuning of that session,
+#: and are run only for the final table.)
+HELD_OUT_START = 5_000_000
 #: RMS of the default plan's multisine [N·m] (``esoarm excite --amplitude``).
 EXCITATION_RMS = 0.2
 RATES = (50.0, 50.0, 50.0, 50.0, 50.0, 50.0, 100.0, 100.0, 200.0, 1000.0)
@@ -75,6 +79,8 @@ class Rig:
     identify_sets: tuple[str, ...]
     #: Truth keys whose model the fit has (the others are model error it must survive).
     judged: tuple[str, ...]
+    #: Further options of ``esoarm excite`` (none for a drawn rig: the default plan).
+    excite_args: tuple[str, ...] = ()
 
     @property
     def rate_hz(self) -> float:
@@ -182,7 +188,7 @@ def run_rig(rig: Rig, workdir: Path | None = None) -> RigOutcome:
         sets = [a for s in rig.twin_sets for a in ("--set", s)]
         duration = min(60.0, MAX_SAMPLES / rig.rate_hz)
         ex = _esoarm(["excite", "test-1", "--twin", "--seed", str(rig.seed % 1000), "--log",
-                      str(log), "--duration", f"{duration:g}", *sets], env)
+                      str(log), "--duration", f"{duration:g}", *rig.excite_args, *sets], env)
         if ex.returncode != 0:
             return RigOutcome(rig, "excite-failed", ex.returncode,
                               (ex.stderr.strip().splitlines() or ["?"])[-1])
@@ -198,6 +204,39 @@ def run_rig(rig: Rig, workdir: Path | None = None) -> RigOutcome:
     out = classify(rig, json.loads(res.stdout))
     out.seconds, out.stuck_share = secs, stuck
     return out
+
+
+def sticking_rig(seed: int, coulomb: float = 0.25, stiction: float = 0.05) -> Rig:
+    """A twin that sticks most of the default multisine: Coulomb friction above its RMS
+    torque, and no breakaway probe (``esoarm excite --probe 0``), so that the multisine
+    is not raised to break the arm away.  Everything else is the draw of ``seed``
+    (:func:`draw_rig`) at 50 Hz without delay, lag or backlash.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the draw the other parameters come from.
+    coulomb, stiction : float
+        Coulomb friction and breakaway friction above it [N·m] (the multisine's RMS is
+        0.2 N·m).
+
+    Returns
+    -------
+    Rig
+        The rig, judged on the same keys as a drawn one.
+    """
+    base = draw_rig(seed)
+    t = {**base.truth, "rig.coulomb_friction": coulomb, "rig.stiction": stiction,
+         "sensor.rate_hz": 50.0, "actuator.delay_samples": 0.0, "actuator.lag": 0.0,
+         "rig.backlash_deg": 0.0}
+    keep = ("rig.coulomb_friction", "rig.stiction", "sensor.rate_hz", "actuator.delay_samples",
+            "actuator.lag", "rig.backlash_deg", "sensor.resolution_deg")
+    sets = [s for s in base.twin_sets if s.split("=")[0] not in keep]
+    sets += [f"rig.coulomb_friction={coulomb!r}", f"rig.stiction={stiction!r}",
+             "sensor.rate_hz=50.0", "actuator.delay_samples=0", "actuator.lag=0.0",
+             "rig.backlash_deg=0.0", "sensor.resolution_deg=0.05"]
+    return Rig(seed, t, tuple(sets), ("sensor.rate_hz=50", "sensor.resolution_deg=0.05"),
+               base.judged, ("--probe", "0"))
 
 
 def _stuck_share(log: Path) -> float:

@@ -42,8 +42,8 @@ from esoarm.controllers.flc import saturate
 from esoarm.engines.stepper import Stepper
 from esoarm.scenario import Scenario, ScenarioError
 
-__all__ = ["ExcitationController", "ExcitationPlan", "excitation_signal", "plan_text",
-           "signal_spectrum"]
+__all__ = ["ExcitationController", "ExcitationPlan", "excitation_signal", "guard_delay",
+           "guard_kd", "guard_margin", "plan_text", "signal_spectrum"]
 
 
 @dataclass(frozen=True)
@@ -144,6 +144,65 @@ def signal_spectrum(signal: np.ndarray, ts: float) -> tuple[np.ndarray, np.ndarr
     return np.fft.rfftfreq(n, ts), spec
 
 
+#: A plan whose guard loop has less phase margin than this [deg] on the scenario's rig (its
+#: transport delay and the hold included) gets a larger rate gain kd (the default plan on
+#: test-1 at 50 Hz with viscous friction 0.001 N·m·s/rad: 14.7° without delay and 7.2° with
+#: one sample, and ran within the angle limit; with two or three samples it has −0.3° and
+#: −7.7° and swung past it).
+GUARD_MARGIN_DEG = 5.0
+#: ... raised until the margin is at least this [deg].
+GUARD_TARGET_DEG = 20.0
+
+
+def guard_margin(kp: float, kd: float, inertia: float, viscous: float,
+                 delay_s: float, lag_s: float = 0.0) -> float:
+    """Phase margin [deg] of the guard loop (kp + kd s) e^(−s τ) / ((T s + 1)(I s² + b s)).
+
+    ``inertia`` I [kg·m²], ``viscous`` b [N·m·s/rad], ``delay_s`` τ [s] (transport delay and
+    half a sample of hold), ``lag_s`` T [s] (the actuator's first-order lag).  Gravity (a few
+    hundredths of a N·m on the lever arm) and Coulomb friction (which only adds damping) are
+    left out.  inf when the loop gain never reaches 1.
+    """
+    w = np.geomspace(1e-3, 1e4, 20000)
+    loop = (kp + 1j * kd * w) * np.exp(-1j * w * delay_s) / (
+        (lag_s * 1j * w + 1.0) * (inertia * (1j * w) ** 2 + viscous * 1j * w))
+    mag = np.abs(loop)
+    cross = np.flatnonzero((mag[:-1] >= 1.0) & (mag[1:] < 1.0))
+    if cross.size == 0:
+        return math.inf
+    phase = np.degrees(np.unwrap(np.angle(loop)))  # from about −90° at the lowest frequency
+    return float(min(180.0 + float(phase[i]) for i in cross))
+
+
+def guard_delay(scn: Scenario) -> float:
+    """The delay [s] the guard loop's torque meets: the transport delay and half a sample of
+    zero-order hold (the actuator's lag enters :func:`guard_margin` as a lag)."""
+    return (scn.actuator.delay_samples + 0.5) * scn.sample_time
+
+
+def guard_kd(scn: Scenario, plan: ExcitationPlan) -> float:
+    """The rate gain [N·m·s/rad] the guard loop runs with: ``plan.kd``, or, when its phase
+    margin on the scenario's rig is under :data:`GUARD_MARGIN_DEG` (a transport delay of a
+    few samples), the smallest larger kd (steps of 25 %) that gives
+    :data:`GUARD_TARGET_DEG`.  Raises :class:`ScenarioError` when no kd up to 100× gives it:
+    the plan would swing the arm past its limits; lower kp or the delay."""
+    inertia = scn.plant.inertia * scn.rig.inertia_scale
+    viscous = scn.rig.viscous_friction
+    tau, lag = guard_delay(scn), scn.actuator.lag
+    if plan.kp <= 0 or guard_margin(plan.kp, plan.kd, inertia, viscous, tau,
+                                    lag) >= GUARD_MARGIN_DEG:
+        return plan.kd
+    kd = max(plan.kd, 1e-3)
+    while kd <= 100.0 * max(plan.kd, 1e-3):
+        if guard_margin(plan.kp, kd, inertia, viscous, tau, lag) >= GUARD_TARGET_DEG:
+            return kd
+        kd *= 1.25
+    raise ScenarioError(
+        f"kp {plan.kp:g}: the guard loop cannot be kept stable with a delay of "
+        f"{scn.actuator.delay_samples} sample(s) ({tau * 1e3:.3g} ms with the hold, lag "
+        f"{lag:g} s): its phase margin stays under {GUARD_TARGET_DEG:g}° for every kd; lower kp")
+
+
 class ExcitationController:
     """The excitation torque plus the guard PD, stepped per sample like the FLC.
 
@@ -167,6 +226,9 @@ class ExcitationController:
         self.ts = scn.sample_time
         plan.check(self.ts)
         self.plan = plan
+        #: The guard loop's rate gain [N·m·s/rad] (:func:`guard_kd`: raised over plan.kd for
+        #: a delay that would leave the loop without phase margin).
+        self.kd = guard_kd(scn, plan)
         self.n_samples = int(round(plan.duration * scn.sensor.rate_hz))
         t = np.arange(self.n_samples) * self.ts
         self.t = t.tolist()
@@ -211,7 +273,7 @@ class ExcitationController:
         zhat = self._obs.estimate(y)
         self.zhat = (float(zhat[0]), float(zhat[1]), float(zhat[2]))
         p = self.plan
-        u = self._exc[k] - p.kp * (y - self._ref[k]) - p.kd * (self.zhat[1] - self._dref[k])
+        u = self._exc[k] - p.kp * (y - self._ref[k]) - self.kd * (self.zhat[1] - self._dref[k])
         return float(saturate(u, self.torque_limit))
 
     def commit(self, u: float) -> None:
@@ -248,14 +310,20 @@ def plan_text(plan: ExcitationPlan, scn: Scenario, preview: dict | None = None) 
     t = np.arange(n) * ts
     exc, ref, _ = excitation_signal(plan, t)
     freqs, amps = signal_spectrum(exc, ts)
+    kd = guard_kd(scn, plan)
+    margin = guard_margin(plan.kp, plan.kd, scn.plant.inertia * scn.rig.inertia_scale,
+                          scn.rig.viscous_friction, guard_delay(scn), scn.actuator.lag)
     lines = [
         f"excitation of '{scn.name}': {plan.duration:g} s at {scn.sensor.rate_hz:g} Hz "
         f"({n} samples), torque limit ±{scn.actuator.torque_limit:g} N·m",
         f"multisine: {plan.n_tones} tones {plan.f_min:g}-{plan.f_max:g} Hz (log-spaced, "
         f"seed {plan.seed}), RMS {np.sqrt(np.mean(exc**2)):.4g} N·m, "
         f"peak {np.max(np.abs(exc)) if n else 0.0:.4g} N·m",
-        f"guard loop: u = e(t) − {plan.kp:g}·(y − θc) − {plan.kd:g}·(ẑ2 − θ̇c), "
+        f"guard loop: u = e(t) − {plan.kp:g}·(y − θc) − {kd:g}·(ẑ2 − θ̇c), "
         f"setpoint sweep θc = {plan.sweep:g}·sin(2π t/{plan.sweep_period:g} s) rad",
+        *([f"  kd raised from {plan.kd:g}: with the rig's delay ({guard_delay(scn) * 1e3:.3g} "
+           f"ms with the hold) and lag the guard loop had a phase margin of "
+           f"{margin:.3g}° (under {GUARD_MARGIN_DEG:g}°)"] if kd != plan.kd else []),
         "spectrum of e(t) (RMS per octave band):",
     ]
     edges = plan.f_min * 2.0 ** np.arange(0, 1 + math.ceil(math.log2(plan.f_max / plan.f_min)))
