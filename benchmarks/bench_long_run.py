@@ -152,8 +152,8 @@ def main() -> None:
 
         short = load_scenario("test-1", {"duration": 0.04}).to_toml()
         for label, args, env, module, stdin in (
-                ("the compile child alone (`python -m esoarm.engines.stream.prepare`), "
-                 "cold caches", [], caches(tmp, "child"), "esoarm.engines.stream.prepare",
+                ("the compile child alone (`python -m esoarm.engines.stream.compile_child`), "
+                 "cold caches", [], caches(tmp, "child"), "esoarm.engines.stream.compile_child",
                  short),
                 ("10⁷ samples, --json, **cold caches** (the block compiled first)", json_long,
                  caches(tmp, "a"), "esoarm", None),

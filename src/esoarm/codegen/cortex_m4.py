@@ -50,7 +50,18 @@ def _chip_file(name: str) -> str:
 
 def startup_files(*names: str) -> dict[str, str]:
     """The bare-metal start shared by the Cortex-M images (``chip/cortex_m_startup.h``: reset
-    handler, vector table, SysTick), with the chip files ``names``, by file name."""
+    handler, vector table, SysTick), with the chip files ``names``, by file name.
+
+    Parameters
+    ----------
+    *names : str
+        The chip files (``esoarm/codegen/chip/``) to add, e.g. ``"m4_startup.c"``.
+
+    Returns
+    -------
+    dict of str to str
+        File name -> its text, the shared header first.
+    """
     return {name: _chip_file(name) for name in ("cortex_m_startup.h", *names)}
 
 

@@ -89,6 +89,14 @@ def check_consistency(scn: Scenario, source: str,
         message = check(scn) if check is not None else None
         if message:
             raise ScenarioError(f"{source}: {message}")
+    joint_names = getattr(kinds.plant, "joint_names", None)
+    names = joint_names(scn) if joint_names is not None else ()
+    if len(names) > 1:  # an arm: the observer kind must take its joints
+        per_joint = _kinds.observers_for(len(names))
+        if scn.observer.kind not in per_joint:
+            fail("observer.kind", f"'{scn.observer.kind}' is designed for one joint, and plant "
+                 f"kind '{scn.plant.kind}' has {len(names)} joints ({', '.join(names)}); use "
+                 f"one of {', '.join(repr(k) for k in per_joint)} (one ESO per joint)")
     if not hasattr(kinds.plant, "joint_limits"):  # one joint, no limits (the lever arm)
         if isinstance(ref, RangeMoves):
             fail("reference.kind", f"'range' moves through joint limits; plant kind "

@@ -10,7 +10,13 @@ from esoarm.cli._common import Interrupted, RunFailure
 
 
 def say(line: str) -> None:
-    """A line of the board's report on stdout, flushed (the host reads 'device: PATH')."""
+    """A line of the board's report on stdout, flushed (the host reads 'device: PATH').
+
+    Parameters
+    ----------
+    line : str
+        The line, without its newline.
+    """
     print(line, flush=True)
 
 
@@ -56,7 +62,18 @@ def serve_until(server: Any, done: Callable[[], bool], errors: tuple[type[BaseEx
 
 
 def finish(interrupted: bool) -> None:
-    """The last line: 'stopped: port closed', or exit status 130 after Ctrl-C."""
+    """The last line: 'stopped: port closed', or exit status 130 after Ctrl-C.
+
+    Parameters
+    ----------
+    interrupted : bool
+        True when the serving ended with Ctrl-C.
+
+    Raises
+    ------
+    Interrupted
+        After Ctrl-C (the command exits with status 130, saying the port was closed).
+    """
     if interrupted:
         raise Interrupted("simulated board stopped, port closed")
     say("stopped: port closed")

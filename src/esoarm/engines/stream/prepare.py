@@ -6,7 +6,7 @@ way, so a process that compiled the block peaked at 357-387 MB where a process
 that loads it from numba's disk cache peaks at about 195 MB (``/usr/bin/time -v``,
 test-1, 6·10⁵ samples; measured before this module).  A fresh process (one that
 has not imported numba yet) therefore has the block compiled by a short-lived
-child, ``python -m esoarm.engines.stream.prepare``, which writes numba's cache and
+child, ``python -m esoarm.engines.stream.compile_child``, which writes numba's cache and
 exits; the parent, which has not imported numba meanwhile, then loads the block
 from the cache.  The child compiles
 
@@ -33,7 +33,7 @@ from typing import Any
 
 from esoarm.scenario import Scenario
 
-__all__ = ["SELECTION_INLINE_THRESHOLD", "apart", "main", "marker"]
+__all__ = ["SELECTION_INLINE_THRESHOLD", "apart", "marker"]
 
 #: LLVM inlining threshold the child compiles the block with (LLVM's default).
 SELECTION_INLINE_THRESHOLD = 225
@@ -120,7 +120,7 @@ def apart(scn: Scenario, inp: Any) -> bool:
         if done.exists():
             return True
         short = scn.with_overrides({"duration": 2.0 / scn.sensor.rate_hz})
-        proc = subprocess.run([sys.executable, "-m", "esoarm.engines.stream.prepare"],
+        proc = subprocess.run([sys.executable, "-m", "esoarm.engines.stream.compile_child"],
                               input=short.to_toml(), text=True, capture_output=True,
                               timeout=1800, check=False)
         if proc.returncode != 0:
@@ -130,34 +130,3 @@ def apart(scn: Scenario, inp: Any) -> bool:
         return True
     except (OSError, ValueError, subprocess.SubprocessError):
         return False
-
-
-def main() -> int:
-    """Child: read a scenario (TOML) on stdin, compile its block, run it, print its kinds.
-
-    Returns
-    -------
-    int
-        Exit status (0: the block compiled, ran and is cached).
-    """
-    import tomllib
-
-    from esoarm import _jit
-    from esoarm.scenario.schema import build
-
-    _jit.register_all(inline_threshold=SELECTION_INLINE_THRESHOLD)
-    scn = build(tomllib.loads(sys.stdin.read()), {}, source="stdin")
-
-    from esoarm import kinds as _kinds
-    from esoarm.engines.simulation import prepare_designs
-    from esoarm.engines.stream import stream
-
-    inp = prepare_designs(scn)
-    _kinds.compile_only([inp.kinds])
-    stream(scn, compiled=True)
-    print(".".join(m.KIND for m in inp.kinds))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -206,14 +206,8 @@ def check(scn: Scenario) -> str | None:
     if scn.controller.kind != "computed-torque":
         return (f"key 'controller.kind': '{scn.controller.kind}' is the lever arm's; a URDF arm "
                 "uses 'computed-torque'")
-    if n > 1:
-        from esoarm.kinds import observers_for  # (the registry imports this module)
-
-        per_joint = observers_for(n)
-        if scn.observer.kind not in per_joint:
-            return (f"key 'observer.kind': '{scn.observer.kind}' is designed for one joint, and "
-                    f"'{Path(scn.plant.file).name}' has {_joint_list(arm)}; use one of "
-                    f"{', '.join(repr(k) for k in per_joint)} (one ESO per joint)")
+    # (whether the observer kind takes n joints is asked of the registry by
+    # esoarm.scenario.checks, which sits above the kinds)
     if scn.rig.stiction != 0.0:
         return ("key 'rig.stiction': the URDF twin's friction is Coulomb and viscous per joint "
                 "(no Stribeck term); leave it 0")

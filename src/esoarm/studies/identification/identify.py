@@ -352,6 +352,11 @@ def one_blas_thread() -> Iterator[None]:
     """Hold the BLAS libraries (numpy's, scipy's) to one thread inside the block.
 
     Uses threadpoolctl when it is installed; without it nothing is changed.
+
+    Yields
+    ------
+    None
+        Inside the ``with`` block BLAS runs on one thread; the limit is lifted after.
     """
     try:
         from threadpoolctl import threadpool_limits

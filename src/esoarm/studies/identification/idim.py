@@ -134,6 +134,20 @@ def motion_band(parts: list[np.ndarray], ts: float, share: float = 0.9) -> float
     :data:`BAND_SNR` times the encoder's noise floor (its median over the top half of the
     band; white noise passes that one bin in a thousand), so the noise does not stretch the
     band.
+
+    Parameters
+    ----------
+    parts : list of ndarray
+        The logs' positions [rad or m], one array per log.
+    ts : float
+        Sample period [s].
+    share : float
+        The share of the motion's energy below the band's top (0-1).
+
+    Returns
+    -------
+    float
+        The band's top [Hz], the largest over the logs (0 where nothing moved).
     """
     best = 0.0
     for y in parts:
@@ -167,6 +181,18 @@ def select_cutoff(force_error_at: Callable[[float], float], ts: float, band_hz: 
     vibration the model lacks into q̈ (errors in the variables pull the inertia towards 0);
     too low a one cuts the motion.  Both ends follow the motion, not the sample rate: a
     1 kHz step and its 100 Hz down-sample get about the same filter.
+
+    Parameters
+    ----------
+    force_error_at : callable
+        ``force_error_at(cutoff_hz) -> float``: IDIM-LS's relative force error with the
+        filter at that cut-off (may raise ValueError or LinAlgError: the candidate is skipped).
+    ts : float
+        Sample period [s].
+    band_hz : float
+        The motion's band [Hz] (:func:`motion_band`).
+    shortest_s : float
+        The shortest log's length [s].
 
     Returns
     -------
@@ -475,7 +501,18 @@ def asymmetry_threshold(est: IdimResult) -> float:
     bandwidth, less the parameters), :data:`ASYMMETRY_Z` on a long log.  With a few dozen
     correlated rows (a step's rise and its overshoot) the HAC standard error is itself
     uncertain and the normal 2.576 keeps an asymmetry that the Coulomb friction and the
-    offset explain as well."""
+    offset explain as well.
+
+    Parameters
+    ----------
+    est : IdimResult
+        The asymmetric estimate (its rows ``n``, HAC bandwidth and values).
+
+    Returns
+    -------
+    float
+        The threshold on |z| (≥ :data:`ASYMMETRY_Z`).
+    """
     from scipy.stats import t as student
 
     dof = est.n / max(est.bandwidth, 1) - len(est.values)
