@@ -56,7 +56,7 @@ def test_feedforward_interpolates_periodically() -> None:
     assert feedforward(7 * math.pi / 4, a) == pytest.approx(-i0 * 2.5)  # wraps to node 0
     assert feedforward(-math.pi / 4, a) == pytest.approx(-i0 * 2.5)
     assert feedforward(2 * math.pi, a) == pytest.approx(-i0 * 1.0)
-    assert len(actuator_vector(load_scenario("test-1"))) == 7  # no table: unchanged
+    assert len(actuator_vector(load_scenario("test-1"))) == 11  # no table: unchanged
 
 
 def test_the_drive_gets_the_table_and_the_observer_does_not() -> None:

@@ -97,9 +97,9 @@ def test_a_log_without_the_estimates_is_refused(tmp_path: Path) -> None:
     assert r.exit_code == 2 and "z1" in r.output
 
 
-def test_codegen_refuses_a_table_it_would_not_apply() -> None:
-    from esoarm.codegen.generate import CodegenError, generate
+def test_codegen_carries_the_table() -> None:
+    """The generated C applies the table (checked in lockstep: tests/codegen/test_map_c.py)."""
+    from esoarm.codegen.generate import generate
 
     scn = load_scenario("test-1", {"controller.feedforward_map": [0.1, 0.2]})
-    with pytest.raises(CodegenError, match="controller.feedforward_map"):
-        generate(scn)
+    assert "#define ACT_FF_N 2" in generate(scn).source

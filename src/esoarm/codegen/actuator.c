@@ -2,7 +2,10 @@
  * PWM duty map with back-EMF compensation and deadband pre-compensation; the C
  * twin of esoarm.plants.actuator.actuate and esoarm.plants.motor.
  * ACT_P = (torque limit, motor flag, stall gain, damping, pwm_max, deadband, PWM levels
- * 2^pwm_bits - 1 of a drive without a motor model, 0 for none).
+ * 2^pwm_bits - 1 of a drive without a motor model, 0 for none, 1 when the observer is fed
+ * the command before saturation, the ESO's gate band at an end stop [rad] (0 none), the
+ * lower and upper stop [rad]; with a learned table (ACT_FF_N > 0 bins): N, then the N
+ * torques -I0 m_i [N m] at theta_i = 2 pi i / N from ACT_P[ACT_FF0] on).
  * DIV(a, b): a / b (float64), a · (1/b) with 1/b folded by the compiler (float32).
  */
 static esoarm_real act_saturate(esoarm_real u, esoarm_real limit)
@@ -35,6 +38,15 @@ static esoarm_real act_source_torque(esoarm_real duty)
     return ACT_P[2] * COPYSIGN(mag, frac);
 }
 
+/* The ESO's b0 u term gated: y [rad] within the band of an end stop and the observer's
+ * input u [N m] pushing into it (esoarm.plants.actuator.gated). */
+static int act_gated(esoarm_real y, esoarm_real u)
+{
+    esoarm_real band = ACT_P[8];
+    if (!(band > R(0.0))) return 0;
+    return (y >= ACT_P[10] - band && u > R(0.0)) || (y <= ACT_P[9] + band && u < R(0.0));
+}
+
 /* u: saturated command [N m]; rate: estimated rate [rad/s].  Sets the torque the
  * controller believes it applies (fed to the observer), the torque driving the
  * plant and the duty [counts] (0 without a motor). */
@@ -55,3 +67,23 @@ static void act_actuate(esoarm_real u, esoarm_real rate, esoarm_real *applied,
     *drive = act_source_torque(*duty);
     *applied = *drive - ACT_P[3] * rate;
 }
+
+#if ACT_FF_N > 0
+/* The learned table's torque at the estimated angle [rad]: -I0 m(angle), linear between
+ * the N nodes theta_i = 2 pi i / N, periodic; the C twin of esoarm.plants.actuator.feedforward
+ * (the same operations: x = angle / (2 pi) * N wrapped into [0, N)). */
+static esoarm_real act_feedforward(esoarm_real angle)
+{
+    const esoarm_real n = (esoarm_real)ACT_FF_N;
+    esoarm_real x = angle / R(6.283185307179586) * n;
+    esoarm_real frac;
+    int i, j;
+    x = x - n * FLOOR(x / n);
+    i = (int)FLOOR(x);
+    if (i >= ACT_FF_N) i = ACT_FF_N - 1;   /* round-off at the top */
+    if (i < 0) i = 0;
+    frac = x - (esoarm_real)i;
+    j = i + 1 < ACT_FF_N ? i + 1 : 0;
+    return (R(1.0) - frac) * ACT_P[ACT_FF0 + i] + frac * ACT_P[ACT_FF0 + j];
+}
+#endif

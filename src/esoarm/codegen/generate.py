@@ -67,6 +67,7 @@ import numpy as np
 from esoarm import __version__
 from esoarm.contract import Kind
 from esoarm.kinds import Kinds, hook, kinds_of
+from esoarm.plants import actuator
 from esoarm.plants.actuator import actuator_vector
 from esoarm.reference import Multisine, QuinticSteps
 
@@ -185,6 +186,15 @@ def _literal(x: float) -> str:
     return f"R({text})"
 
 
+def _actuator_defines(act: np.ndarray) -> str:
+    """ACT_SEES (the observer fed the command before saturation) and ACT_FF_N (the learned
+    table's bins, 0 without one) of the actuator vector, for the step and actuator.c."""
+    sees = 1 if act[actuator.SEES] == actuator.SEES_COMMANDED else 0
+    bins = int(act[actuator.FF_BINS]) if len(act) > actuator.FF_BINS else 0
+    return (f"#define ACT_SEES {sees}\n#define ACT_FF_N {bins}\n"
+            f"#define ACT_FF0 {actuator.FF_BINS + 1}\n")
+
+
 def _array(name: str, values: np.ndarray | list[float]) -> str:
     items = ", ".join(_literal(float(v)) for v in values)
     return f"static const esoarm_real {name}[{max(len(values), 1)}] = {{{items or 'R(0.0)'}}};\n"
@@ -288,6 +298,7 @@ _MATH = {
     # name: (float32, float64)
     "FABS": ("fabsf", "fabs"), "POW": ("powf", "pow"), "COS": ("cosf", "cos"),
     "SIN": ("sinf", "sin"), "COPYSIGN": ("copysignf", "copysign"), "EXP": ("expf", "exp"),
+    "FLOOR": ("floorf", "floor"),
 }
 
 
@@ -458,10 +469,6 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     (:func:`_reference_files`).
     """
     compensated = _check_options(target, precision, compensated, prefix)
-    if getattr(scn.controller, "feedforward_map", None):
-        raise CodegenError("controller.feedforward_map: the generated C does not apply a "
-                           "learned feedforward table yet (the simulated engines do); set it "
-                           "to [] to generate")
     kinds = kinds_of(scn)
     texts = _kind_sources(kinds)
     plant = kinds.plant.design(scn)
@@ -518,7 +525,7 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
              f"\n/* ---- controller kind '{kinds.controller.KIND}' ---- */\n", ctl_text,
              "\n/* ---- kinds without run-time tuning ---- */\n" if defaults else "",
              *defaults,
-             "\n/* ---- actuator ---- */\n",
+             "\n/* ---- actuator ---- */\n", _actuator_defines(act),
              (resources.files("esoarm.codegen") / "actuator.c").read_text(encoding="utf-8"),
              "\n/* ---- the step ---- */\n",
              "".join(f"#define {up}_{name}0 {_literal(v)}\n" for name, v in
@@ -796,7 +803,7 @@ int @P@_set_params(@P@_state *s, const @P@_params *par)
                   @P@_real accel_d)
 {
     esoarm_real ref[3];
-    esoarm_real raw, u, applied, drive, duty;
+    esoarm_real raw, u, applied, drive, duty, input;
     uint8_t first = 0;
     if (!ISFINITE(y)) {
         s->fault = (uint8_t)(s->fault | @U@_FAULT_MEASUREMENT);
@@ -817,12 +824,24 @@ int @P@_set_params(@P@_state *s, const @P@_params *par)
     raw = ctl_control(s->ctl_t, s->c, s->zhat, y, ref, first);
     u = act_saturate(raw, ACT_P[0]);
     act_actuate(u, s->zhat[1], &applied, &drive, &duty);
+#if ACT_FF_N > 0
+    {   /* the learned table: in the drive and the duty, not in what the observer is fed */
+        esoarm_real host;
+        act_actuate(act_saturate(u + act_feedforward(s->zhat[0]), ACT_P[0]), s->zhat[1],
+                    &host, &drive, &duty);
+    }
+#endif
     if (!ISFINITE(u) || !ISFINITE(applied)) {  /* the state no longer holds a number */
         s->fault = (uint8_t)(s->fault | @U@_FAULT_STATE);
         return s->u;
     }
     s->u = u; s->applied = applied; s->drive = drive; s->duty = duty;
-    obs_advance(s->obs_t, s->z, s->zhat, y, plant_observer_input(s->zhat, applied));
+    /* the observer's input: the applied command, or (actuator.observer_sees = "commanded",
+     * the paper's ESO) the controller's command before saturation; 0 while the gate at an
+     * end stop holds (actuator.stop_gate) */
+    input = plant_observer_input(s->zhat, ACT_SEES ? raw : applied);
+    if (act_gated(y, input)) input = R(0.0);
+    obs_advance(s->obs_t, s->z, s->zhat, y, input);
     return u;
 }
 """

@@ -34,7 +34,7 @@ import numpy as np
 
 from esoarm.engines.simulation import prepare
 from esoarm.hardware.host_control import DeploymentController
-from esoarm.plants.actuator import MOTOR, MOTOR_BLOCK, actuator_vector, delayed_input
+from esoarm.plants.actuator import FF_BINS, MOTOR, MOTOR_BLOCK, actuator_vector, delayed_input
 from esoarm.plants.motor import duty_to_torque, torque_to_duty
 from esoarm.plants.sensor import measure
 from esoarm.scenario import Scenario
@@ -83,6 +83,9 @@ class LockstepRun:
         Per-step cycles (or instruction-count proxy) reported by the chip.
     duty_ties : int
         Samples where the reference adopted the chip's duty at a rounding tie.
+    drive_chip, drive_ref : ndarray
+        With a learned table and no motor: the torque driving the twin, the chip's and the
+        reference's [N·m] (the table's torque is in it, not in u); empty otherwise.
     """
 
     steps: int
@@ -94,11 +97,16 @@ class LockstepRun:
     torque_limit: float
     cycles: list[int] = field(default_factory=list)
     duty_ties: int = 0
+    drive_chip: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    drive_ref: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def max_abs_du(self) -> float:
-        """max_k |u_chip − u_ref| [N·m] (inf if the chip answered a non-finite value)."""
+        """max_k |u_chip − u_ref| [N·m] (inf if the chip answered a non-finite value), and
+        of the drives where they are compared (a learned table, no motor)."""
         du = np.abs(self.u_chip - self.u_ref)
+        if self.drive_chip.size:
+            du = np.concatenate([du, np.abs(self.drive_chip - self.drive_ref)])
         return float(np.max(du)) if np.all(np.isfinite(du)) else math.inf
 
     @property
@@ -169,6 +177,8 @@ def lockstep(scn: Scenario, chip: Chip, steps: int | None = None,
     advance = inp.kinds.plant.advance
     act = actuator_vector(scn)
     motor = act[MOTOR_BLOCK:] if act[MOTOR] else None
+    table = len(act) > FF_BINS and act[FF_BINS] > 0.0 and motor is None
+    drive_chip, drive_ref = np.full(n, np.nan), np.full(n, np.nan)
     tie = 1e-6 * ref.torque_limit
     k_done = ties = 0
     for k in range(n):
@@ -185,6 +195,7 @@ def lockstep(scn: Scenario, chip: Chip, steps: int | None = None,
                 ties += 1
         ref.commit(u_app)
         ys[k], theta[k], u_chip[k], u_ref[k] = y, x[0], u_c, u_r
+        drive_chip[k], drive_ref[k] = d_c, ref.drive
         k_done = k + 1
         if not (math.isfinite(u_c) and math.isfinite(d_c) and math.isfinite(u_r)):
             break
@@ -196,4 +207,6 @@ def lockstep(scn: Scenario, chip: Chip, steps: int | None = None,
         delayed_input(hist, k, inp.delay, drive, applied)
         advance(x, applied, k * inp.ts, inp.h, inp.nsub, plant.vector)
     return LockstepRun(k_done, u_chip[:k_done], u_ref[:k_done], ys[:k_done], theta[:k_done],
-                       inp.refs[0, :k_done].copy(), ref.torque_limit, list(chip.cycles), ties)
+                       inp.refs[0, :k_done].copy(), ref.torque_limit, list(chip.cycles), ties,
+                       drive_chip[:k_done] if table else np.zeros(0),
+                       drive_ref[:k_done] if table else np.zeros(0))

@@ -1,7 +1,8 @@
 /* Controller kind "adrc-error": error-based linear ADRC, the C twin of
  * esoarm.controllers.adrc_error.  CTL_P is the design vector without its CODE:
  *   [0] discretization (0 euler, 1 zoh, 2 current), [1] Ts, [2] b0, [3..5] gain G,
- *   [6] Phi[0][2], [7] Gamma[0], [8] Gamma[1], [9] k1, [10] k2, [11] I0, [12] torque limit.
+ *   [6] Phi[0][2], [7] Gamma[0], [8] Gamma[1], [9] k1, [10] k2, [11] I0, [12] the clip of
+ *   the ESO's input: the torque limit, or 1e30 (observer_sees = "commanded": none).
  * State c = the error ESO's z (e, de/dt, F).  Returns the raw command [N m].
  */
 #define CTL_NC 3

@@ -22,7 +22,8 @@ z_0 = (e_0, 0, 0)).  In particular at a constant set point the two command the s
 carries the reference's derivatives in its perturbation estimate and lags a little.
 
 The ESO is fed the command it saturates itself to ±torque_limit (what the actuator applies,
-the anti-windup of output-based ADRC).  The observer kind of the scenario still runs beside it
+the anti-windup of output-based ADRC), or with ``actuator.observer_sees = "commanded"`` the
+command before saturation (the paper's ESO).  The observer kind of the scenario still runs beside it
 and is logged (as with the PID).
 
 State (3): the error ESO's z_k; the first sample sets z_0 = (e_0, 0, 0).
@@ -38,7 +39,7 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
 from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
-from esoarm.controllers.common import eso_words, one_joint, own_eso, zero_state
+from esoarm.controllers.common import eso_input_limit, eso_words, one_joint, own_eso, zero_state
 from esoarm.plants.actuator import saturate
 
 if TYPE_CHECKING:
@@ -91,7 +92,9 @@ def error_eso_vector(params: LinearADRCParams, ts: float, b0: float, limit: floa
     b0 : float
         Input gain b0 = 1/I0 [1/(kg·m²)] of the plant (the error model's is −b0).
     limit : float
-        torque_limit [N·m].
+        The clip of the ESO's input command [N·m]: torque_limit, or
+        :data:`~esoarm.controllers.common.UNCLIPPED` (the ESO fed the command itself,
+        ``actuator.observer_sees = "commanded"``).
 
     Returns
     -------
@@ -124,7 +127,7 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
         The vector and 3 states.
     """
     one_joint(plant, "the adrc-error kind")
-    vec = error_eso_vector(scn.controller, ts, float(plant.b0[0]), scn.actuator.torque_limit)
+    vec = error_eso_vector(scn.controller, ts, float(plant.b0[0]), eso_input_limit(scn))
     return ComponentDesign(read_only(np.concatenate([[float(CODE)], vec])), 3)
 
 
@@ -152,7 +155,8 @@ def adrc_error_command(c: np.ndarray, e: float, k: int, v: Vector) -> float:
     ----------
     c : ndarray, shape (3,)
         The error ESO's state z_k (ê [rad], ė̂ [rad/s], F̂ [rad/s²]), updated in place to
-        z_{k+1} with the saturated command.
+        z_{k+1} with the saturated command (the command itself with ``observer_sees =
+        "commanded"``).
     e : float
         Tracking error e_k = θd(t_k) − y_k [rad].
     k : int

@@ -2,7 +2,8 @@
  * (Herbst, arXiv:2104.01943) in the delta operator, the C twin of esoarm.controllers.adrc_tf.
  * CTL_P is the design vector without its CODE:
  *   [0..2] alpha1..3 * Ts, [3] Ts, [4..6] beta1..3 (y), [7..9] gamma1..3 (u_lim), [10] d,
- *   [11..13] feedforward I0 (k2, k1, 1), [14] torque limit.
+ *   [11..13] feedforward I0 (k2, k1, 1), [14] the clip of the fed-back command: the torque
+ *   limit, or 1e30 (observer_sees = "commanded": none).
  * State c = (x1, x2, x3).  Returns the raw command [N m].
  */
 #define CTL_NC 3

@@ -47,7 +47,7 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
 from esoarm.controllers.adrc_error import LinearADRCParams
-from esoarm.controllers.common import eso_words, one_joint, own_eso
+from esoarm.controllers.common import eso_input_limit, eso_words, one_joint, own_eso
 from esoarm.observers.linear import discrete_linearization
 from esoarm.plants.actuator import saturate
 
@@ -132,7 +132,9 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     Returns
     -------
     ComponentDesign
-        The vector (16 values) and 3 states.
+        The vector (16 values; the limit the fed-back command is clipped to is
+        :data:`~esoarm.controllers.common.UNCLIPPED` with ``actuator.observer_sees =
+        "commanded"``: the command before saturation fed back) and 3 states.
     """
     one_joint(plant, "the adrc-tf kind")
     ctl = scn.controller
@@ -140,7 +142,7 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     i0 = 1.0 / b0
     ff = [i0 * ctl.k2, i0 * ctl.k1, i0] if ctl.feedforward else [i0 * ctl.k2, 0.0, 0.0]
     vec = np.concatenate([[float(CODE)], tf_coefficients(ctl, ts, b0), ff,
-                          [scn.actuator.torque_limit]])
+                          [eso_input_limit(scn)]])
     return ComponentDesign(read_only(vec), 3)
 
 

@@ -8,8 +8,9 @@ written again:
 - the one-joint check of a design (:func:`one_joint`);
 - the PID's part of a design vector (:func:`pid_vector`) and its anti-windup, conditional
   integration (:func:`integration_held`);
-- the command a controller's own ESO is fed (:func:`eso_input`): the saturated command
-  the actuator applies (anti-windup), or the command itself (the paper's ESO);
+- the clip of the command a controller's own ESO is fed (:func:`eso_input_limit`): the
+  saturated command the actuator applies (anti-windup), or the command itself (the
+  paper's ESO);
 - the own ESO of a linear ADRC form (:func:`own_eso`) and its words in a title
   (:func:`eso_words`);
 - a zero start of a controller's state (:func:`zero_state`).
@@ -23,12 +24,11 @@ import numpy as np
 
 from esoarm._jit import jitable
 from esoarm.observers.linear import ESODesign, design_observer
-from esoarm.plants.actuator import saturate
 
 if TYPE_CHECKING:
     from esoarm.contract import PlantDesign
 
-__all__ = ["eso_input", "eso_words", "integration_held", "one_joint", "own_eso",
+__all__ = ["UNCLIPPED", "eso_input_limit", "eso_words", "integration_held", "one_joint", "own_eso",
            "pid_vector", "zero_state"]
 
 #: Length of :func:`pid_vector` (kp, ki, kd, Tf, torque_limit, Ts).
@@ -106,34 +106,30 @@ def integration_held(u: float, e: float, limit: float) -> bool:
     return (u > limit and e > 0.0) or (u < -limit and e < 0.0)
 
 
-@jitable
-def eso_input(u: float, limit: float, commanded: float) -> float:
-    """The command a controller's own ESO is fed [N·m].
+#: The clip of an own ESO's input when it is fed the command itself [N·m]: none in effect
+#: (finite, so that the generated C carries it; float32 holds it).
+UNCLIPPED = 1e30
+
+
+def eso_input_limit(scn: Any) -> float:
+    """What a controller's own ESO clips its input command to [N·m].
 
     Parameters
     ----------
-    u : float
-        The controller's command before saturation [N·m].
-    limit : float
-        torque_limit [N·m].
-    commanded : float
-        0.0: the saturated command, what the actuator applies (``actuator.observer_sees =
-        "applied"``, the anti-windup); 1.0: the command itself (``"commanded"``, the paper's
-        ESO, which winds up while the command saturates).
+    scn : Scenario
+        ``actuator.torque_limit`` and ``actuator.observer_sees``.
 
     Returns
     -------
     float
-        saturate(u, limit), or u.
-
-    Examples
-    --------
-    >>> eso_input(3.0, 2.0, 0.0), eso_input(3.0, 2.0, 1.0)
-    (2.0, 3.0)
+        torque_limit with ``observer_sees = "applied"`` (the ESO fed the saturated command,
+        what the actuator applies: the anti-windup); :data:`UNCLIPPED` with
+        ``"commanded"`` (the command itself, the paper's ESO, which winds up while the
+        command saturates).
     """
-    if commanded == 1.0:
-        return u
-    return saturate(u, limit)
+    if scn.actuator.observer_sees == "commanded":
+        return UNCLIPPED
+    return float(scn.actuator.torque_limit)
 
 
 @jitable

@@ -23,7 +23,8 @@ plant half (:func:`respond_into`, then :func:`advance_plant_into`)
        perturbation f_k = θ̈(t_k) − b0·v_k, y_k, the saturation flag, θ̇(t_k),
        where v_k is the plant kind's observer input for u_k (u_k itself for the
        lever arm, M̂(q̂)⁻¹(u_k − c·n̂) for a URDF arm);
-    5. observer update with (y_k, v_k) (:func:`update_observer_into`);
+    5. observer update with (y_k, v_k) (:func:`update_observer_into`; v_k = 0 while the
+       ESO's gate at an end stop holds, :func:`gate_into`);
     6. the plant kind integrates to t_{k+1} (:func:`advance_plant_into`).
 
 What travels between them are four records, plain tuples that numba compiles:
@@ -53,14 +54,22 @@ import numpy as np
 from esoarm._jit import jitable
 from esoarm.contract import Vector
 from esoarm.engines.metrics import ERR, NROW, OM, REF, SAT, TH, Z1, Z2, Z3, F, U, Y
-from esoarm.plants.actuator import FF_BINS, LIMIT, actuate, delayed_input, feedforward, saturate
+from esoarm.plants.actuator import (
+    LIMIT,
+    SEES,
+    SEES_COMMANDED,
+    actuate_with_table,
+    delayed_input,
+    gated,
+    saturate,
+)
 from esoarm.plants.sensor import measure
 
 __all__ = ["DIVERGENCE_LIMIT", "Designs", "Sampling", "Steps", "Work", "actuate_into",
            "advance_plant", "advance_plant_into", "command_into", "control_into",
-           "estimate_into", "hold", "log_sample", "new_work", "record_into", "respond_into",
-           "saturate_into", "sense_into", "start_into", "steps_of", "update_observer_into",
-           "within_limits"]
+           "estimate_into", "gate_into", "hold", "log_sample", "new_work", "record_into",
+           "respond_into", "saturate_into", "sense_into", "start_into", "steps_of",
+           "update_observer_into", "within_limits"]
 
 #: |θ| or |z1| beyond this [rad] (or any non-finite value) ends a run as diverged.
 DIVERGENCE_LIMIT = 1e6
@@ -414,7 +423,10 @@ def control_into(c: np.ndarray, zhat: np.ndarray, y: np.ndarray, k: int, refs: n
 def saturate_into(u: np.ndarray, sat: np.ndarray, a: Vector) -> None:
     """Step 2c: ``u`` clipped to ±torque_limit; ``sat`` flags the clipped joints.
 
-    A NaN command passes (and is not flagged), so a fault stays visible.
+    A NaN command passes (and is not flagged), so a fault stays visible.  With
+    ``actuator.observer_sees = "commanded"`` (the paper's ESO) ``u`` keeps the command, which
+    the observer is then fed and the log shows; :func:`actuate_into` saturates what drives
+    the plant.
 
     Parameters
     ----------
@@ -427,10 +439,12 @@ def saturate_into(u: np.ndarray, sat: np.ndarray, a: Vector) -> None:
         torque_limit [N·m]).
     """
     limit = a[LIMIT]
+    keep = len(a) > SEES and a[SEES] == SEES_COMMANDED
     for j in range(len(u)):
         raw = u[j]
-        u[j] = saturate(raw, limit)
-        sat[j] = 1.0 if u[j] != raw and raw == raw else 0.0
+        limited = saturate(raw, limit)
+        sat[j] = 1.0 if limited != raw and raw == raw else 0.0
+        u[j] = raw if keep else limited
 
 
 @jitable
@@ -439,7 +453,10 @@ def actuate_into(u: np.ndarray, drive: np.ndarray, duty: np.ndarray, zhat: np.nd
     """Step 2d: the saturated ``u`` through the actuator (:func:`esoarm.plants.actuator.actuate`).
 
     ``u`` becomes the host's torque, ``drive`` the torque driving the plant, ``duty`` the
-    PWM duty (NaN without a motor).
+    PWM duty (NaN without a motor); a learned table adds to the drive and the duty, not to
+    ``u`` (:func:`esoarm.plants.actuator.actuate_with_table`).  With
+    ``actuator.observer_sees = "commanded"`` ``u`` stays the controller's command (its
+    saturation drives the plant).
 
     Parameters
     ----------
@@ -455,10 +472,12 @@ def actuate_into(u: np.ndarray, drive: np.ndarray, duty: np.ndarray, zhat: np.nd
     a : ndarray or tuple of float
         The actuator vector (:func:`esoarm.plants.actuator.actuator_vector`).
     """
+    keep = len(a) > SEES and a[SEES] == SEES_COMMANDED
     for j in range(len(u)):
-        u[j], drive[j], duty[j] = actuate(u[j], zhat[3 * j + 1], a)
-        if len(a) > FF_BINS and a[FF_BINS] > 0.0:  # a learned table: in the drive, not in u
-            drive[j] = saturate(drive[j] + feedforward(zhat[3 * j], a), a[LIMIT])
+        raw = u[j]
+        host, drive[j], duty[j] = actuate_with_table(saturate(raw, a[LIMIT]), zhat[3 * j + 1],
+                                                     zhat[3 * j], a)
+        u[j] = raw if keep else host
 
 
 @jitable
@@ -557,7 +576,26 @@ def record_into(log: np.ndarray, x: np.ndarray, k: int, refs: np.ndarray, y: np.
     for j in range(nj):
         ok = log_sample(log, k, j, nj, x, refs[3 * j, k], u[j], zhat,
                         acc[j] - b0[j] * v[j], y[j], sat[j]) and ok
+    gate_into(v, y, d.actuator)
     return ok
+
+
+@jitable
+def gate_into(v: np.ndarray, y: np.ndarray, a: Vector) -> None:
+    """Step 5's input gated at an end stop: v_j = 0 where :func:`esoarm.plants.actuator.gated`.
+
+    Parameters
+    ----------
+    v : ndarray (joints,)
+        The observer input v_k, set to 0 in place where gated.
+    y : ndarray (joints,)
+        Measured angles y_k [rad].
+    a : ndarray or tuple of float
+        The actuator vector (the gate's band and the stops).
+    """
+    for j in range(len(v)):
+        if gated(y[j], v[j], a):
+            v[j] = 0.0
 
 
 @jitable

@@ -45,6 +45,7 @@ from esoarm.engines.sample import (
     advance_plant_into,
     control_into,
     estimate_into,
+    gate_into,
     record_into,
     saturate_into,
     sense_into,
@@ -401,6 +402,7 @@ class Stepper:
         if u is not None:
             self.u[:] = u
         self.steps.plant_observer_input(self.zhat, self.u, self.designs.plant, self.v)
+        gate_into(self.v, self.y, self.designs.actuator)
         self.update()
 
     def bridge(self, u: np.ndarray | float) -> np.ndarray:

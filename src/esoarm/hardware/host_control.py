@@ -6,8 +6,11 @@ measured angles:
 
     ẑ_k = estimate(z_k, y_k)                    (observer kind)
     u_k = sat(control(ẑ_k, y_k, reference_k))   (controller kind, ±torque_limit)
-    u_k, duty_k = actuate(u_k, ẑ2_k)            (motor: torque -> PWM duty)
-    v_k = observer_input(ẑ_k, u_k)              (plant kind: u_k itself for the lever arm)
+    u_k, drive_k, duty_k = actuate(u_k, ẑ2_k)   (motor: torque -> PWM duty; a learned
+                                                 table's −I0·m(ẑ1) in the drive and duty)
+    v_k = observer_input(ẑ_k, u_k)              (plant kind: u_k itself for the lever arm;
+                                                 the command before saturation with
+                                                 actuator.observer_sees = "commanded")
     z_{k+1} = advance(z_k, ẑ_k, y_k, v_k)       (observer kind)
 
 and a sample that never arrived is bridged with the observer kind's ``predict`` (the
@@ -25,7 +28,7 @@ from typing import Protocol
 import numpy as np
 
 from esoarm.engines.stepper import Stepper
-from esoarm.plants.actuator import LIMIT
+from esoarm.plants.actuator import LIMIT, SEES, SEES_COMMANDED, actuate_with_table, saturate
 from esoarm.scenario import Scenario
 
 __all__ = ["DeploymentController", "SampleController"]
@@ -78,7 +81,8 @@ class DeploymentController:
         Estimate ẑ_k of joint 0 used for the latest control [rad, rad/s, rad/s²].
     """
 
-    __slots__ = ("_ref", "_st", "kinds", "n_samples", "t", "torque_limit", "ts", "zhat")
+    __slots__ = ("_commanded", "_raw", "_ref", "_st", "drive", "kinds", "n_samples", "t",
+                 "torque_limit", "ts", "zhat")
 
     def __init__(self, scn: Scenario) -> None:
         self._st = Stepper.of(scn)
@@ -89,6 +93,12 @@ class DeploymentController:
         self.ts = scn.sample_time
         self.torque_limit = float(self._st.designs.actuator[LIMIT])
         self.zhat: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+        #: the observer is fed the command before saturation (actuator.observer_sees)
+        act = self._st.designs.actuator
+        self._commanded = bool(len(act) > SEES and act[SEES] == SEES_COMMANDED)
+        self._raw = math.nan
+        #: the torque driving the rig for the latest command [N·m] (with a learned table)
+        self.drive = math.nan
 
     @property
     def observer_state(self) -> np.ndarray:
@@ -106,20 +116,30 @@ class DeploymentController:
         st.control(k)
         st.saturate()
         self.zhat = (float(zhat[0]), float(zhat[1]), float(zhat[2]))
-        return float(st.u[0])
+        self._raw = float(st.u[0])  # the command itself when the observer is fed it
+        return saturate(self._raw, self.torque_limit)
 
     def actuate(self, u: float) -> tuple[float, float]:
-        """(torque the host applies [N·m], PWM duty [counts] or NaN) for the command u."""
+        """(torque the host applies [N·m], PWM duty [counts] or NaN) for the command u.
+
+        With a learned table the duty (and :attr:`drive`) hold its torque; the host's torque
+        does not (the observer is fed the command without it).
+        """
         st = self._st
-        st.actuate(u)
-        return float(st.u[0]), float(st.duty[0])
+        host, drive, duty = actuate_with_table(saturate(u, self.torque_limit),
+                                               float(st.zhat[1]), float(st.zhat[0]),
+                                               st.designs.actuator)
+        self.drive = float(drive)
+        return float(host), float(duty)
 
     def commit(self, u: float) -> None:
         """Advance the observer with the torque u_k [N·m] applied from t_k on.
 
-        The observer's input is the plant kind's for u_k (u_k itself for the lever arm).
+        The observer's input is the plant kind's for u_k (u_k itself for the lever arm);
+        with ``actuator.observer_sees = "commanded"`` the controller's command before
+        saturation instead (the paper's ESO).
         """
-        self._st.observe(u)
+        self._st.observe(self._raw if self._commanded else u)
 
     def predict(self, u: float) -> tuple[float, float, float]:
         """Bridge a missing sample: the observer kind's ``predict`` (zero innovation), then

@@ -60,7 +60,7 @@ from esoarm.engines.metrics import series_metrics
 from esoarm.hardware import protocol as P
 from esoarm.hardware.host_control import DeploymentController, SampleController
 from esoarm.hardware.link import LinkError, SerialLink
-from esoarm.plants.actuator import actuate, actuator_vector, motor_of
+from esoarm.plants.actuator import actuate_with_table, actuator_vector, motor_of
 from esoarm.plants.motor import MotorParams
 from esoarm.scenario import Scenario, ScenarioError
 
@@ -711,11 +711,12 @@ def _loop(scn: Scenario, sup: _Supervisor, ctl: SampleController, q: float,
                 raise _Stop(f"NaN guard: non-finite control or estimate at sample {k}")
             if abs(u) > limit:  # the FLC saturates; a violation is a bug: stop
                 raise _Stop(f"torque limit: u = {u:.4g} N·m at sample {k}")
-            # the actuator of every engine: with a motor, the duty and the torque it gives
-            u_host, _, d = actuate(u, z2, act)
+            # the actuator of every engine: with a motor, the duty and the torque it gives;
+            # a learned table (controller.feedforward_map) in the drive, not in u_applied
+            u_host, drive, d = actuate_with_table(u, z2, z1, act)
             u_applied = float(u_host)
             if motor is None:  # the torque the drive applies (rounded with actuator.pwm_bits)
-                link.send(P.TORQUE, k, u_applied)
+                link.send(P.TORQUE, k, float(drive))
                 duty = "nan"
             else:
                 link.send(P.DUTY, k, int(d))

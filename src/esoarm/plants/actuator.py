@@ -42,16 +42,24 @@ from esoarm.plants.motor import MotorParams, duty_to_torque, source_torque, torq
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
-__all__ = ["FF_BINS", "actuate", "actuator_vector", "back_emf_damping", "delayed_input",
-           "feedforward", "motor_of", "motor_refused", "saturate"]
+__all__ = ["FF_BINS", "SEES", "actuate", "actuate_with_table", "actuator_vector", "gated",
+           "back_emf_damping", "delayed_input", "feedforward", "motor_of", "motor_refused",
+           "saturate"]
 
 LIMIT, MOTOR, MOTOR_BLOCK = 0, 1, 2
 #: PWM levels per sign, 2^pwm_bits − 1 (0: an ideal torque source), after the motor block.
 PWM_LEVELS = 6
-VECTOR_SIZE = 7
+#: What the observer is fed (``actuator.observer_sees``): 0.0 the applied (saturated)
+#: command, 1.0 the controller's command before saturation (the paper's ESO).
+SEES = 7
+SEES_APPLIED, SEES_COMMANDED = 0.0, 1.0
+#: The ESO's gate at an end stop (``actuator.stop_gate``): its band [rad] (0: none), then
+#: the rig's lower and upper stop [rad] (``rig.end_stops``; ∓1e30 without stops).
+GATE, GATE_LO, GATE_HI = 8, 9, 10
+VECTOR_SIZE = 11
 #: With a learned feedforward table (``controller.feedforward_map``): its number of bins N
 #: at FF_BINS, then the N feedforward torques −I0·m_i [N·m] at θ_i = 2π i / N.
-FF_BINS = 7
+FF_BINS = 11
 
 
 def motor_of(scn: Scenario) -> MotorParams | None:
@@ -139,6 +147,12 @@ def actuator_vector(scn: Scenario) -> np.ndarray:
     bits = getattr(scn.actuator, "pwm_bits", 0)
     if bits > 0:
         vec[PWM_LEVELS] = float(2**bits - 1)
+    if getattr(scn.actuator, "observer_sees", "applied") == "commanded":
+        vec[SEES] = SEES_COMMANDED
+    stops = getattr(scn.rig, "end_stops", [])
+    vec[GATE] = getattr(scn.actuator, "stop_gate", 0.0) if stops else 0.0
+    vec[GATE_LO] = min(stops) if stops else -1e30
+    vec[GATE_HI] = max(stops) if stops else 1e30
     table = getattr(scn.controller, "feedforward_map", None)
     if table:
         # −I0·m(θ): the map is in the units of ẑ3 [rad/s²], the nominal I0 = 1/b0 makes it
@@ -170,7 +184,7 @@ def feedforward(angle: float, a: Vector) -> float:
 
     Examples
     --------
-    >>> a = np.array([2.0, 0, 0, 0, 0, 0, 0, 4.0, 1.0, 2.0, 3.0, 4.0])
+    >>> a = np.array([2.0, 0, 0, 0, 0, 0, 0, 0, 0, -1e30, 1e30, 4.0, 1.0, 2.0, 3.0, 4.0])
     >>> float(feedforward(0.0, a)), float(feedforward(np.pi / 4, a))
     (1.0, 1.5)
     """
@@ -245,6 +259,75 @@ def actuate(u: float, rate: float, a: Vector) -> tuple[float, float, float]:
     m = a[MOTOR_BLOCK:]
     duty = torque_to_duty(u, rate, m)
     return duty_to_torque(duty, rate, m), source_torque(duty, m), duty
+
+
+@jitable
+def gated(y: float, u: float, a: Vector) -> bool:
+    """The ESO's b0·u term gated: the arm at an end stop and the command pushing into it.
+
+    While the rig holds the arm at a stop, θ̈ = 0 whatever u: an ESO fed u estimates
+    ẑ3 → −b0·u (the stop's reaction), which the FLC's −I0·ẑ3 turns into still more torque
+    into the stop, and which it must unlearn when the arm leaves (a bump).  Fed 0 instead,
+    ẑ3 stays with what acts besides the command.
+
+    Parameters
+    ----------
+    y : float
+        Measured angle y_k [rad].
+    u : float
+        The command the observer would be fed [N·m].
+    a : ndarray
+        :func:`actuator_vector` (the band and the stops).
+
+    Returns
+    -------
+    bool
+        True: feed the observer 0 this sample.
+
+    Examples
+    --------
+    >>> a = np.array([2.0, 0, 0, 0, 0, 0, 0, 0, 0.01, -1.0, 1.0])
+    >>> gated(0.995, 0.5, a), gated(0.995, -0.5, a), gated(0.5, 0.5, a)
+    (True, False, False)
+    """
+    if len(a) <= GATE_HI:  # an observer's own stepper: an actuator of its limit alone
+        return False
+    band = a[GATE]
+    if band <= 0.0:
+        return False
+    return (y >= a[GATE_HI] - band and u > 0.0) or (y <= a[GATE_LO] + band and u < 0.0)
+
+
+@jitable
+def actuate_with_table(u: float, rate: float, angle: float,
+                       a: Vector) -> tuple[float, float, float]:
+    """:func:`actuate`, with a learned table's torque in the drive (not in the host's torque).
+
+    The host's torque (what the observer is fed) is that of u alone; the drive and the duty
+    are those of sat(u − I0·m(θ̂)): the table reaches the plant through the same actuator
+    (with a motor, one duty for both), and the ESO estimates what the table leaves.
+    Without a table it is :func:`actuate`.
+
+    Parameters
+    ----------
+    u : float
+        Saturated torque command [N·m].
+    rate : float
+        Estimated joint rate ẑ2 [rad/s] (the motor's back-EMF compensation).
+    angle : float
+        Estimated angle ẑ1 [rad] (the table's argument).
+    a : ndarray
+        :func:`actuator_vector`.
+
+    Returns
+    -------
+    (u_host, drive, duty) : (float, float, float)
+        As :func:`actuate`; drive and duty with the table.
+    """
+    u_host, drive, duty = actuate(u, rate, a)
+    if len(a) > FF_BINS and a[FF_BINS] > 0.0:
+        _, drive, duty = actuate(saturate(u + feedforward(angle, a), a[LIMIT]), rate, a)
+    return u_host, drive, duty
 
 
 @jitable

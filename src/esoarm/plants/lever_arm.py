@@ -63,6 +63,8 @@ RIG = True
 BACKLASH_MODEL = True
 #: Models a position-periodic torque (``rig.cogging``, :func:`cogging_torque`).
 COGGING_MODEL = True
+#: Models hard end stops (``rig.end_stops``, :func:`stopped_advance`).
+END_STOPS_MODEL = True
 #: the kind's C for the generated controller (esoarm.codegen), beside this module
 C_SOURCE = "lever_arm.c"
 
@@ -88,7 +90,10 @@ BACKLASH, JM, KGEAR, CGEAR = range(10, 14)
 #: Position-periodic torque τ_cog = A cos(n θ + φ) (``rig.cogging``): amplitude A [N·m],
 #: periods per revolution n, phase φ [rad]; A = 0: none.
 COG_AMP, COG_PERIODS, COG_PHASE = range(14, 17)
-VECTOR_SIZE = 17
+#: Hard end stops (``rig.end_stops``): lower and upper angle [rad]; only in a vector with
+#: stops (then the cogging entries are there too, A = 0 for none).
+STOP_LO, STOP_HI = 17, 18
+VECTOR_SIZE = 19
 
 #: Runs per vector in :func:`advance_block` (8 doubles: AVX-512; a multiple of AVX2's 4).
 LANES = 8
@@ -400,6 +405,72 @@ def rig_advance(theta: float, omega: float, tau: float, u: float, t0: float, h: 
 
 
 @jitable
+def stop_held(theta: float, omega: float, acc: float, lower: float, upper: float) -> float:
+    """The acceleration at an end stop: 0 while the arm rests on it and is pushed into it.
+
+    Parameters
+    ----------
+    theta, omega : float
+        Angle [rad] and rate [rad/s].
+    acc : float
+        The free acceleration θ̈ [rad/s²] (no stop).
+    lower, upper : float
+        The stops [rad].
+
+    Returns
+    -------
+    float
+        θ̈ [rad/s²].
+    """
+    if (theta >= upper and omega >= 0.0 and acc > 0.0) or (
+            theta <= lower and omega <= 0.0 and acc < 0.0):
+        return 0.0
+    return acc
+
+
+@jitable
+def stopped_advance(theta: float, omega: float, tau: float, u: float, t0: float, h: float,
+                    nsub: int, rig: Vector, lower: float,
+                    upper: float) -> tuple[float, float, float]:
+    """:func:`rig_advance` between hard end stops: an inelastic stop after every RK4 step.
+
+    After each step an angle past a stop is set back onto it and a rate into it to zero
+    (the arm stops dead and stays while pushed into the stop; pulled away it leaves).
+
+    Parameters
+    ----------
+    theta, omega, tau : float
+        State (θ [rad], θ̇ [rad/s], τ [N·m]).
+    u : float
+        Applied input [N·m], held.
+    t0 : float
+        Start of the sample [s].
+    h : float
+        RK4 step [s].
+    nsub : int
+        RK4 steps.
+    rig : ndarray or tuple of float
+        The rig vector (:func:`rig_advance`).
+    lower, upper : float
+        The stops [rad].
+
+    Returns
+    -------
+    (theta, omega, tau) : (float, float, float)
+        The state after the sample.
+    """
+    for j in range(nsub):
+        theta, omega, tau = rig_rk4_step(theta, omega, tau, u, t0 + j * h, h, rig)
+        if theta >= upper:
+            theta = upper
+            omega = min(omega, 0.0)
+        elif theta <= lower:
+            theta = lower
+            omega = max(omega, 0.0)
+    return theta, omega, tau
+
+
+@jitable
 def applied_torque(tau: float, u: float, rig: Vector) -> float:
     """Torque acting on the arm: the lag state τ when T > 0, else u itself.
 
@@ -557,6 +628,8 @@ class RigParams:
         n, periods per revolution [1].
     cogging_phase : float
         φ [rad].
+    stop_lower, stop_upper : float
+        Hard end stops [rad] (±inf: none).
     """
 
     inertia: float
@@ -576,6 +649,8 @@ class RigParams:
     cogging_amplitude: float = 0.0
     cogging_periods: float = 1.0
     cogging_phase: float = 0.0
+    stop_lower: float = -math.inf
+    stop_upper: float = math.inf
 
     @classmethod
     def from_scenario(cls, scn: Scenario) -> RigParams:
@@ -610,6 +685,8 @@ class RigParams:
             cogging_amplitude=r.cogging.amplitude,
             cogging_periods=float(r.cogging.periods),
             cogging_phase=r.cogging.phase,
+            stop_lower=min(r.end_stops) if r.end_stops else -math.inf,
+            stop_upper=max(r.end_stops) if r.end_stops else math.inf,
         )
 
     @cached_property
@@ -618,10 +695,11 @@ class RigParams:
 
         Returns
         -------
-        ndarray, shape (17,)
+        ndarray, shape (19,)
             Read-only (I [kg·m²], gcoef [N·m], Fc [N·m], vs [rad/s], b [N·m·s/rad],
             amplitude [rad/s²], frequency [rad/s], T [s], Fst [N·m], vst [rad/s],
-            α [rad], Jm [kg·m²], k [N·m/rad], c [N·m·s/rad], cogging A [N·m], n, φ [rad]).
+            α [rad], Jm [kg·m²], k [N·m/rad], c [N·m·s/rad], cogging A [N·m], n, φ [rad],
+            end stops lower, upper [rad] (±inf: none)).
         """
         vec = np.array(
             [
@@ -642,6 +720,8 @@ class RigParams:
                 self.cogging_amplitude,
                 self.cogging_periods,
                 self.cogging_phase,
+                self.stop_lower,
+                self.stop_upper,
             ]
         )
         vec.setflags(write=False)
@@ -674,8 +754,10 @@ def design(scn: Scenario) -> PlantDesign:
     (:func:`esoarm.plants.motor.source_torque`) integrates the motor law.
     """
     rig = np.array(RigParams.from_scenario(scn).vector)
-    if rig[COG_AMP] == 0.0:  # no cogging: the vector without its entries (the kernels' width)
-        rig = rig[:COG_AMP]
+    if not scn.rig.end_stops:  # no stops: the vector without their entries
+        rig = rig[:STOP_LO]
+        if rig[COG_AMP] == 0.0:  # no cogging: without its entries (the kernels' width)
+            rig = rig[:COG_AMP]
     damping = back_emf_damping(scn)
     if damping is not None:
         rig[VISC] += damping
@@ -728,6 +810,9 @@ def advance(x: np.ndarray, u: np.ndarray, t0: float, h: float, nsub: int,
                      float(p[11]), float(p[12]), float(p[13]), float(p[14]))
             x[0], x[1], x[2], x[3], x[4] = geared_advance(th, om, ta, float(x[3]),
                                                           float(x[4]), u0, t0, h, nsub, rig14)
+    elif len(p) > 1 + STOP_HI:  # end stops (and the cogging entries)
+        x[0], x[1], x[2] = stopped_advance(th, om, ta, u0, t0, h, nsub, _full_rig(p),
+                                           _entry(p, 1 + STOP_LO), _entry(p, 1 + STOP_HI))
     elif len(p) > 1 + COG_PHASE and p[1 + COG_AMP] != 0.0:  # cogging: the rig with its entries
         x[0], x[1], x[2] = rig_advance(th, om, ta, u0, t0, h, nsub, _full_rig(p))
     elif p[1 + FST] == 0.0:
@@ -784,7 +869,7 @@ def advance_block(xs: np.ndarray, us: np.ndarray, live: np.ndarray, t0: float, h
         The design vector shared by the block, p[0] = CODE.
     """
     # (a vector zero-padded to the compiled engine's width has its entries but A = 0)
-    cogged = len(p) > 1 + COG_PHASE and p[1 + COG_AMP] != 0.0
+    cogged = (len(p) > 1 + COG_PHASE and p[1 + COG_AMP] != 0.0) or len(p) > 1 + STOP_HI
     if (len(p) > 1 + BACKLASH and p[1 + BACKLASH] > 0.0) or cogged:  # run by run
         for i in range(xs.shape[0]):
             if live[i]:
@@ -848,7 +933,10 @@ def acceleration(x: np.ndarray, u: np.ndarray, t: float, p: np.ndarray,
         ts = gear_torque(x[3] - x[0], x[4] - x[1], rig[BACKLASH], rig[KGEAR], rig[CGEAR])
         out[0] = rig_acceleration(x[0], x[1], ts, t, rig)
         return
-    out[0] = rig_acceleration(x[0], x[1], applied_torque(x[2], u[0], rig), t, rig)
+    acc = rig_acceleration(x[0], x[1], applied_torque(x[2], u[0], rig), t, rig)
+    if len(rig) > STOP_HI:  # held at an end stop while pushed into it
+        acc = stop_held(x[0], x[1], acc, _entry(rig, STOP_LO), _entry(rig, STOP_HI))
+    out[0] = acc
 
 
 @jitable

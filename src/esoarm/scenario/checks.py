@@ -137,6 +137,26 @@ def _check_drive(scn: Scenario, fail: Callable[[str, str], None]) -> None:
     if scn.actuator.pwm_bits > 0 and scn.motor is not None:
         fail("actuator.pwm_bits", "a [motor] table sets the PWM resolution itself "
              "(motor.pwm_max = 2^bits − 1); set actuator.pwm_bits = 0")
+    _check_stops(scn, fail)
+
+
+def _check_stops(scn: Scenario, fail: Callable[[str, str], None]) -> None:
+    """End stops: two angles around θ(0), on a plant kind that models them, no backlash; the
+    ESO's gate at a stop needs the stops."""
+    rig = scn.rig
+    if rig.end_stops:
+        if not getattr(_kinds.kinds_of(scn).plant, "END_STOPS_MODEL", False):
+            fail("rig.end_stops", f"plant.kind = '{scn.plant.kind}' does not model end stops "
+                 "(plant kinds that do: 'lever-arm'); set it to []")
+        elif len(rig.end_stops) != 2 or not rig.end_stops[0] < rig.theta0 < rig.end_stops[1]:
+            fail("rig.end_stops", f"{rig.end_stops}: give [lower, upper] [rad] with lower < "
+                 f"rig.theta0 ({rig.theta0:g}) < upper")
+        elif rig.backlash_deg > 0.0:
+            fail("rig.end_stops", "end stops with gear backlash are not modelled; set "
+                 "rig.backlash_deg = 0 or rig.end_stops = []")
+    if scn.actuator.stop_gate > 0.0 and not rig.end_stops:
+        fail("actuator.stop_gate", "gates the ESO at the rig's end stops: set rig.end_stops "
+             "= [lower, upper] [rad], or stop_gate = 0")
 
 
 def _check_moves(ref: QuinticSteps | RangeMoves, where: str, fail: Any) -> None:

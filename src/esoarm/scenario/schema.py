@@ -122,6 +122,11 @@ class Rig(_Section):
     theta0: float = Field(0.0, description="initial angle θ(0)", json_schema_extra=_unit("rad"))
     disturbance: Disturbance = Field(default_factory=Disturbance)
     cogging: Cogging = Field(default_factory=Cogging)
+    end_stops: list[float] = Field(
+        default_factory=list, max_length=2, description="hard end stops [lower, upper] of the "
+        "arm: the arm stops dead there (an inelastic stop) and is held while the torque "
+        "pushes into it ([] none)", json_schema_extra=_unit("rad"),
+    )
 
 
 class Sensor(_Section):
@@ -182,6 +187,17 @@ class Actuator(_Section):
         "the torque is rounded to torque_limit·m/(2^bits − 1), sign and magnitude, e.g. 8 for "
         "Arduino analogWrite; with a [motor] table use motor.pwm_max instead",
         json_schema_extra=_unit("bits"),
+    )
+    stop_gate: float = Field(
+        0.0, ge=0, description="gate the ESO's b0·u term (the observer fed 0) while the "
+        "measured angle is within this distance of a rig.end_stops stop and the command "
+        "pushes into it, so that z3 does not wind up against the stop (0: no gate)",
+        json_schema_extra=_unit("rad"),
+    )
+    observer_sees: Literal["applied", "commanded"] = Field(
+        "applied", description='what the ESO is fed: "applied" the saturated command the '
+        'actuator applies (anti-windup) | "commanded" the controller\'s command before '
+        "saturation (the paper's ESO, which winds up while the command saturates)",
     )
 
 

@@ -282,6 +282,10 @@ def unsupported(scn: Scenario) -> str | None:
         return "rig.cogging.amplitude > 0 (a position-periodic torque)"
     if getattr(scn.controller, "feedforward_map", None):
         return "controller.feedforward_map (a learned feedforward table)"
+    if getattr(scn.rig, "end_stops", None):
+        return "rig.end_stops (hard end stops)"
+    if getattr(scn.actuator, "observer_sees", "applied") != "applied":
+        return "actuator.observer_sees = 'commanded' (the ESO fed the unsaturated command)"
     return None
 
 

@@ -13,6 +13,7 @@ from esoarm.engines.sample import (
     Steps,
     advance_plant_into,
     command_into,
+    gate_into,
     log_sample,
     sense_into,
     start_into,
@@ -95,6 +96,7 @@ def stream_block(log: np.ndarray, x: np.ndarray, noise: np.ndarray, refs: np.nda
         if not ok:
             keep_alive(owner)
             return -(i + 1)
+        gate_into(v, y, d.actuator)
         update_observer_into(z, zhat, y, v, d, s)
         advance_plant_into(x, applied, k, sg, d.plant, s.plant_advance)
     keep_alive(owner)
