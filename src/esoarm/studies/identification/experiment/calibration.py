@@ -300,7 +300,25 @@ FAR = 3.29 / 1.96
 
 def far_miss(key: str, truth: float, value: float, lo: float, hi: float) -> bool:
     """Whether a written interval [lo, hi] around ``value`` misses ``truth`` far
-    (:data:`FAR`); the delay, an integer, misses far whenever it misses."""
+    (:data:`FAR`); the delay, an integer, misses far whenever it misses.
+
+    Parameters
+    ----------
+    key : str
+        The scenario key judged (e.g. ``"rig.inertia_scale"``).
+    truth : float
+        The twin's true value.
+    value : float
+        The written estimate.
+    lo, hi : float
+        The written 95 % interval.
+
+    Returns
+    -------
+    bool
+        True when the truth lies outside [lo, hi] by more than :data:`FAR` half-widths
+        (or the key is the delay and it misses at all).
+    """
     if lo - 1e-12 <= truth <= hi + 1e-12:
         return False
     half = value - lo if truth < lo else hi - value
