@@ -24,7 +24,7 @@ from esoarm.plants.lever_arm import (
     GCOEF,
     INERTIA,
     LAG,
-    VECTOR_SIZE,
+    STOP_LO,
     VISC,
     VS,
     VST,
@@ -204,7 +204,10 @@ class Problem:
     def rig_and_source(self, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
         scn = self.scn
         p, r = scn.plant, scn.rig
-        rig = np.zeros(VECTOR_SIZE)  # entries not set here stay 0: no stiction, no backlash
+        # entries not set here stay 0: no stiction, no backlash, no cogging; the vector ends
+        # before the end stops' entries (a vector with them has stops; at 0 they held the
+        # arm at θ = 0), as the lever arm's own design does without rig.end_stops
+        rig = np.zeros(STOP_LO)
         rig[INERTIA] = values["rig.inertia_scale"] * p.inertia
         rig[GCOEF] = gravity_coefficient(p.m1, values["plant.m2"], p.l1, p.l2, p.g)
         rig[FC] = values["rig.coulomb_friction"]
