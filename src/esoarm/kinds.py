@@ -543,7 +543,10 @@ class _Case(NamedTuple):
 
 
 class _Actuator(NamedTuple):
+    """The actuator keys a kind's ``design`` may read (the scenario's defaults)."""
+
     torque_limit: float = 1.0
+    observer_sees: str = "applied"
 
 
 def _params(who: str, module: Any) -> Any:

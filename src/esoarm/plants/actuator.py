@@ -287,8 +287,8 @@ def gated(y: float, u: float, a: Vector) -> bool:
     Examples
     --------
     >>> a = np.array([2.0, 0, 0, 0, 0, 0, 0, 0, 0.01, -1.0, 1.0])
-    >>> gated(0.995, 0.5, a), gated(0.995, -0.5, a), gated(0.5, 0.5, a)
-    (True, False, False)
+    >>> [bool(gated(y, u, a)) for y, u in ((0.995, 0.5), (0.995, -0.5), (0.5, 0.5))]
+    [True, False, False]
     """
     if len(a) <= GATE_HI:  # an observer's own stepper: an actuator of its limit alone
         return False
