@@ -36,6 +36,12 @@ def missing(*tools: tuple[str, bool | str | None]) -> list[str]:
     return gone
 
 
+#: avr-gcc, arduino-mk, simavr's headers and gcc: the firmware on the simulated Uno.
+AVR_TOOLS = (("avr-gcc (gcc-avr)", shutil.which("avr-gcc")),
+             ("arduino-mk", Path("/usr/share/arduino/Arduino.mk").exists()),
+             ("libsimavr-dev", Path("/usr/include/simavr/sim_avr.h").exists()),
+             ("gcc", shutil.which("gcc")))
+
 #: arm-none-eabi-gcc and QEMU, the Cortex-M tools.
 ARM_TOOLS = (("arm-none-eabi-gcc (gcc-arm-none-eabi)", shutil.which("arm-none-eabi-gcc")),
              ("qemu-system-arm", shutil.which("qemu-system-arm")))

@@ -8,8 +8,6 @@ cycle budget": 35 % of the 1 kHz period free at p99 while the arm moves).
 
 from __future__ import annotations
 
-import os
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -17,15 +15,9 @@ import pytest
 
 from esoarm.scenario import load_scenario
 
-MISSING = [tool for tool, ok in (
-    ("avr-gcc (gcc-avr)", shutil.which("avr-gcc")),
-    ("arduino-mk", Path("/usr/share/arduino/Arduino.mk").exists()),
-    ("libsimavr-dev", Path("/usr/include/simavr/sim_avr.h").exists()),
-    ("gcc", shutil.which("gcc")),
-) if not ok]
+from .chip_helpers import AVR_TOOLS, missing
 
-if MISSING and os.environ.get("ESOARM_REQUIRE_HIL"):
-    raise RuntimeError(f"ESOARM_REQUIRE_HIL is set but not installed: {', '.join(MISSING)}")
+MISSING = missing(*AVR_TOOLS)
 
 pytestmark = [
     pytest.mark.slow,

@@ -29,6 +29,8 @@ from esoarm.observers import linear
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.scenario import load_scenario
 
+from .lockstep import host_commands
+
 TS, B0 = 0.02, 1.0 / 0.0225
 
 
@@ -246,23 +248,10 @@ def test_switch_is_bumpless_both_ways() -> None:
 def test_switch_over_the_emulated_device() -> None:
     """The rig loop's host controller (esoarm run's) over the emulated device commands what
     simulate does, through both switches."""
-    import math
-
-    from esoarm.hardware.emulator import Twin
-    from esoarm.hardware.host_control import DeploymentController
-
     scn = load_scenario("test-1", {**_SWITCH, "controller.switch_at": 0.5,
                                    "controller.switch_back": 1.5, "duration": 2.0})
     ref = run_reference(scn, prepare(scn))
-    ctl, twin = DeploymentController(scn), Twin(scn)
-    q = math.radians(scn.sensor.resolution_deg)
-    u_log = []
-    for k in range(ctl.n_samples):
-        u, _ = ctl.actuate(ctl.step(k, q * twin.count()))
-        ctl.commit(u)
-        twin.advance(u)
-        u_log.append(u)
-    assert np.array_equal(u_log, ref.u)
+    assert np.array_equal(host_commands(scn), ref.u)
 
 
 def test_run_switch_at_is_checked(run_cli) -> None:  # type: ignore[no-untyped-def]
