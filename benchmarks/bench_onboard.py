@@ -19,7 +19,12 @@ moves (θ̇d or θ̈d not zero): the issue's budget is "at least 30 % of the per
 while the arm moves".  ``--set KEY=VALUE`` builds another form (e.g.
 ``controller.kind=adrc-error``), ``--baud``/``--every`` stream every n-th sample (the chip
 still controls at every one), ``--polled`` feeds the line from ``loop()`` without the
-transmit interrupt.
+transmit interrupt.  ``--stream-every`` and ``--stream-polled`` are the same options under
+the names ``esoarm hil --onboard`` and ``esoarm codegen --arduino-library`` give them: the
+same arguments build the same firmware (one ``onboard_firmware`` call, one cached ELF), e.g.
+``python benchmarks/bench_onboard.py --stream-every 10 --baud 115200 --stream-polled --sums
+plain`` measures what ``esoarm hil uno-rig --onboard --set sensor.rate_hz=1000 --sums plain
+--stream-every 10 --baud 115200 --stream-polled`` runs.
 
 ``overhead = busy − step`` per sample is everything the firmware does besides the
 controller (interrupt entry, encoder, motor pins, the CHIP_SAMPLE frame: its CRC, queue
@@ -231,10 +236,12 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--sums", choices=("plain", "compensated", "both"), default="both")
     ap.add_argument("--baud", type=int, default=BAUD, help="line rate [bit/s]")
-    ap.add_argument("--every", type=int, default=None,
-                    help="stream every n-th sample (default: the fewest the line needs)")
-    ap.add_argument("--polled", action="store_true",
-                    help="feed the line from loop() a byte at a time (no transmit interrupt)")
+    ap.add_argument("--every", "--stream-every", dest="every", type=int, default=None,
+                    help="stream every n-th sample (default: the fewest the line needs); "
+                    "the same build as esoarm hil --onboard --stream-every N")
+    ap.add_argument("--polled", "--stream-polled", dest="polled", action="store_true",
+                    help="feed the line from loop() a byte at a time (no transmit interrupt; "
+                    "esoarm hil --onboard --stream-polled)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                     help="a scenario override, e.g. controller.kind=adrc-error (repeatable)")
     ap.add_argument("--label", default="", help="the build's name in the table")
@@ -270,6 +277,9 @@ def main() -> None:
         t = time.perf_counter()
         r = measure(scn, compensated, args.seconds, args.baud, args.every, args.polled)
         print(row(r, args.label or "as generated"), flush=True)
+        elf = onboard_firmware(scn, compensated=compensated, baud=args.baud, every=args.every,
+                               polled=args.polled)  # cached: the build measure() ran
+        print(f"<!-- firmware {elf} -->")
         print(f"<!-- {time.perf_counter() - t:.0f} s wall, idle pass {r['idle_pass']} cycles, "
               f"{int(r['moving'].sum())} windows with the arm moving -->")
 

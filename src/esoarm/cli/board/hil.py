@@ -77,6 +77,22 @@ def _check_avr_elf(path: Path) -> None:
               "ATmega328P; auto times both with PIL (esoarm pil SCENARIO --target avr, cached) "
               "and takes compensated where it fits the period on board, else plain, and says "
               "which and why; a forced choice that does not fit is warned about.")
+@click.option("--stream-every", "every", type=click.IntRange(1, 65535), default=None,
+              metavar="N",
+              help="With --onboard: the chip streams every N-th sample to the host (one "
+              "CHIP_SAMPLE frame per N samples) and still controls at every sample [default: "
+              "the fewest the line carries, 1 at 1 kHz and 1 Mbit/s]. At 1 kHz, "
+              "--stream-every 10 --baud 115200 --stream-polled leaves the Uno 35 % of its "
+              "period free at p99 while the arm moves (docs/on-the-chip.md); 'esoarm run "
+              "--onboard' then logs every N-th sample and says so.")
+@click.option("--baud", type=int, default=None, metavar="BITS/S",
+              help="With --onboard: the firmware's line rate [bit/s; default: 1000000], one "
+              "the ATmega328P makes within 2.5 % at 16 MHz (115200, 250000, 500000, "
+              "1000000, ...). A real board's host needs the same 'esoarm run --baud'.")
+@click.option("--stream-polled", "polled", is_flag=True,
+              help="With --onboard: feed the line from loop() a byte at a time, each frame "
+              "built as it goes, instead of the transmit interrupt: a frame's cost spreads "
+              "over the samples it spans (with --stream-every 10 at 115200 bit/s).")
 @click.option("--target", type=click.Choice(["avr", "cortex-m4"]), default="avr",
               show_default=True,
               help="The simulated chip: avr (the Uno firmware in simavr) or cortex-m4 (with "
@@ -87,8 +103,8 @@ def _check_avr_elf(path: Path) -> None:
               "sent STOP (or the link is unplugged, or the host is silent for 5 s).")
 @bad_input_guard
 def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], realtime: bool,
-        elf: str | None, driver: str, onboard: bool, sums: str | None, target: str,
-        once: bool) -> None:
+        elf: str | None, driver: str, onboard: bool, sums: str | None, every: int | None,
+        baud: int | None, polled: bool, target: str, once: bool) -> None:
     """Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its pins.
 
     The first line printed is 'device: PATH'; pass PATH to 'esoarm run SCENARIO
@@ -108,6 +124,15 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         raise BadInput(f"--sums {sums} applies to the generated observer on board: add "
                        "--onboard (the rig firmware without it runs no observer)")
     sums = sums or "auto"
+    stream = [name for name, given in (("--stream-every", every is not None),
+                                       ("--baud", baud is not None),
+                                       ("--stream-polled", polled)) if given]
+    if stream and not onboard:
+        raise BadInput(f"{stream[0]} sets the on-board firmware's stream: add --onboard (the "
+                       "rig firmware without it streams a SAMPLE frame per sample)")
+    if stream and target != "avr":
+        raise BadInput(f"{stream[0]} sets the Uno firmware's stream (--target avr), not the "
+                       "cortex-m4 build's")
     if target == "cortex-m4":
         from esoarm.cli.board.hil_cortex_m import hil_cortex_m
 
@@ -126,9 +151,12 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
 
             if elf is not None:
                 raise BadInput("--onboard builds its own firmware: drop --elf")
-            from esoarm.codegen.onboard import choose_sums, sums_fit
+            from esoarm.codegen.onboard import BAUD, check_stream, choose_sums, sums_fit
 
             try:
+                baud = BAUD if baud is None else baud
+                # checked before PIL's minutes; None (the firmware's default) keeps the build
+                n_every = check_stream(scn.sensor.rate_hz, baud, every)
                 why = ""
                 if sums == "auto":
                     choice = choose_sums(scn, say=_progress)
@@ -139,11 +167,15 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
                         warn_line(f"--sums {sums} does not fit the ATmega328P's period on "
                                   f"board at {scn.sensor.rate_hz:g} Hz ({numbers}): expect "
                                   "OVERRUN faults; auto would not choose it")
-                elf_path = onboard_firmware(scn, compensated=sums == "compensated")
+                elf_path = onboard_firmware(scn, compensated=sums == "compensated",
+                                            baud=baud, every=every, polled=polled)
             except CodegenError as exc:
                 raise BadInput(str(exc)) from None
             board_note = (f"on board: {scn.name}'s controller, float32 {sums} observer sums, "
-                          f"at {scn.sensor.rate_hz:g} Hz{why}")
+                          f"at {scn.sensor.rate_hz:g} Hz{why}; streams every "
+                          + ("sample" if n_every == 1 else f"{n_every}th sample")
+                          + f" at {baud} bit/s"
+                          + (", polled from loop()" if polled else ""))
         else:
             elf_path = Path(elf) if elf else firmware_elf(driver)
         server = HilServer(scn, elf_path, faults=specs, realtime=realtime, echo=_say)

@@ -26,8 +26,9 @@ What it supports
     Every scenario the exact engine runs except those :func:`unsupported`
     names (a run that needs the exact engine is reported, never silently
     approximated): the lever arm with the linear ESO and the FLC, no motor
-    (``actuator.pwm_bits``, coloured noise and gear backlash, ``rig.backlash_deg``, are
-    modelled).
+    (``actuator.pwm_bits``, coloured noise, gear backlash, ``rig.backlash_deg``, hard end
+    stops, ``rig.end_stops``, the gate ``actuator.stop_gate`` and
+    ``actuator.observer_sees = "commanded"`` are modelled).
     It computes every metric of :data:`esoarm.engines.metrics.METRICS`.
 
 Without a working C compiler the fast engine is unavailable: :func:`run_metrics`
@@ -80,7 +81,7 @@ _PAR_NAMES = (
     "theta0", "sigma", "q", "b0", "inertia", "gcoef", "fc", "vs", "visc", "lag",
     "beta1", "beta2", "beta3", *(f"phi{i}" for i in range(9)), *(f"gamma{i}" for i in range(3)),
     *(f"gain{i}" for i in range(3)), "k1", "k2", "i0", "cgcoef", "limit", "pwm",
-    "alpha", "jm", "kgear", "cgear",
+    "alpha", "jm", "kgear", "cgear", "sees", "gate", "stop_lo", "stop_hi",
 )
 _NPAR = len(_PAR_NAMES)
 _NOUT = 10
@@ -190,7 +191,8 @@ def _bind(lib: ctypes.CDLL) -> ctypes.CDLL:
     fn = lib.esoarm_fast_block
     fn.restype = None
     i, n, d, p = ctypes.c_int, ctypes.c_long, ctypes.c_double, ctypes.c_void_p
-    fn.argtypes = [i, n, n, n, i, i, i, i,  # lanes, N, substeps, delay, kind, comp, lag, gear
+    fn.argtypes = [i, n, n, n, i, i, i, i, i,  # lanes, N, substeps, delay, kind, comp, lag,
+                   # gear, stops
                    d, d, d, d, d,  # h, Ts, disturbance amplitude and frequency, limit
                    p, p, n, p, p, p, p, p]  # par, refs, stride, offsets, noise, ..., out
     return lib
@@ -282,10 +284,6 @@ def unsupported(scn: Scenario) -> str | None:
         return "rig.cogging.amplitude > 0 (a position-periodic torque)"
     if getattr(scn.controller, "feedforward_map", None):
         return "controller.feedforward_map (a learned feedforward table)"
-    if getattr(scn.rig, "end_stops", None):
-        return "rig.end_stops (hard end stops)"
-    if getattr(scn.actuator, "observer_sees", "applied") != "applied":
-        return "actuator.observer_sees = 'commanded' (the ESO fed the unsaturated command)"
     return None
 
 
@@ -301,20 +299,28 @@ def _point_rows(pack: _packing._Pack) -> np.ndarray:
             *(ob[:, _obs.GAIN + i] for i in range(3)),
             ct[:, _ctl.K1], ct[:, _ctl.K2], ct[:, _ctl.I0], ct[:, _ctl.GCOEF], ct[:, _ctl.LIMIT],
             pack.ap[:, _act.PWM_LEVELS],
-            rg[:, _rig.BACKLASH], rg[:, _rig.JM], rg[:, _rig.KGEAR], rg[:, _rig.CGEAR]]
+            rg[:, _rig.BACKLASH], rg[:, _rig.JM], rg[:, _rig.KGEAR], rg[:, _rig.CGEAR],
+            # what the ESO is fed, the gate's band and the stops (∓1e30 without stops)
+            pack.ap[:, _act.SEES], pack.ap[:, _act.GATE], pack.ap[:, _act.GATE_LO],
+            pack.ap[:, _act.GATE_HI]]
     out = np.column_stack(cols)
     assert out.shape[1] == _NPAR
     return out
 
 
+def _has_stops(a: np.ndarray) -> bool:
+    """Whether actuator vector ``a`` carries rig.end_stops (∓1e30 stands for none)."""
+    return bool(a[_act.GATE_LO] > -1e29 or a[_act.GATE_HI] < 1e29)
+
+
 def _structure(pack: _packing._Pack, p: int) -> tuple:  # type: ignore[type-arg]
-    """What a block must share: sizes, steps, discretization, flags (lag, gear backlash),
-    disturbance."""
+    """What a block must share: sizes, steps, discretization, flags (lag, gear backlash,
+    end stops), disturbance."""
     ip, f, rg, ob, ct = (pack.ipar[p], pack.fpar[p], pack.pp[p, 1:], pack.op[p, 1:],
                          pack.cp[p, 1:])
     return (int(ip[_packing._N]), int(ip[_packing._NSUB]), int(ip[_packing._DELAY]),
             int(ob[_obs.DISC]), int(ct[_ctl.COMP]), int(rg[_rig.LAG] > 0.0),
-            int(rg[_rig.BACKLASH] > 0.0),
+            int(rg[_rig.BACKLASH] > 0.0), int(_has_stops(pack.ap[p])),
             float(f[_packing._H]), float(f[_packing._TS]), float(rg[_rig.DAMP]),
             float(rg[_rig.DFREQ]))
 
@@ -337,7 +343,7 @@ def _run_pack(lib: ctypes.CDLL, pack: _packing._Pack, workers: int) -> np.ndarra
     raw = np.empty((nruns, _NOUT))
 
     def work(item: tuple) -> None:  # type: ignore[type-arg]
-        (n, nsub, delay, kind, comp, lag_on, gear_on, h, ts, damp, dfreq), runs = item
+        (n, nsub, delay, kind, comp, lag_on, gear_on, stops_on, h, ts, damp, dfreq), runs = item
         lanes = np.resize(runs, _LANES)  # pad with repeats; their outputs are dropped
         pts = pack.run_point[lanes]
         par = np.ascontiguousarray(rows[pts].T)
@@ -345,7 +351,8 @@ def _run_pack(lib: ctypes.CDLL, pack: _packing._Pack, workers: int) -> np.ndarra
         noise_off = (pack.run_noise[lanes] * nmax).astype(np.int64)
         uhist = np.zeros((delay + 1) * _LANES)
         out = np.empty((_NOUT, _LANES))
-        lib.esoarm_fast_block(len(runs), n, nsub, delay, kind, comp, lag_on, gear_on, h, ts,
+        lib.esoarm_fast_block(len(runs), n, nsub, delay, kind, comp, lag_on, gear_on, stops_on,
+                              h, ts,
                               damp, dfreq,
                               DIVERGENCE_LIMIT, par.ctypes.data, refs.ctypes.data, nmax,
                               ref_off.ctypes.data, noises.ctypes.data, noise_off.ctypes.data,

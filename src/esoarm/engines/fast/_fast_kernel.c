@@ -18,6 +18,14 @@
  *   u_{k-delay} held, d(t) = damp sin(dfreq t) at each stage time.  With gear backlash
  *   the rig's state grows by the motor side (thm, omm) and the arm is driven by the
  *   gear's dead-zone torque (esoarm.plants.lever_arm.geared_advance).
+ *   With actuator.observer_sees = "commanded" (P_SEES = 1) the ESO is fed, and the
+ *   metrics see, the command before saturation and PWM (esoarm.engines.sample
+ *   saturate_into/actuate_into); the plant gets the saturated one.  With rig.end_stops
+ *   (stops_on) the arm stops dead after every RK4 step past a stop
+ *   (esoarm.plants.lever_arm.stopped_advance) and its acceleration is 0 while pushed
+ *   into one (stop_held); actuator.stop_gate (P_GATE > 0) feeds the ESO 0 while y is
+ *   within the band of a stop and the command pushes into it
+ *   (esoarm.plants.actuator.gated).
  * Everything that is shared by the block (N, substeps, step, Ts, delay,
  * discretization, compensation, lag on/off, disturbance) is a scalar argument;
  * everything else is one value per lane in par[NPAR][LANES].
@@ -40,6 +48,7 @@ enum {
     P_PHI, P_GAMMA = P_PHI + 9, P_GAIN = P_GAMMA + 3,
     P_K1 = P_GAIN + 3, P_K2, P_I0, P_CGCOEF, P_LIMIT, P_PWM,
     P_ALPHA, P_JM, P_KGEAR, P_CGEAR,
+    P_SEES, P_GATE, P_STOP_LO, P_STOP_HI,
     NPAR
 };
 enum { KIND_EULER, KIND_ZOH, KIND_CURRENT };
@@ -84,6 +93,7 @@ static inline double lt_limit(double x, double lim) {
  *   gear_on              gear backlash present (0/1): the plant is the two-mass drive
  *                        train of esoarm.plants.backlash, with the motor-side state
  *                        (thm, omm) starting at (theta0, 0); 0 is the rigid gear
+ *   stops_on             hard end stops present (0/1): P_STOP_LO, P_STOP_HI per lane
  *   h, ts, damp, dfreq   RK4 step [s], sample period [s], disturbance amplitude and
  *                        frequency
  *   limit                divergence limit on |theta|, |z1|
@@ -97,7 +107,7 @@ static inline double lt_limit(double x, double lim) {
  *                        rows, diverged
  */
 void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp, int lag_on,
-                       int gear_on, double h, double ts, double damp, double dfreq, double limit,
+                       int gear_on, int stops_on, double h, double ts, double damp, double dfreq, double limit,
                        const double *restrict par, const double *restrict refs,
                        long stride, const int64_t *restrict ref_off,
                        const double *restrict noise, const int64_t *restrict noise_off,
@@ -117,6 +127,7 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
     const double *k1 = P(P_K1), *k2 = P(P_K2), *i0 = P(P_I0), *cg = P(P_CGCOEF);
     const double *lim = P(P_LIMIT), *pwm = P(P_PWM);
     const double *galpha = P(P_ALPHA), *jm = P(P_JM), *kgear = P(P_KGEAR), *cgear = P(P_CGEAR);
+    const double *sees = P(P_SEES), *gate = P(P_GATE), *slo = P(P_STOP_LO), *shi = P(P_STOP_HI);
     const double *phi[9], *gam[3], *gain[3];
     for (int i = 0; i < 9; i++) phi[i] = P(P_PHI + i);
     for (int i = 0; i < 3; i++) { gam[i] = P(P_GAMMA + i); gain[i] = P(P_GAIN + i); }
@@ -136,6 +147,15 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
         iq[l] = q[l] > 0.0 ? 1.0 / q[l] : 1.0;
     }
     const double half = 0.5 * h, sixth = h / 6.0;
+    /* rig.end_stops after an RK4 step (esoarm.plants.lever_arm.stopped_advance): an angle
+       past a stop is set onto it and a rate into it to 0 (end stops exclude backlash) */
+#define STOP_DEAD(l)                                                                      \
+    do {                                                                                  \
+        double t_ = th[l], w_ = om[l];                                                    \
+        int up_ = t_ >= shi[l], lo_ = !up_ && t_ <= slo[l];                               \
+        th[l] = up_ ? shi[l] : (lo_ ? slo[l] : t_);                                       \
+        om[l] = up_ ? (w_ < 0.0 ? w_ : 0.0) : (lo_ ? (w_ > 0.0 ? w_ : 0.0) : w_);         \
+    } while (0)
     for (long k = 0; k < n; k++) {
         const double tk = k * ts;
         const double dk = damp * sin(dfreq * tk);
@@ -165,12 +185,19 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
             /* actuator.pwm_bits: the torque rounded to pwm = 2^bits - 1 levels per sign
                (esoarm.plants.actuator.actuate); pwm = 0: an ideal torque source */
             if (pwm[l] > 0.0) { double d = rint(u / lim[l] * pwm[l]); u = lim[l] * d / pwm[l]; }
+            const double drive = u;
+            /* actuator.observer_sees = "commanded": the ESO is fed (and the log shows) the
+               command itself; the plant is driven by its saturation */
+            u = sees[l] != 0.0 ? raw : u;
+            /* actuator.stop_gate: the ESO's input v = 0 at a stop while u pushes into it */
+            const double v = gate[l] > 0.0 && ((y >= shi[l] - gate[l] && u > 0.0) ||
+                                               (y <= slo[l] + gate[l] && u < 0.0)) ? 0.0 : u;
             double uap;
             if (delay > 0) {
-                urow[l] = u;
+                urow[l] = drive;
                 uap = k >= delay ? uold[l] : 0.0;
             } else {
-                uap = u;
+                uap = drive;
             }
             ua[l] = uap;
             double tq = gear_on ? gear_torque(thm[l] - th[l], omm[l] - om[l], galpha[l],
@@ -178,6 +205,9 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
                                 : (lag_on ? ta[l] : uap);
             double acc = (tq - gcoef[l] * cos(th[l]) - (fc[l] * tanh(om[l] * ivs[l]) +
                           visc[l] * om[l])) * iin[l] + dk;
+            if (stops_on && ((th[l] >= shi[l] && om[l] >= 0.0 && acc > 0.0) ||
+                             (th[l] <= slo[l] && om[l] <= 0.0 && acc < 0.0)))
+                acc = 0.0; /* held at an end stop (stop_held) */
             double f = acc - b0[l] * u;
             double err = th[l] - ref[l];
             double a = alive[l];
@@ -198,15 +228,15 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
             double n1, n2, n3;
             if (kind == KIND_EULER) {
                 n1 = z1[l] + ts * (z2[l] + beta1[l] * e);
-                n2 = z2[l] + ts * (z3[l] + b0[l] * u + beta2[l] * e);
+                n2 = z2[l] + ts * (z3[l] + b0[l] * v + beta2[l] * e);
                 n3 = z3[l] + ts * (beta3[l] * e);
             } else {
                 double a1 = kind == KIND_ZOH ? z1[l] : h1;
                 double a2 = kind == KIND_ZOH ? z2[l] : h2;
                 double a3 = kind == KIND_ZOH ? z3[l] : h3;
-                n1 = phi[0][l] * a1 + phi[1][l] * a2 + phi[2][l] * a3 + gam[0][l] * u;
-                n2 = phi[3][l] * a1 + phi[4][l] * a2 + phi[5][l] * a3 + gam[1][l] * u;
-                n3 = phi[6][l] * a1 + phi[7][l] * a2 + phi[8][l] * a3 + gam[2][l] * u;
+                n1 = phi[0][l] * a1 + phi[1][l] * a2 + phi[2][l] * a3 + gam[0][l] * v;
+                n2 = phi[3][l] * a1 + phi[4][l] * a2 + phi[5][l] * a3 + gam[1][l] * v;
+                n3 = phi[6][l] * a1 + phi[7][l] * a2 + phi[8][l] * a3 + gam[2][l] * v;
                 if (kind == KIND_ZOH) {
                     n1 += gain[0][l] * e; n2 += gain[1][l] * e; n3 += gain[2][l] * e;
                 }
@@ -290,6 +320,7 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
                     th[l] = x0 + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
                     om[l] = v0 + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
                     ta[l] = q0 + sixth * (c1 + 2.0 * c2 + 2.0 * c3 + c4);
+                    if (stops_on) STOP_DEAD(l);
                 }
             } else {
 #pragma omp simd
@@ -309,10 +340,12 @@ void esoarm_fast_block(int nl, long n, long nsub, long delay, int kind, int comp
                     double b4 = (uu - gc * cos(x4) - (f0 * tanh(v4 * iv) + vi * v4)) * ii + d4;
                     th[l] = x0 + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
                     om[l] = v0 + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
+                    if (stops_on) STOP_DEAD(l);
                 }
             }
         }
     }
+#undef STOP_DEAD
     for (int l = 0; l < LANES; l++) {
         out[M_SE * LANES + l] = se[l];
         out[M_SU * LANES + l] = su[l];
