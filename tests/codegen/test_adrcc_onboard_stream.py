@@ -195,6 +195,12 @@ def test_hil_onboard_streams_every_10th_at_1khz(tmp_path: Path) -> None:
     got, hil_out = _hil_run(tmp_path, "k1", ["uno-rig", "--sums", "plain", *CHEAP, *short],
                             ["uno-rig", *short, "--baud", "115200"])
     assert "streams every 10th sample at 115200 bit/s, polled from loop()" in hil_out
+    # the firmware benchmarks/bench_onboard.py measures with the same options
+    from esoarm.codegen.onboard import onboard_firmware
+
+    scn = load_scenario("uno-rig", {"sensor.rate_hz": 1000, "duration": 3})
+    bench_elf = onboard_firmware(scn, compensated=False, baud=115200, every=10, polled=True)
+    assert f"firmware {bench_elf}," in hil_out
     assert got["stream_every"] == 10 and got["samples"] == 300
     assert got["lost_samples"] == 0 and got["lost_frames"] == 0 and got["stop_acknowledged"]
     sim = _simulated_rms("uno-rig", *short)
