@@ -260,3 +260,35 @@ def test_arduino_example_with_the_cheap_stream_runs_at_1khz(tmp_path: Path) -> N
     run = onboard_run(scn, ex / "build-uno" / "OnBoard.elf", seconds=3.0)
     assert run.faults == []
     assert len(run.k) >= 295 and np.array_equal(run.k, 10 * np.arange(len(run.k)))
+
+
+def test_flash_stream_options_are_checked_before_the_port(run_cli) -> None:  # type: ignore[no-untyped-def]
+    """A bad stream is refused in one line before the port is asked (it does not exist)."""
+    _one_line(run_cli("flash", "uno-rig", "--port", "/dev/esoarm-no-such-port", "--stream-every",
+                      "2", "--baud", "115200", *KHZ), "--stream-every 2", "N >= 4")
+    _one_line(run_cli("flash", "uno-rig", "--port", "/dev/esoarm-no-such-port", "--baud",
+                      "230400"), "--baud 230400")
+
+
+@onchip
+def test_flash_the_cheap_stream_and_read_the_hash_at_its_baud() -> None:
+    """`esoarm flash uno-rig ... --stream-every 10 --baud 115200 --stream-polled` on the
+    simulated Uno (its bootloader in simavr): written, verified, and the firmware answers
+    with the scenario's hash at 115200 bit/s, the build's line rate."""
+    import shutil
+
+    from esoarm.codegen.generate import scenario_hash
+    from esoarm.hardware.flash import SimulatedUno, read_hash
+
+    if not shutil.which("avrdude") or not Path(
+            "/usr/share/arduino/hardware/arduino/avr/bootloaders").is_dir():
+        pytest.skip("avrdude or the Uno's bootloader (arduino-core-avr) not installed")
+    with SimulatedUno() as uno:
+        res = subprocess.run([*ESOARM, "flash", "uno-rig", "--port", uno.port, *KHZ, "--sums",
+                              "plain", *CHEAP, "--json"], capture_output=True, text=True,
+                             timeout=900)
+        assert res.returncode == 0, res.stderr
+        got = json.loads(res.stdout)
+        want = scenario_hash(load_scenario("uno-rig", {"sensor.rate_hz": 1000}))[:8]
+        assert got["ok"] and got["baud"] == 115200 and got["hash_read"] == want
+        assert read_hash(uno.port, 115_200) == want
