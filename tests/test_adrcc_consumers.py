@@ -46,7 +46,7 @@ OPTIONS = {
 #: What the fast engine refuses, by the key its one line names (None: it runs the option).
 FAST_REFUSES = {"adrc-error": "controller.kind", "adrc-tf": "controller.kind",
                 "input_delay": "observer.input_delay", "pid+eso": "controller.kind",
-                "switch": "controller.kind", "table": "rig.cogging"}  # (and the table)
+                "switch": "controller.kind"}
 #: What analyze refuses (its linearization models the FLC law), by key.
 ANALYZE_REFUSES = {"adrc-error": "controller.kind", "adrc-tf": "controller.kind",
                    "pid+eso": "controller.kind", "switch": "controller.kind"}
