@@ -292,3 +292,19 @@ def test_flash_the_cheap_stream_and_read_the_hash_at_its_baud() -> None:
         want = scenario_hash(load_scenario("uno-rig", {"sensor.rate_hz": 1000}))[:8]
         assert got["ok"] and got["baud"] == 115200 and got["hash_read"] == want
         assert read_hash(uno.port, 115_200) == want
+
+
+@onchip
+def test_pil_with_the_table_in_flash() -> None:
+    """`esoarm pil` on the ATmega328P with a 72-bin table: agrees with the float64 reference
+    (drive compared; measured 1.5e-7 of the torque limit on test-1's learned table) and uses
+    the static RAM of the run without a table (318 B; 654 B with the table in RAM before)."""
+    from .chip_helpers import pil
+
+    table = json.dumps(_mapped_table())
+    with_table = pil("test-1", "--target", "avr", "--set", "duration=12", "--set",
+                     f"controller.feedforward_map={table}")
+    without = pil("test-1", "--target", "avr", "--set", "duration=12")
+    assert with_table["ok"] and with_table["max_rel_du"] <= 1e-4
+    assert with_table["ram_bytes"] == without["ram_bytes"]
+    assert with_table["flash_bytes"] > without["flash_bytes"] + 72 * 4
