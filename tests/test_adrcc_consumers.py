@@ -132,8 +132,7 @@ def test_policy_past_its_episode_says_so() -> None:
             policy(obs)
 
 
-@pytest.mark.parametrize("name", ["stops+gate", "commanded", "table", "input_delay",
-                                  "half-gain"])
+@pytest.mark.parametrize("name", list(OPTIONS))
 def test_replay_recovers_the_logged_estimates(run_cli, tmp_path: Path, name: str  # type: ignore[no-untyped-def]
                                               ) -> None:
     sets = [a for key, value in {**OPTIONS[name], "duration": 12.0}.items()
@@ -152,3 +151,14 @@ def test_replay_recovers_the_logged_estimates(run_cli, tmp_path: Path, name: str
 def test_stop_gate_without_stops_is_still_refused() -> None:
     with pytest.raises(ScenarioError, match="actuator.stop_gate"):
         load_scenario("test-1", {"actuator.stop_gate": 0.01})
+
+
+@pytest.mark.parametrize("name", [n for n in OPTIONS if n not in ("table", "commanded")])
+def test_host_controller_commands_what_simulate_does(name: str) -> None:
+    """`esoarm run`'s host controller over the emulated twin (noise off): u bit for bit.
+    (The table and "commanded", whose drive differs from u: tests/codegen/test_map_c.py and
+    tests/controllers/test_windup.py.)"""
+    from controllers.lockstep import host_commands
+
+    scn = load_scenario("test-1", {**OPTIONS[name], "duration": 12.0, "sensor.noise_deg": 0.0})
+    np.testing.assert_array_equal(host_commands(scn), simulate(scn, warn=False).u)
