@@ -94,7 +94,7 @@ def test_analyze_runs_refuses_or_says_what_it_leaves_out(run_cli, name: str  # t
 
 def test_analyze_table_note_gives_the_tables_slope(run_cli) -> None:  # type: ignore[no-untyped-def]
     """The note quotes the feedback the table adds: I0 · max |Δm| · N / (2π) [N·m/rad]."""
-    from esoarm.cli.analyze import left_out_notes
+    from esoarm.cli.studies.analyze import left_out_notes
 
     scn = load_scenario("test-1", {"controller.feedforward_map": [0.0, 1.0, 0.0, -1.0]})
     (line,) = left_out_notes(scn)
