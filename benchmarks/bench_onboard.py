@@ -19,7 +19,12 @@ moves (θ̇d or θ̈d not zero): the issue's budget is "at least 30 % of the per
 while the arm moves".  ``--set KEY=VALUE`` builds another form (e.g.
 ``controller.kind=adrc-error``), ``--baud``/``--every`` stream every n-th sample (the chip
 still controls at every one), ``--polled`` feeds the line from ``loop()`` without the
-transmit interrupt.
+transmit interrupt.  ``--stream-every`` and ``--stream-polled`` are the same options under
+the names ``esoarm hil --onboard`` and ``esoarm codegen --arduino-library`` give them: the
+same arguments build the same firmware (one ``onboard_firmware`` call, one cached ELF), e.g.
+``python benchmarks/bench_onboard.py --stream-every 10 --baud 115200 --stream-polled --sums
+plain`` measures what ``esoarm hil uno-rig --onboard --set sensor.rate_hz=1000 --sums plain
+--stream-every 10 --baud 115200 --stream-polled`` runs.
 
 ``overhead = busy − step`` per sample is everything the firmware does besides the
 controller (interrupt entry, encoder, motor pins, the CHIP_SAMPLE frame: its CRC, queue
@@ -185,6 +190,8 @@ HEADER = ("| build | observer sums | baud [bit/s] | streamed: every n-th sample 
           "|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 
 
+#: A key of a build's overrides: learn a table of this many bins (:func:`with_learned_table`).
+LEARN = "learn_map_bins"
 #: The builds of the table in docs/on-the-chip.md (``--table``): (label, sums, baud, every,
 #: polled[, scenario overrides]).  Every one controls at every sample; they differ in what
 #: they stream and how, and the last two in the controller's form.
@@ -201,8 +208,21 @@ TABLE_BUILDS: list[tuple] = [
      {"controller.kind": "adrc-error"}),
     ("ADRC TF form, every 10th, 115200 bit/s, polled", False, 115_200, 10, True,
      {"controller.kind": "adrc-tf"}),
+    ("learned table (72 bins, in flash), cogging, every 10th, 115200 bit/s, polled", False,
+     115_200, 10, True, {"rig.cogging.amplitude": 0.08, "rig.cogging.periods": 6,
+                         LEARN: 72}),
 ]
+
 MARK = "<!-- bench_onboard:table -->", "<!-- /bench_onboard:table -->"
+
+
+def with_learned_table(scn, bins: int):  # type: ignore[no-untyped-def]
+    """``scn`` with the table ``esoarm learn-map --bins BINS`` learns from a 40 s run of it
+    at 50 Hz (as docs/adrc.md's hil map row; the twin's cogging is ``scn``'s)."""
+    from esoarm.studies.adrc.learn_map import learned_from_run, with_map
+
+    learning = load_scenario(scn, {"sensor.rate_hz": 50.0, "duration": 40.0})
+    return with_map(scn, learned_from_run(learning, bins).table)
 
 
 def table(scn, seconds: float) -> str:  # type: ignore[no-untyped-def]
@@ -217,7 +237,11 @@ def table(scn, seconds: float) -> str:  # type: ignore[no-untyped-def]
              "load slows the simulation, not the simulated cycles). Cycles per "
              f"{1e3 * scn.sample_time:g} ms sample, median / p99 / max.", "", HEADER]
     for label, compensated, baud, every, polled, *keys in TABLE_BUILDS:
-        point = load_scenario(scn, keys[0]) if keys else scn
+        over = dict(keys[0]) if keys else {}
+        bins = over.pop(LEARN, None)
+        point = load_scenario(scn, over) if over else scn
+        if bins:
+            point = with_learned_table(point, bins)
         r = measure(point, compensated, seconds, baud, every, polled)
         lines.append(row(r, label))
         print(lines[-1], flush=True)
@@ -231,10 +255,12 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--sums", choices=("plain", "compensated", "both"), default="both")
     ap.add_argument("--baud", type=int, default=BAUD, help="line rate [bit/s]")
-    ap.add_argument("--every", type=int, default=None,
-                    help="stream every n-th sample (default: the fewest the line needs)")
-    ap.add_argument("--polled", action="store_true",
-                    help="feed the line from loop() a byte at a time (no transmit interrupt)")
+    ap.add_argument("--every", "--stream-every", dest="every", type=int, default=None,
+                    help="stream every n-th sample (default: the fewest the line needs); "
+                    "the same build as esoarm hil --onboard --stream-every N")
+    ap.add_argument("--polled", "--stream-polled", dest="polled", action="store_true",
+                    help="feed the line from loop() a byte at a time (no transmit interrupt; "
+                    "esoarm hil --onboard --stream-polled)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                     help="a scenario override, e.g. controller.kind=adrc-error (repeatable)")
     ap.add_argument("--label", default="", help="the build's name in the table")
@@ -270,6 +296,9 @@ def main() -> None:
         t = time.perf_counter()
         r = measure(scn, compensated, args.seconds, args.baud, args.every, args.polled)
         print(row(r, args.label or "as generated"), flush=True)
+        elf = onboard_firmware(scn, compensated=compensated, baud=args.baud, every=args.every,
+                               polled=args.polled)  # cached: the build measure() ran
+        print(f"<!-- firmware {elf} -->")
         print(f"<!-- {time.perf_counter() - t:.0f} s wall, idle pass {r['idle_pass']} cycles, "
               f"{int(r['moving'].sum())} windows with the arm moving -->")
 

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 from pydantic import Field, create_model
 
+from controllers.lockstep import host_commands
 from esoarm import kinds
 from esoarm.contract import ComponentDesign, read_only
 from esoarm.engines.simulation import prepare, run_reference
@@ -258,21 +259,11 @@ def test_analyze_refuses_a_kind_without_linearization(run_cli) -> None:  # type:
 
 def test_replay_and_the_rig_controller(luen, run_cli, tmp_path) -> None:  # type: ignore[no-untyped-def]
     """The rig loop's host controller over the emulated device, and replay: simulate's bits."""
-    from esoarm.hardware.emulator import Twin
-    from esoarm.hardware.host_control import DeploymentController
     from esoarm.hardware.replay import replay
 
     scn = load_scenario("test-1", {"observer.kind": "luenberger", "duration": 2.0})
     ref = run_reference(scn, prepare(scn))
-    ctl, twin = DeploymentController(scn), Twin(scn)
-    q = math.radians(scn.sensor.resolution_deg)
-    u_log = []
-    for k in range(ctl.n_samples):
-        u, _ = ctl.actuate(ctl.step(k, q * twin.count()))
-        ctl.commit(u)
-        twin.advance(u)
-        u_log.append(u)
-    assert np.array_equal(u_log, ref.u)
+    assert np.array_equal(host_commands(scn), ref.u)
     rep = replay(scn, ref.t, ref.y, ref.u, scn.sample_time)
     assert np.array_equal(rep.z, ref.z)
     log = tmp_path / "run.csv"

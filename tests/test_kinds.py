@@ -2,19 +2,16 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from controllers.lockstep import host_commands
 from esoarm import kinds
 from esoarm.cli import cli
 from esoarm.controllers.pid import pid_command
 from esoarm.engines import batch
 from esoarm.engines.simulation import prepare, run_reference
-from esoarm.hardware.emulator import Twin
-from esoarm.hardware.host_control import DeploymentController
 from esoarm.hardware.replay import replay
 from esoarm.observers.linear import DISCRETIZATIONS
 from esoarm.observers.nonlinear import fal
@@ -197,15 +194,7 @@ def test_deployment_controller_and_replay_agree(kind_set: str) -> None:
     """The rig loop's controller over the emulated device, and replay, give simulate's numbers."""
     scn = _scn(kind_set, "current")
     ref = run_reference(scn, prepare(scn))
-    ctl, twin = DeploymentController(scn), Twin(scn)
-    q = math.radians(scn.sensor.resolution_deg)
-    u_log = []
-    for k in range(ctl.n_samples):
-        u, _ = ctl.actuate(ctl.step(k, q * twin.count()))
-        ctl.commit(u)
-        twin.advance(u)
-        u_log.append(u)
-    assert np.array_equal(u_log, ref.u)
+    assert np.array_equal(host_commands(scn), ref.u)
     rep = replay(scn, ref.t, ref.y, ref.u, scn.sample_time)
     assert np.array_equal(rep.z, ref.z)
 

@@ -15,6 +15,7 @@ import types
 import numpy as np
 import pytest
 
+from controllers.lockstep import lockstep
 from esoarm import kinds
 from esoarm._jit import jitable
 from esoarm.engines.simulation import prepare, run_reference
@@ -252,19 +253,10 @@ def test_gymnasium_env_with_the_scenarios_controller_is_simulate(extra) -> None:
 
 def test_host_controller_against_the_emulated_device(extra) -> None:  # type: ignore[no-untyped-def]
     """The rig's host controller over the emulator's twin: simulate's commands bit for bit."""
-    from esoarm.hardware.emulator import Twin
-    from esoarm.hardware.host_control import DeploymentController
 
     scn = load_scenario("test-1", {**OVR, "duration": 2.0})
     ref = run_reference(scn, prepare(scn))
-    ctl, twin = DeploymentController(scn), Twin(scn)
-    q = math.radians(scn.sensor.resolution_deg)
-    u_log = []
-    for k in range(ctl.n_samples):
-        u, _ = ctl.actuate(ctl.step(k, q * twin.count()))
-        ctl.commit(u)
-        twin.advance(u)
-        u_log.append(u)
+    u_log, ctl = lockstep(scn)
     assert np.array_equal(u_log, ref.u)
     zhat = ctl.predict(0.0)  # a lost sample on the rig: the kind's predict, finite
     assert all(math.isfinite(v) for v in zhat)

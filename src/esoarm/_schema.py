@@ -7,10 +7,12 @@ registered kinds together as a tagged union (see :mod:`esoarm.kinds`).
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-__all__ = ["PER_JOINT_KEYS", "Section", "joint_values", "show_joint_values", "unit"]
+__all__ = ["PER_JOINT_KEYS", "Actuator", "Section", "joint_values", "show_joint_values", "unit"]
 
 #: Observer and controller keys that may be one number or a list of one per joint.
 PER_JOINT_KEYS = ("eps", "k1", "k2")
@@ -37,3 +39,37 @@ def show_joint_values(value: float | list[float]) -> str:
     if isinstance(value, list):
         return "[" + ", ".join(f"{v:g}" for v in value) + "]"
     return f"{value:g}"
+
+
+class Actuator(Section):
+    """Torque saturation, PWM resolution, first-order lag and transport delay (the
+    scenario's ``[actuator]``; here, below the kinds, because a kind's ``design`` reads it
+    and the registration check designs with its defaults)."""
+
+    torque_limit: float = Field(
+        2.0, gt=0, description="saturation |u| ≤ torque_limit", json_schema_extra=unit("N·m")
+    )
+    lag: float = Field(
+        0.0, ge=0, description="first-order lag time constant T (0: none)",
+        json_schema_extra=unit("s"),
+    )
+    delay_samples: int = Field(
+        0, ge=0, description="transport delay in samples", json_schema_extra=unit("samples")
+    )
+    pwm_bits: int = Field(
+        0, ge=0, le=16, description="resolution of the PWM drive (0: an ideal torque source): "
+        "the torque is rounded to torque_limit·m/(2^bits − 1), sign and magnitude, e.g. 8 for "
+        "Arduino analogWrite; with a [motor] table use motor.pwm_max instead",
+        json_schema_extra=unit("bits"),
+    )
+    stop_gate: float = Field(
+        0.0, ge=0, description="gate the ESO's b0·u term (the observer fed 0) while the "
+        "measured angle is within this distance of a rig.end_stops stop and the command "
+        "pushes into it, so that z3 does not wind up against the stop (0: no gate)",
+        json_schema_extra=unit("rad"),
+    )
+    observer_sees: Literal["applied", "commanded"] = Field(
+        "applied", description='what the ESO is fed: "applied" the saturated command the '
+        'actuator applies (anti-windup) | "commanded" the controller\'s command before '
+        "saturation (the paper's ESO, which winds up while the command saturates)",
+    )

@@ -34,6 +34,7 @@ import numpy as np
 from pydantic import Field
 
 from esoarm import _jit
+from esoarm._schema import Actuator
 from esoarm.contract import (
     COMPONENTS,
     OPTIONAL,
@@ -363,7 +364,7 @@ def observers_for(joints: int) -> tuple[str, ...]:
         who = f"observer kind {module.KIND!r}"
         params = _params(who, module)
         case = _Case(plant=PLANTS[0].Params(), observer=params,
-                     controller=CONTROLLERS[0].Params(), actuator=_Actuator())
+                     controller=CONTROLLERS[0].Params(), actuator=Actuator())
         with np.errstate(all="ignore"):
             if _designed(who, module, case, joints) is not None:
                 out.append(module.KIND)
@@ -542,13 +543,6 @@ class _Case(NamedTuple):
     actuator: Any
 
 
-class _Actuator(NamedTuple):
-    """The actuator keys a kind's ``design`` may read (the scenario's defaults)."""
-
-    torque_limit: float = 1.0
-    observer_sees: str = "applied"
-
-
 def _params(who: str, module: Any) -> Any:
     try:
         return module.Params()
@@ -695,7 +689,7 @@ def check_steps(component: str, module: Any) -> None:
     case = _Case(plant=PLANTS[0].Params(),
                  observer=params if component == "observer" else OBSERVERS[0].Params(),
                  controller=params if component == "controller" else CONTROLLERS[0].Params(),
-                 actuator=_Actuator())
+                 actuator=Actuator())
     with np.errstate(all="ignore"):
         if component == "observer":
             _check_observer(who, module, case)

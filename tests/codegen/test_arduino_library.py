@@ -13,13 +13,10 @@ import pytest
 
 from esoarm.scenario import load_scenario
 
-MISSING = [tool for tool, ok in (
-    ("avr-gcc (gcc-avr)", shutil.which("avr-gcc")),
-    ("arduino-mk", Path("/usr/share/arduino/Arduino.mk").exists()),
-    ("arduino-core-avr", Path("/usr/share/arduino/hardware/arduino/avr/cores").is_dir()),
-    ("libsimavr-dev", Path("/usr/include/simavr/sim_avr.h").exists()),
-    ("make", shutil.which("make")),
-) if not ok]
+from .chip_helpers import AVR_TOOLS, missing
+
+MISSING = missing(*AVR_TOOLS, ("make", shutil.which("make")),
+    ("arduino-core-avr", Path("/usr/share/arduino/hardware/arduino/avr/cores").is_dir()))
 
 
 def _codegen(*args: str) -> subprocess.CompletedProcess[str]:

@@ -50,7 +50,7 @@ def test_stream_every_below_the_line_is_refused() -> None:
     from esoarm.codegen.onboard import onboard_firmware
 
     scn = load_scenario("uno-rig", {"sensor.rate_hz": 1000})
-    with pytest.raises(CodegenError, match="at least every 4th"):
+    with pytest.raises(CodegenError, match="give N >= 4"):
         onboard_firmware(scn, compensated=False, baud=115200, every=2)
 
 

@@ -4,14 +4,17 @@ the controller tests that compare it with the reference engine)."""
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from esoarm.scenario import Scenario
 
+if TYPE_CHECKING:
+    from esoarm.hardware.host_control import DeploymentController
 
-def host_commands(scn: Scenario) -> list[float]:
-    """The command of each sample: :class:`~esoarm.hardware.host_control.DeploymentController`
-    fed the encoder counts of :class:`~esoarm.hardware.emulator.Twin`, as ``esoarm run``
-    over the emulated device.
+
+def lockstep(scn: Scenario) -> tuple[list[float], DeploymentController]:
+    """:class:`~esoarm.hardware.host_control.DeploymentController` fed the encoder counts of
+    :class:`~esoarm.hardware.emulator.Twin`, as ``esoarm run`` over the emulated device.
 
     Parameters
     ----------
@@ -20,8 +23,10 @@ def host_commands(scn: Scenario) -> list[float]:
 
     Returns
     -------
-    list of float
+    u : list of float
         u_k [N·m], one per sample.
+    controller : DeploymentController
+        The host controller after the last sample.
     """
     from esoarm.hardware.emulator import Twin
     from esoarm.hardware.host_control import DeploymentController
@@ -34,4 +39,9 @@ def host_commands(scn: Scenario) -> list[float]:
         ctl.commit(u)
         twin.advance(u)
         u_log.append(u)
-    return u_log
+    return u_log, ctl
+
+
+def host_commands(scn: Scenario) -> list[float]:
+    """The command of each sample of :func:`lockstep`: u_k [N·m]."""
+    return lockstep(scn)[0]

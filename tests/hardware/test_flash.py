@@ -20,12 +20,11 @@ from pathlib import Path
 
 import pytest
 
+from codegen.chip_helpers import AVR_TOOLS, missing
+
 ESOARM = [sys.executable, "-m", "esoarm"]
-MISSING = [t for t, ok in (
-    ("avrdude", shutil.which("avrdude")), ("avr-gcc", shutil.which("avr-gcc")),
-    ("libsimavr-dev", Path("/usr/include/simavr/sim_avr.h").exists()),
-    ("arduino-core-avr", Path("/usr/share/arduino/hardware/arduino/avr/bootloaders").is_dir()),
-    ("arduino-mk", Path("/usr/share/arduino/Arduino.mk").exists())) if not ok]
+MISSING = missing(*AVR_TOOLS, ("avrdude", shutil.which("avrdude")),
+    ("arduino-core-avr", Path("/usr/share/arduino/hardware/arduino/avr/bootloaders").is_dir()))
 needs_tools = pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")
 
 

@@ -19,16 +19,10 @@ from pathlib import Path
 
 import pytest
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
-MISSING = [tool for tool, ok in (
-    ("avr-gcc (gcc-avr)", shutil.which("avr-gcc")),
-    ("arduino-mk", Path("/usr/share/arduino/Arduino.mk").exists()),
-    ("libsimavr-dev", Path("/usr/include/simavr/sim_avr.h").exists()),
-    ("gcc", shutil.which("gcc")),
-) if not ok]
+from codegen.chip_helpers import AVR_TOOLS, missing
 
-if MISSING and os.environ.get("ESOARM_REQUIRE_HIL"):  # CI: the firmware tests must run
-    raise RuntimeError(f"ESOARM_REQUIRE_HIL is set but not installed: {', '.join(MISSING)}")
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
+MISSING = missing(*AVR_TOOLS)  # raises in CI (ESOARM_REQUIRE_HIL): the firmware tests must run
 
 pytestmark = [
     pytest.mark.slow,  # end to end: the firmware built and run in simavr

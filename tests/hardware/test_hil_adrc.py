@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -14,12 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-MISSING = [tool for tool, ok in (
-    ("avr-gcc (gcc-avr)", shutil.which("avr-gcc")),
-    ("arduino-mk", Path("/usr/share/arduino/Arduino.mk").exists()),
-    ("libsimavr-dev", Path("/usr/include/simavr/sim_avr.h").exists()),
-    ("gcc", shutil.which("gcc")),
-) if not ok]
+from codegen.chip_helpers import AVR_TOOLS, missing
+
+MISSING = missing(*AVR_TOOLS)
 
 pytestmark = [
     pytest.mark.slow,

@@ -9,7 +9,6 @@ refusal at the excitation that a resumed run gets past.
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -17,16 +16,12 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from codegen.chip_helpers import AVR_TOOLS, missing
 from esoarm.cli import cli
 from esoarm.scenario import load_scenario
 from esoarm.studies.commission import Commission, CommissionOptions, CommissionRefused
 
-MISSING = [tool for tool, ok in (
-    ("avr-gcc (gcc-avr)", shutil.which("avr-gcc")),
-    ("arduino-mk", Path("/usr/share/arduino/Arduino.mk").exists()),
-    ("libsimavr-dev", Path("/usr/include/simavr/sim_avr.h").exists()),
-    ("gcc", shutil.which("gcc")),
-) if not ok]
+MISSING = missing(*AVR_TOOLS)
 ESOARM = [sys.executable, "-m", "esoarm"]
 
 

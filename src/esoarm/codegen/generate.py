@@ -191,8 +191,30 @@ def _actuator_defines(act: np.ndarray) -> str:
     table's bins, 0 without one) of the actuator vector, for the step and actuator.c."""
     sees = 1 if act[actuator.SEES] == actuator.SEES_COMMANDED else 0
     bins = int(act[actuator.FF_BINS]) if len(act) > actuator.FF_BINS else 0
-    return (f"#define ACT_SEES {sees}\n#define ACT_FF_N {bins}\n"
-            f"#define ACT_FF0 {actuator.FF_BINS + 1}\n")
+    scale = f"#define ACT_FF_SCALE {_literal(bins / (2.0 * np.pi))}\n" if bins else ""
+    return f"#define ACT_SEES {sees}\n#define ACT_FF_N {bins}\n" + scale
+
+
+def _actuator_arrays(act: np.ndarray) -> str:
+    """ACT_P (the actuator vector up to the learned table's bin count) and the table ACT_FF.
+
+    On the AVR the table is in flash (``PROGMEM``, read with ``pgm_read_float``: avr-gcc's
+    double is 32 bits), not copied into the 2 KiB of RAM at start-up; elsewhere a const
+    array (flash on the Cortex-M parts).  ``ACT_FF_AT(i)`` reads node i.
+    """
+    bins = int(act[actuator.FF_BINS]) if len(act) > actuator.FF_BINS else 0
+    if bins == 0:
+        return _array("ACT_P", act)
+    table = act[actuator.FF_BINS + 1:]
+    items = ", ".join(_literal(float(v)) for v in table)
+    return (_array("ACT_P", act[:actuator.FF_BINS + 1])
+            + "/* the learned feedforward table -I0 m_i [N m] (controller.feedforward_map) */\n"
+            "#if defined(__AVR__)\n#include <avr/pgmspace.h>\n"
+            "typedef char act_ff_is_32_bits[sizeof(esoarm_real) == 4 ? 1 : -1];\n"
+            f"static const esoarm_real ACT_FF[{bins}] PROGMEM = {{{items}}};\n"
+            "#define ACT_FF_AT(i) ((esoarm_real)pgm_read_float(&ACT_FF[(i)]))\n#else\n"
+            f"static const esoarm_real ACT_FF[{bins}] = {{{items}}};\n"
+            "#define ACT_FF_AT(i) (ACT_FF[(i)])\n#endif\n")
 
 
 def _array(name: str, values: np.ndarray | list[float]) -> str:
@@ -516,7 +538,7 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     parts = [banner, f'#include "{p}_controller.h"\n', local_real, _prelude(target, precision),
              f"#define ESOARM_COMPENSATED {1 if compensated else 0}\n",
              _array("OBS_P", obs.vector[1:]), _array("CTL_P", ctl.vector[1:]),
-             _array("ACT_P", act),
+             _actuator_arrays(act),
              f"#define OBS_N {obs.n_state}\n#define CTL_N {ctl.n_state}\n"
              f"#define OBS_NP {onp}\n#define CTL_NP {cnp}\n", extra,
              _ESO_GAIN if "eso_linear_gain" in obs_text else "",

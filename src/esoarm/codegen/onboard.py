@@ -30,8 +30,8 @@ from esoarm.hardware import protocol as P
 from esoarm.hardware.hil.build import ToolchainMissing, _cache_dir, default_firmware_dir
 from esoarm.scenario import Scenario
 
-__all__ = ["OVERHEAD_CYCLES", "OnboardRun", "SumsChoice", "choose_sums", "onboard_firmware",
-           "onboard_run", "stream_every", "sums_fit"]
+__all__ = ["OVERHEAD_CYCLES", "OnboardRun", "SumsChoice", "check_stream", "choose_sums",
+           "onboard_firmware", "onboard_run", "stream_every", "sums_fit"]
 
 #: Baud rate of the on-board builds: a 37-byte CHIP_SAMPLE frame (370 bits) every 1 ms
 #: needs 370 kbit/s; 115200 would carry one sample in four at 1 kHz.
@@ -58,6 +58,10 @@ HEARTBEAT_S = 0.02
 #: 7271 cycles with the reference in the step and is 7238 without it at 50 Hz (the tunable
 #: gains now read from RAM cost about what its two moves did).  A reference with many moves
 #: costs more on board than this allows for: re-measure with benchmarks/bench_onboard.py.
+#: A learned feedforward table is inside the step, so PIL times it (the step without a table
+#: did not change when the table moved to flash).  The decimated polled stream
+#: (``--stream-every 10 --baud 115200 --stream-polled``) costs less, about 4.2k cycles (busy
+#: median 9560 less 5398), so this value is conservative for it.
 OVERHEAD_CYCLES = 9400
 #: The share of the period the predicted median load may use (the rest: bursts, heartbeats).
 LOAD_LIMIT = 0.97
@@ -227,6 +231,59 @@ def stream_every(rate_hz: float, baud: int = BAUD) -> int:
     return max(1, -(-num // den))
 
 
+#: The largest error of the line rate the ATmega328P's UART makes at 16 MHz (U2X, the
+#: divisor the firmware computes) that is accepted: 115200 bit/s is 2.1 % fast, as on every
+#: Uno; 230400 (3.5 %) is refused.
+BAUD_ERROR = 0.025
+
+
+def check_stream(rate_hz: float, baud: int = BAUD, every: int | None = None) -> int:
+    """Check an on-board build's stream settings; the samples per streamed frame.
+
+    Parameters
+    ----------
+    rate_hz : float
+        Sample rate [Hz].
+    baud : int
+        Line rate [bit/s]: one the ATmega328P at 16 MHz makes within :data:`BAUD_ERROR`
+        (the firmware's divisor ``(F_CPU / 4 / BAUD − 1) / 2`` with U2X).
+    every : int, optional
+        Stream every ``every``-th sample (default: the fewest the line needs,
+        :func:`stream_every`).
+
+    Returns
+    -------
+    int
+        The firmware's STREAM_EVERY [samples per CHIP_SAMPLE frame].
+
+    Raises
+    ------
+    CodegenError
+        One line naming the setting: a line rate the UART cannot make, or frames more
+        often than the line carries (or ``every`` over 65535).
+    """
+    from esoarm.hardware.hil.board import F_CPU
+
+    if baud <= 0 or F_CPU // 4 // baud < 1:
+        raise CodegenError(f"--baud {baud}: the ATmega328P at 16 MHz makes line rates up to "
+                           "2000000 bit/s (e.g. 115200, 250000, 500000, 1000000)")
+    ubrr = (F_CPU // 4 // baud - 1) // 2
+    actual = F_CPU / (8 * (ubrr + 1))
+    if abs(actual / baud - 1.0) > BAUD_ERROR:
+        raise CodegenError(f"--baud {baud}: the ATmega328P at 16 MHz makes {actual:.0f} bit/s "
+                           f"for it ({100 * (actual / baud - 1):+.1f} %, more than "
+                           f"{100 * BAUD_ERROR:g} % off); use e.g. 115200, 250000, 500000 "
+                           "or 1000000")
+    least = stream_every(rate_hz, baud)
+    if every is None:
+        return least
+    if not least <= every <= 65535:
+        raise CodegenError(f"--stream-every {every}: at {baud} bit/s and {rate_hz:g} Hz a "
+                           f"CHIP_SAMPLE frame every {every} sample(s) is more than the line "
+                           f"carries; give N >= {least} (at most 65535)")
+    return every
+
+
 def onboard_firmware(scn: Scenario, firmware_dir: Path | None = None,
                      compensated: bool | None = None, baud: int = BAUD,
                      every: int | None = None, polled: bool = False) -> Path:
@@ -267,11 +324,7 @@ def onboard_firmware(scn: Scenario, firmware_dir: Path | None = None,
     if abs(period_us - 1e6 / scn.sensor.rate_hz) > 1e-6 or period_us % 4:
         raise CodegenError(f"sensor.rate_hz = {scn.sensor.rate_hz:g}: on board the sample "
                            "period must be a whole multiple of 4 µs (the firmware's Timer2 tick)")
-    least = stream_every(scn.sensor.rate_hz, baud)
-    if every is not None and not least <= every <= 65535:
-        raise CodegenError(f"stream every {every}th sample: at {baud} bit/s and "
-                           f"{scn.sensor.rate_hz:g} Hz the line needs at least every {least}th "
-                           "(and at most 65535)")
+    check_stream(scn.sensor.rate_hz, baud, every)
     gen = generate(scn, "avr", "float32", compensated)
     root = _cache_dir() / (f"esoarm-onboard-{gen.digest}-{'c' if gen.compensated else 'p'}"
                            f"-{baud}" + (f"-n{every}" if every is not None else "")

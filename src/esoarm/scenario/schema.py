@@ -25,7 +25,7 @@ from pydantic import BaseModel, Field, ValidationError
 
 from esoarm import kinds as _kinds
 from esoarm._limits import MAX_BACKLASH_DEG
-from esoarm._schema import PER_JOINT_KEYS
+from esoarm._schema import PER_JOINT_KEYS, Actuator
 from esoarm._schema import Section as _Section
 from esoarm._schema import unit as _unit
 from esoarm._toml import to_toml
@@ -166,38 +166,6 @@ class Sensor(_Section):
         0.05, gt=0, lt=1, description="damping ratio ζ of the vibration mode; plausible "
         "0.005 … 0.1 (bolted metal structures, docs/noise-model.md)",
         json_schema_extra=_unit("1"),
-    )
-
-
-class Actuator(_Section):
-    """Torque saturation, PWM resolution, first-order lag and transport delay."""
-
-    torque_limit: float = Field(
-        2.0, gt=0, description="saturation |u| ≤ torque_limit", json_schema_extra=_unit("N·m")
-    )
-    lag: float = Field(
-        0.0, ge=0, description="first-order lag time constant T (0: none)",
-        json_schema_extra=_unit("s"),
-    )
-    delay_samples: int = Field(
-        0, ge=0, description="transport delay in samples", json_schema_extra=_unit("samples")
-    )
-    pwm_bits: int = Field(
-        0, ge=0, le=16, description="resolution of the PWM drive (0: an ideal torque source): "
-        "the torque is rounded to torque_limit·m/(2^bits − 1), sign and magnitude, e.g. 8 for "
-        "Arduino analogWrite; with a [motor] table use motor.pwm_max instead",
-        json_schema_extra=_unit("bits"),
-    )
-    stop_gate: float = Field(
-        0.0, ge=0, description="gate the ESO's b0·u term (the observer fed 0) while the "
-        "measured angle is within this distance of a rig.end_stops stop and the command "
-        "pushes into it, so that z3 does not wind up against the stop (0: no gate)",
-        json_schema_extra=_unit("rad"),
-    )
-    observer_sees: Literal["applied", "commanded"] = Field(
-        "applied", description='what the ESO is fed: "applied" the saturated command the '
-        'actuator applies (anti-windup) | "commanded" the controller\'s command before '
-        "saturation (the paper's ESO, which winds up while the command saturates)",
     )
 
 

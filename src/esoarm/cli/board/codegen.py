@@ -19,6 +19,7 @@ from esoarm.cli._common import (
     set_option,
     warn_line,
 )
+from esoarm.cli.board.stream import stream_given, stream_options
 from esoarm.codegen.generate import DEFAULT_PREFIX, TARGETS
 
 
@@ -37,6 +38,7 @@ from esoarm.codegen.generate import DEFAULT_PREFIX, TARGETS
               help="Write an Arduino library instead (library.properties, src/, and "
               "examples/OnBoard/ with a complete sketch and a Makefile for arduino-mk: "
               "'make' there builds the .hex); the folder's name is the library's.")
+@stream_options("With --arduino-library")
 @click.option("--prefix", default=DEFAULT_PREFIX, show_default=True,
               help="Of every public name and file (two designs link into one program with "
               "two prefixes).")
@@ -56,8 +58,9 @@ from esoarm.codegen.generate import DEFAULT_PREFIX, TARGETS
               "--onboard'), float32 for its FPU; build it with make (arm-none-eabi-gcc).")
 @bad_input_guard
 def codegen(scenario: str, overrides: tuple[str, ...], target: str | None, out: str | None,
-            library: str | None, prefix: str, precision: str | None, plain_sums: bool,
-            no_check: bool, project: str | None) -> None:
+            library: str | None, every: int | None, baud: int | None, polled: bool,
+            prefix: str, precision: str | None, plain_sums: bool, no_check: bool,
+            project: str | None) -> None:
     """Generate self-contained C99 for SCENARIO's observer and controller on a target.
 
     The code is the scenario as designed: the observer and controller kinds'
@@ -75,6 +78,10 @@ def codegen(scenario: str, overrides: tuple[str, ...], target: str | None, out: 
     """
     from esoarm.codegen import CodegenError, generate, write_sources
 
+    stream = stream_given(every, baud, polled)
+    if stream and library is None:
+        raise BadInput(f"{stream[0]} sets the Arduino example's stream: it applies with "
+                       "--arduino-library DIR")
     if project is not None:
         from esoarm.cli.board.codegen_project import write_project
 
@@ -108,7 +115,9 @@ def codegen(scenario: str, overrides: tuple[str, ...], target: str | None, out: 
         if library is not None:
             from esoarm.codegen.arduino import EXAMPLE, arduino_library
 
-            gen, paths = arduino_library(scn, Path(folder), prefix, compensated)
+            gen, paths = arduino_library(scn, Path(folder), prefix, compensated,
+                                         **({} if baud is None else {"baud": baud}),
+                                         every=every, polled=polled)
             note(f"wrote the Arduino library {folder} ({len(paths)} files): scenario "
                  f"'{scn.name}' (sha256 {gen.digest}), float32"
                  + (", compensated observer sums" if gen.compensated else ", plain sums")

@@ -18,6 +18,7 @@ from esoarm.cli._common import (
 )
 from esoarm.cli.board.hil_serve import finish, serve_until
 from esoarm.cli.board.hil_serve import say as _say
+from esoarm.cli.board.stream import stream_given, stream_options
 
 
 def _progress(line: str) -> None:
@@ -77,6 +78,7 @@ def _check_avr_elf(path: Path) -> None:
               "ATmega328P; auto times both with PIL (esoarm pil SCENARIO --target avr, cached) "
               "and takes compensated where it fits the period on board, else plain, and says "
               "which and why; a forced choice that does not fit is warned about.")
+@stream_options("With --onboard")
 @click.option("--target", type=click.Choice(["avr", "cortex-m4"]), default="avr",
               show_default=True,
               help="The simulated chip: avr (the Uno firmware in simavr) or cortex-m4 (with "
@@ -87,8 +89,8 @@ def _check_avr_elf(path: Path) -> None:
               "sent STOP (or the link is unplugged, or the host is silent for 5 s).")
 @bad_input_guard
 def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], realtime: bool,
-        elf: str | None, driver: str, onboard: bool, sums: str | None, target: str,
-        once: bool) -> None:
+        elf: str | None, driver: str, onboard: bool, sums: str | None, every: int | None,
+        baud: int | None, polled: bool, target: str, once: bool) -> None:
     """Run the Uno firmware in simavr (ATmega328P, 16 MHz) with SCENARIO's twin on its pins.
 
     The first line printed is 'device: PATH'; pass PATH to 'esoarm run SCENARIO
@@ -108,6 +110,13 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         raise BadInput(f"--sums {sums} applies to the generated observer on board: add "
                        "--onboard (the rig firmware without it runs no observer)")
     sums = sums or "auto"
+    stream = stream_given(every, baud, polled)
+    if stream and not onboard:
+        raise BadInput(f"{stream[0]} sets the on-board firmware's stream: add --onboard (the "
+                       "rig firmware without it streams a SAMPLE frame per sample)")
+    if stream and target != "avr":
+        raise BadInput(f"{stream[0]} sets the Uno firmware's stream (--target avr), not the "
+                       "cortex-m4 build's")
     if target == "cortex-m4":
         from esoarm.cli.board.hil_cortex_m import hil_cortex_m
 
@@ -126,9 +135,12 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
 
             if elf is not None:
                 raise BadInput("--onboard builds its own firmware: drop --elf")
-            from esoarm.codegen.onboard import choose_sums, sums_fit
+            from esoarm.codegen.onboard import BAUD, check_stream, choose_sums, sums_fit
 
             try:
+                baud = BAUD if baud is None else baud
+                # checked before PIL's minutes; None (the firmware's default) keeps the build
+                n_every = check_stream(scn.sensor.rate_hz, baud, every)
                 why = ""
                 if sums == "auto":
                     choice = choose_sums(scn, say=_progress)
@@ -139,11 +151,15 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
                         warn_line(f"--sums {sums} does not fit the ATmega328P's period on "
                                   f"board at {scn.sensor.rate_hz:g} Hz ({numbers}): expect "
                                   "OVERRUN faults; auto would not choose it")
-                elf_path = onboard_firmware(scn, compensated=sums == "compensated")
+                elf_path = onboard_firmware(scn, compensated=sums == "compensated",
+                                            baud=baud, every=every, polled=polled)
             except CodegenError as exc:
                 raise BadInput(str(exc)) from None
             board_note = (f"on board: {scn.name}'s controller, float32 {sums} observer sums, "
-                          f"at {scn.sensor.rate_hz:g} Hz{why}")
+                          f"at {scn.sensor.rate_hz:g} Hz{why}; streams every "
+                          + ("sample" if n_every == 1 else f"{n_every}th sample")
+                          + f" at {baud} bit/s"
+                          + (", polled from loop()" if polled else ""))
         else:
             elf_path = Path(elf) if elf else firmware_elf(driver)
         server = HilServer(scn, elf_path, faults=specs, realtime=realtime, echo=_say)

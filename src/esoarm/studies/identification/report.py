@@ -62,6 +62,10 @@ def result_text(res: IdentResult) -> str:
         for e in res.estimates.values():
             if e.withheld:
                 lines.append(f"  {e.key}: interval withheld: {e.withheld}")
+    elif "segment-cluster" in res.interval_method:  # the floor widened some intervals
+        lines.append("")
+        lines.append(f"intervals: {res.interval_method} (never narrower than the spread of "
+                     "the segments allows)")
     poor = [e for e in res.estimates.values()
             if e.fitted and not e.identifiable and not e.at_bound and not e.withheld]
     if poor:

@@ -39,10 +39,24 @@ sample rate                50 Hz (6 in 10), 100 (2 in 10), 200 or 1000 Hz; 60 s,
 
 Rigs are rotary (the lever arm); ``esoarm excite`` drives only the lever arm, so prismatic
 axes are not part of the draw (see docs/benchmarks-identify-calibration.md).
+
+What the inertia is judged against (:meth:`Rig.judged_truth`). With gear backlash the twin
+becomes a two-mass drive train (:mod:`esoarm.plants.backlash`): the arm's inertia I =
+rig.inertia_scale · plant.inertia, and a motor side Jm = ``rig.motor_inertia`` (1e-3 kg·m²,
+4 % of test-1's inertia) that a rigid gear (backlash 0) does not have at all. In contact the
+motor drives I + Jm, and a rigid model, identify's, sees that sum: on the 34 backlash rigs
+of the held-out seeds 6,000,000 … the fitted inertia was (I + Jm)/plant.inertia to within
+0.45 % on 28 (0.9-1.8 % on the other 6), whatever the play (0.02° to 0.5°). So with backlash
+the inertia is judged against (I + Jm) / plant.inertia, the inertia of the rigid twin that
+reproduces the rig outside the gap (the fitted scenario identify writes has no backlash, and
+its plant.inertia is that sum). Until 2026-12-06 08:00 UTC it was judged against I alone,
+which counted 10 of the 16 "confidently wrong" rigs of seeds 6,000,000 … 6,000,199; the page
+gives both counts.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -67,8 +81,12 @@ __all__ = ["FAR", "HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig",
 #: their first 28 rigs, run at 05:34-05:57 on commit 1795e02 after main was merged, had 6
 #: confidently wrong (the delay and the lag decided before the stiction), which led to a
 #: change, so they are no longer held out either.  Seeds 6_000_000 … were declared at
-#: 05:58 UTC, before that change was tried, and are run only for the final table.)
-HELD_OUT_START = 6_000_000
+#: 05:58 UTC, before that change was tried; all 200 of them were run on the frozen commit
+#: 3c43bde (8.5 % confidently wrong) and then used to change the estimator (backlash, the
+#: delay at 200 Hz, the interval floor), so they are tuning data now.  Seeds 7_000_000 …
+#: 7_000_199 were declared the held-out range at 07:53 UTC on 2026-12-06, before any result
+#: on them was looked at; they are run once, on a frozen commit, for the final table.)
+HELD_OUT_START = 7_000_000
 #: RMS of the default plan's multisine [N·m] (``esoarm excite --amplitude``).
 EXCITATION_RMS = 0.2
 RATES = (50.0, 50.0, 50.0, 50.0, 50.0, 50.0, 100.0, 100.0, 200.0, 1000.0)
@@ -94,6 +112,26 @@ class Rig:
     def rate_hz(self) -> float:
         """Sample rate of the log [Hz]."""
         return self.truth["sensor.rate_hz"]
+
+    def judged_truth(self, key: str) -> float:
+        """The value a fitted ``key`` is judged against: the drawn truth, but with gear
+        backlash the inertia of the rigid drive train (arm plus the motor side
+        ``rig.motor_inertia`` reflected to the arm, over plant.inertia; see the module
+        docstring) [the key's unit]."""
+        value = self.truth[key]
+        if key == "rig.inertia_scale" and self.truth.get("rig.backlash_deg", 0.0) > 0.0:
+            inertia, motor_inertia = _test1_inertias()
+            value += motor_inertia / inertia
+        return value
+
+
+@functools.lru_cache(maxsize=1)
+def _test1_inertias() -> tuple[float, float]:
+    """test-1's plant.inertia and rig.motor_inertia [kg·m²] (the twin of every drawn rig)."""
+    from esoarm.scenario import load_scenario
+
+    scn = load_scenario("test-1")
+    return float(scn.plant.inertia), float(scn.rig.motor_inertia)
 
 
 def draw_rig(seed: int) -> Rig:
@@ -283,7 +321,7 @@ def classify(rig: Rig, data: dict) -> RigOutcome:
         e = data["parameters"].get(key)
         if e is None or not e.get("fitted", True):
             continue
-        truth = rig.truth[key]
+        truth = rig.judged_truth(key)
         lo, hi = e["ci95"] if e.get("ci95") is not None else (math.nan, math.nan)
         written = (e.get("ci95") is not None and not e.get("withheld", False)
                    and e.get("identifiable", True) and not e.get("at_bound", False))
@@ -405,11 +443,13 @@ def from_json(items: list[dict]) -> list[RigOutcome]:
     """
     out = []
     for o in items:
-        params = {k: tuple(v) for k, v in o["params"].items()}
+        rig = draw_rig(int(o["seed"]))
+        # the truth judged by today's rule (Rig.judged_truth), not the dump's
+        params = {k: (rig.judged_truth(k), *v[1:]) for k, v in o["params"].items()}
         verdict, missed, flagged = o["verdict"], list(o["missed"]), list(o["flagged"])
         if verdict in ("recovered", "flagged", "missed", "wrong"):  # by today's rule
             verdict, missed, flagged = verdict_of(params)  # type: ignore[arg-type]
-        out.append(RigOutcome(draw_rig(int(o["seed"])), verdict, int(o["exit"]), o["reason"],
+        out.append(RigOutcome(rig, verdict, int(o["exit"]), o["reason"],
                               params, missed, flagged,  # type: ignore[arg-type]
                               float(o["seconds"]), float(o["stuck"])))
     return out
