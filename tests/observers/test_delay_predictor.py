@@ -72,3 +72,16 @@ def test_euler_eso_loses_the_separation() -> None:
               for nd in (8, 9)}
     assert radius[8] > flc + 0.05
     assert radius[9] > 1.0
+
+
+def test_the_predictor_on_the_euler_eso_is_warned_of() -> None:
+    from esoarm.observers.linear import warnings
+    from esoarm.scenario import load_scenario
+
+    scn = load_scenario("test-1", {"observer.input_delay": 3, "observer.delay_form": "predictor"})
+    assert any("'predictor' with discretization 'euler'" in w
+               for w in warnings(scn.observer, scn.sample_time))
+    for disc in ("current", "zoh"):
+        ok = load_scenario("test-1", {"observer.input_delay": 3, "observer.delay_form": "predictor",
+                                      "observer.discretization": disc})
+        assert not any("predictor" in w for w in warnings(ok.observer, ok.sample_time))
