@@ -22,7 +22,7 @@ import pytest
 
 from esoarm.scenario import load_scenario
 
-from .chip_helpers import AVR_TOOLS, missing
+from .chip_helpers import AVR_TOOLS, on_chip
 
 ESOARM = [sys.executable, "-m", "esoarm"]
 CHEAP = ["--stream-every", "10", "--baud", "115200", "--stream-polled"]
@@ -124,15 +124,7 @@ def test_generated_table_is_in_flash_on_the_avr() -> None:
 
 # --------------------------------------------------------------------------- slow, on the chip
 
-MISSING = missing(*AVR_TOOLS)
-
-
-def onchip(test):  # type: ignore[no-untyped-def]
-    """slow, hil, and skipped without the AVR tools (required in CI)."""
-    for mark in (pytest.mark.slow, pytest.mark.hil,
-                 pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")):
-        test = mark(test)
-    return test
+onchip = on_chip(*AVR_TOOLS)
 
 
 def _sizes(elf: Path) -> dict[str, int]:

@@ -12,22 +12,12 @@ from __future__ import annotations
 import re
 import subprocess
 
-import pytest
-
 from esoarm.scenario import load_scenario
 
-from .chip_helpers import ARM_TOOLS, missing, traced_steps
+from .chip_helpers import ARM_TOOLS, on_chip, traced_steps
 from .chip_helpers import pil as _pil
 
-MISSING = missing(*ARM_TOOLS)
-
-
-def _on_chip(test):  # type: ignore[no-untyped-def]
-    """slow, hil, skipped with the reason where a tool is missing."""
-    for mark in (pytest.mark.slow, pytest.mark.hil,
-                 pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")):
-        test = mark(test)
-    return test
+_on_chip = on_chip(*ARM_TOOLS)
 
 
 @_on_chip
