@@ -39,6 +39,7 @@ import subprocess
 import time
 
 import numpy as np
+from doc_block import write_block
 
 from esoarm.codegen.onboard import BAUD, onboard_firmware, stream_every
 from esoarm.hardware import protocol as P
@@ -213,7 +214,6 @@ TABLE_BUILDS: list[tuple] = [
                          LEARN: 72}),
 ]
 
-MARK = "<!-- bench_onboard:table -->", "<!-- /bench_onboard:table -->"
 
 
 def with_learned_table(scn, bins: int):  # type: ignore[no-untyped-def]
@@ -278,13 +278,8 @@ def main() -> None:
     if args.table:
         text = table(scn, args.seconds)
         if args.update:
-            from pathlib import Path
-
-            path = Path(args.update)
-            doc = path.read_text()
-            a, b = doc.index(MARK[0]) + len(MARK[0]), doc.index(MARK[1])
-            path.write_text(doc[:a] + "\n" + text + doc[b:])
-            print(f"wrote the table into {path}")
+            write_block(args.update, "bench_onboard:table", text)
+            print(f"wrote the table into {args.update}")
         return
     print(f"<!-- {scn.name} at {args.rate:g} Hz on board (simavr ATmega328P, 16 MHz), "
           f"{args.seconds:g} s from START; cycles per sample, median / p99 / max; "

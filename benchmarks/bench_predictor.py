@@ -51,6 +51,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from doc_block import write_block
 
 import esoarm.observers.linear as lin
 from esoarm.engines.simulation import SimulationDiverged, prepare, simulate
@@ -59,7 +60,6 @@ from esoarm.studies.adrc.compare import _scenario, delay_tolerance, form_keys
 
 HELD = (10, 11, 12, 13)
 CASES = [(50.0, 0.05), (50.0, 0.03), (1000.0, 0.05), (1000.0, 0.03)]
-MARK = ("<!-- bench_predictor:table -->", "<!-- /bench_predictor:table -->")
 
 Predict = Callable[..., tuple]
 
@@ -445,11 +445,8 @@ def main() -> None:
     text = "\n\n".join(parts) + f"\n\n<!-- {time.perf_counter() - t0:.0f} s -->\n"
     print(text)
     if args.update:
-        path = Path(args.update)
-        doc = path.read_text()
-        a, b = doc.index(MARK[0]) + len(MARK[0]), doc.index(MARK[1])
-        path.write_text(doc[:a] + "\n" + text + doc[b:])
-        print(f"wrote the tables into {path}")
+        write_block(Path(args.update), "bench_predictor:table", text)
+        print(f"wrote the tables into {args.update}")
 
 
 if __name__ == "__main__":

@@ -73,6 +73,21 @@ def on_chip(*tools: tuple[str, bool | str | None]):  # type: ignore[no-untyped-d
     return mark
 
 
+def load_benchmark(name: str):  # type: ignore[no-untyped-def]
+    """The module ``benchmarks/NAME.py``, loaded as its script would be (the benchmarks'
+    folder on the path, for their shared modules such as ``doc_block``)."""
+    import importlib.util
+
+    folder = Path(__file__).resolve().parents[2] / "benchmarks"
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
+    spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def pil(*args: str, code: int = 0) -> dict:
     """``esoarm pil ARGS --json``: its JSON, the exit status checked."""
     res = subprocess.run([sys.executable, "-m", "esoarm", "pil", *args, "--json"],
