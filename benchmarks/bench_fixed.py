@@ -35,10 +35,10 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import re
 from pathlib import Path
 
 import numpy as np
+from doc_block import write_block
 
 from esoarm.codegen.avr import AvrChip
 from esoarm.codegen.generate import Generated, generate
@@ -286,22 +286,13 @@ def table() -> str:
         f"float -> int32 {to_int}, int32 -> float {to_float}."])
 
 
-def update(path: Path, name: str, text: str) -> None:
-    doc = path.read_text(encoding="utf-8")
-    pattern = re.compile(rf"(<!-- bench_fixed:{name} -->\n).*?(\n<!-- /bench_fixed:{name} -->)",
-                         re.S)
-    if not pattern.search(doc):
-        raise SystemExit(f"{path}: no <!-- bench_fixed:{name} --> markers")
-    path.write_text(pattern.sub(lambda m: m.group(1) + text + m.group(2), doc), encoding="utf-8")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--update", type=Path, help="markdown file with bench_fixed markers")
     args = parser.parse_args()
     text = table()
     if args.update:
-        update(args.update, "table", text)
+        write_block(args.update, "bench_fixed:table", text)
     else:
         print(text)
 

@@ -39,6 +39,7 @@ import subprocess
 import time
 
 import numpy as np
+from doc_block import write_block
 
 from esoarm.codegen.onboard import BAUD, onboard_firmware, stream_every
 from esoarm.hardware import protocol as P
@@ -190,6 +191,8 @@ HEADER = ("| build | observer sums | baud [bit/s] | streamed: every n-th sample 
           "|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 
 
+#: A key of a build's overrides: learn a table of this many bins (:func:`with_learned_table`).
+LEARN = "learn_map_bins"
 #: The builds of the table in docs/on-the-chip.md (``--table``): (label, sums, baud, every,
 #: polled[, scenario overrides]).  Every one controls at every sample; they differ in what
 #: they stream and how, and the last two in the controller's form.
@@ -206,8 +209,20 @@ TABLE_BUILDS: list[tuple] = [
      {"controller.kind": "adrc-error"}),
     ("ADRC TF form, every 10th, 115200 bit/s, polled", False, 115_200, 10, True,
      {"controller.kind": "adrc-tf"}),
+    ("learned table (72 bins, in flash), cogging, every 10th, 115200 bit/s, polled", False,
+     115_200, 10, True, {"rig.cogging.amplitude": 0.08, "rig.cogging.periods": 6,
+                         LEARN: 72}),
 ]
-MARK = "<!-- bench_onboard:table -->", "<!-- /bench_onboard:table -->"
+
+
+
+def with_learned_table(scn, bins: int):  # type: ignore[no-untyped-def]
+    """``scn`` with the table ``esoarm learn-map --bins BINS`` learns from a 40 s run of it
+    at 50 Hz (as docs/adrc.md's hil map row; the twin's cogging is ``scn``'s)."""
+    from esoarm.studies.adrc.learn_map import learned_from_run, with_map
+
+    learning = load_scenario(scn, {"sensor.rate_hz": 50.0, "duration": 40.0})
+    return with_map(scn, learned_from_run(learning, bins).table)
 
 
 def table(scn, seconds: float) -> str:  # type: ignore[no-untyped-def]
@@ -222,7 +237,11 @@ def table(scn, seconds: float) -> str:  # type: ignore[no-untyped-def]
              "load slows the simulation, not the simulated cycles). Cycles per "
              f"{1e3 * scn.sample_time:g} ms sample, median / p99 / max.", "", HEADER]
     for label, compensated, baud, every, polled, *keys in TABLE_BUILDS:
-        point = load_scenario(scn, keys[0]) if keys else scn
+        over = dict(keys[0]) if keys else {}
+        bins = over.pop(LEARN, None)
+        point = load_scenario(scn, over) if over else scn
+        if bins:
+            point = with_learned_table(point, bins)
         r = measure(point, compensated, seconds, baud, every, polled)
         lines.append(row(r, label))
         print(lines[-1], flush=True)
@@ -259,13 +278,8 @@ def main() -> None:
     if args.table:
         text = table(scn, args.seconds)
         if args.update:
-            from pathlib import Path
-
-            path = Path(args.update)
-            doc = path.read_text()
-            a, b = doc.index(MARK[0]) + len(MARK[0]), doc.index(MARK[1])
-            path.write_text(doc[:a] + "\n" + text + doc[b:])
-            print(f"wrote the table into {path}")
+            write_block(args.update, "bench_onboard:table", text)
+            print(f"wrote the table into {args.update}")
         return
     print(f"<!-- {scn.name} at {args.rate:g} Hz on board (simavr ATmega328P, 16 MHz), "
           f"{args.seconds:g} s from START; cycles per sample, median / p99 / max; "

@@ -33,10 +33,10 @@ from __future__ import annotations
 
 import argparse
 import math
-import re
 from pathlib import Path
 
 import numpy as np
+from doc_block import read_block, write_block
 
 from esoarm.codegen.generate import generate
 from esoarm.codegen.lockstep import lockstep
@@ -211,25 +211,6 @@ def merge_rows(old: str, new: str) -> str:
     return "\n\n".join(machine_lines) + "\n\n" + "\n".join(new_lines[2:4] + body)
 
 
-def current(path: Path, name: str) -> str:
-    """The text between ``name``'s markers in ``path``."""
-    text = path.read_text(encoding="utf-8")
-    m = re.search(rf"<!-- bench_pil:{name} -->\n(.*?)\n<!-- /bench_pil:{name} -->", text, re.S)
-    if m is None:
-        raise SystemExit(f"{path}: no <!-- bench_pil:{name} --> markers")
-    return m.group(1)
-
-
-def update(path: Path, name: str, table: str) -> None:
-    text = path.read_text(encoding="utf-8")
-    pattern = re.compile(rf"(<!-- bench_pil:{name} -->\n).*?(\n<!-- /bench_pil:{name} -->)",
-                         re.S)
-    if not pattern.search(text):
-        raise SystemExit(f"{path}: no <!-- bench_pil:{name} --> markers")
-    path.write_text(pattern.sub(lambda m: m.group(1) + table + m.group(2), text),
-                    encoding="utf-8")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--update", type=Path, help="markdown file with bench_pil markers")
@@ -252,12 +233,13 @@ def main() -> None:
     if args.only in (None, "cycles"):
         tables["cycles"] = cycles_table()
         if ONLY_TARGETS and args.update:
-            tables["cycles"] = merge_rows(current(args.update, "cycles"), tables["cycles"])
+            tables["cycles"] = merge_rows(read_block(args.update, "bench_pil:cycles"),
+                                          tables["cycles"])
     if args.only in (None, "precision"):
         tables["precision"] = precision_table()
     for name, table in tables.items():
         if args.update:
-            update(args.update, name, table)
+            write_block(args.update, f"bench_pil:{name}", table)
         else:
             print(table)
 

@@ -38,7 +38,7 @@ t0 = time.perf_counter()
 marks = []
 def mark(name):
     marks.append((name, time.perf_counter()))
-import esoarm.cli, esoarm.cli.sweep; mark("import esoarm.cli (click)")
+import esoarm.cli, esoarm.cli.studies.sweep; mark("import esoarm.cli (click)")
 from esoarm.scenario import load_scenario; mark("import esoarm.scenario (numpy, pydantic, kinds)")
 from esoarm.studies.sweeps.sweep import build_grid; mark("import studies.sweep")
 grid = build_grid(load_scenario("test-1"), ["observer.eps=geom:0.03:0.3:100"], 20)

@@ -47,6 +47,47 @@ ARM_TOOLS = (("arm-none-eabi-gcc (gcc-arm-none-eabi)", shutil.which("arm-none-ea
              ("qemu-system-arm", shutil.which("qemu-system-arm")))
 
 
+def on_chip(*tools: tuple[str, bool | str | None]):  # type: ignore[no-untyped-def]
+    """A decorator marking a test slow and hil, skipped with the reason where one of
+    ``tools`` (as for :func:`missing`, which raises in CI) is not installed.
+
+    Parameters
+    ----------
+    *tools : (str, object)
+        A tool's name (with its Debian package) and whether it is there (truthy).
+
+    Returns
+    -------
+    callable
+        The decorator.
+    """
+    import pytest
+
+    gone = missing(*tools)
+
+    def mark(test):  # type: ignore[no-untyped-def]
+        for m in (pytest.mark.slow, pytest.mark.hil,
+                  pytest.mark.skipif(bool(gone), reason=f"not installed: {', '.join(gone)}")):
+            test = m(test)
+        return test
+    return mark
+
+
+def load_benchmark(name: str):  # type: ignore[no-untyped-def]
+    """The module ``benchmarks/NAME.py``, loaded as its script would be (the benchmarks'
+    folder on the path, for their shared modules such as ``doc_block``)."""
+    import importlib.util
+
+    folder = Path(__file__).resolve().parents[2] / "benchmarks"
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
+    spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def pil(*args: str, code: int = 0) -> dict:
     """``esoarm pil ARGS --json``: its JSON, the exit status checked."""
     res = subprocess.run([sys.executable, "-m", "esoarm", "pil", *args, "--json"],

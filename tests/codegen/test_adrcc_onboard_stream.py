@@ -22,7 +22,7 @@ import pytest
 
 from esoarm.scenario import load_scenario
 
-from .chip_helpers import AVR_TOOLS, missing
+from .chip_helpers import AVR_TOOLS, on_chip
 
 ESOARM = [sys.executable, "-m", "esoarm"]
 CHEAP = ["--stream-every", "10", "--baud", "115200", "--stream-polled"]
@@ -124,15 +124,7 @@ def test_generated_table_is_in_flash_on_the_avr() -> None:
 
 # --------------------------------------------------------------------------- slow, on the chip
 
-MISSING = missing(*AVR_TOOLS)
-
-
-def onchip(test):  # type: ignore[no-untyped-def]
-    """slow, hil, and skipped without the AVR tools (required in CI)."""
-    for mark in (pytest.mark.slow, pytest.mark.hil,
-                 pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")):
-        test = mark(test)
-    return test
+onchip = on_chip(*AVR_TOOLS)
 
 
 def _sizes(elf: Path) -> dict[str, int]:
@@ -195,6 +187,12 @@ def test_hil_onboard_streams_every_10th_at_1khz(tmp_path: Path) -> None:
     got, hil_out = _hil_run(tmp_path, "k1", ["uno-rig", "--sums", "plain", *CHEAP, *short],
                             ["uno-rig", *short, "--baud", "115200"])
     assert "streams every 10th sample at 115200 bit/s, polled from loop()" in hil_out
+    # the firmware benchmarks/bench_onboard.py measures with the same options
+    from esoarm.codegen.onboard import onboard_firmware
+
+    scn = load_scenario("uno-rig", {"sensor.rate_hz": 1000, "duration": 3})
+    bench_elf = onboard_firmware(scn, compensated=False, baud=115200, every=10, polled=True)
+    assert f"firmware {bench_elf}," in hil_out
     assert got["stream_every"] == 10 and got["samples"] == 300
     assert got["lost_samples"] == 0 and got["lost_frames"] == 0 and got["stop_acknowledged"]
     sim = _simulated_rms("uno-rig", *short)
@@ -254,3 +252,51 @@ def test_arduino_example_with_the_cheap_stream_runs_at_1khz(tmp_path: Path) -> N
     run = onboard_run(scn, ex / "build-uno" / "OnBoard.elf", seconds=3.0)
     assert run.faults == []
     assert len(run.k) >= 295 and np.array_equal(run.k, 10 * np.arange(len(run.k)))
+
+
+def test_flash_stream_options_are_checked_before_the_port(run_cli) -> None:  # type: ignore[no-untyped-def]
+    """A bad stream is refused in one line before the port is asked (it does not exist)."""
+    _one_line(run_cli("flash", "uno-rig", "--port", "/dev/esoarm-no-such-port", "--stream-every",
+                      "2", "--baud", "115200", *KHZ), "--stream-every 2", "N >= 4")
+    _one_line(run_cli("flash", "uno-rig", "--port", "/dev/esoarm-no-such-port", "--baud",
+                      "230400"), "--baud 230400")
+
+
+@onchip
+def test_flash_the_cheap_stream_and_read_the_hash_at_its_baud() -> None:
+    """`esoarm flash uno-rig ... --stream-every 10 --baud 115200 --stream-polled` on the
+    simulated Uno (its bootloader in simavr): written, verified, and the firmware answers
+    with the scenario's hash at 115200 bit/s, the build's line rate."""
+    import shutil
+
+    from esoarm.codegen.generate import scenario_hash
+    from esoarm.hardware.flash import SimulatedUno, read_hash
+
+    if not shutil.which("avrdude") or not Path(
+            "/usr/share/arduino/hardware/arduino/avr/bootloaders").is_dir():
+        pytest.skip("avrdude or the Uno's bootloader (arduino-core-avr) not installed")
+    with SimulatedUno() as uno:
+        res = subprocess.run([*ESOARM, "flash", "uno-rig", "--port", uno.port, *KHZ, "--sums",
+                              "plain", *CHEAP, "--json"], capture_output=True, text=True,
+                             timeout=900)
+        assert res.returncode == 0, res.stderr
+        got = json.loads(res.stdout)
+        want = scenario_hash(load_scenario("uno-rig", {"sensor.rate_hz": 1000}))[:8]
+        assert got["ok"] and got["baud"] == 115200 and got["hash_read"] == want
+        assert read_hash(uno.port, 115_200) == want
+
+
+@onchip
+def test_pil_with_the_table_in_flash() -> None:
+    """`esoarm pil` on the ATmega328P with a 72-bin table: agrees with the float64 reference
+    (drive compared; measured 1.5e-7 of the torque limit on test-1's learned table) and uses
+    the static RAM of the run without a table (318 B; 654 B with the table in RAM before)."""
+    from .chip_helpers import pil
+
+    table = json.dumps(_mapped_table())
+    with_table = pil("test-1", "--target", "avr", "--set", "duration=12", "--set",
+                     f"controller.feedforward_map={table}")
+    without = pil("test-1", "--target", "avr", "--set", "duration=12")
+    assert with_table["ok"] and with_table["max_rel_du"] <= 1e-4
+    assert with_table["ram_bytes"] == without["ram_bytes"]
+    assert with_table["flash_bytes"] > without["flash_bytes"] + 72 * 4

@@ -12,22 +12,12 @@ from __future__ import annotations
 import re
 import subprocess
 
-import pytest
-
 from esoarm.scenario import load_scenario
 
-from .chip_helpers import ARM_TOOLS, missing, traced_steps
+from .chip_helpers import ARM_TOOLS, load_benchmark, on_chip, traced_steps
 from .chip_helpers import pil as _pil
 
-MISSING = missing(*ARM_TOOLS)
-
-
-def _on_chip(test):  # type: ignore[no-untyped-def]
-    """slow, hil, skipped with the reason where a tool is missing."""
-    for mark in (pytest.mark.slow, pytest.mark.hil,
-                 pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")):
-        test = mark(test)
-    return test
+_on_chip = on_chip(*ARM_TOOLS)
 
 
 @_on_chip
@@ -112,14 +102,7 @@ def test_instruction_proxy_matches_qemus_exec_trace(tmp_path) -> None:
 def test_bench_replaces_only_the_measured_targets_rows() -> None:
     """``bench_pil.py --targets cortex-m0plus --update``: the M0+ rows are replaced or added
     in the kinds × targets order, every other row is kept word for word."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).parents[2] / "benchmarks" / "bench_pil.py"
-    spec = importlib.util.spec_from_file_location("bench_pil", path)
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_pil")
     head = "| kind | target | precision | observer sums | run |\n|---|---|---|---|---|"
     kind, other = bench.KINDS[0][0], bench.KINDS[1][0]
     old = "\n".join([

@@ -8,14 +8,12 @@ cycle budget": 35 % of the 1 kHz period free at p99 while the arm moves).
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from esoarm.scenario import load_scenario
 
-from .chip_helpers import AVR_TOOLS, missing
+from .chip_helpers import AVR_TOOLS, load_benchmark, missing
 
 MISSING = missing(*AVR_TOOLS)
 
@@ -59,13 +57,7 @@ def test_cheapest_build_leaves_30_percent_free_at_p99_while_the_arm_moves() -> N
     every 10th sample streamed at 115200 bit/s from loop(); busy cycles per 1 ms window at
     p99 over the windows in which the reference moves ≤ 70 % of 16 000 (measured 10 414:
     35 % free).  The default build, every sample at 1 Mbit/s, uses the whole period there."""
-    import importlib.util
-
-    path = Path(__file__).parents[2] / "benchmarks" / "bench_onboard.py"
-    spec = importlib.util.spec_from_file_location("bench_onboard", path)
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_onboard")
     scn = load_scenario("uno-rig", {"sensor.rate_hz": 1000})
     r = bench.measure(scn, False, 2.0, 115_200, 10, True)
     assert r["faults"] == []

@@ -1,14 +1,17 @@
-"""The fast engine runs issue 33's anti-windup settings like the reference engine.
+"""The fast engine runs issue 33's rig and actuator settings like the reference engine.
 
 ``actuator.observer_sees = "commanded"`` (the paper's ESO, fed the command before
-saturation), hard end stops (``rig.end_stops``) and the ESO's gate at a stop
-(``actuator.stop_gate``) used to be refused by the fast C kernel.  Here each runs on it and
-its metrics agree with the reference engine (plain Python, bit-identical to the exact
+saturation), hard end stops (``rig.end_stops``), the ESO's gate at a stop
+(``actuator.stop_gate``), a cogging torque (``rig.cogging``) and a learned feedforward table
+(``controller.feedforward_map``) used to be refused by the fast C kernel.  Here each runs on
+it and its metrics agree with the reference engine (plain Python, bit-identical to the exact
 engine) to the fast engine's documented tolerance, relative 1e-9, with the encoder's
 quantization off (a quantization boundary may otherwise be crossed differently).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
@@ -22,6 +25,10 @@ pytestmark = pytest.mark.skipif(not fast.available(),
 
 RTOL = 1e-9
 STOPS = {"rig.end_stops": [-0.5, 0.8]}
+COG = {"rig.cogging.amplitude": 0.08, "rig.cogging.periods": 6, "rig.cogging.phase": 0.3}
+#: A table over the cogging's six periods [rad/s²], and a short odd one.
+TABLE = [4.0 * math.cos(6 * 2 * math.pi * i / 72) for i in range(72)]
+TABLE5 = [1.0, -2.0, 0.5, 3.0, 0.0]
 CASES = {
     "commanded": {"actuator.observer_sees": "commanded", "actuator.torque_limit": 0.08},
     "commanded+pwm+delay": {"actuator.observer_sees": "commanded",
@@ -31,6 +38,17 @@ CASES = {
     "stops+gate": {**STOPS, "actuator.stop_gate": 0.01},
     "stops+gate+lag+commanded": {**STOPS, "actuator.stop_gate": 0.01, "actuator.lag": 0.01,
                                  "actuator.observer_sees": "commanded"},
+    "cogging": COG,
+    "cogging+lag": {**COG, "actuator.lag": 0.01},
+    "cogging+backlash": {**COG, "rig.backlash_deg": 1.0},
+    "table": {"controller.feedforward_map": TABLE},
+    "cogging+table+pwm+delay+saturation": {**COG, "controller.feedforward_map": TABLE,
+                                           "actuator.pwm_bits": 7,
+                                           "actuator.delay_samples": 1,
+                                           "actuator.torque_limit": 0.12},
+    "table5+commanded+stops": {"controller.feedforward_map": TABLE5, **STOPS,
+                               "actuator.stop_gate": 0.01, "actuator.torque_limit": 0.1,
+                               "actuator.observer_sees": "commanded"},
 }
 FLOATS = [i for i, m in enumerate(batch.METRICS) if m not in ("samples", "diverged")]
 
@@ -65,7 +83,9 @@ def test_each_setting_changes_the_fast_engines_numbers() -> None:
     pairs = [({"actuator.torque_limit": 0.08},
               {"actuator.torque_limit": 0.08, "actuator.observer_sees": "commanded"}),
              ({}, STOPS),
-             (STOPS, {**STOPS, "actuator.stop_gate": 0.01})]
+             (STOPS, {**STOPS, "actuator.stop_gate": 0.01}),
+             ({}, COG),
+             (COG, {**COG, "controller.feedforward_map": TABLE})]
     for before, after in pairs:
         a, b = (load_scenario("test-1", {**base, **o}) for o in (before, after))
         qa, qb = fast.run_metrics([a, b]).values[:, rms]
@@ -74,8 +94,11 @@ def test_each_setting_changes_the_fast_engines_numbers() -> None:
 
 
 def test_seeds_and_mixed_blocks() -> None:
-    """Runs with and without stops in one call (two kernel blocks), several seeds."""
-    pts = [_scn("stops+gate", "zoh"), _scn("commanded", "zoh"),
+    """Runs with and without stops, cogging and tables of 72 and 5 bins in one call (kernel
+    blocks of each structure; lanes of one block with different tables), several seeds."""
+    pts = [_scn("stops+gate", "zoh"), _scn("commanded", "zoh"), _scn("cogging", "zoh"),
+           _scn("table", "zoh"), _scn("table", "zoh").with_overrides(
+               {"controller.feedforward_map": TABLE5}),
            load_scenario("test-1", {"duration": 12.0, "sensor.resolution_deg": 0.0})]
     quick = fast.run_metrics(pts, seeds=[0, 1]).values
     for i, scn in enumerate(pts):
@@ -85,8 +108,8 @@ def test_seeds_and_mixed_blocks() -> None:
                                        atol=0)
 
 
-def test_a_learned_table_is_still_refused_by_name() -> None:
-    scn = load_scenario("test-1", {"controller.feedforward_map": [0.0, 1.0, 0.0, -1.0]})
-    assert "controller.feedforward_map" in (fast.unsupported(scn) or "")
-    with pytest.raises(ValueError, match="controller.feedforward_map"):
+def test_what_it_does_not_model_is_still_refused_by_name() -> None:
+    scn = load_scenario("test-1", {"rig.stiction": 0.05})
+    assert "rig.stiction" in (fast.unsupported(scn) or "")
+    with pytest.raises(ValueError, match="rig.stiction"):
         fast.run_metrics([scn])

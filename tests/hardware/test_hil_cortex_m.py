@@ -8,7 +8,6 @@ qemu-system-arm is missing); the refusals of bad input run in the fast tier.
 from __future__ import annotations
 
 import json
-import shutil
 import signal
 import subprocess
 import sys
@@ -19,19 +18,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from codegen.chip_helpers import ARM_TOOLS, on_chip
 from esoarm.cli import cli
 
-MISSING = [tool for tool in ("arm-none-eabi-gcc", "qemu-system-arm") if not shutil.which(tool)]
 ESOARM = [sys.executable, "-m", "esoarm"]
 RATE = ["--set", "sensor.rate_hz=1000", "--set", "duration=5"]
 
 
-def needs_qemu(func):  # type: ignore[no-untyped-def]
-    """Slow, hil, and skipped with the reason where the ARM toolchain or QEMU is missing."""
-    for mark in (pytest.mark.slow, pytest.mark.hil,
-                 pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")):
-        func = mark(func)
-    return func
+needs_qemu = on_chip(*ARM_TOOLS)  # slow, hil: the ARM toolchain and QEMU
 
 
 @pytest.mark.parametrize("args, words", [

@@ -16,21 +16,15 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from codegen.chip_helpers import AVR_TOOLS, missing
+from codegen.chip_helpers import AVR_TOOLS, on_chip
 from esoarm.cli import cli
 from esoarm.scenario import load_scenario
 from esoarm.studies.commission import Commission, CommissionOptions, CommissionRefused
 
-MISSING = missing(*AVR_TOOLS)
 ESOARM = [sys.executable, "-m", "esoarm"]
 
 
-def needs_hil(func):  # type: ignore[no-untyped-def]
-    """Slow, hil, skipped with the reason where the AVR toolchain or simavr is missing."""
-    for mark in (pytest.mark.slow, pytest.mark.hil,
-                 pytest.mark.skipif(bool(MISSING), reason=f"not installed: {', '.join(MISSING)}")):
-        func = mark(func)
-    return func
+needs_hil = on_chip(*AVR_TOOLS)  # slow, hil: the AVR toolchain and simavr
 
 
 @pytest.mark.parametrize("args, words", [

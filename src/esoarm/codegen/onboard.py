@@ -58,6 +58,10 @@ HEARTBEAT_S = 0.02
 #: 7271 cycles with the reference in the step and is 7238 without it at 50 Hz (the tunable
 #: gains now read from RAM cost about what its two moves did).  A reference with many moves
 #: costs more on board than this allows for: re-measure with benchmarks/bench_onboard.py.
+#: A learned feedforward table is inside the step, so PIL times it (the step without a table
+#: did not change when the table moved to flash).  The decimated polled stream
+#: (``--stream-every 10 --baud 115200 --stream-polled``) costs less, about 4.2k cycles (busy
+#: median 9560 less 5398), so this value is conservative for it.
 OVERHEAD_CYCLES = 9400
 #: The share of the period the predicted median load may use (the rest: bursts, heartbeats).
 LOAD_LIMIT = 0.97

@@ -53,7 +53,7 @@ from esoarm.engines.sample import (
     steps_of,
     update_observer_into,
 )
-from esoarm.plants.actuator import LIMIT, delayed_input
+from esoarm.plants.actuator import GATE, GATE_HI, GATE_LO, LIMIT, delayed_input
 
 if TYPE_CHECKING:
     from esoarm.kinds import Kinds
@@ -171,7 +171,8 @@ class Stepper:
         -------
         Stepper
             Without a controller (:meth:`control` refuses); the actuator limit is
-            unbounded.
+            unbounded; with ``rig.end_stops`` and ``actuator.stop_gate`` the observer's input
+            is gated at the stops as in the closed loop.
         """
         from esoarm.kinds import kinds_of
 
@@ -181,6 +182,12 @@ class Stepper:
         obs = kinds.observer.design(scn, plant, ts)
         actuator = np.zeros(LIMIT + 1)
         actuator[LIMIT] = math.inf
+        stops = getattr(getattr(scn, "rig", None), "end_stops", None)
+        band = getattr(getattr(scn, "actuator", None), "stop_gate", 0.0)
+        if stops and band > 0.0:  # the ESO's gate at an end stop, as in the closed loop
+            actuator = np.zeros(GATE_HI + 1)
+            actuator[LIMIT] = math.inf
+            actuator[GATE], actuator[GATE_LO], actuator[GATE_HI] = band, min(stops), max(stops)
         sampling = Sampling(0, ts, ts, 1, 0, 0.0, 0.0)
         return cls(kinds, plant, obs, None, actuator, np.zeros((3 * plant.n_joints, 1)),
                    sampling)

@@ -226,7 +226,10 @@ class EsoFlcPolicy:
         if not isinstance(base, LeverArmEnv) or not base.observe_estimates:
             raise ValueError("EsoFlcPolicy needs a LeverArmEnv with observe_estimates=True")
         inp = base._inp
-        self._refs = np.zeros((3, 2))  # (θd, θ̇d, θ̈d) of the observation, twice
+        # (θd, θ̇d, θ̈d) of each observation, in the column of its sample: the kind is called
+        # with the sample index k, as in simulate (a kind may act on k, e.g. "switch" at
+        # controller.switch_at)
+        self._refs = np.zeros((3, max(base.n_steps, 1)))
         self._st = Stepper(inp.kinds, inp.plant, inp.observer, inp.controller, inp.actuator,
                            self._refs, inp.sampling)
         self._k = 0
@@ -238,7 +241,11 @@ class EsoFlcPolicy:
             st.start(y0)  # the controller's own state from the first measurement
         st.y[0] = y0
         st.zhat[:3] = (z1, z2, z3)
-        self._refs[:, 0] = self._refs[:, 1] = (ref, dref, ddref)
-        u = st.control(0 if self._k == 0 else 1).copy()
+        k = self._k
+        if k >= self._refs.shape[1]:
+            raise RuntimeError("EsoFlcPolicy: the episode is over; make a new policy after "
+                               "reset()")
+        self._refs[:, k] = (ref, dref, ddref)
+        u = st.control(k).copy()
         self._k += 1
         return u

@@ -19,6 +19,7 @@ from esoarm.cli._common import (
     set_option,
     warn_line,
 )
+from esoarm.cli.board.stream import stream_given, stream_options
 from esoarm.codegen.generate import DEFAULT_PREFIX, TARGETS
 
 
@@ -37,21 +38,7 @@ from esoarm.codegen.generate import DEFAULT_PREFIX, TARGETS
               help="Write an Arduino library instead (library.properties, src/, and "
               "examples/OnBoard/ with a complete sketch and a Makefile for arduino-mk: "
               "'make' there builds the .hex); the folder's name is the library's.")
-@click.option("--stream-every", "every", type=click.IntRange(1, 65535), default=None,
-              metavar="N",
-              help="With --arduino-library: the example streams every N-th sample to the host "
-              "(one CHIP_SAMPLE frame per N samples) and still controls at every sample "
-              "[default: the fewest the line carries]. At 1 kHz, --stream-every 10 --baud "
-              "115200 --stream-polled leaves the Uno 35 % of its period free at p99 while the "
-              "arm moves (docs/on-the-chip.md).")
-@click.option("--baud", type=int, default=None, metavar="BITS/S",
-              help="With --arduino-library: the example's line rate [bit/s; default: "
-              "1000000], one the ATmega328P makes within 2.5 % at 16 MHz (115200, 250000, "
-              "500000, 1000000, ...); the host needs the same 'esoarm run --baud'.")
-@click.option("--stream-polled", "polled", is_flag=True,
-              help="With --arduino-library: the example feeds the line from loop() a byte at "
-              "a time instead of the transmit interrupt (a frame's cost spreads over the "
-              "samples it spans).")
+@stream_options("With --arduino-library")
 @click.option("--prefix", default=DEFAULT_PREFIX, show_default=True,
               help="Of every public name and file (two designs link into one program with "
               "two prefixes).")
@@ -91,9 +78,7 @@ def codegen(scenario: str, overrides: tuple[str, ...], target: str | None, out: 
     """
     from esoarm.codegen import CodegenError, generate, write_sources
 
-    stream = [name for name, given in (("--stream-every", every is not None),
-                                       ("--baud", baud is not None),
-                                       ("--stream-polled", polled)) if given]
+    stream = stream_given(every, baud, polled)
     if stream and library is None:
         raise BadInput(f"{stream[0]} sets the Arduino example's stream: it applies with "
                        "--arduino-library DIR")

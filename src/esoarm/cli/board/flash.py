@@ -16,6 +16,7 @@ from esoarm.cli._common import (
     scenario_argument,
     set_option,
 )
+from esoarm.cli.board.stream import stream_options
 
 
 @click.command()
@@ -27,10 +28,11 @@ from esoarm.cli._common import (
               show_default=True,
               help="The generated observer's float32 sums, as 'esoarm hil --onboard': auto "
               "takes compensated where PIL says it fits the period on board, else plain.")
+@stream_options("The firmware's stream")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @bad_input_guard
 def flash(scenario: str, overrides: tuple[str, ...], port: str, sums: str,
-          as_json: bool) -> None:
+          every: int | None, baud: int | None, polled: bool, as_json: bool) -> None:
     """Build SCENARIO's on-board firmware and write it to the Uno on PORT.
 
     The firmware is the rig firmware with the generated observer and
@@ -40,12 +42,12 @@ def flash(scenario: str, overrides: tuple[str, ...], port: str, sums: str,
     (exit 2) before anything is built or written. After the write avrdude verifies
     the flash, and the firmware is asked for its scenario hash, which must be
     SCENARIO's (exit 1 otherwise). Then run it with 'esoarm run SCENARIO
-    --port PATH --onboard'. Needs avrdude, gcc-avr, avr-libc, arduino-core-avr
-    and arduino-mk.
+    --port PATH --onboard' (with --baud BITS/S when the build sets one). Needs
+    avrdude, gcc-avr, avr-libc, arduino-core-avr and arduino-mk.
     """
     from esoarm.codegen import CodegenError
     from esoarm.codegen.generate import scenario_hash
-    from esoarm.codegen.onboard import BAUD, choose_sums, onboard_firmware
+    from esoarm.codegen.onboard import BAUD, check_stream, choose_sums, onboard_firmware
     from esoarm.hardware.flash import NotABootloader, check_uno
     from esoarm.hardware.flash import flash as write_flash
     from esoarm.hardware.hil.build import ToolchainMissing
@@ -56,6 +58,11 @@ def flash(scenario: str, overrides: tuple[str, ...], port: str, sums: str,
     if scn.motor is None:
         raise BadInput("the Uno firmware drives a PWM duty: the scenario needs a [motor] "
                        "table (see 'esoarm show uno-rig')")
+    baud = BAUD if baud is None else baud
+    try:  # the stream's options before the port: nothing is touched for a bad value
+        check_stream(scn.sensor.rate_hz, baud, every)
+    except CodegenError as exc:
+        raise BadInput(str(exc)) from None
     try:  # the port first: a wrong one is refused before anything is built
         signature = check_uno(port)
     except NotABootloader as exc:
@@ -68,7 +75,8 @@ def flash(scenario: str, overrides: tuple[str, ...], port: str, sums: str,
         if sums == "auto":
             choice = choose_sums(scn, say=note)
             sums, why = choice.name, f" (auto: {choice.reason})"
-        elf = onboard_firmware(scn, compensated=sums == "compensated")
+        elf = onboard_firmware(scn, compensated=sums == "compensated", baud=baud,
+                               every=every, polled=polled)
     except CodegenError as exc:
         raise BadInput(str(exc)) from None
     except ToolchainMissing as exc:
@@ -78,7 +86,7 @@ def flash(scenario: str, overrides: tuple[str, ...], port: str, sums: str,
     note(f"firmware: {hex_path} (scenario '{scn.name}', sha256 {digest}, float32 {sums} "
          f"observer sums{why}); writing it to {port} with avrdude")
     try:
-        rep = write_flash(hex_path, port, digest, BAUD, signature=signature)
+        rep = write_flash(hex_path, port, digest, baud, signature=signature)
     except NotABootloader as exc:
         raise BadInput(str(exc)) from None
     except (ToolchainMissing, RuntimeError, LinkError) as exc:
@@ -86,7 +94,7 @@ def flash(scenario: str, overrides: tuple[str, ...], port: str, sums: str,
     data = {"scenario": scn.name, "sha256": digest, "port": port, "hex": str(rep.hex_path),
             "flash_bytes": rep.flash_bytes, "signature": rep.signature,
             "hash_read": rep.hash_read, "observer_sums": sums, "seconds": round(rep.seconds, 2),
-            "ok": rep.ok}
+            "baud": baud, "ok": rep.ok}
     if as_json:
         click.echo(json.dumps(data))
     else:

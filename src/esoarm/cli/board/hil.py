@@ -18,6 +18,7 @@ from esoarm.cli._common import (
 )
 from esoarm.cli.board.hil_serve import finish, serve_until
 from esoarm.cli.board.hil_serve import say as _say
+from esoarm.cli.board.stream import stream_given, stream_options
 
 
 def _progress(line: str) -> None:
@@ -77,22 +78,7 @@ def _check_avr_elf(path: Path) -> None:
               "ATmega328P; auto times both with PIL (esoarm pil SCENARIO --target avr, cached) "
               "and takes compensated where it fits the period on board, else plain, and says "
               "which and why; a forced choice that does not fit is warned about.")
-@click.option("--stream-every", "every", type=click.IntRange(1, 65535), default=None,
-              metavar="N",
-              help="With --onboard: the chip streams every N-th sample to the host (one "
-              "CHIP_SAMPLE frame per N samples) and still controls at every sample [default: "
-              "the fewest the line carries, 1 at 1 kHz and 1 Mbit/s]. At 1 kHz, "
-              "--stream-every 10 --baud 115200 --stream-polled leaves the Uno 35 % of its "
-              "period free at p99 while the arm moves (docs/on-the-chip.md); 'esoarm run "
-              "--onboard' then logs every N-th sample and says so.")
-@click.option("--baud", type=int, default=None, metavar="BITS/S",
-              help="With --onboard: the firmware's line rate [bit/s; default: 1000000], one "
-              "the ATmega328P makes within 2.5 % at 16 MHz (115200, 250000, 500000, "
-              "1000000, ...). A real board's host needs the same 'esoarm run --baud'.")
-@click.option("--stream-polled", "polled", is_flag=True,
-              help="With --onboard: feed the line from loop() a byte at a time, each frame "
-              "built as it goes, instead of the transmit interrupt: a frame's cost spreads "
-              "over the samples it spans (with --stream-every 10 at 115200 bit/s).")
+@stream_options("With --onboard")
 @click.option("--target", type=click.Choice(["avr", "cortex-m4"]), default="avr",
               show_default=True,
               help="The simulated chip: avr (the Uno firmware in simavr) or cortex-m4 (with "
@@ -124,9 +110,7 @@ def hil(scenario: str, overrides: tuple[str, ...], faults: tuple[str, ...], real
         raise BadInput(f"--sums {sums} applies to the generated observer on board: add "
                        "--onboard (the rig firmware without it runs no observer)")
     sums = sums or "auto"
-    stream = [name for name, given in (("--stream-every", every is not None),
-                                       ("--baud", baud is not None),
-                                       ("--stream-polled", polled)) if given]
+    stream = stream_given(every, baud, polled)
     if stream and not onboard:
         raise BadInput(f"{stream[0]} sets the on-board firmware's stream: add --onboard (the "
                        "rig firmware without it streams a SAMPLE frame per sample)")

@@ -27,8 +27,9 @@ What it supports
     names (a run that needs the exact engine is reported, never silently
     approximated): the lever arm with the linear ESO and the FLC, no motor
     (``actuator.pwm_bits``, coloured noise, gear backlash, ``rig.backlash_deg``, hard end
-    stops, ``rig.end_stops``, the gate ``actuator.stop_gate`` and
-    ``actuator.observer_sees = "commanded"`` are modelled).
+    stops, ``rig.end_stops``, the gate ``actuator.stop_gate``,
+    ``actuator.observer_sees = "commanded"``, a cogging torque, ``rig.cogging``, and a learned
+    feedforward table, ``controller.feedforward_map``, are modelled).
     It computes every metric of :data:`esoarm.engines.metrics.METRICS`.
 
 Without a working C compiler the fast engine is unavailable: :func:`run_metrics`
@@ -82,6 +83,7 @@ _PAR_NAMES = (
     "beta1", "beta2", "beta3", *(f"phi{i}" for i in range(9)), *(f"gamma{i}" for i in range(3)),
     *(f"gain{i}" for i in range(3)), "k1", "k2", "i0", "cgcoef", "limit", "pwm",
     "alpha", "jm", "kgear", "cgear", "sees", "gate", "stop_lo", "stop_hi",
+    "cog_a", "cog_n", "cog_p", "ff_n",
 )
 _NPAR = len(_PAR_NAMES)
 _NOUT = 10
@@ -191,8 +193,8 @@ def _bind(lib: ctypes.CDLL) -> ctypes.CDLL:
     fn = lib.esoarm_fast_block
     fn.restype = None
     i, n, d, p = ctypes.c_int, ctypes.c_long, ctypes.c_double, ctypes.c_void_p
-    fn.argtypes = [i, n, n, n, i, i, i, i, i,  # lanes, N, substeps, delay, kind, comp, lag,
-                   # gear, stops
+    fn.argtypes = [i, n, n, n, i, i, i, i, i, i, i, n, p,  # lanes, N, substeps, delay, kind,
+                   # comp, lag, gear, stops, cogging, table on, its width, the tables
                    d, d, d, d, d,  # h, Ts, disturbance amplitude and frequency, limit
                    p, p, n, p, p, p, p, p]  # par, refs, stride, offsets, noise, ..., out
     return lib
@@ -279,18 +281,13 @@ def unsupported(scn: Scenario) -> str | None:
         return f"rig.disturbance.kind = {kind!r}"
     if getattr(scn.rig, "stiction", 0.0) != 0.0:
         return "rig.stiction > 0 (Stribeck friction)"
-    cogging = getattr(scn.rig, "cogging", None)
-    if cogging is not None and cogging.amplitude != 0.0:
-        return "rig.cogging.amplitude > 0 (a position-periodic torque)"
-    if getattr(scn.controller, "feedforward_map", None):
-        return "controller.feedforward_map (a learned feedforward table)"
     return None
 
 
 def _point_rows(pack: _packing._Pack) -> np.ndarray:
     """(P, NPAR) per-point parameter rows in the kernel's order."""
     # the kinds' vectors without their CODE in element 0
-    f, rg, ob, ct = pack.fpar, pack.pp[:, 1:], pack.op[:, 1:], pack.cp[:, 1:]
+    f, rg, ob, ct = pack.fpar, _rig_rows(pack), pack.op[:, 1:], pack.cp[:, 1:]
     cols = [pack.x0[:, 0], f[:, _packing._SIGMA], f[:, _packing._Q], pack.b0[:, 0],
             rg[:, _rig.INERTIA], rg[:, _rig.GCOEF], rg[:, _rig.FC], rg[:, _rig.VS],
             rg[:, _rig.VISC], rg[:, _rig.LAG],
@@ -302,10 +299,29 @@ def _point_rows(pack: _packing._Pack) -> np.ndarray:
             rg[:, _rig.BACKLASH], rg[:, _rig.JM], rg[:, _rig.KGEAR], rg[:, _rig.CGEAR],
             # what the ESO is fed, the gate's band and the stops (∓1e30 without stops)
             pack.ap[:, _act.SEES], pack.ap[:, _act.GATE], pack.ap[:, _act.GATE_LO],
-            pack.ap[:, _act.GATE_HI]]
+            pack.ap[:, _act.GATE_HI],
+            # rig.cogging (A = 0: none) and the learned table's bin count (0: none)
+            rg[:, _rig.COG_AMP], rg[:, _rig.COG_PERIODS], rg[:, _rig.COG_PHASE],
+            _table_bins(pack)]
     out = np.column_stack(cols)
     assert out.shape[1] == _NPAR
     return out
+
+
+def _rig_rows(pack: _packing._Pack) -> np.ndarray:
+    """The rig vectors without their CODE, zero-padded to every entry (cogging, stops)."""
+    rg = pack.pp[:, 1:]
+    out = np.zeros((rg.shape[0], max(rg.shape[1], _rig.VECTOR_SIZE)))
+    out[:, : rg.shape[1]] = rg
+    return out
+
+
+def _table_bins(pack: _packing._Pack) -> np.ndarray:
+    """(P,) the learned table's bin count of each point (0: none)."""
+    ap = pack.ap
+    if ap.shape[1] <= _act.FF_BINS:
+        return np.zeros(ap.shape[0])
+    return ap[:, _act.FF_BINS].copy()
 
 
 def _has_stops(a: np.ndarray) -> bool:
@@ -313,14 +329,15 @@ def _has_stops(a: np.ndarray) -> bool:
     return bool(a[_act.GATE_LO] > -1e29 or a[_act.GATE_HI] < 1e29)
 
 
-def _structure(pack: _packing._Pack, p: int) -> tuple:  # type: ignore[type-arg]
+def _structure(pack: _packing._Pack, p: int, rgs: np.ndarray,
+               bins: np.ndarray) -> tuple:  # type: ignore[type-arg]
     """What a block must share: sizes, steps, discretization, flags (lag, gear backlash,
-    end stops), disturbance."""
-    ip, f, rg, ob, ct = (pack.ipar[p], pack.fpar[p], pack.pp[p, 1:], pack.op[p, 1:],
-                         pack.cp[p, 1:])
+    end stops, cogging, a learned table), disturbance."""
+    ip, f, rg, ob, ct = pack.ipar[p], pack.fpar[p], rgs[p], pack.op[p, 1:], pack.cp[p, 1:]
     return (int(ip[_packing._N]), int(ip[_packing._NSUB]), int(ip[_packing._DELAY]),
             int(ob[_obs.DISC]), int(ct[_ctl.COMP]), int(rg[_rig.LAG] > 0.0),
             int(rg[_rig.BACKLASH] > 0.0), int(_has_stops(pack.ap[p])),
+            int(rg[_rig.COG_AMP] != 0.0), int(bins[p] > 0.0),
             float(f[_packing._H]), float(f[_packing._TS]), float(rg[_rig.DAMP]),
             float(rg[_rig.DFREQ]))
 
@@ -333,7 +350,8 @@ def _run_pack(lib: ctypes.CDLL, pack: _packing._Pack, workers: int) -> np.ndarra
     refs = np.ascontiguousarray(pack.refs)
     noises = np.ascontiguousarray(pack.noises)
     groups: dict[tuple, list[int]] = {}  # type: ignore[type-arg]
-    keys = [_structure(pack, p) for p in range(len(rows))]
+    rgs, bins = _rig_rows(pack), _table_bins(pack)
+    keys = [_structure(pack, p, rgs, bins) for p in range(len(rows))]
     for r in range(nruns):
         groups.setdefault(keys[pack.run_point[r]], []).append(r)
     blocks = []
@@ -343,16 +361,23 @@ def _run_pack(lib: ctypes.CDLL, pack: _packing._Pack, workers: int) -> np.ndarra
     raw = np.empty((nruns, _NOUT))
 
     def work(item: tuple) -> None:  # type: ignore[type-arg]
-        (n, nsub, delay, kind, comp, lag_on, gear_on, stops_on, h, ts, damp, dfreq), runs = item
+        (n, nsub, delay, kind, comp, lag_on, gear_on, stops_on, cog_on, ff_on, h, ts, damp,
+         dfreq), runs = item
         lanes = np.resize(runs, _LANES)  # pad with repeats; their outputs are dropped
         pts = pack.run_point[lanes]
         par = np.ascontiguousarray(rows[pts].T)
         ref_off = (pack.ipar[pts, _packing._REFIDX] * 3 * nmax).astype(np.int64)
         noise_off = (pack.run_noise[lanes] * nmax).astype(np.int64)
         uhist = np.zeros((delay + 1) * _LANES)
+        # each lane's table, row by row (the bins after FF_BINS in the actuator vector)
+        nbins = bins[pts].astype(np.int64)
+        ffmax = max(int(nbins.max()), 1)
+        ff = np.zeros((_LANES, ffmax))
+        for lane, (pt, nb) in enumerate(zip(pts, nbins, strict=True)):
+            ff[lane, :nb] = pack.ap[pt, _act.FF_BINS + 1 : _act.FF_BINS + 1 + nb]
         out = np.empty((_NOUT, _LANES))
         lib.esoarm_fast_block(len(runs), n, nsub, delay, kind, comp, lag_on, gear_on, stops_on,
-                              h, ts,
+                              cog_on, ff_on, ffmax, ff.ctypes.data, h, ts,
                               damp, dfreq,
                               DIVERGENCE_LIMIT, par.ctypes.data, refs.ctypes.data, nmax,
                               ref_off.ctypes.data, noises.ctypes.data, noise_off.ctypes.data,

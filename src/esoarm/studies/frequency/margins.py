@@ -43,8 +43,8 @@ from esoarm.studies.frequency.linearization import (
     perturbation_estimate,
 )
 
-__all__ = ["FrequencyAnalysis", "Margins", "analyze", "frequency_grid", "freqresp_dc", "margins",
-           "motor_note", "motor_terms"]
+__all__ = ["FrequencyAnalysis", "Margins", "analyze", "frequency_grid", "freqresp_dc",
+           "left_out_notes", "margins", "motor_note", "motor_terms"]
 
 
 # ---------------------------------------------------------------------------
@@ -463,3 +463,48 @@ def _over_range(scn: Scenario, friction: str, n_freq: int) -> dict[str, Any]:
             "gain_margin_min": float(np.min(arr[:, 0])),
             "phase_margin_min": float(np.min(arr[:, 1])),
             "delay_margin_min": float(np.min(arr[:, 2]))}
+
+
+def left_out_notes(scn: Scenario) -> list[str]:
+    """What of the scenario's rig the linear model leaves out, beyond the motor's (one line each).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario analyzed.
+
+    Returns
+    -------
+    list of str
+        Empty when the linear model holds all of it (saturation, quantization and noise
+        are left out always, as the help says).
+    """
+    out = []
+    backlash = getattr(scn.rig, "backlash_deg", 0.0)
+    if backlash > 0:
+        out.append(f"left out (nonlinear): the gear backlash rig.backlash_deg = {backlash:g}° "
+                   "(a dead zone of the two-mass drive train): the linear model takes a rigid "
+                   "gear; simulate or sweep the scenario to see what the play costs")
+    cog = getattr(scn.rig, "cogging", None)
+    if cog is not None and cog.amplitude != 0.0:
+        out.append(f"left out: the cogging torque rig.cogging (A = {cog.amplitude:g} N·m, "
+                   f"{cog.periods:g} periods a turn), linearized a spring of up to A·n = "
+                   f"{abs(cog.amplitude) * cog.periods:.3g} N·m/rad that the linear model does "
+                   "not hold; simulate or sweep the scenario to see what it costs")
+    table = getattr(scn.controller, "feedforward_map", None)
+    if table:
+        # the drive's −I0·m(ẑ1): between nodes 2π/N apart, a slope of I0·Δm·N/(2π)
+        n = len(table)
+        slope = max(abs(table[(i + 1) % n] - table[i]) for i in range(n)) * n / (2 * math.pi)
+        out.append(f"left out: the learned feedforward table controller.feedforward_map ({n} "
+                   f"bins), in the drive and not seen by the ESO, a feedback on ẑ1 of up to "
+                   f"I0·{slope:.3g} = {scn.plant.inertia * slope:.3g} N·m/rad: the margins are "
+                   "the loop's without it; simulate or sweep the scenario to see it")
+    stops = getattr(scn.rig, "end_stops", None)
+    if stops:
+        gate = getattr(scn.actuator, "stop_gate", 0.0)
+        out.append(f"left out (nonlinear): the hard end stops rig.end_stops = "
+                   f"[{min(stops):g}, {max(stops):g}] rad"
+                   + (f" and the ESO's gate actuator.stop_gate = {gate:g} rad" if gate else "")
+                   + ": the linear model holds away from them")
+    return out

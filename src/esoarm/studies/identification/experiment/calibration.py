@@ -117,7 +117,18 @@ class Rig:
         """The value a fitted ``key`` is judged against: the drawn truth, but with gear
         backlash the inertia of the rigid drive train (arm plus the motor side
         ``rig.motor_inertia`` reflected to the arm, over plant.inertia; see the module
-        docstring) [the key's unit]."""
+        docstring).
+
+        Parameters
+        ----------
+        key : str
+            A fitted scenario key, e.g. ``"rig.inertia_scale"``.
+
+        Returns
+        -------
+        float
+            Its judged true value [the key's unit].
+        """
         value = self.truth[key]
         if key == "rig.inertia_scale" and self.truth.get("rig.backlash_deg", 0.0) > 0.0:
             inertia, motor_inertia = _test1_inertias()

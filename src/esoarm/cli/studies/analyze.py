@@ -137,6 +137,8 @@ def _analyze_one(scn: Any, theta0: float | None, friction: str, plot_path: Any, 
         from esoarm.studies.frequency.plots import figure_frequency
 
         figure_frequency(res, plot_path)
+    from esoarm.studies.frequency.margins import left_out_notes
+
     left_out = left_out_notes(scn)
     if as_json:
         extra: dict[str, Any] = {} if recs is None else {"recommendation": recs}
@@ -195,33 +197,12 @@ def _analyze_vary(scn: Any, vary: str, max_points: int, theta0: float | None, fr
             {"value": v, **p.to_dict()} for v, p in zip(spec.values, points, strict=True)]}))
         return
     _print_vary(spec.key, spec.values, points)
+    from esoarm.studies.frequency.margins import left_out_notes
+
     for line in sorted({line for p in scenarios for line in left_out_notes(p)}):
         click.echo(line)
     if plot_path is not None:
         click.echo(f"figure: {plot_path}")
-
-
-def left_out_notes(scn: Any) -> list[str]:
-    """What of the scenario's rig the linear model leaves out, beyond the motor's (one line each).
-
-    Parameters
-    ----------
-    scn : Scenario
-        The scenario analyzed.
-
-    Returns
-    -------
-    list of str
-        Empty when the linear model holds all of it (saturation, quantization and noise
-        are left out always, as the help says).
-    """
-    out = []
-    backlash = getattr(scn.rig, "backlash_deg", 0.0)
-    if backlash > 0:
-        out.append(f"left out (nonlinear): the gear backlash rig.backlash_deg = {backlash:g}° "
-                   "(a dead zone of the two-mass drive train): the linear model takes a rigid "
-                   "gear; simulate or sweep the scenario to see what the play costs")
-    return out
 
 
 def _too_many(vary: str, n: int, max_points: int) -> str:
