@@ -48,8 +48,8 @@ FAST_REFUSES = {"adrc-error": "controller.kind", "adrc-tf": "controller.kind",
                 "input_delay": "observer.input_delay", "pid+eso": "controller.kind",
                 "switch": "controller.kind"}
 #: What analyze refuses (its linearization models the FLC law), by key.
-ANALYZE_REFUSES = {"adrc-error": "controller.kind", "adrc-tf": "controller.kind",
-                   "pid+eso": "controller.kind", "switch": "controller.kind"}
+ANALYZE_REFUSES = {"pid+eso": "controller.kind", "switch": "controller.kind"}
+#: (adrc-error and adrc-tf are analyzed as their FLC equivalent: test_flc_equivalent.py)
 #: Words of analyze's "left out" lines.
 ANALYZE_LEFT_OUT = {"table": ["controller.feedforward_map", "rig.cogging"],
                     "stops+gate": ["rig.end_stops", "actuator.stop_gate"]}

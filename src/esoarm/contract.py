@@ -506,6 +506,10 @@ PRISMATIC_UNITS = Units(position="m", velocity="m/s", acceleration="m/s²", forc
 #:     its law is the feedback linearization of eq. 14-16 with the gains ``k1``, ``k2``
 #:     and ``compensation`` of its table: the frequency-domain analysis and κ (eq. 17)
 #:     model it (a controller without it is refused there in one line);
+#: ``flc_equivalent(params) -> dict[str, object]`` (controllers without ``FLC_LAW``;
+#:     default: none) the scenario overrides under which the FLC (``compensation = "eso"``)
+#:     with the linear ESO closes the same feedback loop y → u as this kind (the reference
+#:     path may differ): the frequency-domain analysis models the kind through them;
 #: ``FAST`` (default False)
 #:     the opt-in fast engine (:mod:`esoarm.engines.fast`, a C kernel) models it;
 #: ``C_SOURCE`` (default None)
@@ -546,6 +550,7 @@ OPTIONAL: dict[str, Any] = {
     "summary": None,
     "warnings": None,
     "linearization": None,
+    "flc_equivalent": None,
     "units_of": None,
     "joint_names": None,
     "joint_limits": None,

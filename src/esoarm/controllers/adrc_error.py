@@ -39,14 +39,21 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm._schema import Section, unit
 from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
-from esoarm.controllers.common import eso_input_limit, eso_words, one_joint, own_eso, zero_state
+from esoarm.controllers.common import (
+    eso_input_limit,
+    eso_words,
+    flc_equivalent,
+    one_joint,
+    own_eso,
+    zero_state,
+)
 from esoarm.plants.actuator import saturate
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = ["CODE", "JIT", "KIND", "LinearADRCParams", "Params", "adrc_error_command",
-           "control", "design", "error_eso_vector", "initialize", "label"]
+           "control", "design", "error_eso_vector", "flc_equivalent", "initialize", "label"]
 
 KIND = "adrc-error"
 CODE = 3

@@ -47,7 +47,13 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm.contract import ComponentDesign, PlantDesign, Vector, read_only
 from esoarm.controllers.adrc_error import LinearADRCParams
-from esoarm.controllers.common import eso_input_limit, eso_words, one_joint, own_eso
+from esoarm.controllers.common import (
+    eso_input_limit,
+    eso_words,
+    flc_equivalent,
+    one_joint,
+    own_eso,
+)
 from esoarm.observers.linear import discrete_linearization
 from esoarm.plants.actuator import saturate
 
@@ -55,7 +61,7 @@ if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = ["CODE", "JIT", "KIND", "Params", "adrc_tf_command", "control", "design",
-           "initialize", "label", "tf_coefficients"]
+           "flc_equivalent", "initialize", "label", "tf_coefficients"]
 
 KIND = "adrc-tf"
 CODE = 4

@@ -28,7 +28,8 @@ from esoarm.observers.linear import ESODesign, design_observer
 if TYPE_CHECKING:
     from esoarm.contract import PlantDesign
 
-__all__ = ["UNCLIPPED", "eso_input_limit", "eso_words", "integration_held", "one_joint", "own_eso",
+__all__ = ["UNCLIPPED", "eso_input_limit", "eso_words", "flc_equivalent", "integration_held",
+           "one_joint", "own_eso",
            "pid_vector", "zero_state"]
 
 #: Length of :func:`pid_vector` (kp, ki, kd, Tf, torque_limit, Ts).
@@ -163,6 +164,32 @@ def own_eso(params: Any, ts: float, b0: float) -> ESODesign:
         :func:`esoarm.observers.linear.design_observer` of those keys.
     """
     return design_observer(params.eps, ts, b0, params.discretization, params.tuning)
+
+
+def flc_equivalent(params: Any) -> dict[str, object]:
+    """The FLC of eq. 14-16 with ``compensation = "eso"`` and the linear ESO of a linear ADRC
+    form's own keys: the same feedback loop y → u (the kind contract's ``flc_equivalent``).
+
+    The output-based form in either realisation (adrc-tf) commands the same u as that FLC to
+    round-off; the error-based form (adrc-error) differs from it only in the reference path
+    (at rest, the same u to round-off: tests/controllers/test_flc_equivalent.py), so the
+    margins, sensitivities and noise gains of the frequency-domain analysis are the same.
+
+    Parameters
+    ----------
+    params : LinearADRCParams
+        k1 [1/s], k2 [1/s²], ``eps`` [s], ``discretization``, ``tuning``.
+
+    Returns
+    -------
+    dict
+        Scenario overrides (``controller.*``, ``observer.*``).
+    """
+    return {"controller.kind": "flc", "controller.compensation": "eso",
+            "controller.k1": params.k1, "controller.k2": params.k2,
+            "observer.kind": "linear", "observer.eps": params.eps,
+            "observer.discretization": params.discretization,
+            "observer.tuning": params.tuning}
 
 
 def eso_words(params: Any) -> str:

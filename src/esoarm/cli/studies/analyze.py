@@ -113,6 +113,7 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
     scn = resolve_scenario(scenario, overrides)
     check_supported(scn)
     if vary is None:
+        scn = _as_its_loop(scn, target_bw)
         try:
             _analyze_one(scn, theta0, friction, plot_path, as_json, target_bw, tracking)
         except KeyboardInterrupt:
@@ -120,6 +121,27 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
                               ) from None
         return
     _analyze_vary(scn, vary, max_points, theta0, friction, plot_path, as_json)
+
+
+def _as_its_loop(scn: Any, target_bw: float | None) -> Any:
+    """``scn``, or the FLC + linear ESO with the same loop y → u for a linear ADRC form (a
+    note says so); ``--bandwidth`` is refused there (it recommends the FLC's observer)."""
+    from esoarm.studies.frequency.linearization import loop_scenario
+
+    loop = loop_scenario(scn)
+    if loop is scn:
+        return scn
+    if target_bw is not None:
+        raise BadInput(f"--bandwidth: recommends the settings of the FLC's observer "
+                       f"(observer.*); controller.kind = '{scn.controller.kind}' runs its own "
+                       "ESO (controller.eps, controller.discretization, controller.tuning): "
+                       "compare them with 'esoarm compare' or 'esoarm sweep'")
+    note(f"controller.kind = '{scn.controller.kind}': analyzed as the loop it closes, the FLC "
+         f"(compensation 'eso') with the linear ESO of its own keys (controller.eps = "
+         f"{scn.controller.eps:g} s, {scn.controller.discretization}, "
+         f"{scn.controller.tuning}): the same feedback y → u (its reference path is not "
+         "part of these margins)")
+    return loop
 
 
 def _analyze_one(scn: Any, theta0: float | None, friction: str, plot_path: Any, as_json: bool,
@@ -163,7 +185,7 @@ def _analyze_one(scn: Any, theta0: float | None, friction: str, plot_path: Any, 
 def _analyze_vary(scn: Any, vary: str, max_points: int, theta0: float | None, friction: str,
                   plot_path: Any, as_json: bool) -> None:
     from esoarm.scenario import ScenarioError
-    from esoarm.studies.frequency.linearization import check_supported
+    from esoarm.studies.frequency.linearization import check_supported, loop_scenario
     from esoarm.studies.frequency.margins import analyze as run_analysis
     from esoarm.studies.sweeps.sweep import parse_vary
 
@@ -173,7 +195,7 @@ def _analyze_vary(scn: Any, vary: str, max_points: int, theta0: float | None, fr
     scenarios = []
     for value in spec.values:  # validate every point before any work
         try:
-            point = scn.with_overrides({spec.key: value})
+            point = loop_scenario(scn.with_overrides({spec.key: value}))
             check_supported(point)
             scenarios.append(point)
         except ScenarioError as exc:

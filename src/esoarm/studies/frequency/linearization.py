@@ -98,6 +98,7 @@ __all__ = [
     "eso_closed_forms",
     "freqresp",
     "linearize",
+    "loop_scenario",
     "motor_damping",
     "observer_model",
     "observer_system",
@@ -127,8 +128,30 @@ def _require_control() -> Any:
 
 def _load(scenario: Scenario | str | Path, overrides: dict | list[str] | None) -> Scenario:
     if isinstance(scenario, Scenario) and not overrides:
-        return scenario
-    return load_scenario(scenario, overrides)
+        return loop_scenario(scenario)
+    return loop_scenario(load_scenario(scenario, overrides))
+
+
+def loop_scenario(scn: Scenario) -> Scenario:
+    """The scenario whose loop this linearization models: ``scn`` itself, or, for a
+    controller kind without ``FLC_LAW`` that declares ``flc_equivalent`` (the linear ADRC
+    forms adrc-tf and adrc-error), the FLC with the linear ESO that closes the same
+    feedback loop y → u (:func:`esoarm.controllers.common.flc_equivalent`).
+
+    Parameters
+    ----------
+    scn : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    Scenario
+        ``scn``, or its equivalent (the scenario's plant, rig, sensor and actuator kept).
+    """
+    if can(scn, "FLC_LAW"):
+        return scn
+    equivalent = hook(kinds_of(scn)[2], "flc_equivalent")
+    return scn if equivalent is None else scn.with_overrides(equivalent(scn.controller))
 
 
 def motor_damping(scn: Scenario) -> float:
@@ -313,10 +336,12 @@ def check_supported(scn: Scenario) -> None:
         raise ScenarioError(
             f"plant.kind: the frequency-domain analysis models the lever arm (one joint), not "
             f"'{scn.plant.kind}'; simulate, sweep and tune run it")
+    scn = loop_scenario(scn)  # a linear ADRC form: its FLC equivalent
     if not can(scn, "FLC_LAW"):  # what the controller kind declares
         raise ScenarioError(
             f"controller.kind: the frequency-domain analysis models the feedback-linearizing "
-            f"law of eq. 14-16 (a controller kind with FLC_LAW), not '{scn.controller.kind}'; "
+            f"law of eq. 14-16 (a controller kind with FLC_LAW or flc_equivalent), not "
+            f"'{scn.controller.kind}'; "
             "simulate, sweep and tune run it")
     observer_linearization(scn)  # refuses an observer kind without one
 
