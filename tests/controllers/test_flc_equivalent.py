@@ -59,6 +59,11 @@ def test_analyze_runs_the_forms_and_says_how(run_cli) -> None:  # type: ignore[n
     assert res.exit_code == 0, res.stderr
     assert "analyzed as the loop it closes" in res.stderr
     assert json.loads(res.stdout)["gain_margin"] > 1.0
+    res = run_cli("analyze", "test-1", "--set", "controller.kind=adrc-tf", "--vary",
+                  "controller.eps=0.05,0.09", "--json")
+    assert res.exit_code == 0 and "analyzed as the loop it closes" in res.stderr, res.stderr
+    gm = [p["gain_margin"] for p in json.loads(res.stdout)["points"]]
+    assert gm[0] != gm[1]  # each point is its own form's loop
     res = run_cli("analyze", "test-1", "--set", "controller.kind=adrc-tf", "--bandwidth", "10")
     assert res.exit_code == 2 and "controller.eps" in res.stderr
     res = run_cli("analyze", "test-1", "--set", "controller.kind=pid")

@@ -120,6 +120,7 @@ def analyze(scenario: str, overrides: tuple[str, ...], varies: tuple[str, ...],
             raise Interrupted("nothing written (analyze prints and draws only at the end)"
                               ) from None
         return
+    _as_its_loop(scn, None)  # the note (each point is mapped on its own: the key may be the form's)
     _analyze_vary(scn, vary, max_points, theta0, friction, plot_path, as_json)
 
 
