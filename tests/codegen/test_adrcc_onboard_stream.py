@@ -21,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from esoarm.scenario import load_scenario
+from hardware.rig_helpers import served
 
 from .chip_helpers import AVR_TOOLS, on_chip
 
@@ -152,24 +153,14 @@ def _hil_run(tmp_path: Path, label: str, hil_args: list[str],
              run_args: list[str]) -> tuple[dict, str]:  # type: ignore[type-arg]
     """``esoarm run --onboard`` against ``esoarm hil --onboard --once``: (metrics, hil's stdout)."""
     log = tmp_path / f"{label}.csv"
-    dev = subprocess.Popen([*ESOARM, "hil", *hil_args, "--onboard", "--once"],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert dev.stdout is not None
-        first = dev.stdout.readline()
-        assert first.startswith("device: "), (first, dev.stderr.read() if dev.stderr else "")
-        port = first.split(": ", 1)[1].strip()
+    with served("hil", *hil_args, "--onboard", "--once") as (dev, port):
         res = subprocess.run([*ESOARM, "run", *run_args, "--port", port, "--onboard", "--json",
                               "--log", str(log), "--watchdog", "5"], capture_output=True,
                              text=True, timeout=600)
         dev.wait(120)
-        out = dev.stdout.read()
-    finally:
-        if dev.poll() is None:
-            dev.terminate()
-            dev.wait(10)
+        out = dev.stdout.read()  # type: ignore[union-attr]
     assert res.returncode == 0, res.stderr
-    return dict(json.loads(res.stdout)), first + out
+    return dict(json.loads(res.stdout)), f"device: {port}\n" + out
 
 
 def _simulated_rms(*args: str) -> float:

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from esoarm.scenario import load_scenario
+from hardware.rig_helpers import served
 
 from .chip_helpers import AVR_TOOLS, missing
 
@@ -62,28 +63,21 @@ def test_hil_onboard_with_the_python_host() -> None:
     from esoarm.hardware.logfile import read_log_columns
 
     esoarm = [sys.executable, "-m", "esoarm"]
-    hil = subprocess.Popen([*esoarm, "hil", "uno-rig", "--onboard", "--sums", "plain", "--once",
-                            "--set", "duration=5"],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     log = Path(os.environ.get("TMPDIR", "/tmp")) / f"esoarm-onboard-{os.getpid()}.csv"
     try:
-        assert hil.stdout is not None
-        first = hil.stdout.readline()
-        assert first.startswith("device: "), first
-        device = first.split(": ", 1)[1].strip()
-        run = subprocess.run([*esoarm, "run", "uno-rig", "--port", device, "--set", "duration=5",
-                              "--onboard", "--log", str(log), "--json", "--watchdog", "2"],
-                             capture_output=True, text=True, timeout=300)
-        assert run.returncode == 0, run.stderr
-        hil.wait(60)
-        got = json.loads(run.stdout)
-        assert log.read_text().startswith("# on board: logging the chip's samples")
-        _, data = read_log_columns(log, ("k", "u", "z2"), "test")  # skips the comment line
-        latency = np.genfromtxt(log, delimiter=",", names=True, skip_header=1)["latency"]
+        with served("hil", "uno-rig", "--onboard", "--sums", "plain", "--once",
+                    "--set", "duration=5") as (hil, device):
+            run = subprocess.run([*esoarm, "run", "uno-rig", "--port", device, "--set",
+                                  "duration=5", "--onboard", "--log", str(log), "--json",
+                                  "--watchdog", "2"],
+                                 capture_output=True, text=True, timeout=300)
+            assert run.returncode == 0, run.stderr
+            hil.wait(60)
+            got = json.loads(run.stdout)
+            assert log.read_text().startswith("# on board: logging the chip's samples")
+            _, data = read_log_columns(log, ("k", "u", "z2"), "test")  # skips the comment line
+            latency = np.genfromtxt(log, delimiter=",", names=True, skip_header=1)["latency"]
     finally:
-        if hil.poll() is None:
-            hil.terminate()
-            hil.wait(10)
         log.unlink(missing_ok=True)
     sim = json.loads(subprocess.run([*esoarm, "simulate", "uno-rig", "--set", "duration=5",
                                      "--json"], capture_output=True, text=True,
@@ -107,32 +101,25 @@ def test_uno_rig_1khz_on_board_with_the_python_host() -> None:
 
     esoarm = [sys.executable, "-m", "esoarm"]
     rate = ["--set", "sensor.rate_hz=1000"]
-    hil = subprocess.Popen([*esoarm, "hil", "uno-rig", "--onboard", "--once", *rate],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     log = Path(os.environ.get("TMPDIR", "/tmp")) / f"esoarm-onboard-1k-{os.getpid()}.csv"
     try:
-        assert hil.stdout is not None
-        first = hil.stdout.readline()
-        assert first.startswith("device: "), first
-        device = first.split(": ", 1)[1].strip()
-        hil.stdout.readline()
-        note = hil.stdout.readline()
-        assert note.startswith("on board: uno-rig's controller, float32 plain observer sums, "
-                               "at 1000 Hz (auto: compensated: PIL median"), note
-        run = subprocess.run([*esoarm, "run", "uno-rig", "--port", device, *rate, "--onboard",
-                              "--log", str(log), "--json", "--watchdog", "5"],
-                             capture_output=True, text=True, timeout=1800)
-        if run.returncode != 0:
+        with served("hil", "uno-rig", "--onboard", "--once", *rate) as (hil, device):
+            assert hil.stdout is not None
+            hil.stdout.readline()
+            note = hil.stdout.readline()
+            assert note.startswith("on board: uno-rig's controller, float32 plain observer sums, "
+                                   "at 1000 Hz (auto: compensated: PIL median"), note
+            run = subprocess.run([*esoarm, "run", "uno-rig", "--port", device, *rate, "--onboard",
+                                  "--log", str(log), "--json", "--watchdog", "5"],
+                                 capture_output=True, text=True, timeout=1800)
+            if run.returncode != 0:
+                hil.wait(60)
+                raise AssertionError(f"{run.stderr}\nhil: {hil.stdout.read()}")
+            assert "every sample (1000 Hz)" in run.stderr
             hil.wait(60)
-            raise AssertionError(f"{run.stderr}\nhil: {hil.stdout.read()}")
-        assert "every sample (1000 Hz)" in run.stderr
-        hil.wait(60)
-        got = json.loads(run.stdout)
-        rows = np.genfromtxt(log, delimiter=",", names=True, skip_header=1)
+            got = json.loads(run.stdout)
+            rows = np.genfromtxt(log, delimiter=",", names=True, skip_header=1)
     finally:
-        if hil.poll() is None:
-            hil.terminate()
-            hil.wait(10)
         log.unlink(missing_ok=True)
     sim = json.loads(subprocess.run([*esoarm, "simulate", "uno-rig", *rate, "--json"],
                                     capture_output=True, text=True, timeout=600).stdout)

@@ -84,6 +84,32 @@ def emulator(*args: str) -> Iterator[EmulatorProcess]:
         proc.stdout.close()
 
 
+@contextmanager
+def served(*args: str, wait: float = 60.0) -> Iterator[tuple[subprocess.Popen[str], str]]:
+    """Start ``esoarm ARGS`` (``hil`` or ``emulate``, serving a device); yield (the process,
+    its port) once it has printed ``device: PORT`` as its first line.  Leaving the block
+    normally waits up to ``wait`` s for it to exit (a ``--once`` server ends with the run),
+    then terminates it; leaving on an error terminates it at once."""
+    dev = subprocess.Popen([sys.executable, "-m", "esoarm", *args], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    ok = False
+    try:
+        assert dev.stdout is not None and dev.stderr is not None
+        first = dev.stdout.readline()
+        assert first.startswith("device: "), (first, "" if first else dev.stderr.read())
+        yield dev, first.split(": ", 1)[1].strip()
+        ok = True
+    finally:
+        if ok and dev.poll() is None:
+            try:
+                dev.wait(wait)
+            except subprocess.TimeoutExpired:
+                pass
+        if dev.poll() is None:
+            dev.terminate()
+            dev.wait(10)
+
+
 def esoarm(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
     """Run the esoarm CLI; capture stdout/stderr as text."""
     return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=timeout)

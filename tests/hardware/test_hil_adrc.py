@@ -15,6 +15,8 @@ import pytest
 
 from codegen.chip_helpers import AVR_TOOLS, missing
 
+from .rig_helpers import served
+
 MISSING = missing(*AVR_TOOLS)
 
 pytestmark = [
@@ -39,22 +41,10 @@ def _on_hil(hil_args: list[str], run_args: list[str], log: Path) -> dict:
 
 def _on_hil_once(hil_args: list[str], run_args: list[str],
                  log: Path) -> subprocess.CompletedProcess[str]:
-    dev = subprocess.Popen([*ESOARM, "hil", *hil_args, "--once"], stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True)
-    try:
-        assert dev.stdout is not None
-        first = dev.stdout.readline()
-        assert first.startswith("device: "), first
-        port = first.split(": ", 1)[1].strip()
+    with served("hil", *hil_args, "--once") as (_, port):
         return subprocess.run([*ESOARM, "run", *run_args, "--port", port, "--json", "--log",
                                str(log), "--watchdog", "2"], capture_output=True, text=True,
                               timeout=300)
-    finally:
-        try:
-            dev.wait(60)
-        except subprocess.TimeoutExpired:
-            dev.terminate()
-            dev.wait(10)
 
 
 def _columns(path: Path, names: list[str]) -> list[np.ndarray]:
