@@ -306,11 +306,16 @@ class Problem:
         phys = [self.limits[k].scale for k in self.free]
         return np.array(phys + [0.1, 1.0] * self.n_seg)
 
+    @property
+    def lag_floor(self) -> float:
+        """The smallest lag T [s] the fit takes: 2h, twice the RK4 step (RK4 needs T ≳ 2h)."""
+        return 2.0 * self.h
+
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         lo = [self.limits[k].lower for k in self.free] + [-np.inf] * (2 * self.n_seg)
         hi = [self.limits[k].upper for k in self.free] + [np.inf] * (2 * self.n_seg)
         if "actuator.lag" in self.free:
-            lo[self.free.index("actuator.lag")] = 2.0 * self.h  # RK4 needs T ≳ 2h
+            lo[self.free.index("actuator.lag")] = self.lag_floor
         return np.array(lo), np.array(hi)
 
     def solve(self, x_start: np.ndarray, max_iter: int = 200) -> Solution:

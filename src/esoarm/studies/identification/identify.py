@@ -110,6 +110,9 @@ NOISE_SANITY = 20.0
 #: scenario's values) before the other delays are tried from it, and of each try.
 FIRST_ITER = 6
 TRY_ITER = 4
+#: A fitted lag below this multiple of its floor (:attr:`Problem.lag_floor`) is taken as
+#: at the floor: no evidence of a lag.
+AT_FLOOR = 1.05
 #: Iterations of the stiction fit before it is judged worth converging (see _fit_stiction).
 STICTION_SCREEN_ITER = 10
 #: A tried delay whose cost is within this many χ²₁ 95 % thresholds of the best is tried
@@ -584,7 +587,7 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
     # 3. the actuator lag: T > 0 kept only if it lowers the cost significantly (χ²₁ test)
     if fit_lag:
         names = [*base_free, "actuator.lag"]
-        lag_lo = 2.0 * prob.h
+        lag_lo = prob.lag_floor
         best_lag = None
         lag_rejected = None
         probe = ts / 4.0
@@ -597,7 +600,7 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
             pl, sl = fit(d, names, nominal, x_phys, sol.x[prob.n_phys:], max_iter=8)
             if best_lag is None or sl.cost < best_lag[1].cost:
                 best_lag = (pl, sl, d)
-        if best_lag is not None and best_lag[1].x[len(base_free)] > 1.05 * lag_lo and \
+        if best_lag is not None and best_lag[1].x[len(base_free)] > AT_FLOOR * lag_lo and \
                 m * math.log(2.0 * sol.cost / max(2.0 * best_lag[1].cost, 1e-300)) > CHI2_95:
             prob, sol, d_best = best_lag
             lag_rejected = None
@@ -623,7 +626,7 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
     # sample less of delay and a 5 ms lag; without the lag it wins)
     if fit_lag and "actuator.lag" in prob.free and sol.converged:
         i_lag = prob.free.index("actuator.lag")
-        if sol.x[i_lag] <= 1.05 * lag_lo:
+        if sol.x[i_lag] <= AT_FLOOR * lag_lo:
             say(f"output-error fit: without the lag (it ended at its floor) with delay {d_best}")
             names0 = [k for k in prob.free if k != "actuator.lag"]
             x0 = [float(v) for k, v in zip(prob.free, sol.x, strict=False)
@@ -633,7 +636,7 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
             if s0.converged and s0.cost <= sol.cost:
                 s0.iterations += sol.iterations
                 prob, sol = p0, s0
-                lag_rejected = lag_lo + ts / 4.0
+                lag_rejected = lag_lo + probe
                 cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
     # 4b. the neighbouring delays again with the final structure (lag, stiction): before
     # them a delay of one sample more or less can win by carrying a lag or a stiction the
@@ -642,7 +645,7 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
         prob, sol, d_best = _delay_with_final_structure(prob, sol, d_best, top_delay, delays,
                                                         cost, fit, say, tried, m)
         if fit_lag and "actuator.lag" not in prob.free and lag_rejected is None:
-            lag_rejected = lag_lo + ts / 4.0  # the delay won without the lag (T = 0)
+            lag_rejected = lag_lo + probe  # the delay won without the lag (T = 0)
     # 5. the scenario's disturbance is taken as known: unless the log confirms it, a fit
     # without it must not be significantly better (a template's sine that the log lacks)
     why = _disturbance_lacking(scn, idim, prob, sol, m, fit_logs, (seg_samples, d_best, start),
@@ -1169,7 +1172,7 @@ def _delay_with_final_structure(prob: Problem, sol, d_best: int, top: int,  # ty
             xs = list(x0)
             i_lag = p.free.index("actuator.lag")
             xs[i_lag] = xs[i_lag] - (d - best[2]) * ts
-            if xs[i_lag] > 1.05 * 2.0 * p.h:
+            if xs[i_lag] > AT_FLOOR * p.lag_floor:
                 starts.append((names, fixed, xs, states))
             else:  # below the lag's floor 2h: that delay without a lag (T = 0 exactly)
                 starts.append(([k for k in names if k != "actuator.lag"],
