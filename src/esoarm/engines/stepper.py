@@ -53,7 +53,7 @@ from esoarm.engines.sample import (
     steps_of,
     update_observer_into,
 )
-from esoarm.plants.actuator import GATE, GATE_HI, GATE_LO, LIMIT, delayed_input
+from esoarm.plants.actuator import GATE, GATE_HI, LIMIT, actuator_vector, delayed_input
 
 if TYPE_CHECKING:
     from esoarm.kinds import Kinds
@@ -180,14 +180,11 @@ class Stepper:
         kinds = kinds_of(scn)
         plant = kinds.plant.design(scn)
         obs = kinds.observer.design(scn, plant, ts)
-        actuator = np.zeros(LIMIT + 1)
+        # the limit unbounded (the observer is fed the command as given) and, of the
+        # scenario's actuator, the ESO's gate at the end stops alone (band 0: no gate)
+        actuator = np.zeros(GATE_HI + 1)
         actuator[LIMIT] = math.inf
-        stops = getattr(getattr(scn, "rig", None), "end_stops", None)
-        band = getattr(getattr(scn, "actuator", None), "stop_gate", 0.0)
-        if stops and band > 0.0:  # the ESO's gate at an end stop, as in the closed loop
-            actuator = np.zeros(GATE_HI + 1)
-            actuator[LIMIT] = math.inf
-            actuator[GATE], actuator[GATE_LO], actuator[GATE_HI] = band, min(stops), max(stops)
+        actuator[GATE:GATE_HI + 1] = actuator_vector(scn)[GATE:GATE_HI + 1]
         sampling = Sampling(0, ts, ts, 1, 0, 0.0, 0.0)
         return cls(kinds, plant, obs, None, actuator, np.zeros((3 * plant.n_joints, 1)),
                    sampling)
