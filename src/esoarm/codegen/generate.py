@@ -480,7 +480,8 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     ------
     CodegenError
         An unknown target, precision or prefix, a precision the target lacks, a
-        kind without C, a reference kind without C, or more than one joint.
+        kind without C, a reference kind without C, ``observer.delay_form = "model"``
+        (no C yet), or more than one joint.
 
     Notes
     -----
@@ -492,6 +493,10 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     """
     compensated = _check_options(target, precision, compensated, prefix)
     kinds = kinds_of(scn)
+    if getattr(scn.observer, "delay_form", "input") == "model":
+        raise CodegenError("observer.delay_form = 'model' has no C code yet: codegen, pil and "
+                           "the on-board modes run delay_form 'input' and 'predictor' "
+                           "(simulate, sweep, replay and run on the host take 'model')")
     texts = _kind_sources(kinds)
     plant = kinds.plant.design(scn)
     if plant.n_joints != 1:
