@@ -320,7 +320,7 @@ _MATH = {
     # name: (float32, float64)
     "FABS": ("fabsf", "fabs"), "POW": ("powf", "pow"), "COS": ("cosf", "cos"),
     "SIN": ("sinf", "sin"), "COPYSIGN": ("copysignf", "copysign"), "EXP": ("expf", "exp"),
-    "FLOOR": ("floorf", "floor"),
+    "FLOOR": ("floorf", "floor"), "TANH": ("tanhf", "tanh"),
 }
 
 
@@ -480,8 +480,7 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     ------
     CodegenError
         An unknown target, precision or prefix, a precision the target lacks, a
-        kind without C, a reference kind without C, ``observer.delay_form = "model"``
-        (no C yet), or more than one joint.
+        kind without C, a reference kind without C, or more than one joint.
 
     Notes
     -----
@@ -493,10 +492,6 @@ def generate(scn: Scenario, target: str = "host", precision: str = "float32",
     """
     compensated = _check_options(target, precision, compensated, prefix)
     kinds = kinds_of(scn)
-    if getattr(scn.observer, "delay_form", "input") == "model":
-        raise CodegenError("observer.delay_form = 'model' has no C code yet: codegen, pil and "
-                           "the on-board modes run delay_form 'input' and 'predictor' "
-                           "(simulate, sweep, replay and run on the host take 'model')")
     texts = _kind_sources(kinds)
     plant = kinds.plant.design(scn)
     if plant.n_joints != 1:
@@ -638,13 +633,16 @@ def _fixed_gain_hooks(obs_text: str, ctl_text: str) -> list[str]:
 
 
 def _observer_defines(scn: Scenario) -> str:
-    """``OBS_RATIO`` (a cascade's) and ``OBS_GAIN_SCALE`` (0.5 for the half-gain tuning)."""
+    """``OBS_RATIO`` (a cascade's), ``OBS_GAIN_SCALE`` (0.5 for the half-gain tuning) and
+    ``OBS_MODEL_FORM`` (1 for the linear ESO's ``delay_form = "model"``)."""
     extra = ""
     ratio = getattr(scn.observer, "ratio", None)
     if ratio is not None:
         extra += f"#define OBS_RATIO {_literal(float(ratio))}\n"
     half = getattr(scn.observer, "tuning", "bandwidth") == "half-gain"
     extra += f"#define OBS_GAIN_SCALE {_literal(0.5 if half else 1.0)}\n"
+    model = getattr(scn.observer, "delay_form", "input") == "model"
+    extra += f"#define OBS_MODEL_FORM {1 if model else 0}\n"
     return extra
 
 
