@@ -75,14 +75,20 @@ def identified_friction(seed: int = IDENT_SEED) -> tuple[float, float]:
 
 
 def rms_error(scn: Scenario, delay: int, seeds: tuple[int, ...], fc: float, fv: float,
-              vs: float = MODEL_VS) -> float:
-    """Mean RMS of θ − θd over ``seeds`` with ``delay_form = "model"``; inf if one diverged."""
+              vs: float = MODEL_VS, told: bool = True) -> float:
+    """Mean RMS of θ − θd over ``seeds`` with ``delay_form = "model"``; inf if one diverged.
+
+    ``told = False``: the observer is not told the delay (``input_delay = 0``) and the
+    reference is not previewed: the model-assisted ESO alone, as the paper's ESO is run.
+    """
     from esoarm.engines.batch import simulate_many
 
     theta_ref = np.asarray(prepare(scn).theta_ref).ravel()
     out = []
     for seed in seeds:
-        point = _scenario(scn, {**form_keys("delay-predictor+preview", scn, delay),
+        form = form_keys("delay-predictor+preview", scn, delay) if told else {
+            "actuator.delay_samples": delay}
+        point = _scenario(scn, {**form,
                                 "observer.discretization": "current",
                                 "observer.delay_form": "model", "observer.model_coulomb": fc,
                                 "observer.model_viscous": fv,
@@ -99,16 +105,18 @@ def rms_error(scn: Scenario, delay: int, seeds: tuple[int, ...], fc: float, fv: 
     return float(np.mean(out))
 
 
-#: row label -> (Fc scale, model vs [rad/s], twin overrides, own yardstick)
-ROWS: dict[str, tuple[float, float, dict, bool]] = {
-    "Fc, Fv identified": (1.0, MODEL_VS, {}, False),
-    "Fc × 0.5": (0.5, MODEL_VS, {}, False),
-    "Fc × 1.5": (1.5, MODEL_VS, {}, False),
-    "Fc = 0 (gravity and viscous only)": (0.0, MODEL_VS, {}, False),
-    "identified, vs = 0.01 rad/s (the twin's)": (1.0, 0.01, {}, False),
+#: row label -> (Fc scale, model vs [rad/s], twin overrides, own yardstick, told the delay)
+ROWS: dict[str, tuple[float, float, dict, bool, bool]] = {
+    "Fc, Fv identified": (1.0, MODEL_VS, {}, False, True),
+    "Fc × 0.5": (0.5, MODEL_VS, {}, False, True),
+    "Fc × 1.5": (1.5, MODEL_VS, {}, False, True),
+    "Fc = 0 (gravity and viscous only)": (0.0, MODEL_VS, {}, False, True),
+    "identified, vs = 0.01 rad/s (the twin's)": (1.0, 0.01, {}, False, True),
     "identified, on a twin with Stribeck stiction 0.02 N·m (not in the model)":
-        (1.0, MODEL_VS, {"rig.stiction": 0.02}, False),
-    "identified, against its own delay-free RMS": (1.0, MODEL_VS, {}, True),
+        (1.0, MODEL_VS, {"rig.stiction": 0.02}, False, True),
+    "identified, against its own delay-free RMS": (1.0, MODEL_VS, {}, True, True),
+    "identified, the ESO not told the delay (input_delay = 0, no preview)":
+        (1.0, MODEL_VS, {}, False, False),
 }
 
 
@@ -127,7 +135,7 @@ def table(cases: list[tuple[float, float]], seeds: tuple[int, ...],
         cols.append(f"{rate:g} Hz, ε = {eps} s")
         yards.append(f"{yard:.5f} ({2.0 * yard:.5f})")
         papers.append(f"{paper} (goal {goal})")
-        for name, (fcs, vs, over, own) in ROWS.items():
+        for name, (fcs, vs, over, own, told) in ROWS.items():
             t = time.perf_counter()
             twin = load_scenario("test-1", {**base, **over}) if over else scn
             limit = 2.0 * (paper_holds(twin, seeds, fine)[0] if over else yard)
@@ -135,13 +143,13 @@ def table(cases: list[tuple[float, float]], seeds: tuple[int, ...],
                 limit = 2.0 * rms_error(twin, 0, seeds, fcs * fc, fv, vs)
             if fine:
                 delays = list(range(1, 17))
-            elif own:
+            elif own or not told:
                 delays = list(range(10, 201, 10))
             else:
                 delays = [goal // 2, goal, round(1.25 * goal)]
             held, seen = 0, []
             for d in delays:
-                e = rms_error(twin, d, seeds, fcs * fc, fv, vs)
+                e = rms_error(twin, d, seeds, fcs * fc, fv, vs, told)
                 seen.append((d, e))
                 if e > limit:
                     break
@@ -150,6 +158,8 @@ def table(cases: list[tuple[float, float]], seeds: tuple[int, ...],
             shown = seen if not fine else [(d, e) for d, e in seen if d == goal]
             if own:
                 shown = [(0, limit / 2.0)] + seen[-2:]
+            elif not told and not fine:
+                shown = seen[-2:]
             if shown:
                 text += " (" + ", ".join(f"{d}: {e:.4f}" for d, e in shown) + ")"
             if over or own:
