@@ -242,3 +242,18 @@ def test_host_controller_commands_what_simulate_does() -> None:
 
     scn = load_scenario("test-1", {**CONSUMER, "sensor.noise_deg": 0.0})
     np.testing.assert_array_equal(host_commands(scn), simulate(scn, warn=False).u)
+
+
+def test_compare_puts_it_beside_the_predictor(run_cli) -> None:  # type: ignore[no-untyped-def]
+    """`esoarm compare --kinds ...,delay-model+preview` (50 Hz, ε = 0.05 s, seeds 0-1):
+    the predictor holds the paper's 4 samples, the model form at least twice that."""
+    import json
+
+    res = run_cli("compare", "test-1", "--kinds", "eso+flc,delay-predictor+preview,"
+                  "delay-model+preview", "--set", "observer.model_coulomb=0.05", "--set",
+                  "observer.model_viscous=0.01", "--set", "observer.eps=0.05",
+                  "--delays", "0,4,8", "--seeds", "2", "--json")
+    assert res.exit_code == 0, res.stderr
+    out = json.loads(res.stdout)
+    held = {r["form"]: r["delay_held"] for r in out["forms"]}
+    assert held == {"eso+flc": 4, "delay-predictor+preview": 4, "delay-model+preview": 8}
