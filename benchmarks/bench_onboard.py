@@ -263,6 +263,9 @@ def main() -> None:
                     "esoarm hil --onboard --stream-polled)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                     help="a scenario override, e.g. controller.kind=adrc-error (repeatable)")
+    ap.add_argument("--learn-map", dest="learn_map", type=int, default=0, metavar="BINS",
+                    help="first learn a table of BINS bins from a 40 s run of the scenario at "
+                    "50 Hz (esoarm learn-map --bins BINS, as the --table row) and build with it")
     ap.add_argument("--label", default="", help="the build's name in the table")
     ap.add_argument("--header", action="store_true", help="print the table's header")
     ap.add_argument("--table", action="store_true",
@@ -275,6 +278,8 @@ def main() -> None:
         key, value = parse_override(kv)
         overrides[key] = value
     scn = load_scenario(args.scenario, overrides)
+    if args.learn_map:
+        scn = with_learned_table(scn, args.learn_map)
     if args.table:
         text = table(scn, args.seconds)
         if args.update:
