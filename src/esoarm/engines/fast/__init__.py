@@ -320,10 +320,7 @@ def _rig_rows(pack: _packing._Pack) -> np.ndarray:
 
 def _table_bins(pack: _packing._Pack) -> np.ndarray:
     """(P,) the learned table's bin count of each point (0: none)."""
-    ap = pack.ap
-    if ap.shape[1] <= _act.FF_BINS:
-        return np.zeros(ap.shape[0])
-    return ap[:, _act.FF_BINS].copy()
+    return np.array([float(_act.table_bins(row)) for row in pack.ap])
 
 
 def _has_stops(a: np.ndarray) -> bool:
