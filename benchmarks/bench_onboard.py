@@ -19,9 +19,14 @@ moves (θ̇d or θ̈d not zero): the issue's budget is "at least 30 % of the per
 while the arm moves".  ``--set KEY=VALUE`` builds another form (e.g.
 ``controller.kind=adrc-error``), ``--baud``/``--every`` stream every n-th sample (the chip
 still controls at every one), ``--polled`` feeds the line from ``loop()`` without the
-transmit interrupt.  ``--stream-every`` and ``--stream-polled`` are the same options under
-the names ``esoarm hil --onboard`` and ``esoarm codegen --arduino-library`` give them: the
-same arguments build the same firmware (one ``onboard_firmware`` call, one cached ELF), e.g.
+transmit interrupt.  ``--learn-map BINS`` first learns a table of BINS bins from a 40 s
+run of the scenario at 50 Hz (as the ``--table`` row does) and builds with it, e.g.
+``python benchmarks/bench_onboard.py --stream-every 10 --baud 115200 --stream-polled
+--sums plain --seconds 3.2 --set rig.cogging.amplitude=0.08 --set rig.cogging.periods=6
+--learn-map 72`` (the learned table at 1 kHz).  ``--stream-every`` and ``--stream-polled``
+are the same options under the names ``esoarm hil --onboard`` and ``esoarm codegen
+--arduino-library`` give them: the same arguments build the same firmware (one
+``onboard_firmware`` call, one cached ELF), e.g.
 ``python benchmarks/bench_onboard.py --stream-every 10 --baud 115200 --stream-polled --sums
 plain`` measures what ``esoarm hil uno-rig --onboard --set sensor.rate_hz=1000 --sums plain
 --stream-every 10 --baud 115200 --stream-polled`` runs.
@@ -263,6 +268,9 @@ def main() -> None:
                     "esoarm hil --onboard --stream-polled)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                     help="a scenario override, e.g. controller.kind=adrc-error (repeatable)")
+    ap.add_argument("--learn-map", dest="learn_map", type=int, default=0, metavar="BINS",
+                    help="first learn a table of BINS bins from a 40 s run of the scenario at "
+                    "50 Hz (esoarm learn-map --bins BINS, as the --table row) and build with it")
     ap.add_argument("--label", default="", help="the build's name in the table")
     ap.add_argument("--header", action="store_true", help="print the table's header")
     ap.add_argument("--table", action="store_true",
@@ -275,6 +283,8 @@ def main() -> None:
         key, value = parse_override(kv)
         overrides[key] = value
     scn = load_scenario(args.scenario, overrides)
+    if args.learn_map:
+        scn = with_learned_table(scn, args.learn_map)
     if args.table:
         text = table(scn, args.seconds)
         if args.update:

@@ -146,7 +146,7 @@ def test_no_heap_no_recursion_no_globals() -> None:
     for word in ("[rad]", "[rad/s]", "[rad/s^2]", "[N m]", "ESOARM_SCENARIO_HASH",
                  "ESOARM_ESOARM_VERSION", "[s]"):
         assert word in gen.header, word
-    assert "REF_MOVES" not in gen.source and "REF_MOVES" in gen.ref_source
+    assert "REF_KSTART" not in gen.source and "REF_KSTART" in gen.ref_source
 
 
 def test_bad_prefix_refused() -> None:

@@ -186,35 +186,78 @@ def _literal(x: float) -> str:
     return f"R({text})"
 
 
+#: The learned table's lookup takes |N θ̂ / 2π| below this as a number (a diverged estimate, or
+#: NaN, gives no feedforward): the node below it, offset by a multiple of N, is then a uint16_t.
+FF_RANGE = 30000
+
+
 def _actuator_defines(act: np.ndarray) -> str:
-    """ACT_SEES (the observer fed the command before saturation) and ACT_FF_N (the learned
-    table's bins, 0 without one) of the actuator vector, for the step and actuator.c."""
+    """The actuator's constants for the step and actuator.c, folded here in float64.
+
+    ACT_SEES (the observer fed the command before saturation); with a ``[motor]`` table the
+    torque → duty map's ACT_DUTY_GAIN = P(1 − δ)/K [counts/(N·m)], ACT_DUTY_TOP = P(1 − δ)
+    and ACT_DUTY_DB = Pδ [counts], and the duty → torque map's ACT_TORQUE_GAIN = K/(P(1 − δ))
+    [N·m/count] and ACT_TORQUE_DB = Kδ/(1 − δ) [N·m] (K stall gain, P pwm_max, δ deadband:
+    :func:`esoarm.plants.motor.torque_to_duty` and :func:`~esoarm.plants.motor.source_torque`
+    as one product and one sum each) and ACT_DUTY_DEAD = ⌊Pδ⌋, the duties that give no
+    torque; ACT_FF_N, the learned table's bins N (0 without one),
+    and with one ACT_FF_SCALE = N/2π [1/rad], ACT_FF_OFFSET, the multiple of N at or above
+    :data:`FF_RANGE` that makes the node below any angle in range non-negative, and
+    ACT_FF_TOP = N·2^k, the largest of these under 2^16 (the wrap into [0, N) subtracts
+    N·2^k, k from there down to 0).
+    """
     sees = 1 if act[actuator.SEES] == actuator.SEES_COMMANDED else 0
-    bins = int(act[actuator.FF_BINS]) if len(act) > actuator.FF_BINS else 0
-    scale = f"#define ACT_FF_SCALE {_literal(bins / (2.0 * np.pi))}\n" if bins else ""
-    return f"#define ACT_SEES {sees}\n#define ACT_FF_N {bins}\n" + scale
+    lines = [f"#define ACT_SEES {sees}"]
+    stall, _, pwm, db = (float(v) for v in act[actuator.MOTOR_BLOCK:actuator.PWM_LEVELS])
+    folded = dict.fromkeys(("DUTY_GAIN", "DUTY_TOP", "DUTY_DB", "TORQUE_GAIN", "TORQUE_DB"),
+                           "R(0.0)")  # read only with a motor
+    if act[actuator.MOTOR] != 0.0:
+        top = pwm * (1.0 - db)
+        folded.update(DUTY_GAIN=_literal(top / stall), DUTY_TOP=_literal(top),
+                      DUTY_DB=_literal(pwm * db), TORQUE_GAIN=_literal(stall / top),
+                      TORQUE_DB=_literal(stall * db / (1.0 - db)))
+    lines += [f"#define ACT_{name} {value}" for name, value in folded.items()]
+    dead = math.floor(pwm * db) if act[actuator.MOTOR] != 0.0 else 0
+    lines.append(f"#define ACT_DUTY_DEAD {dead}L")
+    bins = actuator.table_bins(act)
+    lines.append(f"#define ACT_FF_N {bins}")
+    if bins:
+        lines += [f"#define ACT_FF_SCALE {_literal(bins / (2.0 * np.pi))}",
+                  f"#define ACT_FF_OFFSET {bins * -(-FF_RANGE // bins)}u",
+                  f"#define ACT_FF_TOP {bins << ((0xFFFF // bins).bit_length() - 1)}u"]
+    return "\n".join(lines) + "\n"
 
 
 def _actuator_arrays(act: np.ndarray) -> str:
-    """ACT_P (the actuator vector up to the learned table's bin count) and the table ACT_FF.
+    """ACT_P (the actuator vector up to the learned table's bin count), the table ACT_FF and
+    its slopes ACT_FF_D.
 
-    On the AVR the table is in flash (``PROGMEM``, read with ``pgm_read_float``: avr-gcc's
-    double is 32 bits), not copied into the 2 KiB of RAM at start-up; elsewhere a const
-    array (flash on the Cortex-M parts).  ``ACT_FF_AT(i)`` reads node i.
+    The table's node i is −I0·m_i [N·m] and its slope m_{i+1} − m_i (wrapping at N; in
+    float64 here), so that the lookup interpolates with one product.  On the AVR both are in
+    flash (``PROGMEM``, read with ``pgm_read_float``: avr-gcc's double is 32 bits), not
+    copied into the 2 KiB of RAM at start-up; elsewhere const arrays (flash on the Cortex-M
+    parts).  ``ACT_FF_AT(i)`` and ``ACT_FF_D_AT(i)`` read node i and its slope.
     """
-    bins = int(act[actuator.FF_BINS]) if len(act) > actuator.FF_BINS else 0
+    bins = actuator.table_bins(act)
     if bins == 0:
         return _array("ACT_P", act)
-    table = act[actuator.FF_BINS + 1:]
+    table = np.asarray(act[actuator.FF_BINS + 1:actuator.FF_BINS + 1 + bins], dtype=float)
+    slope = np.roll(table, -1) - table
     items = ", ".join(_literal(float(v)) for v in table)
+    slopes = ", ".join(_literal(float(v)) for v in slope)
     return (_array("ACT_P", act[:actuator.FF_BINS + 1])
-            + "/* the learned feedforward table -I0 m_i [N m] (controller.feedforward_map) */\n"
+            + "/* the learned feedforward table -I0 m_i [N m] (controller.feedforward_map) and\n"
+            " * its slopes -I0 (m_{i+1} - m_i) [N m per bin] */\n"
             "#if defined(__AVR__)\n#include <avr/pgmspace.h>\n"
             "typedef char act_ff_is_32_bits[sizeof(esoarm_real) == 4 ? 1 : -1];\n"
             f"static const esoarm_real ACT_FF[{bins}] PROGMEM = {{{items}}};\n"
-            "#define ACT_FF_AT(i) ((esoarm_real)pgm_read_float(&ACT_FF[(i)]))\n#else\n"
+            f"static const esoarm_real ACT_FF_D[{bins}] PROGMEM = {{{slopes}}};\n"
+            "#define ACT_FF_AT(i) ((esoarm_real)pgm_read_float(&ACT_FF[(i)]))\n"
+            "#define ACT_FF_D_AT(i) ((esoarm_real)pgm_read_float(&ACT_FF_D[(i)]))\n#else\n"
             f"static const esoarm_real ACT_FF[{bins}] = {{{items}}};\n"
-            "#define ACT_FF_AT(i) (ACT_FF[(i)])\n#endif\n")
+            f"static const esoarm_real ACT_FF_D[{bins}] = {{{slopes}}};\n"
+            "#define ACT_FF_AT(i) (ACT_FF[(i)])\n#define ACT_FF_D_AT(i) (ACT_FF_D[(i)])\n"
+            "#endif\n")
 
 
 def _array(name: str, values: np.ndarray | list[float]) -> str:
@@ -236,51 +279,65 @@ def _reference_c(scn: Scenario) -> tuple[str, str]:
     """(struct members, functions) of the scenario's reference as an on-chip generator.
 
     Quintic steps: whole samples decide before/in/after each move with the Python
-    reference's own tests on t_k = k·Ts (float64, at generation), the time into a move
-    is tau = (k − K_start)·Ts + F with F = K_start·Ts − t0, which keeps float32's relative
-    precision within the move; k stops counting after the last move (the target is held
-    for ever: no counter runs out).  Multisine: each sine's phase is carried modulo 2π.
+    reference's own tests on t_k = k·Ts (float64, at generation), the fraction of a move
+    is s = (k − K_start)·Ts/T + F/T with F = K_start·Ts − t0, which keeps float32's relative
+    precision within the move, and its three polynomials carry the move's Δ, 1/T and 1/T²
+    folded in at generation (Horner's rule: 21 operations a sample inside a move where the
+    formula written out took 30; on the ATmega328P about 0.5k cycles less a sample); k stops
+    counting after the last move (the target is held for ever: no counter runs out).
+    Multisine: each sine's phase is carried modulo 2π.
     """
     ref = scn.reference
     ts = scn.sample_time
     if isinstance(ref, QuinticSteps):
-        moves = [float(v) for m in ref.moves for v in m]
-        inverse = [float(v) for _, dur, _ in ref.moves for v in (1.0 / dur, 1.0 / (dur * dur))]
+        targets = [float(target) for _, _, target in ref.moves]
         starts = [_first_sample(ts, t0) for t0, _, _ in ref.moves]
         ends = [_first_sample(ts, t0 + dur) for t0, dur, _ in ref.moves]
-        offsets = [k * ts - t0 for (t0, _, _), k in zip(ref.moves, starts, strict=True)]
+        # s = (k − K_start)·(Ts/T) + (K_start·Ts − t0)/T: the move's fraction, one product
+        # and one sum; its three polynomials in s with the move's Δ, 1/T and 1/T² folded in
+        scale, poly = [], []
+        previous = float(ref.start)
+        for (t0, dur, target), k in zip(ref.moves, starts, strict=True):
+            delta = float(target) - previous
+            scale += [ts / dur, (k * ts - t0) / dur]
+            poly += [6.0 * delta, -15.0 * delta, 10.0 * delta,
+                     30.0 * delta / dur, -60.0 * delta / dur, 30.0 * delta / dur,
+                     120.0 * delta / dur**2, -180.0 * delta / dur**2, 60.0 * delta / dur**2]
+            previous = float(target)
         n = len(ref.moves)
         members = "    uint32_t k;  /* sample index, stops after the last move */\n"
-        body = (_array("REF_MOVES", moves or [0.0]) + _array("REF_INVERSE", inverse or [0.0])
+        body = (_array("REF_TARGET", targets or [0.0]) + _array("REF_SCALE", scale or [0.0])
+                + _array("REF_POLY", poly or [0.0])
                 + f"static const uint32_t REF_KSTART[{max(n, 1)}] = "
                 + "{" + (", ".join(f"{k}UL" for k in starts) or "0UL") + "};\n"
                 + f"static const uint32_t REF_KEND[{max(n, 1)}] = "
                 + "{" + (", ".join(f"{k}UL" for k in ends) or "0UL") + "};\n"
-                + _array("REF_OFFSET", offsets or [0.0])
                 + f"#define REF_NMOVES {n}u\n#define REF_KLAST {max(ends, default=0)}UL\n\n"
                 "void @P@_reference_init(@P@_reference *r)\n{\n    r->k = 0;\n}\n\n"
+                "/* Move i from the previous target by delta over T: with s = (t - t0)/T,\n"
+                " * theta = previous + delta s^3 (10 - 15 s + 6 s^2),\n"
+                " * omega = 30 delta s^2 (1 - 2 s + s^2) / T,\n"
+                " * alpha = 60 delta s (1 - 3 s + 2 s^2) / T^2\n"
+                " * (esoarm.reference), each polynomial by Horner's rule with delta and T\n"
+                " * folded into REF_POLY at generation: 21 operations a sample in a move. */\n"
                 "void @P@_reference_next(@P@_reference *r, esoarm_real out[3])\n{\n"
                 f"    esoarm_real previous = {_literal(ref.start)};\n"
                 "    uint32_t k = r->k;\n"
                 "    unsigned i;\n"
                 "    out[0] = previous; out[1] = R(0.0); out[2] = R(0.0);\n"
                 "    for (i = 0; i < REF_NMOVES; ++i) {\n"
-                "        esoarm_real target = REF_MOVES[3 * i + 2];\n"
-                "        esoarm_real delta = target - previous;\n"
                 "        if (k >= REF_KEND[i]) {\n"
-                "            out[0] = target; out[1] = R(0.0); out[2] = R(0.0);\n"
+                "            out[0] = REF_TARGET[i]; out[1] = R(0.0); out[2] = R(0.0);\n"
                 "        } else if (k >= REF_KSTART[i]) {\n"
-                "            esoarm_real tau = (esoarm_real)(k - REF_KSTART[i]) * REF_TS"
-                " + REF_OFFSET[i];\n"
-                "            esoarm_real s = tau * REF_INVERSE[2 * i], s2 = s * s;\n"
-                "            out[0] = previous + delta * s2 * s * (R(10.0) - R(15.0) * s"
-                " + R(6.0) * s2);\n"
-                "            out[1] = delta * R(30.0) * s2 * (R(1.0) - R(2.0) * s + s2)"
-                " * REF_INVERSE[2 * i];\n"
-                "            out[2] = delta * R(60.0) * s * (R(1.0) - R(3.0) * s + R(2.0) * s2)"
-                " * REF_INVERSE[2 * i + 1];\n"
+                "            const esoarm_real *c = &REF_POLY[9 * i];\n"
+                "            esoarm_real s = (esoarm_real)(k - REF_KSTART[i]) * REF_SCALE[2 * i]"
+                " + REF_SCALE[2 * i + 1];\n"
+                "            esoarm_real s2 = s * s;\n"
+                "            out[0] = previous + s2 * s * ((c[0] * s + c[1]) * s + c[2]);\n"
+                "            out[1] = s2 * ((c[3] * s + c[4]) * s + c[5]);\n"
+                "            out[2] = s * ((c[6] * s + c[7]) * s + c[8]);\n"
                 "        }\n"
-                "        previous = target;\n"
+                "        previous = REF_TARGET[i];\n"
                 "    }\n"
                 "    if (k < REF_KLAST) r->k = k + 1u;\n"
                 "}\n")
@@ -320,7 +377,7 @@ _MATH = {
     # name: (float32, float64)
     "FABS": ("fabsf", "fabs"), "POW": ("powf", "pow"), "COS": ("cosf", "cos"),
     "SIN": ("sinf", "sin"), "COPYSIGN": ("copysignf", "copysign"), "EXP": ("expf", "exp"),
-    "FLOOR": ("floorf", "floor"),
+    "FLOOR": ("floorf", "floor"), "TANH": ("tanhf", "tanh"), "LRINT": ("lrintf", "lrint"),
 }
 
 
@@ -633,13 +690,16 @@ def _fixed_gain_hooks(obs_text: str, ctl_text: str) -> list[str]:
 
 
 def _observer_defines(scn: Scenario) -> str:
-    """``OBS_RATIO`` (a cascade's) and ``OBS_GAIN_SCALE`` (0.5 for the half-gain tuning)."""
+    """``OBS_RATIO`` (a cascade's), ``OBS_GAIN_SCALE`` (0.5 for the half-gain tuning) and
+    ``OBS_MODEL_FORM`` (1 for the linear ESO's ``delay_form = "model"``)."""
     extra = ""
     ratio = getattr(scn.observer, "ratio", None)
     if ratio is not None:
         extra += f"#define OBS_RATIO {_literal(float(ratio))}\n"
     half = getattr(scn.observer, "tuning", "bandwidth") == "half-gain"
     extra += f"#define OBS_GAIN_SCALE {_literal(0.5 if half else 1.0)}\n"
+    model = getattr(scn.observer, "delay_form", "input") == "model"
+    extra += f"#define OBS_MODEL_FORM {1 if model else 0}\n"
     return extra
 
 
@@ -825,7 +885,7 @@ int @P@_set_params(@P@_state *s, const @P@_params *par)
                   @P@_real accel_d)
 {
     esoarm_real ref[3];
-    esoarm_real raw, u, applied, drive, duty, input;
+    esoarm_real raw, u, emf, applied, drive, duty, input;
     uint8_t first = 0;
     if (!ISFINITE(y)) {
         s->fault = (uint8_t)(s->fault | @U@_FAULT_MEASUREMENT);
@@ -845,13 +905,11 @@ int @P@_set_params(@P@_state *s, const @P@_params *par)
     obs_estimate(s->obs_t, s->z, y, s->zhat);
     raw = ctl_control(s->ctl_t, s->c, s->zhat, y, ref, first);
     u = act_saturate(raw, ACT_P[0]);
-    act_actuate(u, s->zhat[1], &applied, &drive, &duty);
+    emf = act_back_emf(s->zhat[1]);
+    act_actuate(u, emf, &applied, &drive, &duty);
 #if ACT_FF_N > 0
-    {   /* the learned table: in the drive and the duty, not in what the observer is fed */
-        esoarm_real host;
-        act_actuate(act_saturate(u + act_feedforward(s->zhat[0]), ACT_P[0]), s->zhat[1],
-                    &host, &drive, &duty);
-    }
+    /* the learned table: in the drive and the duty, not in what the observer is fed */
+    act_drive(act_saturate(u + act_feedforward(s->zhat[0]), ACT_P[0]), emf, &drive, &duty);
 #endif
     if (!ISFINITE(u) || !ISFINITE(applied)) {  /* the state no longer holds a number */
         s->fault = (uint8_t)(s->fault | @U@_FAULT_STATE);

@@ -34,7 +34,7 @@ import numpy as np
 
 from esoarm.engines.simulation import prepare
 from esoarm.hardware.host_control import DeploymentController
-from esoarm.plants.actuator import FF_BINS, MOTOR, MOTOR_BLOCK, actuator_vector, delayed_input
+from esoarm.plants.actuator import MOTOR, MOTOR_BLOCK, actuator_vector, delayed_input, table_bins
 from esoarm.plants.motor import duty_to_torque, torque_to_duty
 from esoarm.plants.sensor import measure
 from esoarm.scenario import Scenario
@@ -177,7 +177,7 @@ def lockstep(scn: Scenario, chip: Chip, steps: int | None = None,
     advance = inp.kinds.plant.advance
     act = actuator_vector(scn)
     motor = act[MOTOR_BLOCK:] if act[MOTOR] else None
-    table = len(act) > FF_BINS and act[FF_BINS] > 0.0 and motor is None
+    table = table_bins(act) > 0 and motor is None
     drive_chip, drive_ref = np.full(n, np.nan), np.full(n, np.nan)
     tie = 1e-6 * ref.torque_limit
     k_done = ties = 0

@@ -58,10 +58,13 @@ HEARTBEAT_S = 0.02
 #: 7271 cycles with the reference in the step and is 7238 without it at 50 Hz (the tunable
 #: gains now read from RAM cost about what its two moves did).  A reference with many moves
 #: costs more on board than this allows for: re-measure with benchmarks/bench_onboard.py.
-#: A learned feedforward table is inside the step, so PIL times it (the step without a table
-#: did not change when the table moved to flash).  The decimated polled stream
-#: (``--stream-every 10 --baud 115200 --stream-polled``) costs less, about 4.2k cycles (busy
-#: median 9560 less 5398), so this value is conservative for it.
+#: A learned feedforward table is inside the step, so PIL times it.  Re-measured after the
+#: cheaper actuator maps and quintic reference (11:05 UTC, 6 December; ``bench_onboard.py
+#: --table``): the default build's busy median 13 948 less PIL's plain median 4562 at 1 kHz,
+#: 9386.  The decimated polled stream (``--stream-every 10 --baud 115200 --stream-polled``)
+#: costs less, about 3.9k cycles (busy median 8456 less 4562), so this value is conservative
+#: for it: with the learned table at 1 kHz (PIL median 6301) ``--sums auto`` refuses a build
+#: that runs with 33 % of the period free at p99.
 OVERHEAD_CYCLES = 9400
 #: The share of the period the predicted median load may use (the rest: bursts, heartbeats).
 LOAD_LIMIT = 0.97

@@ -43,6 +43,7 @@ if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = ["FF_BINS", "SEES", "actuate", "actuate_with_table", "actuator_vector", "gated",
+           "table_bins",
            "back_emf_damping", "delayed_input", "feedforward", "motor_of", "motor_refused",
            "saturate"]
 
@@ -163,6 +164,31 @@ def actuator_vector(scn: Scenario) -> np.ndarray:
 
 
 @jitable
+def table_bins(a: Vector) -> int:
+    """The learned feedforward table's number of bins N in actuator vector ``a`` (0: none).
+
+    Parameters
+    ----------
+    a : ndarray
+        :func:`actuator_vector` (a vector of :data:`VECTOR_SIZE` values, or a table's
+        zero-padded row, has none).
+
+    Returns
+    -------
+    int
+        N, the table's values being ``a[FF_BINS + 1 : FF_BINS + 1 + N]``.
+
+    Examples
+    --------
+    >>> table_bins(np.zeros(VECTOR_SIZE)), table_bins(np.r_[np.zeros(VECTOR_SIZE), 2.0, 1, 2])
+    (0, 2)
+    """
+    if len(a) <= FF_BINS:
+        return 0
+    return int(a[FF_BINS])
+
+
+@jitable
 def feedforward(angle: float, a: Vector) -> float:
     """The learned feedforward torque at angle θ̂ [N·m]: the table −I0·m linearly interpolated.
 
@@ -188,9 +214,9 @@ def feedforward(angle: float, a: Vector) -> float:
     >>> float(feedforward(0.0, a)), float(feedforward(np.pi / 4, a))
     (1.0, 1.5)
     """
-    if len(a) <= FF_BINS or a[FF_BINS] == 0.0:  # no table (or one zero-padded away)
+    n = table_bins(a)
+    if n == 0:  # no table (or one zero-padded away)
         return 0.0
-    n = int(a[FF_BINS])
     x = angle / (2.0 * np.pi) * n
     x = x - n * np.floor(x / n)  # in [0, n)
     i = int(np.floor(x))
@@ -325,7 +351,7 @@ def actuate_with_table(u: float, rate: float, angle: float,
         As :func:`actuate`; drive and duty with the table.
     """
     u_host, drive, duty = actuate(u, rate, a)
-    if len(a) > FF_BINS and a[FF_BINS] > 0.0:
+    if table_bins(a) > 0:
         _, drive, duty = actuate(saturate(u + feedforward(angle, a), a[LIMIT]), rate, a)
     return u_host, drive, duty
 

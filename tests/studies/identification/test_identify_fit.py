@@ -105,7 +105,7 @@ def test_lag_and_delay_fit_simulates_no_more_than_it_needs(tmp_path, monkeypatch
     path = tmp_path / "ld.csv"
     excite_twin(truth, ExcitationPlan(duration=20.0), path)
     count = [0]
-    one, many = identify_fit.simulate_segments, identify_fit.simulate_columns
+    one, many = identify_fit.simulate_segments_parallel, identify_fit.simulate_columns
 
     def counted_one(*args):
         count[0] += 1
@@ -115,7 +115,7 @@ def test_lag_and_delay_fit_simulates_no_more_than_it_needs(tmp_path, monkeypatch
         count[0] += outs.shape[0]
         return many(outs, *args)
 
-    monkeypatch.setattr(identify_fit, "simulate_segments", counted_one)
+    monkeypatch.setattr(identify_fit, "simulate_segments_parallel", counted_one)
     monkeypatch.setattr(identify_fit, "simulate_columns", counted_many)
     res = identify(load_scenario("test-1"), [read_ident_log(path, 2.0)])
     assert count[0] <= 680, count[0]

@@ -274,6 +274,8 @@ def unsupported(scn: Scenario) -> str | None:
             return f"{section}.kind = {module.KIND!r}"
     if getattr(scn.observer, "input_delay", 0):
         return "observer.input_delay > 0"
+    if getattr(scn.observer, "delay_form", "input") == "model":
+        return "observer.delay_form = 'model'"
     if getattr(scn, "motor", None) is not None:
         return "a [motor] model"
     kind = getattr(scn.rig.disturbance, "kind", "sine")
@@ -318,10 +320,7 @@ def _rig_rows(pack: _packing._Pack) -> np.ndarray:
 
 def _table_bins(pack: _packing._Pack) -> np.ndarray:
     """(P,) the learned table's bin count of each point (0: none)."""
-    ap = pack.ap
-    if ap.shape[1] <= _act.FF_BINS:
-        return np.zeros(ap.shape[0])
-    return ap[:, _act.FF_BINS].copy()
+    return np.array([float(_act.table_bins(row)) for row in pack.ap])
 
 
 def _has_stops(a: np.ndarray) -> bool:

@@ -39,7 +39,8 @@ from esoarm.scenario import ScenarioError
 cover_with_physics_stamp(__file__)
 
 __all__ = ["IdentLog", "MIN_DURATION", "MIN_SAMPLES", "check_supported", "read_ident_log",
-           "saturated_share", "simulate_columns", "simulate_segments"]
+           "saturated_share", "simulate_columns", "simulate_segments",
+           "simulate_segments_parallel"]
 
 #: Shortest log accepted [s] and fewest samples.
 MIN_DURATION = 4.0
@@ -274,6 +275,16 @@ def simulate_segments(out, plant, src, t, seg_start, seg_len, x0, h, nsub):  # p
                 for m in range(k + 1, k0 + seg_len[s]):
                     out[m] = math.inf
                 break
+
+
+@njit(cache=True, parallel=True)
+def simulate_segments_parallel(out, plant, src, t, seg_start, seg_len, x0, h,
+                               nsub):  # pragma: no cover
+    """:func:`simulate_segments`, the segments in parallel on all cores (they are
+    independent: each starts from its own initial state).  The same numbers, bit for bit."""
+    for s in prange(len(seg_start)):
+        simulate_segments(out, plant, src, t, seg_start[s:s + 1], seg_len[s:s + 1],
+                          x0[2 * s:2 * s + 2], h, nsub)
 
 
 @njit(cache=True, parallel=True)

@@ -35,7 +35,7 @@ from esoarm.studies.identification.data import (
     IdentLog,
     segments,
     simulate_columns,
-    simulate_segments,
+    simulate_segments_parallel,
 )
 
 __all__ = ["PARAMS", "Limit", "Problem", "Solution", "levenberg_marquardt", "limits_from_data"]
@@ -250,8 +250,8 @@ class Problem:
             return last[1]
         plant, src = self.design(x)
         out = self._out
-        simulate_segments(out, plant, src, self.t, self.seg_start, self.seg_len,
-                          np.ascontiguousarray(x[self.n_phys:]), self.h, self.nsub)
+        simulate_segments_parallel(out, plant, src, self.t, self.seg_start, self.seg_len,
+                                   np.ascontiguousarray(x[self.n_phys:]), self.h, self.nsub)
         pred = out.copy()
         pred.flags.writeable = False  # shared with the cache
         self._last = (x.copy(), pred)
@@ -351,6 +351,9 @@ class Solution:
 def levenberg_marquardt(fun, jac, x, lo, hi, max_iter):  # type: ignore[no-untyped-def]
     """Levenberg-Marquardt with Marquardt's diagonal scaling, steps projected on the bounds.
 
+    A parameter at a bound that the gradient pushes outwards is held there for the step
+    (an active set), and the step is solved for the others.
+
     Written out (instead of scipy's trust-region solvers) because the problem is
     small in columns and long in rows: the normal equations are formed once per
     iteration in O(M P²), with no SVD of the M × P Jacobian.  Stops when an
@@ -370,9 +373,18 @@ def levenberg_marquardt(fun, jac, x, lo, hi, max_iter):  # type: ignore[no-untyp
         A = J.T @ J
         g = J.T @ r
         d = np.maximum(np.diag(A), 1e-12 * max(float(np.max(np.diag(A))), 1e-300))
+        # the active set: a parameter at a bound that the descent direction −g pushes out of
+        # it is held there, and the step is solved for the others.  (Solving for all and then
+        # clipping gives the others the step of a model in which the held one moved: with the
+        # viscous friction at 0 on a log that sticks most of the time the fit then crawled,
+        # 141 iterations of 1-3 % of a standard error, and stopped at a higher cost than the
+        # 17 iterations with the active set.)
+        free = ~(((x <= lo) & (g > 0.0)) | ((x >= hi) & (g < 0.0)))
         while True:
+            step = np.zeros_like(x)
             try:
-                step = np.linalg.solve(A + lam * np.diag(d), -g)
+                step[free] = np.linalg.solve((A + lam * np.diag(d))[np.ix_(free, free)],
+                                             -g[free])
             except np.linalg.LinAlgError:
                 step = np.full_like(x, np.nan)
             xn = np.clip(x + step, lo, hi)
