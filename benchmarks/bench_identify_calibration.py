@@ -9,7 +9,7 @@ coverage of the written 95 % intervals is counted.
 
 Seeds below ``HELD_OUT_START`` may have been looked at while the estimator was tuned; the
 held-out seeds (from ``HELD_OUT_START`` on) were not, and are reported apart.  The held-out
-range now is seeds 9,000,000 … 9,000,199, declared at 11:05 UTC on 2026-12-06 before any
+range now is seeds 9,000,000 … 9,000,199, declared at 11:16 UTC on 2026-12-06 before any
 run on them (seeds 7,000,000 … 7,000,199 and 8,000,000 … 8,000,119, held out for the frozen
 commit 45e3d9f, are tuning data since the estimator was changed on their results; see
 ``calibration.HELD_OUT_START``).  ``--from-json`` takes several dumps and, like

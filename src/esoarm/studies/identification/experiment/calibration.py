@@ -91,8 +91,8 @@ __all__ = ["FAR", "HELD_OUT_START", "Rig", "RigOutcome", "classify", "draw_rig",
 #: their four confidently wrong rigs (branch trust9: the delay's profile walked with the
 #: final model, the AR sandwich at 1 kHz, the lag's state at a segment's start, the fit
 #: without a poorly determined stiction joined in).  Seeds 9_000_000 … 9_000_199 are
-#: declared the held-out range at 11:05 UTC on 2026-12-06, before any run on them; they
-#: are run once, on the commit frozen for it, for the final table.)
+#: declared the held-out range in commit b215a86 (11:16 UTC on 2026-12-06), before any
+#: run on them; they are run once, on the commit frozen for it, for the final table.)
 HELD_OUT_START = 9_000_000
 #: RMS of the default plan's multisine [N·m] (``esoarm excite --amplitude``).
 EXCITATION_RMS = 0.2
