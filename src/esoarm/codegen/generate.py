@@ -377,7 +377,7 @@ _MATH = {
     # name: (float32, float64)
     "FABS": ("fabsf", "fabs"), "POW": ("powf", "pow"), "COS": ("cosf", "cos"),
     "SIN": ("sinf", "sin"), "COPYSIGN": ("copysignf", "copysign"), "EXP": ("expf", "exp"),
-    "FLOOR": ("floorf", "floor"), "LRINT": ("lrintf", "lrint"),
+    "FLOOR": ("floorf", "floor"), "TANH": ("tanhf", "tanh"), "LRINT": ("lrintf", "lrint"),
 }
 
 
@@ -690,13 +690,16 @@ def _fixed_gain_hooks(obs_text: str, ctl_text: str) -> list[str]:
 
 
 def _observer_defines(scn: Scenario) -> str:
-    """``OBS_RATIO`` (a cascade's) and ``OBS_GAIN_SCALE`` (0.5 for the half-gain tuning)."""
+    """``OBS_RATIO`` (a cascade's), ``OBS_GAIN_SCALE`` (0.5 for the half-gain tuning) and
+    ``OBS_MODEL_FORM`` (1 for the linear ESO's ``delay_form = "model"``)."""
     extra = ""
     ratio = getattr(scn.observer, "ratio", None)
     if ratio is not None:
         extra += f"#define OBS_RATIO {_literal(float(ratio))}\n"
     half = getattr(scn.observer, "tuning", "bandwidth") == "half-gain"
     extra += f"#define OBS_GAIN_SCALE {_literal(0.5 if half else 1.0)}\n"
+    model = getattr(scn.observer, "delay_form", "input") == "model"
+    extra += f"#define OBS_MODEL_FORM {1 if model else 0}\n"
     return extra
 
 

@@ -3,7 +3,10 @@
  * OBS_P is the kind's design vector without its CODE (ESODesign.vector):
  *   [0] discretization (0 euler, 1 zoh, 2 current), [1] Ts, [2] b0, [3..5] beta,
  *   [6..14] Phi (row-major), [15..17] Gamma, [18..20] gain (Lp, Lc or Ts*beta),
- *   [21] input delay N [samples], [22] form (0 the ESO fed u_{k-N}, 1 also the predictor).
+ *   [21] input delay N [samples], [22] form (0 the ESO fed u_{k-N}, 1 also the predictor,
+ *   2 the model form), and with the model form (OBS_MODEL_FORM 1, from the generator) [23]
+ *   gravity's (m1 l1 - m2 l2) g [N m], [24] Coulomb Fc [N m], [25] its tanh velocity vs
+ *   [rad/s], [26] viscous Fv [N m s/rad].
  * The entries that depend on epsilon and b0 are read from T, the instance's copy of the
  * vector (obs_retune).
  * The generator supplies esoarm_real, R(x) (a literal in that precision) and
@@ -60,13 +63,38 @@ static void obs_correct(const esoarm_real T[], const esoarm_real z[], esoarm_rea
     }
 }
 
+#if OBS_MODEL_FORM
+/* The nominal model's acceleration m = -(G(th) + Fc tanh(om/vs) + Fv om) b0
+ * (model_acceleration). */
+static esoarm_real obs_model(const esoarm_real T[], esoarm_real th, esoarm_real om)
+{
+    esoarm_real friction = OBS_P[24] * TANH(DIV(om, OBS_P[25])) + OBS_P[26] * om;
+    return -(OBS_P[23] * COS(th) + friction) * T[2];
+}
+#endif
+
 /* The estimate; the predictor form moves angle and rate N samples ahead with the commands
- * already sent (exact held-input model of the triple integrator, f held). */
+ * already sent (exact held-input model of the triple integrator, f held); the model form
+ * adds the model's acceleration at each step and hands over the perturbation z3 + m there
+ * (model_predict). */
 static void obs_estimate(const esoarm_real T[], const esoarm_real z[], esoarm_real y,
                          esoarm_real zhat[])
 {
     uint8_t nd = OBS_DELAY;
     obs_correct(T, z, y, zhat);
+#if OBS_MODEL_FORM
+    {
+        esoarm_real ts = OBS_P[1], half = R(0.5) * OBS_P[1] * OBS_P[1];
+        uint8_t i;
+        for (i = 0; i < nd; ++i) {
+            esoarm_real acc = zhat[2] + T[2] * z[6 + i] + obs_model(T, zhat[0], zhat[1]);
+            zhat[0] = zhat[0] + ts * zhat[1] + half * acc;
+            zhat[1] = zhat[1] + ts * acc;
+        }
+        zhat[2] = zhat[2] + obs_model(T, zhat[0], zhat[1]);
+        return;
+    }
+#endif
     if (nd > 0 && OBS_P[22] == R(1.0)) {
         esoarm_real ts = OBS_P[1], half = R(0.5) * OBS_P[1] * OBS_P[1];
         uint8_t i;
@@ -112,10 +140,13 @@ static void obs_advance(const esoarm_real T[], esoarm_real z[], const esoarm_rea
     esoarm_real corrected[3];
     const esoarm_real *zhat = zhat_in;
     esoarm_real u = obs_delayed(z, u_in);
-    if (OBS_DELAY > 0 && OBS_P[22] == R(1.0)) {   /* zhat_in holds the prediction */
+    if ((OBS_DELAY > 0 && OBS_P[22] == R(1.0)) || OBS_MODEL_FORM) {  /* zhat_in: a prediction */
         obs_correct(T, z, y, corrected);
         zhat = corrected;
     }
+#if OBS_MODEL_FORM
+    u = u + DIV(obs_model(T, zhat[0], zhat[1]), T[2]);  /* the model's acceleration as input */
+#endif
     if (OBS_P[0] == R(0.0)) {           /* "euler": z + Ts (eq. 8) */
         esoarm_real ts = OBS_P[1];
         esoarm_real e = obs_innovation(z, y);

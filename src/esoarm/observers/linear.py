@@ -66,12 +66,14 @@ from pydantic import Field
 from esoarm._jit import jitable
 from esoarm._schema import Section, joint_values, show_joint_values, unit
 from esoarm.contract import ComponentDesign, ObserverLinearization, PlantDesign, Vector, read_only
+from esoarm.plants.elementary import cos, tanh
 
 if TYPE_CHECKING:
     from esoarm.scenario import Scenario
 
 __all__ = [
     "CODE",
+    "check",
     "predict",
     "state_size",
     "FAST",
@@ -108,7 +110,7 @@ __all__ = [
 Discretization = Literal["euler", "zoh", "current"]
 DISCRETIZATIONS: tuple[str, ...] = ("euler", "zoh", "current")
 TUNINGS: tuple[str, ...] = ("bandwidth", "half-gain")
-DELAY_FORMS: tuple[str, ...] = ("input", "predictor")
+DELAY_FORMS: tuple[str, ...] = ("input", "predictor", "model")
 #: the largest ``input_delay`` [samples]
 MAX_INPUT_DELAY = 200
 
@@ -123,6 +125,11 @@ EULER, ZOH, CURRENT = 0, 1, 2
 # (0 "input": the ESO fed u_{k−N}; 1 "predictor": the estimate also predicted N samples ahead).
 DELAY, FORM = 21, 22
 BLOCK_SIZE = 23
+FORM_INPUT, FORM_PREDICTOR, FORM_MODEL = 0.0, 1.0, 2.0
+# delay_form = "model" (one joint only) appends the nominal model to the block: gravity's
+# (m1 l1 − m2 l2) g [N·m], Coulomb Fc [N·m], its tanh velocity vs [rad/s], viscous Fv [N·m·s/rad]
+M_GCOEF, M_FC, M_VS, M_FV = 23, 24, 25, 26
+MODEL_BLOCK_SIZE = 27
 
 KIND = "linear"
 CODE = 0
@@ -156,9 +163,21 @@ class Params(Section):
         0, ge=0, le=MAX_INPUT_DELAY, description="the ESO is fed the command of this many "
         "samples ago (the rig's transport delay, actuator.delay_samples)",
         json_schema_extra=unit("samples"))
-    delay_form: Literal["input", "predictor"] = Field(
+    delay_form: Literal["input", "predictor", "model"] = Field(
         "input", description='with input_delay > 0: "input": the ESO fed u_{k−N} | '
-        '"predictor": also the estimate predicted N samples ahead (a Smith predictor)')
+        '"predictor": also the estimate predicted N samples ahead (a Smith predictor) | '
+        '"model": the ESO and the prediction add the nominal model (the plant\'s gravity, '
+        'the model_* friction), a lever arm only')
+    model_coulomb: float = Field(
+        0.0, ge=0, description='with delay_form = "model": the Coulomb friction Fc the '
+        "model assumes (e.g. identified)", json_schema_extra=unit("N·m"))
+    model_viscous: float = Field(
+        0.0, ge=0, description='with delay_form = "model": the viscous friction Fv the '
+        "model assumes", json_schema_extra=unit("N·m·s/rad"))
+    model_friction_velocity: float = Field(
+        0.05, gt=0, description='with delay_form = "model": the model\'s Coulomb friction '
+        "is Fc·tanh(θ̇/vs); a vs wider than the rig's keeps an over-estimated Fc from a limit "
+        "cycle", json_schema_extra=unit("rad/s"))
 
 
 def continuous_gains(eps: float) -> tuple[float, float, float]:
@@ -640,7 +659,8 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     Raises
     ------
     ValueError
-        If ``observer.eps`` has not one entry per joint.
+        If ``observer.eps`` has not one entry per joint, or ``delay_form = "model"`` is set
+        on a plant other than the one-joint lever arm.
     """
     n = plant.n_joints
     ob = scn.observer
@@ -654,7 +674,99 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
                                               getattr(ob, "tuning", "bandwidth")).vector,
                               [float(nd), float(form)]])
               for e, b0 in zip(eps_j, plant.b0, strict=True)]
+    if form == FORM_MODEL:
+        blocks[0] = np.concatenate([blocks[0], nominal_model(scn, n)])
     return ComponentDesign(read_only(np.concatenate([[float(CODE)], *blocks])), (3 + nd) * n)
+
+
+def nominal_model(scn: Scenario, n_joints: int) -> np.ndarray:
+    """The model of ``delay_form = "model"``: (gcoef [N·m], Fc [N·m], vs [rad/s], Fv [N·m·s/rad]).
+
+    Gravity is the plant's nominal G(θ) = gcoef·cos θ (what the FLC's ``compensation =
+    "model"`` cancels); the friction is the observer's ``model_*`` keys (the rig's is not
+    read: the controller knows only what it is told).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The validated scenario.
+    n_joints : int
+        The plant's joints (must be 1).
+
+    Returns
+    -------
+    ndarray, shape (4,)
+
+    Raises
+    ------
+    ValueError
+        If the plant is not the one-joint lever arm (the model is its gravity).
+    """
+    from esoarm.plants.model import gravity_coefficient
+
+    p = scn.plant
+    if getattr(p, "kind", "") != "lever-arm" or n_joints != 1:
+        raise ValueError(f"observer.delay_form = 'model' needs plant.kind = 'lever-arm' (its "
+                         f"nominal gravity is the model); got plant.kind = "
+                         f"'{getattr(p, 'kind', '?')}' with {n_joints} joint(s)")
+    ob = scn.observer
+    return np.array([gravity_coefficient(p.m1, p.m2, p.l1, p.l2, p.g), ob.model_coulomb,
+                     ob.model_friction_velocity, ob.model_viscous])
+
+
+@jitable
+def model_acceleration(theta: float, omega: float, obs: np.ndarray) -> float:
+    """The nominal model's acceleration m(θ, θ̇) = −(G(θ) + Fc tanh(θ̇/vs) + Fv θ̇)/I0 [rad/s²].
+
+    Parameters
+    ----------
+    theta, omega : float
+        Angle [rad] and rate [rad/s].
+    obs : ndarray
+        The joint's block with the model (:data:`MODEL_BLOCK_SIZE` entries); I0 = 1/b0.
+
+    Returns
+    -------
+    float
+        m [rad/s²]: the acceleration the model predicts besides b0·u.
+    """
+    friction = obs[M_FC] * tanh(omega / obs[M_VS]) + obs[M_FV] * omega
+    acc: float = -(obs[M_GCOEF] * cos(theta) + friction) * obs[B0]
+    return acc
+
+
+@jitable
+def model_predict(h1: float, h2: float, h3: float, z: np.ndarray, base: int, nd: int,
+                  obs: np.ndarray) -> tuple[float, float, float]:
+    """θ̂, θ̇̂ and the total perturbation at t_{k+N} with the nominal model (``"model"``).
+
+    The held-input steps of :func:`eso_predict` with the acceleration
+    a_i = ẑ3 + b0 u_{k−N+i} + m(θ_i, θ̇_i) (:func:`model_acceleration`; ẑ3 is what the
+    model leaves, held): a velocity reversal inside the horizon brings its friction step.
+
+    Parameters
+    ----------
+    h1, h2, h3 : float
+        The model-assisted estimate ẑ_k: angle [rad], rate [rad/s], residual [rad/s²].
+    z : ndarray
+        The observer state; ``z[base:base+nd]`` holds u_{k−N} … u_{k−1} [N·m].
+    base, nd : int
+        Where the commands start; the input delay N [samples].
+    obs : ndarray
+        The joint's block with the model.
+
+    Returns
+    -------
+    tuple of float
+        Angle [rad], rate [rad/s] and total perturbation ẑ3 + m [rad/s²] at t_{k+N}.
+    """
+    ts = obs[TS]
+    b0 = obs[B0]
+    half = 0.5 * ts * ts
+    for i in range(nd):
+        acc = h3 + b0 * z[base + i] + model_acceleration(h1, h2, obs)
+        h1, h2 = h1 + ts * h2 + half * acc, h2 + ts * acc
+    return h1, h2, h3 + model_acceleration(h1, h2, obs)
 
 
 @jitable
@@ -795,7 +907,9 @@ def estimate(z: np.ndarray, y: np.ndarray, p: np.ndarray, zhat: np.ndarray) -> N
         obs = p[1:]
         h1, h2, h3 = eso_estimate(z[0], z[1], z[2], y[0], obs)
         nd = int(obs[DELAY])
-        if nd > 0 and obs[FORM] == 1.0:
+        if obs[FORM] == FORM_MODEL:
+            h1, h2, h3 = model_predict(h1, h2, h3, z, 3, nd, obs)
+        elif nd > 0 and obs[FORM] == FORM_PREDICTOR:
             h1, h2 = eso_predict(h1, h2, h3, z, 3, nd, obs)
         zhat[0], zhat[1], zhat[2] = h1, h2, h3
         return
@@ -839,9 +953,12 @@ def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
         obs = p[1:]
         nd = int(obs[DELAY])
         h1, h2, h3 = zhat[0], zhat[1], zhat[2]
-        if nd > 0 and obs[FORM] == 1.0:
+        if (nd > 0 and obs[FORM] == FORM_PREDICTOR) or obs[FORM] == FORM_MODEL:
             h1, h2, h3 = eso_estimate(z[0], z[1], z[2], y[0], obs)
         ud = _delayed(z, 3, nd, u[0])
+        if obs[FORM] == FORM_MODEL:
+            # the model's acceleration enters as a known input: b0·(u + m(ẑ1, ẑ2)/b0)
+            ud = ud + model_acceleration(h1, h2, obs) / obs[B0]
         z[0], z[1], z[2] = eso_advance(z[0], z[1], z[2], h1, h2, h3, y[0], ud, obs)
         return
     vec = np.asarray(p)
@@ -855,6 +972,28 @@ def advance(z: np.ndarray, zhat: np.ndarray, y: np.ndarray, u: np.ndarray,
         ud = _delayed(z, 3 * nj + nd * j, nd, u[j])
         z[i], z[i + 1], z[i + 2] = eso_advance(z[i], z[i + 1], z[i + 2], h1, h2, h3, y[j], ud,
                                                obs_j)
+
+
+def check(scn: Scenario) -> str | None:
+    """The model form's plant: ``delay_form = "model"`` needs the one-joint lever arm.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario, valid key by key.
+
+    Returns
+    -------
+    str or None
+        One line naming ``observer.delay_form``, or None.
+    """
+    if getattr(scn.observer, "delay_form", "input") != "model":
+        return None
+    if getattr(scn.plant, "kind", "") != "lever-arm":
+        return (f"key 'observer.delay_form': 'model' adds the lever arm's nominal gravity and the "
+                f"observer.model_* friction; plant.kind = '{scn.plant.kind}' has no such model "
+                "(use 'input' or 'predictor')")
+    return None
 
 
 def label(params: Params) -> str:
@@ -875,7 +1014,9 @@ def label(params: Params) -> str:
     out = str(params.discretization)
     if params.tuning != "bandwidth":
         out += f", {params.tuning}"
-    if params.input_delay:
+    if params.delay_form == "model":
+        out += f", model predictor {params.input_delay}"
+    elif params.input_delay:
         out += f", {'predictor' if params.delay_form == 'predictor' else 'delay'} " \
             f"{params.input_delay}"
     return out
@@ -934,6 +1075,14 @@ def warnings(params: Params, ts: float) -> list[str]:
                    "as observer.input_delay grows (test-1 at 50 Hz, ε = 0.03 s: unstable from "
                    "9 samples); 'current' or 'zoh' keeps the controller's poles for any delay "
                    "(check with esoarm analyze)")
+    if params.delay_form == "model" and params.discretization != "current":
+        out.append(f"observer.delay_form = 'model' with discretization "
+                   f"'{params.discretization}': it was measured on 'current' (docs/adrc.md, "
+                   "\"The model-based predictor\")")
+    if params.delay_form == "model" and params.model_coulomb == 0.0 \
+            and params.model_viscous == 0.0:
+        out.append("observer.delay_form = 'model' with model_coulomb = model_viscous = 0: the "
+                   "model is gravity alone, which does not reach twice the delay on test-1")
     return out
 
 
@@ -1050,6 +1199,12 @@ def linearization(params: Params, ts: float, b0: float) -> ObserverLinearization
         Its design pole is the slowest error pole of the discretization and tuning; with an
         input delay N, 3 + N states (:func:`delayed_linearization`).
     """
+    if params.delay_form == "model":
+        from esoarm.scenario.errors import ScenarioError
+
+        raise ScenarioError("observer.delay_form = 'model': the frequency-domain analysis has "
+                            "no linear model of it (its friction model is nonlinear in θ̇); "
+                            "analyze the same scenario with delay_form = 'predictor'")
     d = design_observer(_one_eps(params), ts, b0, params.discretization, params.tuning)
     pole = float(np.max(np.abs(d.poles)))
     lin = discrete_linearization(d, d.gain, pole, "ESO")

@@ -26,6 +26,8 @@ _DEFAULT_FORMS = "eso+flc,half-gain,adrc-tf,adrc-error,pid,pid+eso"
               help="Comma-separated forms: eso+flc (the paper's ESO + FLC), half-gain, "
               "delay-input, delay-predictor (told actuator.delay_samples), "
               "delay-predictor+preview (also the reference's moves started N·Ts earlier), "
+              "delay-model+preview (the same with observer.delay_form = 'model' on the "
+              "'current' ESO; give the friction with --set observer.model_coulomb=...), "
               "adrc-tf, adrc-error, pid, pid+eso.")
 @click.option("--seeds", type=click.IntRange(1, 64), default=4, show_default=True,
               help="Noise seeds per form (sensor.seed 0 … N−1); means are reported.")

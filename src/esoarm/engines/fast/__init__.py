@@ -274,6 +274,8 @@ def unsupported(scn: Scenario) -> str | None:
             return f"{section}.kind = {module.KIND!r}"
     if getattr(scn.observer, "input_delay", 0):
         return "observer.input_delay > 0"
+    if getattr(scn.observer, "delay_form", "input") == "model":
+        return "observer.delay_form = 'model'"
     if getattr(scn, "motor", None) is not None:
         return "a [motor] model"
     kind = getattr(scn.rig.disturbance, "kind", "sine")

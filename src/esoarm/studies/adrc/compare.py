@@ -37,12 +37,16 @@ FORMS: dict[str, dict[str, Any]] = {
 }
 
 #: Forms told the transport delay (observer.input_delay = actuator.delay_samples).
-DELAY_AWARE = ("delay-input", "delay-predictor", "delay-predictor+preview")
+DELAY_AWARE = ("delay-input", "delay-predictor", "delay-predictor+preview",
+               "delay-model+preview")
 
 FORMS["delay-predictor+preview"] = {"observer.delay_form": "predictor"}
+#: the model-based predictor on the exact-model ESO (its friction: observer.model_* of --set)
+FORMS["delay-model+preview"] = {"observer.delay_form": "model",
+                                "observer.discretization": "current"}
 #: Forms that see the reference N samples ahead (the moves started N·Ts earlier; the error is
 #: measured against the reference itself).
-PREVIEW = ("delay-predictor+preview",)
+PREVIEW = ("delay-predictor+preview", "delay-model+preview")
 
 
 def form_keys(form: str, base: Scenario, delay: int = 0) -> dict[str, Any]:
