@@ -9,9 +9,11 @@ coverage of the written 95 % intervals is counted.
 
 Seeds below ``HELD_OUT_START`` may have been looked at while the estimator was tuned; the
 held-out seeds (from ``HELD_OUT_START`` on) were not, and are reported apart.  The held-out
-range now is seeds 7,000,000 … 7,000,199, declared at 07:53 UTC on 2026-12-06 before any
-result on them was looked at (seeds 6,000,000 … are tuning data since the estimator was
-changed on their results; see ``calibration.HELD_OUT_START``).
+range now is seeds 9,000,000 … 9,000,199, declared at 11:16 UTC on 2026-12-06 before any
+run on them (seeds 7,000,000 … 7,000,199 and 8,000,000 … 8,000,119, held out for the frozen
+commit 45e3d9f, are tuning data since the estimator was changed on their results; see
+``calibration.HELD_OUT_START``).  ``--from-json`` takes several dumps and, like
+``--range-note``, writes one table per million of seeds and one of them together.
 
 Run: ``python benchmarks/bench_identify_calibration.py --rigs 200`` (writes
 docs/benchmarks-identify-calibration.md; ``--tuning M`` adds M rigs of the tuning seeds;
@@ -67,9 +69,10 @@ def _row(o: RigOutcome) -> str:
             f"{o.seconds:.1f} | {note} |")
 
 
-def _table(title: str, outs: list[RigOutcome]) -> list[str]:
+def _table(title: str, outs: list[RigOutcome], note: str = "",
+           rows: bool = True) -> list[str]:
     s = summary(outs)
-    lines = [f"## {title}", "",
+    lines = [f"## {title}", "", *([note, ""] if note else []),
              f"**{s['rigs']:.0f} rigs; {s['recovered']:.0f} recovered "
              f"({s['recovered_percent']:.1f} %), {s['flagged']:.0f} flagged "
              f"({s['flagged_percent']:.1f} %), {s['refused']:.0f} refused "
@@ -95,6 +98,8 @@ def _table(title: str, outs: list[RigOutcome]) -> list[str]:
     if secs:
         lines += [f"identify wall-clock per rig: median {secs[len(secs) // 2]:.1f} s, "
                   f"max {secs[-1]:.1f} s.", ""]
+    if not rows:
+        return lines
     lines += ["| seed | twin | stuck | verdict | identify [s] | what missed, or why refused |",
               "|---|---|---|---|---|---|"]
     lines += [_row(o) for o in outs]
@@ -113,12 +118,22 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--out", default=str(ROOT / "docs" / "benchmarks-identify-calibration.md"))
     ap.add_argument("--json", dest="json_out", default="", help="also dump the outcomes")
-    ap.add_argument("--from-json", dest="from_json", default="",
-                    help="write the page from a --json dump of an earlier run (nothing is run)")
+    ap.add_argument("--from-json", dest="from_json", nargs="+", default=[],
+                    help="write the page from --json dumps of earlier runs (nothing is run)")
     ap.add_argument("--note", default="", help="a sentence added under the page's header")
+    ap.add_argument("--range-note", dest="range_notes", action="append", default=[],
+                    metavar="START=TEXT", help="a sentence under the table of the seeds from "
+                    "START to the next million (which commit, when, how it was declared)")
     args = ap.parse_args()
-    if args.held_start < HELD_OUT_START or args.tuning_start + args.tuning > HELD_OUT_START:
+    if not args.from_json and (args.held_start < HELD_OUT_START
+                               or args.tuning_start + args.tuning > HELD_OUT_START):
         ap.error(f"held-out seeds start at {HELD_OUT_START}; tuning seeds stay below it")
+    range_notes: dict[int, str] = {}
+    for item in args.range_notes:
+        start_s, sep, text = item.partition("=")
+        if not sep or not start_s.strip().isdigit():
+            ap.error(f"--range-note {item!r}: expected START=TEXT (START a seed)")
+        range_notes[int(start_s) // 1_000_000] = text.strip()
     seeds = [*range(args.tuning_start, args.tuning_start + args.tuning),
              *range(args.held_start, args.held_start + args.rigs)]
     load0 = os.getloadavg()[0]
@@ -177,11 +192,23 @@ def main() -> None:
                  "angle limit) is counted apart: identify never saw it.", "",
                  f"Goals (issue 30, on the held-out seeds): {GOALS}.", ""]
         if args.from_json:  # the run's own facts are in --note, not this re-render's
-            lines[2] = f"Written from {Path(args.from_json).name}, the dump of a run: {args.note}"
-        lines += _table(f"Held-out seeds ({HELD_OUT_START} …)", held)
-        if tuning:
-            lines += _table("Tuning seeds (below the held-out ones): looked at while the "
-                            "estimator was changed", tuning)
+            names = ", ".join(Path(f).name for f in args.from_json)
+            lines[2] = f"Written from {names}, the dumps of runs: {args.note}"
+        if range_notes or args.from_json:  # one table per million of seeds, then together
+            groups = sorted({o.rig.seed // 1_000_000 for o in outs})
+            for g in groups:
+                part = [o for o in outs if o.rig.seed // 1_000_000 == g]
+                lines += _table(f"Seeds {part[0].rig.seed:,} … {part[-1].rig.seed:,}", part,
+                                range_notes.get(g, ""))
+            if len(groups) > 1:
+                lines += _table("All of the ranges above together", outs,
+                                "The sum of the tables above (each range's own estimator "
+                                "and freeze is said under its table).", rows=False)
+        else:
+            lines += _table(f"Held-out seeds ({HELD_OUT_START} …)", held)
+            if tuning:
+                lines += _table("Tuning seeds (below the held-out ones): looked at while the "
+                                "estimator was changed", tuning)
         Path(args.out).write_text("\n".join(lines), encoding="utf-8")
         if args.json_out:
             Path(args.json_out).write_text(json.dumps(
@@ -202,7 +229,8 @@ def main() -> None:
     if args.from_json:
         from esoarm.studies.identification.experiment.calibration import from_json
 
-        done.extend(from_json(json.loads(Path(args.from_json).read_text(encoding="utf-8"))))
+        for dump in args.from_json:
+            done.extend(from_json(json.loads(Path(dump).read_text(encoding="utf-8"))))
         args.json_out = ""
         write()
         return

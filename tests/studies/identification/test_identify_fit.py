@@ -94,7 +94,9 @@ def test_lag_and_delay_fit_simulates_no_more_than_it_needs(tmp_path, monkeypatch
     look best before the lag is fitted: +31) and the stiction fit is screened after 10
     iterations (260 -> 100 here): 392.  With excite's guard loop since raised for the delay
     (main a5e5dc8) the log differs, and its lag fit takes more iterations: 535.  The
-    neighbouring delays tried again with the final model (lag, stiction): 601."""
+    neighbouring delays tried again with the final model (lag, stiction): 601.  The
+    delay's profile walked with the final model (each delay also from the best model as
+    it is, the walk going on from a new best and past delays inside the threshold): 654."""
     from esoarm.studies.identification import fit as identify_fit
     from esoarm.studies.identification.identify import identify
 
@@ -116,7 +118,7 @@ def test_lag_and_delay_fit_simulates_no_more_than_it_needs(tmp_path, monkeypatch
     monkeypatch.setattr(identify_fit, "simulate_segments_parallel", counted_one)
     monkeypatch.setattr(identify_fit, "simulate_columns", counted_many)
     res = identify(load_scenario("test-1"), [read_ident_log(path, 2.0)])
-    assert count[0] <= 620, count[0]
+    assert count[0] <= 680, count[0]
     assert res.value("actuator.delay_samples") == 1
     for key, true in (("actuator.lag", 0.03), ("rig.inertia_scale", 1.25),
                       ("rig.coulomb_friction", 0.08)):

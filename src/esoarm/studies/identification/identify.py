@@ -48,18 +48,26 @@ delay (integer) is chosen by the cost over 0 … ``max_delay`` (and on, by at mo
 delay gets :data:`FIRST_ITER` iterations from the scenario's values, every
 other delay :data:`TRY_ITER` from there, and only the best is carried to
 convergence (its neighbours, and a delay whose cost comes within
-:data:`CLOSE_DELAY` thresholds of it, are tried again from the converged fit).  The lag is kept by a
+:data:`CLOSE_DELAY` thresholds of it, are tried again from the converged fit); once the lag
+and the stiction are decided, the delay's profile is walked again with that final model
+(:func:`_delay_with_final_structure`: on from every new best, and past every delay inside
+the delay's threshold, the lag moved by the delay's change).  The lag is kept by a
 likelihood-ratio test of T > 0 against T = 0, after a screen (a quarter-sample
 lag with everything else held must lower the cost, else T = 0 is kept without
 a fit).  95 % intervals: ±1.96 standard
 errors from σ̂² (JᵀJ)⁻¹ (rig parameters, the initial states profiled out), or the
-AR noise's sandwich when the residual is coloured sensor noise, and never narrower
+AR noise's sandwich when the residual is coloured sensor noise (the restricted
+likelihood's AR model, or on segments too long for it the Yule-Walker one:
+:func:`_ar_filter_sandwich`), and never narrower
 than the segment-cluster sandwich (:func:`_segment_floor`: valid under any
 correlation within a segment); for the delay, every delay whose cost is within the
 χ²₁ 95 % threshold of the best, times the residual's long-run variance ratio (a
 correlated residual inflates the likelihood ratio by it).  When the evidence rejects
 the model (:func:`_model_rejected`) the intervals are those of
-:func:`_model_error_intervals`, or withheld.
+:func:`_model_error_intervals`, or withheld.  Every written interval is then joined with
+the fits the log cannot rule out: the other delays inside the delay's interval
+(:func:`_ridge_intervals`; the delay and the lag trade along a ridge) and, when a stiction
+won its test but is poorly determined, the fit without it (:func:`_stiction_alternative`).
 
 The inertia is that of the rigid drive train: with gear backlash, the arm's plus the
 motor side's reflected to the arm (the twin's ``rig.motor_inertia``), which a rigid
@@ -617,8 +625,12 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
     # 4. stick-slip: breakaway friction above Coulomb (rig.stiction), kept only if it lowers
     # the cost significantly (χ²₁ test), after a screen as for the lag
     stiction_rejected = None
+    without_stiction: dict[str, float] = {}  # the model with Fst = 0, when Fst > 0 won
     if fit_stiction and sol.converged:
+        before = prob.phys(sol.x)
         prob, sol, stiction_rejected = _fit_stiction(prob, sol, m, fit, d_best, say)
+        if stiction_rejected is None:
+            without_stiction = before
         cost[d_best] = min(cost.get(d_best, math.inf), 2.0 * sol.cost)
     # 4a. a lag that ended at its floor 2h (the RK4 step's) once the stiction was fitted:
     # the model without a lag (T = 0 exactly, below the floor) is tried too, and kept when
@@ -641,9 +653,10 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
     # 4b. the neighbouring delays again with the final structure (lag, stiction): before
     # them a delay of one sample more or less can win by carrying a lag or a stiction the
     # model did not have yet (a 1-sample delay was written as 0 samples and a 5 ms lag)
-    if DELAY_KEY not in fix and sol.converged and len(prob.free) > len(base_free):
-        prob, sol, d_best = _delay_with_final_structure(prob, sol, d_best, top_delay, delays,
-                                                        cost, fit, say, tried, m)
+    ridge: dict[int, dict[str, float]] = {}
+    if DELAY_KEY not in fix and sol.converged:
+        prob, sol, d_best, ridge = _delay_with_final_structure(
+            prob, sol, d_best, top_delay, delays, cost, fit, say, tried, m)
         if fit_lag and "actuator.lag" not in prob.free and lag_rejected is None:
             lag_rejected = lag_lo + probe  # the delay won without the lag (T = 0)
     # 5. the scenario's disturbance is taken as known: unless the log confirms it, a fit
@@ -678,7 +691,6 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
         estimates["rig.stiction"] = Estimate(
             "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m", PARAMS["rig.stiction"][0],
             True, True, "")
-    _delay_trades_off(estimates)
     if val_logs:
         say("validation: the fitted rig on the held-out part of the log")
     val = _validate(scn, prob.phys(sol.x), val_logs, seg_samples, d_best, start) if val_logs else {}
@@ -711,13 +723,29 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
                 estimates["rig.stiction"] = Estimate(
                     "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m",
                     PARAMS["rig.stiction"][0], True, True, "")
-            _delay_trades_off(estimates)
             val["noise_spectrum"]["parameter_intervals"] = (
                 "with the AR noise's covariance: (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹")
             estimates[NOISE_KEY] = Estimate(
                 NOISE_KEY, math.degrees(f.std), (math.degrees(f.std_ci[0]),
                                                  math.degrees(f.std_ci[1])), "deg",
                 "encoder noise σ (stationary std of the AR noise, quantization apart)")
+        elif verdict is None and val["noise_spectrum"]["sensor_noise"] and \
+                val["noise_spectrum"]["noise_ar"] and \
+                val["residual_rms_rad"] <= NOISE_CARRY_OVER * resid_s and not \
+                val["whiteness"]["white"]:
+            # coloured noise on segments too long for the restricted likelihood (1 kHz):
+            # the same sandwich with the Yule-Walker AR model of the plain verdict (without
+            # it the white-noise intervals were too narrow by √(long-run variance ratio),
+            # 2-3× under AR(1) φ 0.7-0.8: a lag written ±0.05 ms that missed)
+            ar = [float(v) for v in val["noise_spectrum"]["noise_ar"]]
+            estimates, gravity, _s = _estimates(scn, prob, sol, m, cost, d_best, delays,
+                                                lag_rejected, _ar_filter_sandwich(prob, sol, ar))
+            if stiction_rejected is not None:
+                estimates["rig.stiction"] = Estimate(
+                    "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m",
+                    PARAMS["rig.stiction"][0], True, True, "")
+            val["noise_spectrum"]["parameter_intervals"] = (
+                "with the AR noise's covariance (Yule-Walker): (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹")
     y_fit = prob.predict(sol.x)
     mask = prob.mask
     fit_pct = _fit_percent(prob.y[mask], y_fit[mask])
@@ -741,6 +769,8 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
         _model_error_intervals(res, prob, sol, idim)
     else:
         _segment_floor(res, prob, sol)
+    _ridge_intervals(res, ridge)
+    _stiction_alternative(res, without_stiction)
     res.elapsed = time.perf_counter() - t_start
     return res
 
@@ -998,17 +1028,73 @@ def _model_error_intervals(res: IdentResult, prob: Problem, sol, idim) -> None: 
                            "delay, lag, stiction and noise withheld")
 
 
-def _delay_trades_off(estimates: dict[str, Estimate]) -> None:
-    """Withhold the lag's interval when the delay's spans more than one delay: a lag of
-    about a sample and one sample of delay fit alike, and the lag's interval is that of the
-    chosen delay only."""
-    d = estimates.get(DELAY_KEY)
-    lag = estimates.get("actuator.lag")
-    if d is None or lag is None or not lag.fitted or d.ci95[1] - d.ci95[0] < 1.0:
+def _ridge_intervals(res: IdentResult, ridge: dict[int, dict[str, float]]) -> None:
+    """Widen the written intervals over the delay's interval: when delays other than the
+    chosen one fit alike (the delay's interval spans them), every rig parameter's interval
+    is joined with the same interval moved to its value at each of those delays (``ridge``:
+    the final model fitted at that delay, :func:`_delay_with_final_structure`), since the
+    interval of the chosen delay is conditional on it.  The lag trades with the delay most
+    (one sample of delay for one sample period of lag); a delay inside the interval that
+    was not fitted with the final model leaves the lag's interval withheld instead.  The
+    gravity coefficient follows plant.m2."""
+    d = res.estimates.get(DELAY_KEY)
+    if d is None or not d.fitted or d.ci95[1] - d.ci95[0] < 1.0:
         return
-    estimates["actuator.lag"] = _withhold(
-        lag, f"trades off with the delay: delays {d.ci95[0]:g} … {d.ci95[1]:g} samples fit "
-        "alike, and this interval is the chosen delay's only")
+    chosen = int(d.value)
+    inside = [k for k in range(int(d.ci95[0]), int(d.ci95[1]) + 1) if k != chosen]
+    known = [ridge[k] for k in inside if k in ridge]
+    if "actuator.lag" in res.estimates and len(known) < len(inside):
+        lag = res.estimates["actuator.lag"]
+        if lag.fitted and not lag.withheld:
+            res.estimates["actuator.lag"] = _withhold(
+                lag, f"trades off with the delay: delays {d.ci95[0]:g} … {d.ci95[1]:g} "
+                "samples fit alike, and this interval is the chosen delay's only")
+    _join_alternatives(res, known, f"trades off with the delay: the interval covers the "
+                       f"fits at delays {d.ci95[0]:g} … {d.ci95[1]:g} samples",
+                       f"joined over the delays {d.ci95[0]:g} … {d.ci95[1]:g} that fit alike")
+
+
+def _stiction_alternative(res: IdentResult, without: dict[str, float]) -> None:
+    """Join the intervals with the model without stiction (Fst = 0, ``without``) when the
+    stiction won its likelihood-ratio test but its own interval is poorly determined: which
+    of the two models holds is then uncertain, and each parameter's interval of the chosen
+    model is conditional on it.  (A held-out 50 Hz twin without stiction was fitted a
+    stiction of 0.003 N·m [0.0001, 0.0055], flagged, and with it a gravity term ±1e-4 that
+    missed by 3.4 standard errors; without the stiction it missed by 1.4.)"""
+    est = res.estimates.get("rig.stiction")
+    if not without or est is None or not est.fitted or est.value <= 0.0 or est.identifiable:
+        return
+    _join_alternatives(res, [without], "the stiction is poorly determined: the interval "
+                       "covers the fit without it too", "joined with the fit without "
+                       "stiction (poorly determined)", skip=("rig.stiction",))
+
+
+def _join_alternatives(res: IdentResult, alternatives: list[dict[str, float]], advice: str,
+                       method: str, skip: tuple[str, ...] = ()) -> None:
+    """Join every written interval of a rig parameter with the same interval moved to the
+    parameter's value in each alternative model (fitted values by key) that the log cannot
+    rule out; the gravity coefficient follows plant.m2; ``advice`` and ``method`` say why."""
+    widened = []
+    for key, est in list(res.estimates.items()):
+        if key in (DELAY_KEY, NOISE_KEY, *skip) or not est.fitted or est.withheld:
+            continue
+        vals = [v[key] for v in alternatives if key in v]
+        below, above = est.value - est.ci95[0], est.ci95[1] - est.value
+        lo = min([est.ci95[0], *(v - below for v in vals)])
+        hi = max([est.ci95[1], *(v + above for v in vals)])
+        if key != "rig.inertia_scale":  # a friction, a mass, a lag: never below 0
+            lo = max(lo, 0.0)
+        if (lo, hi) == est.ci95:
+            continue
+        res.estimates[key] = replace(est, ci95=(lo, hi), advice=est.advice or advice)
+        widened.append(key)
+    if "plant.m2" in widened:
+        m2 = res.estimates["plant.m2"]
+        pl = res.scenario.plant
+        gv = sorted(gravity_coefficient(pl.m1, mass, pl.l1, pl.l2, pl.g) for mass in m2.ci95)
+        res.gravity = replace(res.gravity, ci95=(gv[0], gv[1]))
+    if widened:
+        res.interval_method += f"; {method}: {', '.join(widened)}"
 
 
 def _withhold(est: Estimate, why: str) -> Estimate:
@@ -1145,66 +1231,101 @@ def _fit_stiction(prob: Problem, sol, m: int, fit, delay: int, say):  # type: ig
 def _delay_with_final_structure(prob: Problem, sol, d_best: int, top: int,  # type: ignore[no-untyped-def]
                                 delays: list[int], cost: dict[int, float], fit, say,
                                 tried: dict, m: int):
-    """The delays next to ``d_best`` fitted again with every parameter of the final model
-    (lag, stiction), from the better (lower cost) of two starts: that delay's own earlier
-    fit (``tried``; without lag or stiction) with the lag at its floor and the stiction of
-    the final model, and the final model with its lag moved by the delay's change (one
-    sample more of delay, one sample period less of lag: at low frequency both are the same
-    phase, so this start lies in the other delay's valley).  Where the moved lag falls below
-    the lag's floor 2h (the RK4 step's), that delay is fitted without a lag (T = 0 exactly):
-    a lag held at 2 ms is 0.4 samples at 200 Hz, and with it a twin's true delay lost to one
-    sample less of delay and a 5 ms lag.  :data:`TRY_ITER` iterations, and to convergence
-    when that comes within :data:`CLOSE_DELAY` thresholds of the best.  ``cost`` (2 × the
-    least-squares cost by delay) and ``delays`` are updated in place; returns the (problem,
-    solution, delay) of the best (its problem may lack the lag)."""
+    """The delay's profile with every parameter of the final model (lag, stiction): the
+    delays around ``d_best`` fitted again, each from the best (lower cost) of three starts:
+    the best model so far with its lag moved by the delay's change (one sample more of
+    delay, one sample period less of lag: at low frequency both are the same phase, so this
+    start lies in the other delay's valley), the best model so far as it is, and that
+    delay's own earlier fit (``tried``; without lag or stiction) with the lag at its floor
+    and the best model's stiction.  Where the moved lag falls below the lag's floor 2h (the
+    RK4 step's), that delay is fitted without a lag (T = 0 exactly): a lag held at 2 ms is
+    0.4 samples at 200 Hz, and with it a twin's true delay lost to one sample less of delay
+    and a 5 ms lag.
+
+    The walk goes on from every delay that becomes the best (its other neighbour next), and
+    past every delay whose cost is within the delay's likelihood-ratio threshold of the
+    best (χ²₁ 95 % times the residual's long-run variance ratio, as for the delay's
+    interval): the delay and the lag trade along a ridge, and the interval must see all of
+    it.  (On held-out 1 kHz rigs with coloured noise, a delay chosen before the stiction
+    was fitted stayed two samples off the truth with a lag two samples short, because only
+    one neighbour was tried again; the truth's delay, its lag moved, fitted better.)
+
+    :data:`TRY_ITER` iterations per delay, and to convergence when that comes within
+    :data:`CLOSE_DELAY` thresholds (or twice the long-run threshold) of the best.  ``cost``
+    (2 × the least-squares cost by delay) and ``delays`` are updated in place; returns the
+    (problem, solution, delay) of the best (its problem may lack the lag) and the ridge:
+    {delay: fitted values} of every delay fitted to convergence with the final model."""
     best = (prob, sol, d_best)
     ts = prob.h * prob.nsub  # the sample period [s]
-    for d in (d_best - 1, d_best + 1):
-        if d < 0 or d > top:
-            continue
+    lrv = _long_run_ratio(-sol.fun)
+    near_thr = max(CLOSE_DELAY, 2.0 * lrv) * CHI2_95
+    ridge: dict[int, dict[str, float]] = {d_best: prob.phys(sol.x)}
+    profile: dict[int, float] = {d_best: 2.0 * sol.cost}
+    failed: set[int] = set()
+
+    def next_delays() -> list[int]:
+        b = best[2]
+        out = []
+        for step in (-1, 1):  # each side: past the delays inside the threshold
+            d = b + step
+            while d in profile and m * math.log(max(profile[d], 1e-300)
+                                                / max(2.0 * best[1].cost, 1e-300)) \
+                    <= CHI2_95 * lrv:
+                d += step
+            if 0 <= d <= top and d not in profile and d not in failed:
+                out.append(d)
+        return out
+
+    while True:
+        todo = next_delays()
+        if not todo:
+            break
+        d = todo[0]
         say(f"output-error fit: delay {d} again with the final model (lag, stiction)")
-        p, s = best[0], best[1]
-        x0 = list(s.x[: p.n_phys])
-        states = s.x[p.n_phys:]
+        p, s, d_from = best
+        x_best = list(s.x[: p.n_phys])
         names, fixed = list(p.free), dict(p.fixed)
-        starts = []  # (names, fixed, x, states): candidate models and starts at delay d
-        if "actuator.lag" in p.free:  # the final model, the lag moved by the delay's change
-            xs = list(x0)
+        starts = [(names, fixed, x_best, s.x[p.n_phys:])]  # (names, fixed, x, states)
+        if "actuator.lag" in p.free:  # the best model, the lag moved by the delay's change
+            xs = list(x_best)
             i_lag = p.free.index("actuator.lag")
-            xs[i_lag] = xs[i_lag] - (d - best[2]) * ts
+            xs[i_lag] = xs[i_lag] - (d - d_from) * ts
             if xs[i_lag] > AT_FLOOR * p.lag_floor:
-                starts.append((names, fixed, xs, states))
+                starts.append((names, fixed, xs, s.x[p.n_phys:]))
             else:  # below the lag's floor 2h: that delay without a lag (T = 0 exactly)
                 starts.append(([k for k in names if k != "actuator.lag"],
                                {**fixed, "actuator.lag": 0.0},
                                [v for k, v in zip(names, xs, strict=True)
-                                if k != "actuator.lag"], states))
+                                if k != "actuator.lag"], s.x[p.n_phys:]))
         if d in tried:  # the delay's own fit: its values, no lag
             p_d, s_d = tried[d]
+            x0 = list(x_best)
             for i, key in enumerate(p.free):
                 if key in p_d.free:
                     x0[i] = float(s_d.x[p_d.free.index(key)])
                 elif key == "actuator.lag":
                     x0[i] = 0.0  # clipped to the lag's floor
-            states = s_d.x[p_d.n_phys:]
-        starts.append((names, fixed, x0, states))
-        if len(starts) > 1:  # the start of lower cost (one simulation each)
-            costs = [fit(d, nm, fx, xs, st, max_iter=0)[1].cost for nm, fx, xs, st in starts]
-            names, fixed, x0, states = starts[int(np.argmin(costs))]
-        pd, sd = fit(d, names, fixed, x0, states, max_iter=TRY_ITER)
-        near = m * math.log(max(sd.cost, 1e-300) / max(best[1].cost, 1e-300)) \
-            <= CLOSE_DELAY * CHI2_95
+            starts.append((names, fixed, x0, s_d.x[p_d.n_phys:]))
+        costs = [fit(d, nm, fx, xs, st, max_iter=0)[1].cost for nm, fx, xs, st in starts]
+        nm, fx, x0, states = starts[int(np.argmin(costs))]
+        pd, sd = fit(d, nm, fx, x0, states, max_iter=TRY_ITER)
+        near = m * math.log(max(sd.cost, 1e-300) / max(best[1].cost, 1e-300)) <= near_thr
         if near and not sd.converged:
             before = sd.iterations
-            pd, sd = fit(d, names, fixed, list(sd.x[: pd.n_phys]), sd.x[pd.n_phys:])
+            pd, sd = fit(d, nm, fx, list(sd.x[: pd.n_phys]), sd.x[pd.n_phys:])
             sd.iterations += before
         if d not in delays:
             delays.append(d)
         cost[d] = min(cost.get(d, math.inf), 2.0 * sd.cost)
-        if sd.converged and sd.cost < best[1].cost:
+        if not sd.converged:
+            failed.add(d)
+            continue
+        profile[d] = 2.0 * sd.cost
+        ridge[d] = pd.phys(sd.x)
+        if sd.cost < best[1].cost:
             best = (pd, sd, d)
     cost[best[2]] = min(cost.get(best[2], math.inf), 2.0 * best[1].cost)
-    return best
+    return best[0], best[1], best[2], ridge
 
 
 def _lag_lowers_cost(prob: Problem, sol, lag_lo: float, probe: float) -> bool:  # type: ignore[no-untyped-def]
@@ -1361,3 +1482,32 @@ def _sandwich(prob: Problem, sol, noise) -> np.ndarray:  # type: ignore[no-untyp
         js = jac[pos[rows]]
         b += js.T @ noise.covariance(rows - k0) @ js
     return a_inv @ b @ a_inv
+
+
+def _ar_filter_sandwich(prob: Problem, sol, ar: list[float]) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Covariance of the least-squares estimate under AR noise n = A⁻¹ e [parameter units²]:
+    (JᵀJ)⁻¹ (Σ_s σ_e² (A⁻ᵀ J_s)ᵀ (A⁻ᵀ J_s)) (JᵀJ)⁻¹ with A the AR filter of coefficients
+    ``ar`` (n_k = Σ a_i n_(k−i) + e_k) on each segment s, A⁻ᵀ J_s the columns filtered by
+    1/A backwards in time, and σ_e² the innovation variance of the fit's own residual (each
+    segment filtered by A).  The segments' start is taken as at rest (the AR's stationary
+    start is ignored: its share is the AR's memory over a segment's length)."""
+    from scipy.signal import lfilter
+
+    jac = sol.jac
+    r = -sol.fun
+    den = np.concatenate([[1.0], -np.asarray(ar, dtype=float)])
+    a_inv = np.linalg.pinv(jac.T @ jac)
+    pos = np.cumsum(prob.mask) - 1
+    b = np.zeros_like(a_inv)
+    e2, n_e = 0.0, 0
+    for k0, n in zip(prob.seg_start, prob.seg_len, strict=True):
+        rows = np.arange(k0, k0 + n)
+        at = pos[rows[prob.mask[rows]]]
+        if len(at) <= len(ar):
+            continue
+        e = lfilter(den, [1.0], r[at])[len(ar):]
+        e2 += float(e @ e)
+        n_e += len(e)
+        w = lfilter([1.0], den, jac[at][::-1], axis=0)[::-1]
+        b += w.T @ w
+    return a_inv @ (b * (e2 / max(n_e, 1))) @ a_inv
