@@ -144,26 +144,55 @@ def _motor_cases() -> list[tuple[str, dict[str, object]]]:
 
 
 @gcc
+@pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("case", range(5))
-def test_actuator_maps_match_python(case: int, tmp_path: Path) -> None:
-    """act_actuate = actuate in float64 (the folded torque → duty and duty → torque maps):
-    the same duty, drive and host torque to 1e-12 N·m, over commands inside and past the
-    limit, zero, tiny and at rest or moving."""
+def test_actuator_maps_match_python(case: int, precision: str, tmp_path: Path) -> None:
+    """act_actuate = actuate over commands inside and past the limit, zero, tiny, at rest or
+    moving.  float64 repeats motor.torque_to_duty and source_torque operation by operation:
+    the same duty, drive and host torque to the bit.  float32 folds their constants (one
+    product and one sum each): the same duty but where the Python's is within float32's
+    rounding of a half count (then one count off), the drive and host torque to 1e-6 of the
+    stall torque where the duties agree."""
     name, over = _motor_cases()[case]
     scn = load_scenario(name, over)
     a = actuator.actuator_vector(scn)
-    exe = _build(generate(scn, "host", "float64"), tmp_path, HARNESS, [])
+    exe = _build(generate(scn, "host", precision), tmp_path, HARNESS, [])
     rng = np.random.default_rng(case)
     limit = scn.actuator.torque_limit
     u = np.concatenate([rng.uniform(-limit, limit, 300), [0.0, 1e-9, -1e-9, limit, -limit]])
     rate = np.concatenate([rng.uniform(-6.0, 6.0, 300), [0.0, 0.0, 0.0, 3.0, -3.0]])
-    got = _ask(exe, "".join(f"a {float(x)!r} {float(w)!r}\n" for x, w in zip(u, rate, strict=True)))
+    if precision == "float32":  # what the chip is given
+        u, rate = u.astype(np.float32).astype(float), rate.astype(np.float32).astype(float)
+    got = _ask(exe, "".join(f"a {float(x)!r} {float(w)!r}\n"
+                            for x, w in zip(u, rate, strict=True)))
+    scale = max(float(a[actuator.MOTOR_BLOCK]), limit)  # the stall torque (or the limit)
+    off = 0
     for (x, w), (duty, drive, applied) in zip(zip(u, rate, strict=True), got, strict=True):
         host, drive_py, duty_py = actuator.actuate(float(x), float(w), a)
         if math.isnan(duty_py):
             duty_py = 0.0  # no duty without a motor or a PWM resolution: the C writes 0
-        assert duty == duty_py, (x, w)
-        assert abs(drive - drive_py) <= 1e-12 and abs(applied - host) <= 1e-12, (x, w)
+        if precision == "float64":
+            assert (duty, drive, applied) == (duty_py, drive_py, host), (x, w)
+        elif duty != duty_py:
+            assert abs(duty - duty_py) == 1.0, (x, w)
+            off += 1
+        else:
+            assert abs(drive - drive_py) <= 1e-6 * scale, (x, w)
+            assert abs(applied - host) <= 1e-6 * scale, (x, w)
+    assert off <= 3  # ties are rare: float32's rounding of a count is about 1e-5
+
+
+@gcc
+def test_float64_pil_with_motor_and_table_is_python_to_the_bit() -> None:
+    """uno-rig (a [motor] table) with the learned table, float64 on the host in lockstep:
+    u equals the Python step's to the bit over the whole run."""
+    from esoarm.codegen.host import HostChip
+    from esoarm.codegen.lockstep import lockstep
+
+    scn = load_scenario("uno-rig", {"controller.feedforward_map": TABLE, "duration": 6.0})
+    run = lockstep(scn, HostChip(generate(scn, "host", "float64")))
+    assert run.steps == scn.n_samples
+    assert run.max_abs_du == 0.0, run.max_abs_du
 
 
 @gcc

@@ -34,8 +34,9 @@ static esoarm_real act_saturate(esoarm_real u, esoarm_real limit)
     return COPYSIGN(limit, u);
 }
 
-/* motor.torque_to_duty of t = torque + D omega [N m]: frac = t / K clipped to +-1, then
- * +-(db + (1 - db) |frac|) times P, rounded half to even.  Returned: its magnitude
+#if ESOARM_RECIPROCAL
+/* float32: motor.torque_to_duty of t = torque + D omega [N m]: frac = t / K clipped to +-1,
+ * then +-(db + (1 - db) |frac|) times P, rounded half to even.  Returned: its magnitude
  * rint(P db + min(|t| P (1 - db) / K, P (1 - db))) [counts] (the constants folded by the
  * generator, ACT_DUTY_*: one product and one sum), whose sign is t's; 0 for a t that is 0
  * or not finite. */
@@ -47,6 +48,32 @@ static long act_duty_counts(esoarm_real t)
     if (!ACT_MAG_LE(mag, ACT_DUTY_TOP)) mag = ACT_DUTY_TOP;
     return LRINT(mag + ACT_DUTY_DB);
 }
+#else
+/* float64: motor.torque_to_duty and motor.source_torque operation by operation (the
+ * Python's roundings: float64 repeats the reference's u to the bit). */
+static esoarm_real act_torque_to_duty(esoarm_real t)
+{
+    esoarm_real frac = t / ACT_P[2];
+    if (!ISFINITE(frac)) return R(0.0);
+    if (frac > R(1.0)) frac = R(1.0);
+    else if (frac < R(-1.0)) frac = R(-1.0);
+    if (frac != R(0.0)) {
+        esoarm_real db = ACT_P[5];
+        frac = COPYSIGN(db + (R(1.0) - db) * FABS(frac), frac);
+    }
+    return RINT(frac * ACT_P[4]);   /* round half to even */
+}
+
+static esoarm_real act_source_torque(esoarm_real duty)
+{
+    esoarm_real frac = duty / ACT_P[4];
+    esoarm_real db = ACT_P[5];
+    esoarm_real mag = (FABS(frac) - db) / (R(1.0) - db);
+    if (mag <= R(0.0)) return ACT_P[2] * R(0.0);
+    if (mag > R(1.0)) mag = R(1.0);
+    return ACT_P[2] * COPYSIGN(mag, frac);
+}
+#endif
 
 /* The ESO's b0 u term gated: y [rad] within the band of an end stop and the observer's
  * input u [N m] pushing into it (esoarm.plants.actuator.gated). */
@@ -66,14 +93,13 @@ static esoarm_real act_back_emf(esoarm_real rate)
 }
 
 /* u: saturated command [N m]; emf: act_back_emf.  Sets the torque driving the plant and the
- * duty [counts] (0 without a motor).  With a motor the drive is motor.source_torque of the
- * duty d: K sign(d) min(max(0, (|d| / P - db) / (1 - db)), 1), as |d| K / (P (1 - db)) -
+ * duty [counts] (0 without a motor).  With a motor (float32) the drive is motor.source_torque
+ * of the duty d: K sign(d) min(max(0, (|d| / P - db) / (1 - db)), 1), as |d| K / (P (1 - db)) -
  * K db / (1 - db) (ACT_TORQUE_*) for the |d| above the deadband's ACT_DUTY_DEAD counts, 0 at
  * or below; |d| <= P, so the min is 1 only where the product is K. */
 static void act_drive(esoarm_real u, esoarm_real emf, esoarm_real *drive, esoarm_real *duty)
 {
-    esoarm_real t, counts;
-    long n;
+    esoarm_real t;
     if (ACT_P[1] == R(0.0)) {
         if (ACT_P[6] > R(0.0)) {   /* actuator.pwm_bits: M = ACT_P[6] levels per sign */
             *duty = RINT(DIV(u, ACT_P[0]) * ACT_P[6]);
@@ -84,10 +110,18 @@ static void act_drive(esoarm_real u, esoarm_real emf, esoarm_real *drive, esoarm
         return;
     }
     t = u + emf;
-    n = act_duty_counts(t);
-    counts = (esoarm_real)n;
-    *duty = COPYSIGN(counts, t);
-    *drive = n > ACT_DUTY_DEAD ? COPYSIGN(counts * ACT_TORQUE_GAIN - ACT_TORQUE_DB, t) : R(0.0);
+#if ESOARM_RECIPROCAL
+    {
+        long n = act_duty_counts(t);
+        esoarm_real counts = (esoarm_real)n;
+        *duty = COPYSIGN(counts, t);
+        *drive = n > ACT_DUTY_DEAD ? COPYSIGN(counts * ACT_TORQUE_GAIN - ACT_TORQUE_DB, t)
+                                   : R(0.0);
+    }
+#else
+    *duty = act_torque_to_duty(t);
+    *drive = act_source_torque(*duty);
+#endif
 }
 
 /* act_drive, and the torque the controller believes it applies (fed to the observer): the

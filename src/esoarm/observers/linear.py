@@ -26,6 +26,11 @@ The prediction assumes the exact held-input model: on an ESO of that model ("zoh
 "current") the nominal loop keeps the FLC's poles for every N (the separation principle);
 the Euler ESO's estimation error depends on u, and its loop loses damping as N grows
 (unstable from N = 9 at ε = 0.03 s, 50 Hz; docs/adrc.md, "A delay-aware ESO").
+``delay_form = "model"`` (the one-joint lever arm) adds the nominal model's acceleration
+m(θ, θ̇) = −(G(θ) + Fc tanh(θ̇/vs) + Fv θ̇)/I0 (the plant's gravity, the ``model_*`` friction)
+to b0·u_{k−N} as a known input of the ESO, and predicts with it (:func:`model_predict`): the
+controller gets θ̂, θ̇̂ and ẑ3 + m at t_{k+N}, a friction step inside the horizon included
+(docs/adrc.md, "The model-based predictor").  Its block carries the model after the form.
 
 The semantics: step 5 of the sampled-data loop (docs/semantics.md).  Three discretizations, selected
 by name:
@@ -654,7 +659,8 @@ def design(scn: Scenario, plant: PlantDesign, ts: float) -> ComponentDesign:
     -------
     ComponentDesign
         (CODE, per joint the 21-float :attr:`ESODesign.vector`, the input delay N [samples]
-        and the form (0 "input", 1 "predictor")), (3 + N)·n states.
+        and the form (0 "input", 1 "predictor", 2 "model", then the model's 4 entries)),
+        (3 + N)·n states.
 
     Raises
     ------
