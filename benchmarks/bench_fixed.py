@@ -117,16 +117,15 @@ static inline __attribute__((always_inline)) int32_t qmul(int32_t a, int32_t c, 
 #endif
 static int32_t Z1, Z2, Z3;
 
-esoarm_real esoarm_step(esoarm_state *s, esoarm_real y)
+esoarm_real esoarm_step(esoarm_state *s, esoarm_real y, esoarm_real theta_d,
+                        esoarm_real omega_d, esoarm_real accel_d)
 {{
-    esoarm_real ref[3];
     int32_t yq = (int32_t)lrint(y * S1), e, u, d1, d2, d3;
     if (!s->started) {{ Z1 = yq; Z2 = 0; Z3 = 0; s->started = 1; }}
-    ref_eval(s->k, ref);
     /* FLC (eq. 14-16) on the estimate z = (Z1, Z2, Z3) */
-    u = QMUL((int32_t)lrint(ref[2] * S3) - Z3, C_K3)
-        - QMUL(Z2 - (int32_t)lrint(ref[1] * S2), C_K2)
-        - QMUL(Z1 - (int32_t)lrint(ref[0] * S1), C_K1);
+    u = QMUL((int32_t)lrint(accel_d * S3) - Z3, C_K3)
+        - QMUL(Z2 - (int32_t)lrint(omega_d * S2), C_K2)
+        - QMUL(Z1 - (int32_t)lrint(theta_d * S1), C_K1);
     if (u > U_LIM) u = U_LIM;
     if (u < -U_LIM) u = -U_LIM;
     /* Euler ESO (eq. 8) */
@@ -135,7 +134,6 @@ esoarm_real esoarm_step(esoarm_state *s, esoarm_real y)
     d2 = QMUL(Z3, C_TS23) + QMUL(u, C_U2) + QMUL(e, C_E2);
     d3 = QMUL(e, C_E3);
     Z1 += d1; Z2 += d2; Z3 += d3;
-    s->k++;
     s->u = (esoarm_real)u * INV_SU;
     s->applied = s->drive = s->u;
     s->duty = R(0.0);
@@ -144,15 +142,15 @@ esoarm_real esoarm_step(esoarm_state *s, esoarm_real y)
 """
     src = gen.source
     start = src.index("\n/* ---- plant kind")
-    ref = src.index("\n/* ---- reference ---- */")
-    act = src.index("\n/* ---- actuator ---- */")
-    # the kinds' float step is left out (its design arrays stay, unused, and cost nothing)
-    pragmas = '#pragma GCC diagnostic ignored "-Wunused-variable"\n'
-    init = ("void esoarm_init(esoarm_state *s)\n{\n    s->k = 0;\n    s->started = 0;\n"
+    # the kinds' float step is left out (its design arrays stay, unused, and cost nothing);
+    # the reference comes from the PIL shell as the step's arguments
+    pragmas = ('#pragma GCC diagnostic ignored "-Wunused-variable"\n'
+               '#pragma GCC diagnostic ignored "-Wunused-function"\n')
+    init = ("void esoarm_init(esoarm_state *s)\n{\n    s->started = 0;\n"
             "    s->u = s->applied = s->drive = s->duty = R(0.0);\n}\n\n")
     pragmas += f"#define Q_PRODUCT {product}\n"
-    return (pragmas + src[:start] + "\n" + src[ref:act] + "\n/* ---- the Q-format step ---- */\n"
-            + init + text, text)
+    return (pragmas + src[:start] + "\n/* ---- the Q-format step ---- */\n" + init + text,
+            text)
 
 
 def peaks_of(scn: Scenario) -> dict[str, float]:
@@ -161,8 +159,9 @@ def peaks_of(scn: Scenario) -> dict[str, float]:
     zh = []
     orig = chip.step
 
-    def step(y: float) -> tuple[float, float, float]:
-        out = orig(y)
+    def step(y: float, ref: tuple[float, float, float] = (0.0, 0.0, 0.0)
+             ) -> tuple[float, float, float]:
+        out = orig(y, ref)
         zh.append(chip.last[3:6])
         return out
 
@@ -182,13 +181,19 @@ def without_observer(gen: Generated) -> Generated:
     b = src.index("\n/* ---- controller kind")
     stub = """
 #define OBS_NZ 6
+static int obs_retune(esoarm_real T[], esoarm_real eps, esoarm_real b0)
+{ (void)T; (void)eps; (void)b0; return 0; }
 static void obs_initialize(esoarm_real z[], esoarm_real y) { z[0] = y; }
-static void obs_estimate(const esoarm_real z[], esoarm_real y, esoarm_real zhat[])
-{ (void)z; zhat[0] = y; zhat[1] = R(0.0); zhat[2] = R(0.0); }
-static void obs_advance(esoarm_real z[], const esoarm_real zhat[], esoarm_real y, esoarm_real u)
-{ (void)zhat; (void)u; z[0] = y; }
+static void obs_estimate(const esoarm_real T[], const esoarm_real z[], esoarm_real y,
+                         esoarm_real zhat[])
+{ (void)T; (void)z; zhat[0] = y; zhat[1] = R(0.0); zhat[2] = R(0.0); }
+static void obs_advance(const esoarm_real T[], esoarm_real z[], const esoarm_real zhat[],
+                        esoarm_real y, esoarm_real u)
+{ (void)T; (void)zhat; (void)u; z[0] = y; }
 """
-    return dataclasses.replace(gen, source=src[:a] + stub + src[b:])
+    # the linear ESO's gain helper stays, unused by the stub
+    pragma = '#pragma GCC diagnostic ignored "-Wunused-function"\n'
+    return dataclasses.replace(gen, source=pragma + src[:a] + stub + src[b:])
 
 
 def measure(scn: Scenario, gen: Generated) -> tuple[LockstepRun, AvrChip]:
@@ -206,12 +211,15 @@ def unit_costs() -> list[int]:
     base = generate(scn, "avr", "float32", False)
     src = base.source
     start = src.index("\n/* ---- plant kind")
-    body = '#pragma GCC diagnostic ignored "-Wunused-variable"\n' + src[:start] + """
+    body = ('#pragma GCC diagnostic ignored "-Wunused-variable"\n'
+            '#pragma GCC diagnostic ignored "-Wunused-function"\n') + src[:start] + """
 static volatile int32_t SINK;
 static volatile esoarm_real SINKF;
-void esoarm_init(esoarm_state *s) { s->k = 0; s->started = 0; }
-esoarm_real esoarm_step(esoarm_state *s, esoarm_real y)
+void esoarm_init(esoarm_state *s) { s->started = 0; }
+esoarm_real esoarm_step(esoarm_state *s, esoarm_real y, esoarm_real theta_d,
+                        esoarm_real omega_d, esoarm_real accel_d)
 {
+    (void)theta_d; (void)omega_d; (void)accel_d;
 #if MODE == 1
     SINK = (int32_t)lrint(y * 134217728.0f);
 #elif MODE == 2
@@ -224,7 +232,6 @@ esoarm_real esoarm_step(esoarm_state *s, esoarm_real y)
     SINKF = SINKF + y;
 #endif
     s->u = s->drive = s->duty = R(0.0);
-    s->k++;
     return y;
 }
 """
