@@ -20,7 +20,7 @@ import sys
 import numpy as np
 
 from esoarm.plants.noise import NoiseModel, draws
-from esoarm.studies.identification.noise_ar import SegmentResidual, fit_ar, segment_verdict
+from esoarm.studies.identification.residual.noise_ar import SegmentResidual, fit_ar, segment_verdict
 
 
 def _segments(w: np.ndarray, seed: int, n: int = 100) -> list[SegmentResidual]:

@@ -78,7 +78,7 @@ PENDING = {
     "esoarm.studies.identification.identify": 11,
     "esoarm.studies.identification.idim": 14,
     "esoarm.studies.identification.lever_checks": 5,
-    "esoarm.studies.identification.noise_ar": 1,
+    "esoarm.studies.identification.residual.noise_ar": 1,
     "esoarm.studies.identification.plots": 1,
     "esoarm.studies.identification.experiment.probe": 14,
     "esoarm.studies.identification.report": 3,

@@ -9,7 +9,7 @@ import pytest
 from scipy.linalg import solve_toeplitz
 
 from esoarm.plants.noise import NoiseModel, ar_autocovariance, draws
-from esoarm.studies.identification.noise_ar import fit_ar, levinson_durbin, noise_verdict
+from esoarm.studies.identification.residual.noise_ar import fit_ar, levinson_durbin, noise_verdict
 
 
 def _ar(phi: tuple[float, ...], n: int, seed: int, deg: float = 0.3) -> np.ndarray:
@@ -123,7 +123,7 @@ def test_identify_writes_an_ar_noise_only_when_it_is_one(tmp_path, truth_sets: d
 def _segments(w: np.ndarray, n: int = 100, inputs: np.ndarray | None = None):
     """Split w into segments of n samples and fit each one's offset and slope away (as the
     identification's initial angle and rate do)."""
-    from esoarm.studies.identification.noise_ar import SegmentResidual
+    from esoarm.studies.identification.residual.noise_ar import SegmentResidual
 
     t = np.arange(n) * 0.02
     x = np.stack([np.ones(n), t], axis=1)
@@ -138,7 +138,7 @@ def _segments(w: np.ndarray, n: int = 100, inputs: np.ndarray | None = None):
 
 @pytest.mark.parametrize("phi", [(0.7,), (1.2, -0.5), (0.5, 0.0, 0.3)])
 def test_correlation_from_partial_autocorrelations_is_the_ar_autocovariance(phi):
-    from esoarm.studies.identification.noise_ar import (
+    from esoarm.studies.identification.residual.noise_ar import (
         _ar_correlation,
         _kappa_to_phi,
         _phi_to_kappa,
@@ -154,7 +154,7 @@ def test_restricted_likelihood_removes_the_bias_of_the_initial_state_fit():
     """Per-segment offset and slope fitted away (segments of 100 samples) bias Yule-Walker
     low by about (2 + 4φ)/100; the restricted likelihood does not see that part and its
     interval covers the truth."""
-    from esoarm.studies.identification.noise_ar import reml_ar
+    from esoarm.studies.identification.residual.noise_ar import reml_ar
 
     w = _ar((0.7,), 3000, 11)
     segs = _segments(w)
@@ -172,7 +172,7 @@ def test_restricted_likelihood_removes_the_bias_of_the_initial_state_fit():
 def test_quantization_is_held_apart():
     """AR(1) noise of 0.3° read through 0.6° counts: the white quantization q²/12 is held in
     the model, so φ and the AR std are the noise's, not those of noise plus rounding."""
-    from esoarm.studies.identification.noise_ar import reml_ar
+    from esoarm.studies.identification.residual.noise_ar import reml_ar
 
     q = math.radians(0.6)
     w = np.round(_ar((0.7,), 3000, 12) / q) * q
@@ -183,7 +183,7 @@ def test_quantization_is_held_apart():
 
 
 def test_segmented_white_noise_is_white_sensor_noise():
-    from esoarm.studies.identification.noise_ar import segment_verdict
+    from esoarm.studies.identification.residual.noise_ar import segment_verdict
 
     w = np.random.default_rng(6).standard_normal(2000) * math.radians(0.2)
     v = segment_verdict(_segments(w))
@@ -192,7 +192,7 @@ def test_segmented_white_noise_is_white_sensor_noise():
 
 
 def test_segmented_input_driven_residual_is_model_error():
-    from esoarm.studies.identification.noise_ar import segment_verdict
+    from esoarm.studies.identification.residual.noise_ar import segment_verdict
 
     n = 2000
     u = np.random.default_rng(4).standard_normal(n)
@@ -203,7 +203,7 @@ def test_segmented_input_driven_residual_is_model_error():
 
 
 def test_segment_verdict_is_deterministic():
-    from esoarm.studies.identification.noise_ar import segment_verdict
+    from esoarm.studies.identification.residual.noise_ar import segment_verdict
 
     segs = _segments(_ar((0.6,), 1000, 9))
     a, b = segment_verdict(segs).to_dict(), segment_verdict(segs).to_dict()

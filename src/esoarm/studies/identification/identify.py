@@ -28,8 +28,9 @@ logs: it refuses angles that cannot be in rad, a scenario disturbance the log
 clearly lacks, and an output-error inertia grossly off its own.  The encoder
 noise goes into the fitted scenario only when the validation residual is white, or when it
 is coloured sensor noise: then with its AR spectrum as ``sensor.noise_ar``
-(:mod:`esoarm.studies.identification.noise_ar`: Yule-Walker, order by AIC, the AR innovation
-white and uncorrelated with the past input, and the validation residual's RMS at most
+(:mod:`esoarm.studies.identification.residual.noise_ar`: Yule-Walker, order by AIC,
+the AR innovation white and uncorrelated with the past input, and the validation residual's
+RMS at most
 :data:`NOISE_CARRY_OVER` times the fit's); otherwise the spectrum is reported as model
 error.
 
@@ -88,7 +89,7 @@ from esoarm.plants.model import gravity_coefficient
 from esoarm.scenario import Scenario, ScenarioError
 from esoarm.studies.identification.data import IdentLog, check_supported
 from esoarm.studies.identification.fit import PARAMS, Problem, limits_from_data
-from esoarm.studies.identification.noise_ar import SegmentResidual, segment_verdict
+from esoarm.studies.identification.residual.noise_ar import SegmentResidual, segment_verdict
 
 __all__ = ["FREE_KEYS", "FitFailed", "IdentResult", "Estimate", "identify"]
 
@@ -259,7 +260,7 @@ class IdentResult:
     def coloured_noise(self) -> list[float] | None:
         """AR coefficients of the encoder noise (``[]``: white) when the validation residual
         fails the plain whiteness test but the residual is sensor noise by its spectrum
-        (:mod:`esoarm.studies.identification.noise_ar`), else None."""
+        (:mod:`esoarm.studies.identification.residual.noise_ar`), else None."""
         spec = self.validation.get("noise_spectrum")
         if self.noise_is_sensor() or not spec or not spec["sensor_noise"]:
             return None
@@ -702,7 +703,8 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
         segs = _segment_residuals(prob, sol) + vsegs
         q = math.radians(scn.sensor.resolution_deg)
         if max(len(sg.r) for sg in segs) > REML_MAX_SEGMENT:  # dense likelihood too costly:
-            from esoarm.studies.identification.noise_ar import noise_verdict  # the plain one
+            # the plain one
+            from esoarm.studies.identification.residual.noise_ar import noise_verdict
 
             verdict = None
             val["noise_spectrum"] = noise_verdict(np.concatenate([sg.r for sg in vsegs]),
@@ -1471,7 +1473,7 @@ def _segment_residuals(prob: Problem, sol) -> list[SegmentResidual]:  # type: ig
 def _sandwich(prob: Problem, sol, noise) -> np.ndarray:  # type: ignore[no-untyped-def]
     """Covariance of the least-squares estimate under correlated noise [parameter units²]:
     (JᵀJ)⁻¹ (Σ_s J_sᵀ Σ_s J_s) (JᵀJ)⁻¹, with Σ_s the noise model's covariance
-    (:meth:`esoarm.studies.identification.noise_ar.RemlFit.covariance`) on segment s."""
+    (:meth:`esoarm.studies.identification.residual.noise_ar.RemlFit.covariance`) on segment s."""
     jac = sol.jac
     a_inv = np.linalg.pinv(jac.T @ jac)
     pos = np.cumsum(prob.mask) - 1
