@@ -39,17 +39,18 @@ import subprocess
 import sys
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 from doc_block import write_block
 
-from esoarm.engines.simulation import SimulationDiverged, prepare
+from esoarm.engines.simulation import prepare
 from esoarm.scenario import Scenario, load_scenario
 from esoarm.studies.adrc.compare import _scenario, form_keys
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_predictor import paper_holds  # noqa: E402
+from bench_predictor import held_by, paper_holds, simulate_one, tracking_rms  # noqa: E402
 
 HELD = (14, 15, 16, 17)
 CASES = [(50.0, 0.05), (50.0, 0.03), (1000.0, 0.05), (1000.0, 0.03)]
@@ -81,8 +82,6 @@ def rms_error(scn: Scenario, delay: int, seeds: tuple[int, ...], fc: float, fv: 
     ``told = False``: the observer is not told the delay (``input_delay = 0``) and the
     reference is not previewed: the model-assisted ESO alone, as the paper's ESO is run.
     """
-    from esoarm.engines.batch import simulate_many
-
     theta_ref = np.asarray(prepare(scn).theta_ref).ravel()
     out = []
     for seed in seeds:
@@ -93,16 +92,16 @@ def rms_error(scn: Scenario, delay: int, seeds: tuple[int, ...], fc: float, fv: 
                                 "observer.delay_form": "model", "observer.model_coulomb": fc,
                                 "observer.model_viscous": fv,
                                 "observer.model_friction_velocity": vs, "sensor.seed": seed})
-        try:
-            (res,) = simulate_many([point])
-        except SimulationDiverged:
-            return math.inf
-        th = np.asarray(res.theta).ravel()
-        e = float(np.sqrt(np.mean((th - theta_ref[:len(th)]) ** 2)))
-        if not math.isfinite(e) or getattr(res, "diverged", False):
+        e = tracking_rms(partial(simulate_one, point), theta_ref)
+        if not math.isfinite(e):
             return math.inf
         out.append(e)
     return float(np.mean(out))
+
+
+def _rms_at(scn: Scenario, seeds: tuple[int, ...], fc: float, fv: float, vs: float, told: bool,
+            delay: int) -> float:
+    return rms_error(scn, delay, seeds, fc, fv, vs, told)
 
 
 #: row label -> (Fc scale, model vs [rad/s], twin overrides, own yardstick, told the delay)
@@ -147,13 +146,8 @@ def table(cases: list[tuple[float, float]], seeds: tuple[int, ...],
                 delays = list(range(10, 201, 10))
             else:
                 delays = [goal // 2, goal, round(1.25 * goal)]
-            held, seen = 0, []
-            for d in delays:
-                e = rms_error(twin, d, seeds, fcs * fc, fv, vs, told)
-                seen.append((d, e))
-                if e > limit:
-                    break
-                held = d
+            held, seen = held_by(partial(_rms_at, twin, seeds, fcs * fc, fv, vs, told), limit,
+                                 delays)
             text = (f"{held}" if held else f"< {delays[0]}") + (" ✓" if held >= goal else " ✗")
             shown = seen if not fine else [(d, e) for d, e in seen if d == goal]
             if own:

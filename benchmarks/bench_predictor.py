@@ -211,6 +211,27 @@ DESIGNS: dict[str, tuple[dict, bool]] = {
 }
 
 
+def simulate_one(point: Scenario) -> object:
+    """One run of ``point`` on the batch engine."""
+    from esoarm.engines.batch import simulate_many
+
+    (res,) = simulate_many([point])
+    return res
+
+
+def tracking_rms(run: Callable[[], object], theta_ref: np.ndarray) -> float:
+    """RMS of θ − θd [rad] of the run ``run()`` makes; inf if it diverged."""
+    try:
+        res = run()
+    except SimulationDiverged:
+        return math.inf
+    th = np.asarray(res.theta).ravel()  # type: ignore[attr-defined]
+    e = float(np.sqrt(np.mean((th - theta_ref[:len(th)]) ** 2)))
+    if not math.isfinite(e) or getattr(res, "diverged", False):
+        return math.inf
+    return e
+
+
 def rms_error(scn: Scenario, design: str, delay: int, seeds: tuple[int, ...]) -> float:
     """Mean RMS of θ − θd (the scenario's own reference) over ``seeds``; inf if one diverged."""
     keys, wrapped = DESIGNS[design]
@@ -220,41 +241,44 @@ def rms_error(scn: Scenario, design: str, delay: int, seeds: tuple[int, ...]) ->
         point = _scenario(scn, {**form_keys("delay-predictor+preview", scn, delay), **keys,
                                 "sensor.seed": seed})
         st: dict = {"eps": float(np.ravel([scn.observer.eps])[0])}
-        try:
+
+        def run(point: Scenario = point, st: dict = st) -> object:
             if wrapped:
                 est, adv = _wrapped(design if design.startswith("ramp") else
                                     design.split(",")[0], st)
                 saved = lin.estimate, lin.advance
                 lin.estimate, lin.advance = est, adv  # the reference engine looks them up
                 try:
-                    res = simulate(point, warn=False)
+                    return simulate(point, warn=False)
                 finally:
                     lin.estimate, lin.advance = saved
-            else:
-                from esoarm.engines.batch import simulate_many
+            return simulate_one(point)
 
-                (res,) = simulate_many([point])
-        except SimulationDiverged:
-            return math.inf
-        th = np.asarray(res.theta).ravel()
-        e = float(np.sqrt(np.mean((th - theta_ref[:len(th)]) ** 2)))
-        if not math.isfinite(e) or getattr(res, "diverged", False):
+        e = tracking_rms(run, theta_ref)
+        if not math.isfinite(e):
             return math.inf
         out.append(e)
     return float(np.mean(out))
 
 
-def largest_held(scn: Scenario, design: str, limit: float, delays: list[int],
-                 seeds: tuple[int, ...]) -> tuple[int, list[tuple[int, float]]]:
-    """The largest delay of ``delays`` (increasing) held with every smaller one; the RMS seen."""
+def held_by(error: Callable[[int], float], limit: float,
+            delays: list[int]) -> tuple[int, list[tuple[int, float]]]:
+    """The largest delay of ``delays`` (increasing) whose ``error(delay)`` stays within
+    ``limit``, every smaller one too; the errors seen up to the first one over it."""
     held, seen = 0, []
     for d in delays:
-        e = rms_error(scn, design, d, seeds)
+        e = error(d)
         seen.append((d, e))
         if e > limit:
             break
         held = d
     return held, seen
+
+
+def largest_held(scn: Scenario, design: str, limit: float, delays: list[int],
+                 seeds: tuple[int, ...]) -> tuple[int, list[tuple[int, float]]]:
+    """The largest delay of ``delays`` (increasing) held with every smaller one; the RMS seen."""
+    return held_by(lambda d: rms_error(scn, design, d, seeds), limit, delays)
 
 
 def paper_holds(scn: Scenario, seeds: tuple[int, ...], fine: bool) -> tuple[float, int]:
