@@ -1,7 +1,8 @@
 """Issue 33's new kinds and options through every consumer (the gaps found and closed).
 
 Each new option (adrc-error, adrc-tf, half-gain, input_delay, pid + ESO compensation, the
-switch, the learned table, the ESO fed the command, end stops with the gate) is run by
+switch, the learned table, the ESO fed the command, end stops with the gate, the model
+delay form) is run by
 simulate, the fast engine (or refused naming the key), analyze (or refused naming the key,
 or its "left out" lines naming what the linear model does not hold), the Gymnasium
 environment driven by the scenario's own controller (bit for bit with simulate) and replay
@@ -42,13 +43,17 @@ OPTIONS = {
     "table": {"controller.feedforward_map": TABLE, **COG},
     "commanded": {"actuator.observer_sees": "commanded", "actuator.torque_limit": 0.1},
     "stops+gate": STOPS,
+    "delay-model": {"observer.discretization": "current", "observer.delay_form": "model",
+                    "observer.model_coulomb": 0.05, "observer.model_viscous": 0.01,
+                    "observer.input_delay": 3, "actuator.delay_samples": 3},
 }
 #: What the fast engine refuses, by the key its one line names (None: it runs the option).
 FAST_REFUSES = {"adrc-error": "controller.kind", "adrc-tf": "controller.kind",
                 "input_delay": "observer.input_delay", "pid+eso": "controller.kind",
-                "switch": "controller.kind"}
+                "switch": "controller.kind", "delay-model": "observer.input_delay"}
 #: What analyze refuses (its linearization models the FLC law), by key.
-ANALYZE_REFUSES = {"pid+eso": "controller.kind", "switch": "controller.kind"}
+ANALYZE_REFUSES = {"pid+eso": "controller.kind", "switch": "controller.kind",
+                   "delay-model": "observer.delay_form"}
 #: (adrc-error and adrc-tf are analyzed as their FLC equivalent: test_flc_equivalent.py)
 #: Words of analyze's "left out" lines.
 ANALYZE_LEFT_OUT = {"table": ["controller.feedforward_map", "rig.cogging"],

@@ -8,7 +8,8 @@ equations on a recorded sequence (to round-off); equal bit for bit to the shippe
 when the model is zero; the batch engine against the reference engine; the generated C in
 lockstep with the Python step; the 2× delay on test-1 at 50 Hz (seed 0; the held-out table is
 docs/adrc.md's, from benchmarks/bench_model_predictor.py); the refusals (another plant,
-analyze, the fast engine).
+analyze, the fast engine).  Gym, replay and `esoarm run`'s host controller are checked with
+the other new options in tests/test_adrcc_consumers.py.
 """
 
 from __future__ import annotations
@@ -194,55 +195,8 @@ def test_warnings_and_label() -> None:
     assert not [w for w in lin.warnings(ok, 0.02) if "model" in w]
 
 
-# --- every consumer that takes the form runs it as simulate does ------------------------------
-
-CONSUMER = {**KEYS, "observer.input_delay": 3, "actuator.delay_samples": 3, "duration": 8.0}
-
-
-def test_gym_policy_is_simulate_bit_for_bit() -> None:
-    gym = pytest.importorskip("gymnasium")
-    envs = pytest.importorskip("esoarm.envs")
-    import esoarm
-    from esoarm.engines.simulation import simulate
-
-    env = gym.make("esoarm/LeverArm-v0", scenario="test-1", overrides=CONSUMER,
-                   action_mode="torque", observe_estimates=True)
-    policy = envs.EsoFlcPolicy(env)
-    obs, _ = env.reset()
-    rows = []
-    while True:
-        obs, _, terminated, truncated, info = env.step(policy(obs))
-        rows.append([info[k] for k in esoarm.result.CSV_COLUMNS])
-        if terminated or truncated:
-            break
-    np.testing.assert_array_equal(np.array(rows), simulate("test-1", CONSUMER,
-                                                           warn=False).table())
-
-
-def test_replay_recovers_the_logged_estimates(run_cli, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    import json
-
-    sets = [a for key, value in CONSUMER.items()
-            for a in ("--set", f"{key}={json.dumps(value)}")]
-    log, out = tmp_path / "run.csv", tmp_path / "replayed.csv"
-    res = run_cli("-q", "simulate", "test-1", *sets, "--out", str(log))
-    assert res.exit_code == 0, res.stderr
-    res = run_cli("-q", "replay", str(log), "--scenario", "test-1", *sets, "--out", str(out))
-    assert res.exit_code == 0, res.stderr
-    a = np.genfromtxt(log, delimiter=",", names=True)
-    b = np.genfromtxt(out, delimiter=",", names=True)
-    for col in ("z1", "z2", "z3"):
-        np.testing.assert_array_equal(b[col], a[col])
-
-
-def test_host_controller_commands_what_simulate_does() -> None:
-    """`esoarm run`'s host controller over the emulated twin (noise off): u bit for bit."""
-    from controllers.lockstep import host_commands
-    from esoarm.engines.simulation import simulate
-
-    scn = load_scenario("test-1", {**CONSUMER, "sensor.noise_deg": 0.0})
-    np.testing.assert_array_equal(host_commands(scn), simulate(scn, warn=False).u)
-
+# --- every consumer that takes the form (gym, replay, the host controller of `esoarm run`)
+# runs it as simulate does: the "delay-model" row of tests/test_adrcc_consumers.py
 
 def test_compare_puts_it_beside_the_predictor(run_cli) -> None:  # type: ignore[no-untyped-def]
     """`esoarm compare --kinds ...,delay-model+preview` (50 Hz, ε = 0.05 s, seeds 0-1):
