@@ -686,12 +686,19 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
                         + "); try other starting values (--set) or a longer, richer "
                         "log (esoarm excite)")
     say("intervals: the Jacobian at the fit")
-    estimates, gravity, resid_s = _estimates(scn, prob, sol, m, cost, d_best, delays,
-                                             lag_rejected)
-    if stiction_rejected is not None:  # fitted, and Fst = 0 won the likelihood-ratio test
-        estimates["rig.stiction"] = Estimate(
-            "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m", PARAMS["rig.stiction"][0],
-            True, True, "")
+
+    def intervals(cov=None):  # type: ignore[no-untyped-def]
+        """:func:`_estimates` from ``cov``, with the stiction that was fitted and lost its
+        likelihood-ratio test (Fst = 0 won) written as 0 in [0, the fitted value]."""
+        est, grav, resid = _estimates(scn, prob, sol, m, cost, d_best, delays, lag_rejected,
+                                      cov)
+        if stiction_rejected is not None:
+            est["rig.stiction"] = Estimate(
+                "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m",
+                PARAMS["rig.stiction"][0], True, True, "")
+        return est, grav, resid
+
+    estimates, gravity, resid_s = intervals()
     if val_logs:
         say("validation: the fitted rig on the held-out part of the log")
     val = _validate(scn, prob.phys(sol.x), val_logs, seg_samples, d_best, start) if val_logs else {}
@@ -719,12 +726,7 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
             # coloured noise: the intervals of the rig parameters from the sandwich
             # (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹ with Σ the AR noise's covariance on each segment (the
             # white-noise intervals would be too narrow by up to √((1 + φ)/(1 − φ)))
-            estimates, gravity, _s = _estimates(scn, prob, sol, m, cost, d_best, delays,
-                                                lag_rejected, _sandwich(prob, sol, f))
-            if stiction_rejected is not None:
-                estimates["rig.stiction"] = Estimate(
-                    "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m",
-                    PARAMS["rig.stiction"][0], True, True, "")
+            estimates, gravity, _s = intervals(_sandwich(prob, sol, f))
             val["noise_spectrum"]["parameter_intervals"] = (
                 "with the AR noise's covariance: (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹")
             estimates[NOISE_KEY] = Estimate(
@@ -740,12 +742,7 @@ def _identify(scn, logs, validation, validate_fraction, segment, max_delay, fix,
             # it the white-noise intervals were too narrow by √(long-run variance ratio),
             # 2-3× under AR(1) φ 0.7-0.8: a lag written ±0.05 ms that missed)
             ar = [float(v) for v in val["noise_spectrum"]["noise_ar"]]
-            estimates, gravity, _s = _estimates(scn, prob, sol, m, cost, d_best, delays,
-                                                lag_rejected, _ar_filter_sandwich(prob, sol, ar))
-            if stiction_rejected is not None:
-                estimates["rig.stiction"] = Estimate(
-                    "rig.stiction", 0.0, (0.0, stiction_rejected), "N·m",
-                    PARAMS["rig.stiction"][0], True, True, "")
+            estimates, gravity, _s = intervals(_ar_filter_sandwich(prob, sol, ar))
             val["noise_spectrum"]["parameter_intervals"] = (
                 "with the AR noise's covariance (Yule-Walker): (JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹")
     y_fit = prob.predict(sol.x)
